@@ -1,0 +1,85 @@
+//! Cost of one servo period of the XYZ table: PID + DC-motor actuators + 4 physics steps of
+//! 0.25 ms (T = 1 ms), and of one bare physics step.
+
+use cncsim::control::{Actuator, ActuatorKind, Pid, PidBank, PidForm, PidGains};
+use cncsim::machine::Machine;
+use cncsim::model::{Plant, PlantOptions};
+use cncsim::plan::Setpoints;
+use cncsim::sim::{CoSimulation, LoopSettings};
+use criterion::{criterion_group, criterion_main, BatchSize, Criterion};
+use std::path::Path;
+
+fn table() -> Machine {
+    Machine::load(&Path::new(env!("CARGO_MANIFEST_DIR")).join("models/xyz_table.urdf")).unwrap()
+}
+
+fn plant(machine: &Machine, step: f64) -> Plant {
+    let options = PlantOptions {
+        step,
+        gravity: [0.0, 0.0, -9.81],
+        initial_positions: vec![0.1, 0.1, 0.0],
+        include_drive_dynamics: true,
+        solver_iterations: 1,
+    };
+    Plant::new(machine, &options).unwrap()
+}
+
+fn benches(c: &mut Criterion) {
+    let machine = table();
+    let mut p = plant(&machine, 2.5e-4);
+    c.bench_function("physics step (0.25 ms), XYZ table", |b| {
+        b.iter(|| {
+            p.set_joint_forces(&[1.0, -1.0, 5.0]);
+            p.step();
+        })
+    });
+
+    // One servo period through the full loop: 1000 ticks per iteration, reported per tick.
+    let ticks = 1000;
+    let mut setpoints = Setpoints::new(1e-3, 3);
+    for k in 0..ticks {
+        let x = 0.1 + 5e-6 * k as f64;
+        setpoints.push(&[x, 0.1, 0.0], &[0.005, 0.0, 0.0], &[0.0; 3], 0);
+    }
+    let mut group = c.benchmark_group("servo period (1 ms = PID + DC motor + 4 physics steps)");
+    group.throughput(criterion::Throughput::Elements(ticks as u64));
+    group.bench_function("xyz table, per 1000 ticks", |b| {
+        b.iter_batched(
+            || {
+                let gains = PidGains {
+                    kp: 19800.0,
+                    ki: 6.1e5,
+                    kd: 146.0,
+                };
+                CoSimulation {
+                    plant: plant(&machine, 2.5e-4),
+                    controller: Box::new(PidBank::new(
+                        (0..3)
+                            .map(|_| Pid::new(gains, PidForm::Positional, 1e-3, 6.0))
+                            .collect(),
+                    )),
+                    actuators: machine
+                        .axes
+                        .iter()
+                        .map(|a| Actuator::new(ActuatorKind::DcMotor, &a.drive))
+                        .collect(),
+                    settings: LoopSettings {
+                        servo_period: 1e-3,
+                        substeps: 4,
+                        settle_time: 0.0,
+                        ratios: machine.axes.iter().map(|a| a.drive.ratio()).collect(),
+                        encoder_resolution: vec![None; 3],
+                        following_error_limit: vec![1.0; 3],
+                        axis_names: vec!["x".into(), "y".into(), "z".into()],
+                    },
+                }
+            },
+            |sim| sim.run(&setpoints, &mut |_, _| {}),
+            BatchSize::LargeInput,
+        )
+    });
+    group.finish();
+}
+
+criterion_group!(servo, benches);
+criterion_main!(servo);

@@ -1,0 +1,119 @@
+//! Errors that point into a user's file: `path:line:column: message`, as compilers print them.
+
+use std::fmt;
+use std::path::{Path, PathBuf};
+
+/// A position in a text file, 1-based.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct LineColumn {
+    pub line: usize,
+    pub column: usize,
+}
+
+impl LineColumn {
+    /// Line and column (in characters) of a byte offset into `text`.
+    pub fn of_offset(text: &str, offset: usize) -> Self {
+        let offset = offset.min(text.len());
+        let before = &text[..floor_char_boundary(text, offset)];
+        let line = before.matches('\n').count() + 1;
+        let line_start = before.rfind('\n').map_or(0, |i| i + 1);
+        let column = before[line_start..].chars().count() + 1;
+        LineColumn { line, column }
+    }
+
+    /// Position of the first occurrence of `needle` in `text`, if any.
+    pub fn of_first(text: &str, needle: &str) -> Option<Self> {
+        text.find(needle).map(|i| Self::of_offset(text, i))
+    }
+}
+
+fn floor_char_boundary(text: &str, mut i: usize) -> usize {
+    while !text.is_char_boundary(i) {
+        i -= 1;
+    }
+    i
+}
+
+/// An error in a user's file, with the place it was found where there is one.
+#[derive(Debug, Clone, PartialEq)]
+pub struct FileError {
+    pub path: PathBuf,
+    pub at: Option<LineColumn>,
+    pub message: String,
+}
+
+impl FileError {
+    pub fn new(path: &Path, at: Option<LineColumn>, message: impl Into<String>) -> Self {
+        FileError {
+            path: path.to_path_buf(),
+            at,
+            message: message.into(),
+        }
+    }
+
+    /// An error at a byte offset of `text` (the contents of `path`).
+    pub fn at_offset(path: &Path, text: &str, offset: usize, message: impl Into<String>) -> Self {
+        Self::new(path, Some(LineColumn::of_offset(text, offset)), message)
+    }
+}
+
+impl fmt::Display for FileError {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        match self.at {
+            Some(at) => write!(
+                f,
+                "{}:{}:{}: {}",
+                self.path.display(),
+                at.line,
+                at.column,
+                self.message
+            ),
+            None => write!(f, "{}: {}", self.path.display(), self.message),
+        }
+    }
+}
+
+impl std::error::Error for FileError {}
+
+/// Turns a `toml` deserialisation error into a located one. The toml crate's own message
+/// repeats the offending line with a caret; we keep only its first sentence and give the place.
+pub fn toml_error(path: &Path, text: &str, err: &toml::de::Error) -> FileError {
+    let at = err
+        .span()
+        .map(|span| LineColumn::of_offset(text, span.start));
+    FileError::new(path, at, err.message().trim().to_string())
+}
+
+/// Reads a file to a string, naming the file in the error.
+pub fn read_text(path: &Path, what: &str) -> Result<String, FileError> {
+    std::fs::read_to_string(path)
+        .map_err(|e| FileError::new(path, None, format!("cannot read {what}: {e}")))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn offsets_map_to_lines_and_columns() {
+        let text = "a = 1\nbé = 2\n";
+        assert_eq!(
+            LineColumn::of_offset(text, 0),
+            LineColumn { line: 1, column: 1 }
+        );
+        assert_eq!(
+            LineColumn::of_offset(text, 6),
+            LineColumn { line: 2, column: 1 }
+        );
+        // 'é' is two bytes: the '=' after "bé " is the 4th character of line 2.
+        let eq = text.rfind('=').unwrap();
+        assert_eq!(
+            LineColumn::of_offset(text, eq),
+            LineColumn { line: 2, column: 4 }
+        );
+        assert_eq!(
+            LineColumn::of_offset(text, 10_000),
+            LineColumn { line: 3, column: 1 }
+        );
+    }
+}

@@ -1,0 +1,17 @@
+//! cncsim: a physics co-simulation testbed for CNC machines.
+//!
+//! The modules follow the data flow (see `README.md`):
+//! program text → [`program`] → [`kinematics`] → [`plan`] → [`sim`] (with [`control`] and the
+//! Rapier [`model`]) → [`report`]; [`scenario`] ties a run together. [`machine`] is the
+//! machine description every stage reads. A stage never imports a later one.
+
+pub mod control;
+pub mod diagnostics;
+pub mod kinematics;
+pub mod machine;
+pub mod model;
+pub mod plan;
+pub mod program;
+pub mod report;
+pub mod scenario;
+pub mod sim;

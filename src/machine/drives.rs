@@ -1,0 +1,311 @@
+//! The drive sidecar `<machine>.drives.toml`: motor, amplifier and transmission data per axis,
+//! which URDF has no element for, and the tool point.
+
+use super::{Axis, JointKind, KinematicTree, Machine};
+use crate::diagnostics::{read_text, toml_error, FileError, LineColumn};
+use serde::Deserialize;
+use std::collections::BTreeMap;
+use std::path::{Path, PathBuf};
+
+/// How motor rotation becomes joint motion.
+#[derive(Debug, Clone, Copy, PartialEq, Deserialize)]
+#[serde(tag = "kind", rename_all = "kebab-case", deny_unknown_fields)]
+pub enum Transmission {
+    /// Gearbox then a belt pulley (linear joint): x = (r/N)·θ.
+    Belt {
+        gear_ratio: f64,
+        pulley_radius_m: f64,
+    },
+    /// Optional gearbox then a ball screw of the given lead (linear joint): z = (lead/2πN)·θ.
+    Screw {
+        #[serde(default = "one")]
+        gear_ratio: f64,
+        lead_m: f64,
+    },
+    /// Gearbox on a rotary joint: q = θ/N.
+    Gear { ratio: f64 },
+}
+
+fn one() -> f64 {
+    1.0
+}
+
+impl Transmission {
+    /// Motor radians per joint unit (rad/m for linear joints, rad/rad for rotary ones).
+    pub fn motor_per_joint(&self) -> f64 {
+        match *self {
+            Transmission::Belt {
+                gear_ratio,
+                pulley_radius_m,
+            } => gear_ratio / pulley_radius_m,
+            Transmission::Screw { gear_ratio, lead_m } => {
+                gear_ratio * std::f64::consts::TAU / lead_m
+            }
+            Transmission::Gear { ratio } => ratio,
+        }
+    }
+
+    fn joint_kind(&self) -> JointKind {
+        match self {
+            Transmission::Belt { .. } | Transmission::Screw { .. } => JointKind::Prismatic,
+            Transmission::Gear { .. } => JointKind::Revolute,
+        }
+    }
+
+    fn values(&self) -> Vec<(&'static str, f64)> {
+        match *self {
+            Transmission::Belt {
+                gear_ratio,
+                pulley_radius_m,
+            } => {
+                vec![
+                    ("gear_ratio", gear_ratio),
+                    ("pulley_radius_m", pulley_radius_m),
+                ]
+            }
+            Transmission::Screw { gear_ratio, lead_m } => {
+                vec![("gear_ratio", gear_ratio), ("lead_m", lead_m)]
+            }
+            Transmission::Gear { ratio } => vec![("ratio", ratio)],
+        }
+    }
+}
+
+/// Armature-controlled DC motor: L·di/dt + R·i + K_b·ω = V, T = K_m·i.
+#[derive(Debug, Clone, Copy, PartialEq, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct DcMotor {
+    pub torque_constant_nm_per_a: f64,
+    pub back_emf_v_s_per_rad: f64,
+    pub resistance_ohm: f64,
+    pub inductance_h: f64,
+}
+
+/// One axis's drive, all on the motor side unless the name says otherwise.
+#[derive(Debug, Clone, PartialEq, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct Drive {
+    /// URDF joint this drive moves.
+    pub joint: String,
+    pub transmission: Transmission,
+    pub rotor_inertia_kg_m2: f64,
+    /// Gearbox, pulley or screw inertia on the motor side (kg·m²).
+    #[serde(default)]
+    pub transmission_inertia_kg_m2: f64,
+    /// Motor-side viscous damping (N·m·s/rad).
+    pub viscous_damping_nm_s_per_rad: f64,
+    pub motor: DcMotor,
+    /// Amplifier: armature voltage = gain · controller output, clamped to ± supply voltage.
+    pub amplifier_gain: f64,
+    pub supply_voltage_v: f64,
+    /// Torque limit of the ideal torque actuator (N·m at the motor).
+    pub peak_torque_nm: f64,
+    /// Lost motion of the transmission at the joint (m or rad).
+    #[serde(default)]
+    pub backlash: f64,
+    /// Motor encoder resolution, counts per motor revolution; absent = ideal feedback.
+    #[serde(default)]
+    pub encoder_counts_per_rev: Option<u32>,
+}
+
+impl Drive {
+    /// Motor radians per joint unit.
+    pub fn ratio(&self) -> f64 {
+        self.transmission.motor_per_joint()
+    }
+
+    /// Motor-side inertia of rotor and transmission (kg·m²).
+    pub fn motor_side_inertia(&self) -> f64 {
+        self.rotor_inertia_kg_m2 + self.transmission_inertia_kg_m2
+    }
+
+    /// Motor-side inertia seen at the joint (kg or kg·m²): J·k².
+    pub fn reflected_inertia(&self) -> f64 {
+        self.motor_side_inertia() * self.ratio().powi(2)
+    }
+
+    /// Motor-side viscous damping seen at the joint (N·s/m or N·m·s/rad): C·k².
+    pub fn reflected_damping(&self) -> f64 {
+        self.viscous_damping_nm_s_per_rad * self.ratio().powi(2)
+    }
+
+    /// Joint units per encoder count, if the encoder is modelled.
+    pub fn encoder_resolution(&self) -> Option<f64> {
+        self.encoder_counts_per_rev
+            .map(|c| std::f64::consts::TAU / (c as f64 * self.ratio()))
+    }
+
+    fn check(&self) -> Result<(), String> {
+        let mut named: Vec<(&str, f64)> = self.transmission.values();
+        named.extend([
+            ("rotor_inertia_kg_m2", self.rotor_inertia_kg_m2),
+            (
+                "motor.torque_constant_nm_per_a",
+                self.motor.torque_constant_nm_per_a,
+            ),
+            ("motor.resistance_ohm", self.motor.resistance_ohm),
+            ("motor.inductance_h", self.motor.inductance_h),
+            ("amplifier_gain", self.amplifier_gain),
+            ("supply_voltage_v", self.supply_voltage_v),
+            ("peak_torque_nm", self.peak_torque_nm),
+        ]);
+        for (name, v) in named {
+            if !(v.is_finite() && v > 0.0) {
+                return Err(format!("{name} = {v}: expected a finite value > 0"));
+            }
+        }
+        for (name, v) in [
+            (
+                "transmission_inertia_kg_m2",
+                self.transmission_inertia_kg_m2,
+            ),
+            (
+                "viscous_damping_nm_s_per_rad",
+                self.viscous_damping_nm_s_per_rad,
+            ),
+            (
+                "motor.back_emf_v_s_per_rad",
+                self.motor.back_emf_v_s_per_rad,
+            ),
+            ("backlash", self.backlash),
+        ] {
+            if !(v.is_finite() && v >= 0.0) {
+                return Err(format!("{name} = {v}: expected a finite value ≥ 0"));
+            }
+        }
+        if self.encoder_counts_per_rev == Some(0) {
+            return Err(
+                "encoder_counts_per_rev = 0: expected at least 1 count per revolution".into(),
+            );
+        }
+        Ok(())
+    }
+}
+
+/// The tool point: a point fixed in one link.
+#[derive(Debug, Clone, PartialEq, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct Tool {
+    pub link: String,
+    /// Tool point in the tool link's frame (m).
+    #[serde(default)]
+    pub offset_m: [f64; 3],
+}
+
+/// Contents of a drive sidecar file.
+#[derive(Debug, Clone, PartialEq, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct DrivesFile {
+    /// The URDF `<robot name>` this file belongs to.
+    pub machine: String,
+    pub tool: Tool,
+    /// Drives keyed by the program letter of the axis.
+    pub axes: BTreeMap<String, toml::Spanned<Drive>>,
+    #[serde(skip)]
+    text: String,
+}
+
+impl DrivesFile {
+    /// `models/xyz_table.urdf` → `models/xyz_table.drives.toml`.
+    pub fn path_for(urdf: &Path) -> PathBuf {
+        urdf.with_extension("drives.toml")
+    }
+
+    pub fn load(path: &Path) -> Result<DrivesFile, FileError> {
+        let text = read_text(path, "drive data (the .drives.toml next to the URDF)")?;
+        let mut file: DrivesFile =
+            toml::from_str(&text).map_err(|e| toml_error(path, &text, &e))?;
+        file.text = text;
+        Ok(file)
+    }
+
+    /// Checks the drives against the URDF and builds the machine.
+    pub fn attach(self, tree: KinematicTree, path: &Path) -> Result<Machine, FileError> {
+        let text = &self.text;
+        let at = |key: &str| LineColumn::of_first(text, key);
+        if self.machine != tree.name {
+            return Err(FileError::new(
+                path,
+                at("machine"),
+                format!(
+                    "machine = {:?}, but the URDF's robot is named {:?}",
+                    self.machine, tree.name
+                ),
+            ));
+        }
+        let tool_link = tree
+            .links
+            .iter()
+            .position(|l| l.name == self.tool.link)
+            .ok_or_else(|| {
+                FileError::new(
+                    path,
+                    at("link"),
+                    format!("tool link '{}' is not a link of the URDF", self.tool.link),
+                )
+            })?;
+        if !self.tool.offset_m.iter().all(|v| v.is_finite()) {
+            return Err(FileError::new(
+                path,
+                at("offset_m"),
+                "tool offset_m has a non-finite value",
+            ));
+        }
+        let mut axes = Vec::new();
+        for (name, spanned) in &self.axes {
+            let place = Some(LineColumn::of_offset(text, spanned.span().start));
+            let drive = spanned.get_ref();
+            let fail = |m: String| FileError::new(path, place, format!("axis '{name}': {m}"));
+            drive.check().map_err(&fail)?;
+            let joint = tree
+                .joints
+                .iter()
+                .position(|j| j.name == drive.joint)
+                .ok_or_else(|| {
+                    fail(format!(
+                        "joint '{}' is not a joint of the URDF",
+                        drive.joint
+                    ))
+                })?;
+            let kind = tree.joints[joint].kind;
+            if kind != drive.transmission.joint_kind() {
+                return Err(fail(format!(
+                    "a {:?} transmission cannot drive the {kind:?} joint '{}'",
+                    drive.transmission, drive.joint
+                )));
+            }
+            if axes.iter().any(|a: &Axis| a.joint == joint) {
+                return Err(fail(format!("joint '{}' is driven twice", drive.joint)));
+            }
+            axes.push(Axis {
+                name: name.clone(),
+                joint,
+                drive: drive.clone(),
+            });
+        }
+        for (i, j) in tree.joints.iter().enumerate() {
+            if j.kind != JointKind::Fixed && !axes.iter().any(|a| a.joint == i) {
+                return Err(FileError::new(
+                    path,
+                    None,
+                    format!(
+                        "joint '{}' of the URDF moves but has no drive in this file",
+                        j.name
+                    ),
+                ));
+            }
+        }
+        // Axes in chain order (parents first), the order the physics model uses.
+        axes.sort_by_key(|a| a.joint);
+        Ok(Machine {
+            name: tree.name,
+            urdf_path: tree.path,
+            links: tree.links,
+            joints: tree.joints,
+            root: tree.root,
+            axes,
+            tool: self.tool,
+            tool_link,
+        })
+    }
+}

@@ -1,0 +1,125 @@
+//! Machine description: the URDF kinematic tree plus the drive data URDF has no element for.
+//!
+//! Everything here is plain data in SI units, read once at start-up and shared by the later
+//! stages (kinematics, the physics model, the controllers). Nothing here knows about Rapier.
+
+mod drives;
+mod urdf;
+
+pub use drives::{DcMotor, Drive, DrivesFile, Tool, Transmission};
+pub use urdf::load_urdf;
+
+use crate::diagnostics::FileError;
+use nalgebra::{Isometry3, Matrix3, Point3, Vector3};
+use std::path::{Path, PathBuf};
+
+/// A box attached to a link, for drawing (and, later, contact geometry).
+#[derive(Debug, Clone, PartialEq)]
+pub struct BoxShape {
+    /// Pose of the box centre in the link frame.
+    pub pose: Isometry3<f64>,
+    pub half_extents: Vector3<f64>,
+    /// RGBA colour, 0–1.
+    pub color: Option<[f32; 4]>,
+}
+
+/// A rigid link.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Link {
+    pub name: String,
+    /// Mass (kg); zero only for massless frames such as the fixed base.
+    pub mass: f64,
+    /// Centre of mass in the link frame (m).
+    pub center_of_mass: Point3<f64>,
+    /// Inertia tensor about the centre of mass, in the link frame (kg·m²).
+    pub inertia: Matrix3<f64>,
+    pub boxes: Vec<BoxShape>,
+}
+
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum JointKind {
+    Fixed,
+    Prismatic,
+    Revolute,
+}
+
+/// A joint between two links, URDF semantics: the child frame sits at `origin` in the parent
+/// frame when the joint coordinate is zero and moves along / about `axis` (child frame).
+#[derive(Debug, Clone, PartialEq)]
+pub struct Joint {
+    pub name: String,
+    pub kind: JointKind,
+    pub parent: usize,
+    pub child: usize,
+    pub origin: Isometry3<f64>,
+    /// Unit axis in the joint (child) frame.
+    pub axis: Vector3<f64>,
+    /// Travel limits (m or rad), if any.
+    pub limits: Option<[f64; 2]>,
+    /// Viscous damping of the guide or bearing itself (N·s/m or N·m·s/rad).
+    pub damping: f64,
+}
+
+/// A driven machine axis: a non-fixed joint with its drive.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Axis {
+    /// Program letter of the axis (`x`, `y`, `z`, `a`, `b`, `c`).
+    pub name: String,
+    pub joint: usize,
+    pub drive: Drive,
+}
+
+impl Axis {
+    pub fn is_rotary(&self, machine: &Machine) -> bool {
+        machine.joints[self.joint].kind == JointKind::Revolute
+    }
+}
+
+/// A machine: links, joints (parents before children), its driven axes and its tool.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Machine {
+    pub name: String,
+    pub urdf_path: PathBuf,
+    pub links: Vec<Link>,
+    /// Joints ordered so that a joint's parent link is placed before its child.
+    pub joints: Vec<Joint>,
+    pub root: usize,
+    pub axes: Vec<Axis>,
+    pub tool: Tool,
+    /// Index of the tool link.
+    pub tool_link: usize,
+}
+
+impl Machine {
+    /// Loads `path` (URDF) and its drive sidecar `<stem>.drives.toml` next to it.
+    pub fn load(path: &Path) -> Result<Machine, FileError> {
+        let tree = load_urdf(path)?;
+        let drives_path = DrivesFile::path_for(path);
+        let drives = DrivesFile::load(&drives_path)?;
+        drives.attach(tree, &drives_path)
+    }
+
+    pub fn axis_index(&self, name: &str) -> Option<usize> {
+        self.axes.iter().position(|a| a.name == name)
+    }
+
+    pub fn link_index(&self, name: &str) -> Option<usize> {
+        self.links.iter().position(|l| l.name == name)
+    }
+
+    /// Joint index whose child is `link`, if any (none for the root).
+    pub fn parent_joint(&self, link: usize) -> Option<usize> {
+        self.joints.iter().position(|j| j.child == link)
+    }
+}
+
+/// The URDF part of a machine, before drives are attached.
+#[derive(Debug, Clone, PartialEq)]
+pub struct KinematicTree {
+    pub name: String,
+    pub path: PathBuf,
+    pub text: String,
+    pub links: Vec<Link>,
+    pub joints: Vec<Joint>,
+    pub root: usize,
+}

@@ -1,0 +1,155 @@
+use clap::Parser;
+use cncsim::report::metrics_table;
+use cncsim::scenario::{check, run_scenario, RunOutput, Scenario};
+use indicatif::{ProgressBar, ProgressStyle};
+use std::path::{Path, PathBuf};
+use std::process::ExitCode;
+use std::time::Duration;
+
+mod cli;
+use cli::{Cli, Command};
+
+/// The bundled scenario `cncsim` runs without arguments.
+const DEFAULT_SCENARIO: &str = "scenarios/xyz_circle_5mms.toml";
+
+/// Exit codes: 0 success, 1 a check failed or a run stopped early, 2 bad input.
+fn main() -> ExitCode {
+    let cli = Cli::parse();
+    match cli.command {
+        None => {
+            let scenario = default_scenario();
+            eprintln!(
+                "running the bundled scenario {} (see `cncsim --help` for more)",
+                scenario.display()
+            );
+            run_one(&scenario, None)
+        }
+        Some(Command::Run { scenario, out }) => run_one(&scenario, out),
+        Some(Command::Check { scenarios, out }) => check_all(&scenarios, out),
+    }
+}
+
+fn default_scenario() -> PathBuf {
+    let here = PathBuf::from(DEFAULT_SCENARIO);
+    if here.is_file() {
+        here
+    } else {
+        Path::new(env!("CARGO_MANIFEST_DIR")).join(DEFAULT_SCENARIO)
+    }
+}
+
+fn run_one(path: &Path, out: Option<PathBuf>) -> ExitCode {
+    let scenario = match Scenario::load(path) {
+        Ok(s) => s,
+        Err(e) => return fail_input(&e),
+    };
+    let out = out.unwrap_or_else(|| Path::new("out").join(&scenario.name));
+    match execute(&scenario, &out) {
+        Ok(run) => {
+            print!("{}", metrics_table(&run.metrics));
+            for f in &run.files {
+                println!("  wrote {}", f.display());
+            }
+            if let Some(stop) = &run.stop {
+                eprintln!("error: {}: {stop}", scenario.path.display());
+                return ExitCode::from(1);
+            }
+            ExitCode::SUCCESS
+        }
+        Err(e) => fail_input(&e),
+    }
+}
+
+fn check_all(paths: &[PathBuf], out: Option<PathBuf>) -> ExitCode {
+    let mut files = Vec::new();
+    for p in paths {
+        if p.is_dir() {
+            match std::fs::read_dir(p) {
+                Ok(entries) => {
+                    let mut found: Vec<PathBuf> = entries
+                        .filter_map(|e| e.ok().map(|e| e.path()))
+                        .filter(|f| f.extension().is_some_and(|x| x == "toml"))
+                        .collect();
+                    found.sort();
+                    files.extend(found);
+                }
+                Err(e) => return fail_input(&format!("{}: cannot read folder: {e}", p.display())),
+            }
+        } else {
+            files.push(p.clone());
+        }
+    }
+    let root = out.unwrap_or_else(|| PathBuf::from("out"));
+    let (mut passed, mut failed) = (0, 0);
+    for f in &files {
+        let scenario = match Scenario::load(f) {
+            Ok(s) => s,
+            Err(e) => {
+                eprintln!("error: {e}");
+                failed += 1;
+                continue;
+            }
+        };
+        match execute(&scenario, &root.join(&scenario.name)) {
+            Ok(run) => {
+                let verdict = check(&scenario, &run.metrics_json);
+                let stopped = run.stop.is_some();
+                if verdict.passed() && !stopped {
+                    println!("PASS {} ({} bounds)", f.display(), verdict.checked);
+                    passed += 1;
+                } else {
+                    println!("FAIL {}", f.display());
+                    if let Some(stop) = &run.stop {
+                        println!("  {stop}");
+                    }
+                    for b in &verdict.breaches {
+                        match b.expectation.at {
+                            Some(at) => {
+                                println!("  {}:{}:{}: {b}", f.display(), at.line, at.column)
+                            }
+                            None => println!("  {}: {b}", f.display()),
+                        }
+                    }
+                    failed += 1;
+                }
+            }
+            Err(e) => {
+                eprintln!("error: {e}");
+                failed += 1;
+            }
+        }
+    }
+    println!("{passed} passed, {failed} failed");
+    if failed == 0 {
+        ExitCode::SUCCESS
+    } else {
+        ExitCode::from(1)
+    }
+}
+
+fn execute(scenario: &Scenario, out: &Path) -> Result<RunOutput, cncsim::scenario::RunError> {
+    let bar = ProgressBar::new(1).with_style(
+        ProgressStyle::with_template(
+            "{spinner} {msg} [{bar:30}] {percent:>3}% {elapsed_precise} eta {eta}",
+        )
+        .expect("valid template")
+        .progress_chars("=> "),
+    );
+    bar.set_message(scenario.name.clone());
+    // Only runs longer than a moment show a bar.
+    let started = std::time::Instant::now();
+    let mut progress = |done: usize, total: usize| {
+        if started.elapsed() > Duration::from_millis(300) {
+            bar.set_length(total as u64);
+            bar.set_position(done as u64);
+        }
+    };
+    let result = run_scenario(scenario, out, &mut progress);
+    bar.finish_and_clear();
+    result
+}
+
+fn fail_input(e: &dyn std::fmt::Display) -> ExitCode {
+    eprintln!("error: {e}");
+    ExitCode::from(2)
+}

@@ -1,0 +1,328 @@
+//! The classic constant-velocity interpolators of the source documents, exactly as written:
+//! straight lines by equal steps ΔS = V·T (seed digest §1.4) and circles by equal chords
+//! θ = acos((2r² − ΔS²)/(2r²)) (§1.6). Each sample is computed from the move's start, not by
+//! repeated addition, so there is no drift, and every move ends exactly on its target with a
+//! shorter last step. Velocity is a step function; acceleration is zero between samples.
+
+use super::Setpoints;
+use crate::kinematics::AxisMap;
+use crate::program::{arc_segment, Feed, Motion, Position, Program, Segment};
+use nalgebra::{Point3, Vector3};
+
+#[derive(Debug, Clone, thiserror::Error, PartialEq)]
+pub enum PlanError {
+    #[error("move {index} (line {line}): feed {feed} is not a positive finite speed")]
+    BadFeed { index: usize, line: u32, feed: f64 },
+    #[error(
+        "move {index} (line {line}): {what} is not supported by the constant-velocity interpolator"
+    )]
+    Unsupported {
+        index: usize,
+        line: u32,
+        what: &'static str,
+    },
+    #[error("move {index} (line {line}): arc radius {radius} m is degenerate")]
+    BadArc {
+        index: usize,
+        line: u32,
+        radius: f64,
+    },
+    #[error("the servo period must be a positive finite number of seconds, got {0}")]
+    BadPeriod(f64),
+}
+
+/// Samples `program` at period `period` with the constant-velocity interpolators.
+/// `rapid_speed` (m/s) is used for rapid moves.
+pub fn constant_velocity(
+    program: &Program,
+    axes: &AxisMap,
+    period: f64,
+    rapid_speed: f64,
+) -> Result<Setpoints, PlanError> {
+    if !(period.is_finite() && period > 0.0) {
+        return Err(PlanError::BadPeriod(period));
+    }
+    let n = axes.axes();
+    let mut out = Setpoints::new(period, n);
+    let mut q = vec![0.0; n];
+    let mut qd = vec![0.0; n];
+    let zeros = vec![0.0; n];
+    let mut at = program.start;
+    axes.machine_axes(&at, &mut q);
+    // Sample 0 is the start; its velocity is that of the first move.
+    let mut pending_start = true;
+
+    for (index, m) in program.moves.iter().enumerate() {
+        let seg = index as u32;
+        let line = m.span.line;
+        let speed = match m.feed {
+            Feed::Rapid => rapid_speed,
+            Feed::PathSpeed(v) => v,
+            Feed::InverseTime(_) => {
+                return Err(PlanError::Unsupported {
+                    index,
+                    line,
+                    what: "inverse-time feed",
+                })
+            }
+        };
+        if !matches!(m.motion, Motion::Dwell { .. }) && !(speed.is_finite() && speed > 0.0) {
+            return Err(PlanError::BadFeed {
+                index,
+                line,
+                feed: speed,
+            });
+        }
+        let samples: Vec<(Position, [f64; 3])> = match m.motion {
+            Motion::Linear => line_samples(&at, &m.end, speed, period),
+            Motion::Arc {
+                center,
+                plane,
+                clockwise,
+                turns,
+            } => {
+                let seg = arc_segment(
+                    Point3::from(at.linear),
+                    Point3::from(m.end.linear),
+                    Point3::from(center),
+                    plane,
+                    clockwise,
+                    turns,
+                );
+                arc_samples(&at, &m.end, &seg, speed, period).ok_or(PlanError::BadArc {
+                    index,
+                    line,
+                    radius: (Point3::from(at.linear) - Point3::from(center)).norm(),
+                })?
+            }
+            Motion::Dwell { seconds } => {
+                let ticks = (seconds / period).ceil().max(0.0) as usize;
+                vec![(at, [0.0; 3]); ticks]
+            }
+        };
+        if samples.is_empty() {
+            continue;
+        }
+        if pending_start {
+            velocity_to_axes(axes, &samples[0].1, &mut qd);
+            out.push(&q, &qd, &zeros, seg);
+            pending_start = false;
+        }
+        for (p, v) in &samples {
+            axes.machine_axes(p, &mut q);
+            velocity_to_axes(axes, v, &mut qd);
+            out.push(&q, &qd, &zeros, seg);
+        }
+        // The sample that lands on the target belongs to the move it ends; it carries the
+        // next move's velocity only if that move starts from it, which the next move records.
+        at = m.end;
+    }
+    if pending_start {
+        out.push(&q, &zeros, &zeros, 0);
+    } else {
+        // Program end: the last setpoint is at rest.
+        let k = out.len() - 1;
+        out.velocity[k * n..].iter_mut().for_each(|v| *v = 0.0);
+    }
+    Ok(out)
+}
+
+fn velocity_to_axes(axes: &AxisMap, v: &[f64; 3], out: &mut [f64]) {
+    axes.machine_axes(
+        &Position {
+            linear: *v,
+            rotary: [0.0; 3],
+        },
+        out,
+    );
+}
+
+/// Samples 1..=⌈N⌉ of a straight move, N = L/(V·T); the last lands exactly on the target.
+/// Rotary axes move in proportion.
+fn line_samples(
+    from: &Position,
+    to: &Position,
+    speed: f64,
+    period: f64,
+) -> Vec<(Position, [f64; 3])> {
+    let d = Vector3::from(to.linear) - Vector3::from(from.linear);
+    let length = d.norm();
+    if length == 0.0 {
+        return Vec::new();
+    }
+    let steps = length / (speed * period);
+    let count = steps.ceil() as usize;
+    let velocity: [f64; 3] = (d * (speed / length)).into();
+    (1..=count)
+        .map(|k| {
+            let p = if (k as f64) < steps {
+                lerp(from, to, k as f64 / steps)
+            } else {
+                *to
+            };
+            (p, velocity)
+        })
+        .collect()
+}
+
+/// Samples of an arc by equal chords ΔS = V·T; the last lands exactly on the target.
+fn arc_samples(
+    from: &Position,
+    to: &Position,
+    seg: &Segment,
+    speed: f64,
+    period: f64,
+) -> Option<Vec<(Position, [f64; 3])>> {
+    let Segment::Arc {
+        center,
+        normal,
+        start,
+        sweep,
+        rise,
+    } = *seg
+    else {
+        return None;
+    };
+    let r0 = start - center;
+    let radius = r0.norm();
+    if !(radius > 0.0 && radius.is_finite()) {
+        return None;
+    }
+    let chord = speed * period;
+    // θ = acos((2r² − ΔS²)/(2r²)); a chord longer than the diameter is clamped to a half turn.
+    let theta = ((2.0 * radius * radius - chord * chord) / (2.0 * radius * radius))
+        .clamp(-1.0, 1.0)
+        .acos();
+    let steps = sweep.abs() / theta;
+    let count = steps.ceil() as usize;
+    let u = r0 / radius;
+    let v = normal.cross(&u);
+    let dir = sweep.signum();
+    let rate = theta / period; // rad/s along the arc
+    Some(
+        (1..=count)
+            .map(|k| {
+                if (k as f64) < steps {
+                    let a = dir * theta * k as f64;
+                    let fraction = k as f64 / steps;
+                    let p =
+                        center + (u * a.cos() + v * a.sin()) * radius + normal * (rise * fraction);
+                    let tangent = (v * a.cos() - u * a.sin()) * (dir * radius * rate)
+                        + normal * (rise / (steps * period));
+                    let mut pos = lerp(from, to, fraction);
+                    pos.linear = p.into();
+                    (pos, tangent.into())
+                } else {
+                    let a = sweep;
+                    let tangent = (v * a.cos() - u * a.sin()) * (dir * radius * rate);
+                    (*to, tangent.into())
+                }
+            })
+            .collect(),
+    )
+}
+
+fn lerp(a: &Position, b: &Position, s: f64) -> Position {
+    let mut p = *a;
+    for i in 0..3 {
+        p.linear[i] = a.linear[i] + (b.linear[i] - a.linear[i]) * s;
+        p.rotary[i] = a.rotary[i] + (b.rotary[i] - a.rotary[i]) * s;
+    }
+    p
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::program::{circle, polyline, CircleSpec, PolylineSpec};
+    use std::path::Path;
+
+    fn xyz() -> AxisMap {
+        AxisMap::from_sources(vec![(true, 0), (true, 1), (true, 2)])
+    }
+
+    #[test]
+    fn seed_line_example_100mm_at_10mm_s_t4ms() {
+        // Seed digest §1.1: 100 mm at 10 mm/s with T = 4 ms → 2500 ticks of 0.04 mm.
+        let p = polyline(
+            &PolylineSpec {
+                points: vec![[0.0; 3], [0.1, 0.0, 0.0]],
+                speed: 0.01,
+            },
+            Path::new("t"),
+        );
+        let sp = constant_velocity(&p, &xyz(), 0.004, 0.1).unwrap();
+        assert_eq!(sp.len(), 2501);
+        for k in 1..sp.len() {
+            let step = sp.position(k)[0] - sp.position(k - 1)[0];
+            assert!((step - 0.04e-3).abs() < 1e-15, "tick {k}: step {step}");
+        }
+        assert_eq!(sp.position(2500)[0], 0.1, "ends exactly on target");
+    }
+
+    #[test]
+    fn seed_sampling_example_100mm_t20ms() {
+        // Seed digest §1.7: 100 mm, T = 0.02 s, V = 10 mm/s → 10 s, 500 samples 0.2 mm apart.
+        let p = polyline(
+            &PolylineSpec {
+                points: vec![[0.0; 3], [0.1, 0.0, 0.0]],
+                speed: 0.01,
+            },
+            Path::new("t"),
+        );
+        let sp = constant_velocity(&p, &xyz(), 0.02, 0.1).unwrap();
+        assert_eq!(sp.len() - 1, 500);
+        assert!((sp.duration() - 10.0).abs() < 1e-12);
+        assert!((sp.position(1)[0] - 0.2e-3).abs() < 1e-15);
+    }
+
+    #[test]
+    fn diagonal_line_with_fractional_steps_ends_on_target() {
+        let p = polyline(
+            &PolylineSpec {
+                points: vec![[0.0; 3], [0.03, 0.04, 0.0]],
+                speed: 0.007,
+            },
+            Path::new("t"),
+        );
+        let sp = constant_velocity(&p, &xyz(), 0.001, 0.1).unwrap();
+        // N = 50 mm / 7 µm = 7142.857… → 7143 steps, the last one shorter.
+        assert_eq!(sp.len(), 7144);
+        assert_eq!(sp.position(7143), &[0.03, 0.04, 0.0]);
+        let full = (Vector3::from_column_slice(sp.position(10))
+            - Vector3::from_column_slice(sp.position(9)))
+        .norm();
+        assert!((full - 7e-6).abs() < 1e-15);
+    }
+
+    #[test]
+    fn equal_chord_circle() {
+        let spec = CircleSpec {
+            center: [0.1, 0.1],
+            radius: 0.03,
+            start_angle: 0.0,
+            clockwise: false,
+            z: 0.0,
+            speed: 0.005,
+        };
+        let p = circle(&spec, Path::new("t"));
+        let sp = constant_velocity(&p, &xyz(), 0.001, 0.1).unwrap();
+        let chord = |k: usize| {
+            (Vector3::from_column_slice(sp.position(k))
+                - Vector3::from_column_slice(sp.position(k - 1)))
+            .norm()
+        };
+        // Every full chord is ΔS = V·T (to rounding), every sample on the circle.
+        for k in 1..sp.len() - 1 {
+            assert!((chord(k) - 5e-6).abs() < 1e-13, "chord {k} = {}", chord(k));
+            let r = ((sp.position(k)[0] - 0.1).powi(2) + (sp.position(k)[1] - 0.1).powi(2)).sqrt();
+            assert!((r - 0.03).abs() < 1e-15);
+        }
+        // Circumference / ΔS = 37699.1… chords; ends exactly at the start point.
+        let expected = (2.0 * std::f64::consts::PI
+            / (1.0 - 5e-6f64.powi(2) / (2.0 * 0.03f64.powi(2))).acos())
+        .ceil() as usize;
+        assert_eq!(sp.len() - 1, expected);
+        assert_eq!(sp.position(sp.len() - 1), &[0.13, 0.1, 0.0]);
+    }
+}

@@ -1,0 +1,61 @@
+//! The planner's output: a setpoint stream at the servo period, per machine axis.
+
+/// Setpoints sampled at a fixed period, row-major: sample `k` of axis `i` is at `k * axes + i`.
+/// Units are SI per axis (m for linear axes, rad for rotary ones).
+#[derive(Debug, Clone, PartialEq, Default)]
+pub struct Setpoints {
+    /// Sample period T (s). Sample k is at time k·T.
+    pub period: f64,
+    /// Number of machine axes per sample.
+    pub axes: usize,
+    pub position: Vec<f64>,
+    pub velocity: Vec<f64>,
+    pub acceleration: Vec<f64>,
+    /// Index of the program move each sample belongs to (for contour metrics and reports).
+    pub segment: Vec<u32>,
+}
+
+impl Setpoints {
+    pub fn new(period: f64, axes: usize) -> Self {
+        Setpoints {
+            period,
+            axes,
+            ..Default::default()
+        }
+    }
+
+    /// Number of samples.
+    pub fn len(&self) -> usize {
+        self.segment.len()
+    }
+
+    pub fn is_empty(&self) -> bool {
+        self.segment.is_empty()
+    }
+
+    /// Appends one sample; the slices must have `axes` entries.
+    pub fn push(&mut self, position: &[f64], velocity: &[f64], acceleration: &[f64], segment: u32) {
+        debug_assert_eq!(position.len(), self.axes);
+        self.position.extend_from_slice(position);
+        self.velocity.extend_from_slice(velocity);
+        self.acceleration.extend_from_slice(acceleration);
+        self.segment.push(segment);
+    }
+
+    pub fn position(&self, k: usize) -> &[f64] {
+        &self.position[k * self.axes..(k + 1) * self.axes]
+    }
+
+    pub fn velocity(&self, k: usize) -> &[f64] {
+        &self.velocity[k * self.axes..(k + 1) * self.axes]
+    }
+
+    pub fn acceleration(&self, k: usize) -> &[f64] {
+        &self.acceleration[k * self.axes..(k + 1) * self.axes]
+    }
+
+    /// Time of the last sample (s).
+    pub fn duration(&self) -> f64 {
+        self.len().saturating_sub(1) as f64 * self.period
+    }
+}

@@ -1,0 +1,218 @@
+//! The programmed path as geometry in the linear axes, for measuring how far the tool strays
+//! from it (contour error) independently of when it should have been where.
+
+use super::{Motion, Plane, Program};
+use nalgebra::{Point3, Vector3};
+use std::f64::consts::TAU;
+
+/// One piece of the programmed path (m).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub enum Segment {
+    Line {
+        start: Point3<f64>,
+        end: Point3<f64>,
+    },
+    /// Arc about `center` in the plane with unit normal `normal`, from `start` sweeping
+    /// `sweep` rad (signed, right-handed about `normal`), rising `rise` along `normal` (helix).
+    Arc {
+        center: Point3<f64>,
+        normal: Vector3<f64>,
+        start: Point3<f64>,
+        sweep: f64,
+        rise: f64,
+    },
+}
+
+impl Segment {
+    /// Shortest distance from `p` to this piece of path.
+    pub fn distance(&self, p: &Point3<f64>) -> f64 {
+        match *self {
+            Segment::Line { start, end } => {
+                let d = end - start;
+                let len2 = d.norm_squared();
+                let t = if len2 > 0.0 {
+                    ((p - start).dot(&d) / len2).clamp(0.0, 1.0)
+                } else {
+                    0.0
+                };
+                (p - (start + d * t)).norm()
+            }
+            Segment::Arc {
+                center,
+                normal,
+                start,
+                sweep,
+                rise,
+            } => {
+                let r0 = start - center;
+                let radius = r0.norm();
+                let u = r0 / radius;
+                let v = normal.cross(&u);
+                let rel = p - center;
+                let angle = rel.dot(&v).atan2(rel.dot(&u));
+                // Candidate angles along the sweep: the projection's angle (and its turns), and
+                // both ends; the arc is short enough in turns that this is exact for circles.
+                let mut best = f64::INFINITY;
+                let (lo, hi) = if sweep >= 0.0 {
+                    (0.0, sweep)
+                } else {
+                    (sweep, 0.0)
+                };
+                let mut candidates = vec![lo, hi];
+                let mut a = angle - TAU * ((angle - lo) / TAU).ceil();
+                while a <= hi + 1e-12 {
+                    if a >= lo - 1e-12 {
+                        candidates.push(a.clamp(lo, hi));
+                    }
+                    a += TAU;
+                }
+                for a in candidates {
+                    let along = if sweep != 0.0 { a / sweep } else { 0.0 };
+                    let q = center + (u * a.cos() + v * a.sin()) * radius + normal * (rise * along);
+                    best = best.min((p - q).norm());
+                }
+                best
+            }
+        }
+    }
+}
+
+/// The programmed path of a program: one segment per move with motion (dwells have none).
+#[derive(Debug, Clone, PartialEq, Default)]
+pub struct PathGeometry {
+    pub segments: Vec<Segment>,
+    /// For each program move, the index of its segment (dwells point at the previous one).
+    pub segment_of_move: Vec<usize>,
+}
+
+impl PathGeometry {
+    pub fn of(program: &Program) -> Self {
+        let mut segments = Vec::new();
+        let mut segment_of_move = Vec::with_capacity(program.moves.len());
+        let mut at = Point3::from(program.start.linear);
+        for m in &program.moves {
+            let end = Point3::from(m.end.linear);
+            match m.motion {
+                Motion::Linear => segments.push(Segment::Line { start: at, end }),
+                Motion::Arc {
+                    center,
+                    plane,
+                    clockwise,
+                    turns,
+                } => segments.push(arc_segment(
+                    at,
+                    end,
+                    Point3::from(center),
+                    plane,
+                    clockwise,
+                    turns,
+                )),
+                Motion::Dwell { .. } => {
+                    if segments.is_empty() {
+                        segments.push(Segment::Line { start: at, end: at });
+                    }
+                }
+            }
+            segment_of_move.push(segments.len().saturating_sub(1));
+            at = end;
+        }
+        PathGeometry {
+            segments,
+            segment_of_move,
+        }
+    }
+
+    /// Distance from `p` to the path, searching the segments within `window` of `near`
+    /// (the segment the tool is expected to be on).
+    pub fn distance_near(&self, p: &Point3<f64>, near: usize, window: usize) -> f64 {
+        if self.segments.is_empty() {
+            return f64::NAN;
+        }
+        let lo = near.saturating_sub(window);
+        let hi = (near + window + 1).min(self.segments.len());
+        self.segments[lo..hi]
+            .iter()
+            .map(|s| s.distance(p))
+            .fold(f64::INFINITY, f64::min)
+    }
+}
+
+/// Builds an arc from its start, end, centre and plane (G2/G3 semantics: end = start is a
+/// full circle).
+pub fn arc_segment(
+    start: Point3<f64>,
+    end: Point3<f64>,
+    center: Point3<f64>,
+    plane: Plane,
+    clockwise: bool,
+    turns: u32,
+) -> Segment {
+    let normal = match plane {
+        Plane::XY => Vector3::z(),
+        Plane::ZX => Vector3::y(),
+        Plane::YZ => Vector3::x(),
+    };
+    let flat = |p: Point3<f64>| p - normal * (p - center).dot(&normal);
+    let (s, e) = (flat(start) - center, flat(end) - center);
+    let mut sweep = normal.dot(&s.cross(&e)).atan2(s.dot(&e));
+    if clockwise {
+        if sweep >= -1e-12 {
+            sweep -= TAU;
+        }
+    } else if sweep <= 1e-12 {
+        sweep += TAU;
+    }
+    sweep += sweep.signum() * TAU * turns as f64;
+    let rise = (end - start).dot(&normal);
+    Segment::Arc {
+        center: center + normal * (start - center).dot(&normal),
+        normal,
+        start,
+        sweep,
+        rise,
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn distances_to_lines_and_arcs() {
+        let line = Segment::Line {
+            start: Point3::new(0.0, 0.0, 0.0),
+            end: Point3::new(1.0, 0.0, 0.0),
+        };
+        assert!((line.distance(&Point3::new(0.5, 0.2, 0.0)) - 0.2).abs() < 1e-15);
+        assert!((line.distance(&Point3::new(2.0, 0.0, 0.0)) - 1.0).abs() < 1e-15);
+        let c = Point3::new(0.1, 0.1, 0.0);
+        let full = arc_segment(
+            Point3::new(0.13, 0.1, 0.0),
+            Point3::new(0.13, 0.1, 0.0),
+            c,
+            Plane::XY,
+            false,
+            0,
+        );
+        match full {
+            Segment::Arc { sweep, .. } => assert!((sweep - TAU).abs() < 1e-12),
+            _ => unreachable!(),
+        }
+        // 1 µm outside the circle anywhere on it.
+        for k in 0..12 {
+            let a = k as f64 * 0.5;
+            let p = c + Vector3::new(a.cos(), a.sin(), 0.0) * 0.030001;
+            assert!((full.distance(&p) - 1e-6).abs() < 1e-12);
+        }
+        // A quarter arc clockwise from +X to -Y: a point at +Y is far from it.
+        let quarter = arc_segment(
+            Point3::new(1.0, 0.0, 0.0),
+            Point3::new(0.0, -1.0, 0.0),
+            Point3::origin(),
+            Plane::XY,
+            true,
+            0,
+        );
+        assert!((quarter.distance(&Point3::new(0.0, 1.0, 0.0)) - 2f64.sqrt()).abs() < 1e-12);
+    }
+}

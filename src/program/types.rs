@@ -1,0 +1,129 @@
+//! The program representation every front end produces and the planner consumes.
+//!
+//! Plain data, SI units: lengths in metres, angles in radians, times in seconds, feeds in
+//! metres per second. Millimetres, inches, degrees, per-minute feeds and plotter units exist
+//! only inside the parsers that read them.
+
+use std::path::PathBuf;
+
+/// Where a piece of program text came from: 1-based line and column, 0-based byte offset.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub struct Span {
+    pub line: u32,
+    pub column: u32,
+    pub byte_offset: u32,
+}
+
+/// Machine-independent target of a move: the three linear axes (m) and the three rotary axes
+/// A, B, C (rad). Axes a program never mentions stay at the position they had.
+#[derive(Debug, Clone, Copy, PartialEq, Default)]
+pub struct Position {
+    pub linear: [f64; 3],
+    pub rotary: [f64; 3],
+}
+
+/// The working plane of an arc (G17/G18/G19).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Plane {
+    XY,
+    ZX,
+    YZ,
+}
+
+/// How fast a move is to be made.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub enum Feed {
+    /// As fast as the machine allows (G0, pen-up travel, APT RAPID).
+    Rapid,
+    /// Programmed feed, converted to m/s (for moves with rotary axes see [`FeedRule`]).
+    PathSpeed(f64),
+    /// Inverse-time feed (G93): the move takes this many seconds.
+    InverseTime(f64),
+}
+
+/// How the programmed feed is shared out when a move has rotary components.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub enum FeedRule {
+    /// LinuxCNC: the feed applies to the linear axes; a purely rotary move uses it in deg/min.
+    #[default]
+    LinuxCnc,
+    /// The 5-axis study: the feed applies to the Euclidean norm of all axis deltas, linear in mm
+    /// and rotary in degrees.
+    EuclideanAllAxes,
+}
+
+/// Corner behaviour requested for the end of a move (G61 / G64 P).
+#[derive(Debug, Clone, Copy, PartialEq, Default)]
+pub enum Blend {
+    /// Stop exactly at the programmed point.
+    #[default]
+    ExactStop,
+    /// Pass the corner without stopping, staying within this distance (m) of the programmed
+    /// point; `None` = no tolerance given (G64 without P).
+    Continuous { tolerance: Option<f64> },
+}
+
+/// The geometry of one move.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub enum Motion {
+    /// Straight line in all axes from the previous position to `Move::end`.
+    Linear,
+    /// Circular arc in `plane` about `center` (m, absolute), helical when the axis normal to the
+    /// plane changes; `turns` extra full turns (G2/G3 P − 1).
+    Arc {
+        center: [f64; 3],
+        plane: Plane,
+        clockwise: bool,
+        turns: u32,
+    },
+    /// Dwell in place (G4).
+    Dwell { seconds: f64 },
+}
+
+/// Spindle / tool state that the program switches.
+#[derive(Debug, Clone, Copy, PartialEq, Default)]
+pub enum Spindle {
+    #[default]
+    Off,
+    Clockwise {
+        rpm: f64,
+    },
+    CounterClockwise {
+        rpm: f64,
+    },
+}
+
+/// One move of a program.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Move {
+    pub motion: Motion,
+    pub end: Position,
+    /// Tool-axis unit vector in workpiece coordinates (APT CL data); `None` = not programmed.
+    pub tool_axis: Option<[f64; 3]>,
+    pub feed: Feed,
+    pub feed_rule: FeedRule,
+    pub blend: Blend,
+    /// Tool engaged (pen down in HPGL); `None` where the program does not say.
+    pub tool_down: Option<bool>,
+    pub spindle: Spindle,
+    /// Where in the source this move was programmed.
+    pub span: Span,
+}
+
+/// A diagnostic that did not stop decoding (e.g. a normalised tool vector).
+#[derive(Debug, Clone, PartialEq)]
+pub struct Warning {
+    pub span: Span,
+    pub message: String,
+}
+
+/// A decoded part program.
+#[derive(Debug, Clone, PartialEq, Default)]
+pub struct Program {
+    /// The file it was read from (or a label such as `<scenario path>` for built-in paths).
+    pub source: PathBuf,
+    /// Position the program assumes before its first move (m, rad).
+    pub start: Position,
+    pub moves: Vec<Move>,
+    pub warnings: Vec<Warning>,
+}

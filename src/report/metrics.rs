@@ -1,0 +1,192 @@
+//! Accuracy and cost figures of a run.
+
+use super::AxisLabel;
+use crate::program::PathGeometry;
+use crate::sim::Trace;
+use nalgebra::{Point3, Vector3};
+use serde::Serialize;
+use std::collections::BTreeMap;
+
+/// Per-tick quantities derived from the trace and the programmed path.
+#[derive(Debug, Clone, PartialEq, Default)]
+pub struct Derived {
+    /// Distance of the actual tool point from the programmed path (m).
+    pub contour_error: Vec<f64>,
+    /// Commanded and actual path speed of the tool (m/s).
+    pub commanded_speed: Vec<f64>,
+    pub actual_speed: Vec<f64>,
+}
+
+impl Derived {
+    /// `program_origin` is the tool point (machine frame) at program zero; `linear_axes` the
+    /// machine-axis index of program X, Y, Z where the machine has them.
+    pub fn compute(
+        trace: &Trace,
+        path: &PathGeometry,
+        program_origin: &Point3<f64>,
+        linear_axes: [Option<usize>; 3],
+    ) -> Derived {
+        let n = trace.len();
+        let mut d = Derived {
+            contour_error: Vec::with_capacity(n),
+            commanded_speed: Vec::with_capacity(n),
+            actual_speed: Vec::with_capacity(n),
+        };
+        for k in 0..n {
+            let tool = Point3::from(trace.tool_point[k]) - program_origin.coords;
+            let near = path
+                .segment_of_move
+                .get(trace.segment[k] as usize)
+                .copied()
+                .unwrap_or(0);
+            d.contour_error.push(path.distance_near(&tool, near, 2));
+            let mut v = Vector3::zeros();
+            for (c, axis) in linear_axes.iter().enumerate() {
+                if let Some(i) = axis {
+                    v[c] = Trace::at(&trace.commanded_velocity, trace.axes, k, *i);
+                }
+            }
+            d.commanded_speed.push(v.norm());
+            d.actual_speed
+                .push(Vector3::from(trace.tool_velocity[k]).norm());
+        }
+        d
+    }
+}
+
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct AxisMetrics {
+    /// Linear axes: mm; rotary axes: the `_deg` fields instead.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub max_following_error_mm: Option<f64>,
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub rms_following_error_mm: Option<f64>,
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub max_following_error_deg: Option<f64>,
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub rms_following_error_deg: Option<f64>,
+    /// Time of the largest following error (s).
+    pub max_following_error_time_s: f64,
+    pub peak_torque_nm: f64,
+    pub rms_torque_nm: f64,
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub peak_voltage_v: Option<f64>,
+}
+
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct Metrics {
+    pub scenario: String,
+    /// True when the run reached the end of its setpoints.
+    pub completed: bool,
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub stopped: Option<String>,
+    pub max_contour_error_mm: f64,
+    pub rms_contour_error_mm: f64,
+    pub max_path_speed_error_mm_s: f64,
+    pub sim_time_s: f64,
+    pub wall_time_s: f64,
+    pub real_time_factor: f64,
+    pub physics_steps: u64,
+    pub servo_ticks: usize,
+    pub axes: BTreeMap<String, AxisMetrics>,
+}
+
+impl Metrics {
+    #[allow(clippy::too_many_arguments)]
+    pub fn compute(
+        scenario: &str,
+        trace: &Trace,
+        derived: &Derived,
+        labels: &[AxisLabel],
+        dc_motor: bool,
+        physics_steps: u64,
+        wall_time: f64,
+        stopped: Option<String>,
+    ) -> Metrics {
+        let n = trace.len();
+        let max = |v: &mut dyn Iterator<Item = f64>| {
+            v.fold(0.0f64, |m, x| if x.is_nan() { f64::NAN } else { m.max(x) })
+        };
+        let rms = |v: &mut dyn Iterator<Item = f64>| {
+            if n == 0 {
+                0.0
+            } else {
+                (v.map(|x| x * x).sum::<f64>() / n as f64).sqrt()
+            }
+        };
+        let mut axes = BTreeMap::new();
+        for (i, label) in labels.iter().enumerate() {
+            let err = |k: usize| {
+                (Trace::at(&trace.commanded, trace.axes, k, i)
+                    - Trace::at(&trace.actual, trace.axes, k, i))
+                .abs()
+            };
+            let (mut worst, mut worst_k) = (0.0f64, 0usize);
+            for k in 0..n {
+                if err(k) > worst || err(k).is_nan() {
+                    worst = err(k);
+                    worst_k = k;
+                }
+            }
+            let rms_err = rms(&mut (0..n).map(err));
+            let torque = |k: usize| Trace::at(&trace.torque, trace.axes, k, i);
+            let s = label.scale();
+            let (mm, deg) = if label.rotary {
+                (None, Some((worst * s, rms_err * s)))
+            } else {
+                (Some((worst * s, rms_err * s)), None)
+            };
+            axes.insert(
+                label.name.clone(),
+                AxisMetrics {
+                    max_following_error_mm: mm.map(|v| v.0),
+                    rms_following_error_mm: mm.map(|v| v.1),
+                    max_following_error_deg: deg.map(|v| v.0),
+                    rms_following_error_deg: deg.map(|v| v.1),
+                    max_following_error_time_s: trace.time.get(worst_k).copied().unwrap_or(0.0),
+                    peak_torque_nm: max(&mut (0..n).map(|k| torque(k).abs())),
+                    rms_torque_nm: rms(&mut (0..n).map(torque)),
+                    peak_voltage_v: dc_motor.then(|| {
+                        max(&mut (0..n).map(|k| Trace::at(&trace.voltage, trace.axes, k, i).abs()))
+                    }),
+                },
+            );
+        }
+        let sim_time = n as f64 * trace.period;
+        Metrics {
+            scenario: scenario.to_string(),
+            completed: stopped.is_none(),
+            stopped,
+            max_contour_error_mm: max(&mut derived.contour_error.iter().copied()) * 1e3,
+            rms_contour_error_mm: rms(&mut derived.contour_error.iter().copied()) * 1e3,
+            max_path_speed_error_mm_s: max(&mut derived
+                .commanded_speed
+                .iter()
+                .zip(&derived.actual_speed)
+                .map(|(c, a)| (c - a).abs()))
+                * 1e3,
+            sim_time_s: sim_time,
+            wall_time_s: wall_time,
+            real_time_factor: if wall_time > 0.0 {
+                sim_time / wall_time
+            } else {
+                f64::INFINITY
+            },
+            physics_steps,
+            servo_ticks: n,
+            axes,
+        }
+    }
+
+    /// The metrics as JSON (what `metrics.json` holds and `[expect]` bounds refer to).
+    pub fn to_json(&self) -> serde_json::Value {
+        serde_json::to_value(self).expect("metrics are plain numbers and strings")
+    }
+
+    /// Looks up a metric by its dotted path, e.g. `axes.x.max_following_error_mm`.
+    pub fn lookup(json: &serde_json::Value, path: &str) -> Option<f64> {
+        path.split('.')
+            .try_fold(json, |v, key| v.get(key))?
+            .as_f64()
+    }
+}

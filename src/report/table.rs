@@ -1,0 +1,44 @@
+//! The metrics as a terminal table.
+
+use super::Metrics;
+
+pub fn metrics_table(m: &Metrics) -> String {
+    let mut s = String::new();
+    let status = match &m.stopped {
+        None => "completed".to_string(),
+        Some(why) => format!("STOPPED: {why}"),
+    };
+    s.push_str(&format!("scenario {} — {status}\n", m.scenario));
+    s.push_str(&format!(
+        "  {:<6} {:>14} {:>14} {:>12} {:>12} {:>10}\n",
+        "axis", "max |e|", "rms e", "peak T N·m", "rms T N·m", "peak V"
+    ));
+    for (name, a) in &m.axes {
+        let (max, rms, unit) = match (a.max_following_error_mm, a.rms_following_error_mm) {
+            (Some(max), Some(rms)) => (max * 1e3, rms * 1e3, "µm"),
+            _ => (
+                a.max_following_error_deg.unwrap_or(f64::NAN),
+                a.rms_following_error_deg.unwrap_or(f64::NAN),
+                "deg",
+            ),
+        };
+        let volts = a
+            .peak_voltage_v
+            .map_or("—".to_string(), |v| format!("{v:.3}"));
+        s.push_str(&format!(
+            "  {:<6} {:>11.3} {unit:<2} {:>11.3} {unit:<2} {:>12.5} {:>12.5} {:>10}\n",
+            name, max, rms, a.peak_torque_nm, a.rms_torque_nm, volts
+        ));
+    }
+    s.push_str(&format!(
+        "  contour error: max {:.3} µm, rms {:.3} µm;  path-speed error: max {:.4} mm/s\n",
+        m.max_contour_error_mm * 1e3,
+        m.rms_contour_error_mm * 1e3,
+        m.max_path_speed_error_mm_s
+    ));
+    s.push_str(&format!(
+        "  simulated {:.3} s in {:.3} s wall ({:.1}× real time), {} servo ticks, {} physics steps\n",
+        m.sim_time_s, m.wall_time_s, m.real_time_factor, m.servo_ticks, m.physics_steps
+    ));
+    s
+}

@@ -1,0 +1,597 @@
+//! The scenario file format (TOML). Unknown keys are rejected; every value that can be wrong
+//! is checked here and reported with the file, line and column it came from.
+
+use crate::control::{ActuatorKind, PidForm, PidGains};
+use crate::diagnostics::{read_text, toml_error, FileError, LineColumn};
+use crate::program::{CircleSpec, PolylineSpec};
+use serde::Deserialize;
+use std::collections::BTreeMap;
+use std::path::{Path, PathBuf};
+use toml::Spanned;
+
+type Num = Spanned<f64>;
+
+#[derive(Deserialize)]
+#[serde(deny_unknown_fields)]
+struct RawScenario {
+    name: Option<String>,
+    #[serde(default)]
+    description: String,
+    machine: Spanned<String>,
+    program: RawProgram,
+    #[serde(default)]
+    planner: RawPlanner,
+    timing: RawTiming,
+    actuator: RawActuator,
+    controller: RawController,
+    #[serde(default)]
+    feedback: RawFeedback,
+    #[serde(default)]
+    recording: RawRecording,
+    #[serde(default)]
+    expect: BTreeMap<String, Spanned<toml::Value>>,
+}
+
+#[derive(Deserialize)]
+#[serde(deny_unknown_fields)]
+struct RawProgram {
+    file: Option<Spanned<String>>,
+    circle: Option<Spanned<RawCircle>>,
+    polyline: Option<Spanned<RawPolyline>>,
+    /// Path speed of the built-in paths (mm/s).
+    feed_mm_s: Option<Num>,
+}
+
+#[derive(Deserialize)]
+#[serde(deny_unknown_fields)]
+struct RawCircle {
+    center_mm: [f64; 2],
+    radius_mm: f64,
+    #[serde(default)]
+    start_angle_deg: f64,
+    #[serde(default)]
+    direction: Direction,
+    #[serde(default)]
+    z_mm: f64,
+}
+
+#[derive(Deserialize, Default, Clone, Copy)]
+#[serde(rename_all = "lowercase")]
+enum Direction {
+    #[default]
+    Ccw,
+    Cw,
+}
+
+#[derive(Deserialize)]
+#[serde(deny_unknown_fields)]
+struct RawPolyline {
+    points_mm: Vec<[f64; 3]>,
+}
+
+#[derive(Deserialize)]
+#[serde(deny_unknown_fields)]
+struct RawPlanner {
+    #[serde(default)]
+    profile: Profile,
+    #[serde(default = "default_rapid")]
+    rapid_mm_s: Num,
+}
+
+fn default_rapid() -> Num {
+    Spanned::new(0..0, 50.0)
+}
+
+impl Default for RawPlanner {
+    fn default() -> Self {
+        RawPlanner {
+            profile: Profile::default(),
+            rapid_mm_s: default_rapid(),
+        }
+    }
+}
+
+/// Which interpolator turns the program into setpoints.
+#[derive(Deserialize, Debug, Clone, Copy, PartialEq, Eq, Default)]
+#[serde(rename_all = "kebab-case")]
+pub enum Profile {
+    /// Seed digest §1.4/§1.6: constant path speed, equal steps and chords.
+    #[default]
+    ConstantVelocity,
+}
+
+#[derive(Deserialize)]
+#[serde(deny_unknown_fields)]
+struct RawTiming {
+    servo_period_ms: Num,
+    physics_step_ms: Num,
+    #[serde(default = "default_settle")]
+    settle_s: Num,
+    /// Rapier solver iterations per physics step (each is an integration substep).
+    #[serde(default = "one")]
+    solver_iterations: Spanned<i64>,
+}
+
+fn default_settle() -> Num {
+    Spanned::new(0..0, 0.5)
+}
+
+#[derive(Deserialize)]
+#[serde(deny_unknown_fields)]
+struct RawActuator {
+    model: ActuatorModel,
+}
+
+#[derive(Deserialize, Clone, Copy)]
+#[serde(rename_all = "kebab-case")]
+enum ActuatorModel {
+    IdealTorque,
+    DcMotor,
+}
+
+#[derive(Deserialize)]
+#[serde(deny_unknown_fields)]
+struct RawController {
+    #[serde(rename = "type")]
+    kind: ControllerType,
+    #[serde(default)]
+    form: RawPidForm,
+    axes: Spanned<BTreeMap<String, Spanned<RawGains>>>,
+}
+
+#[derive(Deserialize, Clone, Copy)]
+#[serde(rename_all = "kebab-case")]
+enum ControllerType {
+    Pid,
+}
+
+#[derive(Deserialize, Default, Clone, Copy)]
+#[serde(rename_all = "kebab-case")]
+enum RawPidForm {
+    #[default]
+    Positional,
+    Incremental,
+}
+
+#[derive(Deserialize)]
+#[serde(deny_unknown_fields)]
+struct RawGains {
+    kp: f64,
+    #[serde(default)]
+    ki: f64,
+    #[serde(default)]
+    kd: f64,
+    /// |output| limit (N·m or V); default: none beyond the actuator's own saturation.
+    output_limit: Option<f64>,
+}
+
+#[derive(Deserialize, Default)]
+#[serde(deny_unknown_fields)]
+struct RawFeedback {
+    #[serde(default)]
+    encoder_counts_per_rev: BTreeMap<String, Spanned<i64>>,
+    following_error_limit_mm: Option<Num>,
+    following_error_limit_deg: Option<Num>,
+}
+
+#[derive(Deserialize)]
+#[serde(deny_unknown_fields)]
+struct RawRecording {
+    #[serde(default = "yes")]
+    rrd: bool,
+    #[serde(default = "yes")]
+    csv: bool,
+    #[serde(default = "one")]
+    decimation: Spanned<i64>,
+}
+
+fn yes() -> bool {
+    true
+}
+
+fn one() -> Spanned<i64> {
+    Spanned::new(0..0, 1)
+}
+
+impl Default for RawRecording {
+    fn default() -> Self {
+        RawRecording {
+            rrd: true,
+            csv: true,
+            decimation: one(),
+        }
+    }
+}
+
+/// Where the program comes from.
+#[derive(Debug, Clone, PartialEq)]
+pub enum ProgramSource {
+    Circle(CircleSpec),
+    Polyline(PolylineSpec),
+    File(PathBuf),
+}
+
+/// PID settings of one axis.
+#[derive(Debug, Clone, PartialEq)]
+pub struct AxisGains {
+    pub gains: PidGains,
+    pub output_limit: f64,
+    pub at: Option<LineColumn>,
+}
+
+/// A bound on one metric.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Expectation {
+    /// Dotted path into `metrics.json`, e.g. `axes.x.max_following_error_mm`.
+    pub metric: String,
+    pub min: Option<f64>,
+    pub max: Option<f64>,
+    pub at: Option<LineColumn>,
+}
+
+/// A validated scenario: plain data, SI units, paths resolved against the scenario's folder.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Scenario {
+    pub name: String,
+    pub path: PathBuf,
+    pub description: String,
+    pub machine: PathBuf,
+    pub machine_at: Option<LineColumn>,
+    pub program: ProgramSource,
+    pub profile: Profile,
+    pub rapid_speed: f64,
+    pub servo_period: f64,
+    pub substeps: usize,
+    pub solver_iterations: usize,
+    pub settle_time: f64,
+    pub actuator: ActuatorKind,
+    pub pid_form: PidForm,
+    pub gains: BTreeMap<String, AxisGains>,
+    pub controller_at: Option<LineColumn>,
+    pub encoder_counts_per_rev: BTreeMap<String, (u32, Option<LineColumn>)>,
+    /// Following-error fault limits: m for linear axes, rad for rotary axes.
+    pub following_error_limit_linear: f64,
+    pub following_error_limit_rotary: f64,
+    pub record_rrd: bool,
+    pub record_csv: bool,
+    pub decimation: usize,
+    pub expect: Vec<Expectation>,
+}
+
+impl Scenario {
+    pub fn load(path: &Path) -> Result<Scenario, FileError> {
+        let text = read_text(path, "scenario")?;
+        Self::parse(path, &text)
+    }
+
+    pub fn parse(path: &Path, text: &str) -> Result<Scenario, FileError> {
+        let raw: RawScenario = toml::from_str(text).map_err(|e| toml_error(path, text, &e))?;
+        let at = |start: usize| Some(LineColumn::of_offset(text, start));
+        let err = |span: std::ops::Range<usize>, msg: String| {
+            FileError::new(
+                path,
+                if span == (0..0) { None } else { at(span.start) },
+                msg,
+            )
+        };
+        let finite = |v: &Num, what: &str| -> Result<f64, FileError> {
+            let x = *v.get_ref();
+            if x.is_finite() {
+                Ok(x)
+            } else {
+                Err(err(
+                    v.span(),
+                    format!("{what} = {x}: expected a finite number"),
+                ))
+            }
+        };
+        let positive = |v: &Num, what: &str| -> Result<f64, FileError> {
+            let x = finite(v, what)?;
+            if x > 0.0 {
+                Ok(x)
+            } else {
+                Err(err(
+                    v.span(),
+                    format!("{what} = {x}: expected a number > 0"),
+                ))
+            }
+        };
+        let dir = path.parent().unwrap_or(Path::new("."));
+        let resolve = |p: &str| dir.join(p);
+
+        // Machine: must exist (its contents are checked when it is loaded).
+        let machine = resolve(raw.machine.get_ref());
+        if !machine.is_file() {
+            return Err(err(
+                raw.machine.span(),
+                format!(
+                    "machine model '{}' not found (looked for {})",
+                    raw.machine.get_ref(),
+                    machine.display()
+                ),
+            ));
+        }
+
+        // Program: exactly one source.
+        let p = &raw.program;
+        let count = p.file.is_some() as u8 + p.circle.is_some() as u8 + p.polyline.is_some() as u8;
+        let program_at = LineColumn::of_first(text, "[program]");
+        if count != 1 {
+            return Err(FileError::new(
+                path,
+                program_at,
+                format!(
+                    "[program] needs exactly one of `file`, `circle` or `polyline`, found {count}"
+                ),
+            ));
+        }
+        let feed = || -> Result<f64, FileError> {
+            match &p.feed_mm_s {
+                Some(v) => Ok(positive(v, "feed_mm_s")? * 1e-3),
+                None => Err(FileError::new(
+                    path,
+                    program_at,
+                    "[program] feed_mm_s is required for a built-in path",
+                )),
+            }
+        };
+        let program = if let Some(f) = &p.file {
+            if p.feed_mm_s.is_some() {
+                return Err(err(
+                    p.feed_mm_s.as_ref().unwrap().span(),
+                    "feed_mm_s applies to built-in paths; a program file programs its own feed"
+                        .into(),
+                ));
+            }
+            let file = resolve(f.get_ref());
+            if !file.is_file() {
+                return Err(err(
+                    f.span(),
+                    format!(
+                        "program file '{}' not found (looked for {})",
+                        f.get_ref(),
+                        file.display()
+                    ),
+                ));
+            }
+            ProgramSource::File(file)
+        } else if let Some(c) = &p.circle {
+            let v = c.get_ref();
+            let nums = [
+                v.center_mm[0],
+                v.center_mm[1],
+                v.radius_mm,
+                v.start_angle_deg,
+                v.z_mm,
+            ];
+            if !nums.iter().all(|x| x.is_finite()) || v.radius_mm <= 0.0 {
+                return Err(err(
+                    c.span(),
+                    "circle: expected finite numbers and radius_mm > 0".into(),
+                ));
+            }
+            ProgramSource::Circle(CircleSpec {
+                center: [v.center_mm[0] * 1e-3, v.center_mm[1] * 1e-3],
+                radius: v.radius_mm * 1e-3,
+                start_angle: v.start_angle_deg.to_radians(),
+                clockwise: matches!(v.direction, Direction::Cw),
+                z: v.z_mm * 1e-3,
+                speed: feed()?,
+            })
+        } else {
+            let pl = p.polyline.as_ref().expect("counted above");
+            let pts = &pl.get_ref().points_mm;
+            if pts.len() < 2 || !pts.iter().flatten().all(|x| x.is_finite()) {
+                return Err(err(
+                    pl.span(),
+                    format!(
+                        "polyline: expected at least 2 points of finite numbers, found {}",
+                        pts.len()
+                    ),
+                ));
+            }
+            ProgramSource::Polyline(PolylineSpec {
+                points: pts.iter().map(|p| p.map(|v| v * 1e-3)).collect(),
+                speed: feed()?,
+            })
+        };
+
+        // Timing: physics step ≤ servo period, and a whole number of steps per period.
+        let servo_period = positive(&raw.timing.servo_period_ms, "servo_period_ms")? * 1e-3;
+        let physics_step = positive(&raw.timing.physics_step_ms, "physics_step_ms")? * 1e-3;
+        if physics_step > servo_period * (1.0 + 1e-12) {
+            return Err(err(
+                raw.timing.physics_step_ms.span(),
+                format!("physics_step_ms = {} is longer than servo_period_ms = {}: the physics must step at least once per servo period", physics_step * 1e3, servo_period * 1e3),
+            ));
+        }
+        let ratio = servo_period / physics_step;
+        let substeps = ratio.round();
+        if (ratio - substeps).abs() > 1e-9 * ratio {
+            return Err(err(
+                raw.timing.physics_step_ms.span(),
+                format!("physics_step_ms = {} does not divide servo_period_ms = {} into whole steps (ratio {ratio:.6})", physics_step * 1e3, servo_period * 1e3),
+            ));
+        }
+        let settle_time = finite(&raw.timing.settle_s, "settle_s")?;
+        if settle_time < 0.0 {
+            return Err(err(
+                raw.timing.settle_s.span(),
+                format!("settle_s = {settle_time}: expected a number ≥ 0"),
+            ));
+        }
+
+        let solver_iterations = *raw.timing.solver_iterations.get_ref();
+        if !(1..=64).contains(&solver_iterations) {
+            return Err(err(
+                raw.timing.solver_iterations.span(),
+                format!(
+                    "solver_iterations = {solver_iterations}: expected a whole number from 1 to 64"
+                ),
+            ));
+        }
+
+        let mut gains = BTreeMap::new();
+        for (axis, g) in raw.controller.axes.get_ref() {
+            let v = g.get_ref();
+            let limit = v.output_limit.unwrap_or(f64::INFINITY);
+            let ok = [v.kp, v.ki, v.kd]
+                .iter()
+                .all(|x| x.is_finite() && *x >= 0.0)
+                && limit > 0.0
+                && !limit.is_nan();
+            if !ok {
+                return Err(err(g.span(), format!("controller.axes.{axis}: gains must be finite and ≥ 0, output_limit > 0 (kp={}, ki={}, kd={}, output_limit={limit})", v.kp, v.ki, v.kd)));
+            }
+            gains.insert(
+                axis.clone(),
+                AxisGains {
+                    gains: PidGains {
+                        kp: v.kp,
+                        ki: v.ki,
+                        kd: v.kd,
+                    },
+                    output_limit: limit,
+                    at: at(g.span().start),
+                },
+            );
+        }
+        let _ = raw.controller.kind; // only PID so far; the enum rejects other names
+
+        let mut encoder_counts_per_rev = BTreeMap::new();
+        for (axis, c) in &raw.feedback.encoder_counts_per_rev {
+            let n = *c.get_ref();
+            if !(1..=u32::MAX as i64).contains(&n) {
+                return Err(err(
+                    c.span(),
+                    format!("encoder_counts_per_rev.{axis} = {n}: expected a whole number ≥ 1"),
+                ));
+            }
+            encoder_counts_per_rev.insert(axis.clone(), (n as u32, at(c.span().start)));
+        }
+        // Defaults trip well beyond any sane tracking error but long before a runaway.
+        let following_error_limit_linear = match &raw.feedback.following_error_limit_mm {
+            Some(v) => positive(v, "following_error_limit_mm")? * 1e-3,
+            None => 10e-3,
+        };
+        let following_error_limit_rotary = match &raw.feedback.following_error_limit_deg {
+            Some(v) => positive(v, "following_error_limit_deg")?.to_radians(),
+            None => 10f64.to_radians(),
+        };
+        let decimation = *raw.recording.decimation.get_ref();
+        if decimation < 1 {
+            return Err(err(raw.recording.decimation.span(), format!("decimation = {decimation}: expected a whole number ≥ 1 (record every k-th tick)")));
+        }
+
+        let mut expect = Vec::new();
+        for (key, value) in &raw.expect {
+            flatten_expectations(
+                key,
+                value.get_ref(),
+                at(value.span().start),
+                path,
+                &mut expect,
+            )?;
+        }
+
+        Ok(Scenario {
+            name: raw.name.unwrap_or_else(|| {
+                path.file_stem()
+                    .map_or("scenario".into(), |s| s.to_string_lossy().into_owned())
+            }),
+            path: path.to_path_buf(),
+            description: raw.description,
+            machine,
+            machine_at: at(raw.machine.span().start),
+            program,
+            profile: raw.planner.profile,
+            rapid_speed: positive(&raw.planner.rapid_mm_s, "rapid_mm_s")? * 1e-3,
+            servo_period,
+            substeps: substeps as usize,
+            solver_iterations: solver_iterations as usize,
+            settle_time,
+            actuator: match raw.actuator.model {
+                ActuatorModel::IdealTorque => ActuatorKind::IdealTorque,
+                ActuatorModel::DcMotor => ActuatorKind::DcMotor,
+            },
+            pid_form: match raw.controller.form {
+                RawPidForm::Positional => PidForm::Positional,
+                RawPidForm::Incremental => PidForm::Incremental,
+            },
+            gains,
+            controller_at: at(raw.controller.axes.span().start),
+            encoder_counts_per_rev,
+            following_error_limit_linear,
+            following_error_limit_rotary,
+            record_rrd: raw.recording.rrd,
+            record_csv: raw.recording.csv,
+            decimation: decimation as usize,
+            expect,
+        })
+    }
+}
+
+/// `[expect]` entries: `metric = { max = … }` / `{ min = … }` / both, possibly nested
+/// (`[expect.axes.x]`), flattened to dotted metric paths.
+fn flatten_expectations(
+    prefix: &str,
+    value: &toml::Value,
+    at: Option<LineColumn>,
+    path: &Path,
+    out: &mut Vec<Expectation>,
+) -> Result<(), FileError> {
+    let fail = |m: String| FileError::new(path, at, m);
+    let table = value.as_table().ok_or_else(|| {
+        fail(format!(
+            "expect.{prefix}: expected a bound such as {{ max = 0.01 }}, found {}",
+            value.type_str()
+        ))
+    })?;
+    let is_bound = !table.is_empty() && table.keys().all(|k| k == "min" || k == "max");
+    if !is_bound {
+        for (k, v) in table {
+            if k == "min" || k == "max" {
+                return Err(fail(format!(
+                    "expect.{prefix}: mixes a bound ({k}) with nested metrics"
+                )));
+            }
+            flatten_expectations(&format!("{prefix}.{k}"), v, at, path, out)?;
+        }
+        return Ok(());
+    }
+    let num = |k: &str| -> Result<Option<f64>, FileError> {
+        match table.get(k) {
+            None => Ok(None),
+            Some(v) => {
+                let x = v
+                    .as_float()
+                    .or_else(|| v.as_integer().map(|i| i as f64))
+                    .ok_or_else(|| {
+                        fail(format!(
+                            "expect.{prefix}.{k}: expected a number, found {}",
+                            v.type_str()
+                        ))
+                    })?;
+                if x.is_nan() {
+                    return Err(fail(format!(
+                        "expect.{prefix}.{k} = nan: expected a number"
+                    )));
+                }
+                Ok(Some(x))
+            }
+        }
+    };
+    let (min, max) = (num("min")?, num("max")?);
+    if let (Some(lo), Some(hi)) = (min, max) {
+        if lo > hi {
+            return Err(fail(format!("expect.{prefix}: min {lo} > max {hi}")));
+        }
+    }
+    out.push(Expectation {
+        metric: prefix.to_string(),
+        min,
+        max,
+        at,
+    });
+    Ok(())
+}

@@ -1,0 +1,310 @@
+//! One scenario end to end: machine → program → setpoints → co-simulation → report.
+//! A run that stops early (divergence, following-error fault) still writes everything it
+//! computed and says where it stopped.
+
+use super::{ProgramSource, Scenario};
+use crate::control::{Actuator, ActuatorKind, Pid, PidBank};
+use crate::diagnostics::FileError;
+use crate::kinematics::{self, AxisMap};
+use crate::machine::Machine;
+use crate::model::{ModelError, Plant, PlantOptions};
+use crate::plan::{constant_velocity, PlanError};
+use crate::program::{circle, polyline, PathGeometry, Program};
+use crate::report::{self, AxisLabel, Derived, Metrics, RecordingContent, ReportError};
+use crate::sim::{CoSimulation, LoopSettings, Stop, Trace};
+use std::path::{Path, PathBuf};
+
+#[derive(Debug, thiserror::Error)]
+pub enum RunError {
+    #[error("{0}")]
+    File(#[from] FileError),
+    #[error("{path}: {source}")]
+    Model { path: PathBuf, source: ModelError },
+    #[error("{path}: {source}")]
+    Plan { path: PathBuf, source: PlanError },
+    #[error(transparent)]
+    Report(#[from] ReportError),
+}
+
+/// What a run produced.
+#[derive(Debug, Clone)]
+pub struct RunOutput {
+    pub metrics: Metrics,
+    pub metrics_json: serde_json::Value,
+    pub stop: Option<Stop>,
+    pub trace: Trace,
+    /// Files written, in the order written.
+    pub files: Vec<PathBuf>,
+}
+
+/// Gravity in the machine base frame: URDF convention, z up.
+const GRAVITY: [f64; 3] = [0.0, 0.0, -9.81];
+
+pub fn run_scenario(
+    s: &Scenario,
+    out_dir: &Path,
+    progress: &mut dyn FnMut(usize, usize),
+) -> Result<RunOutput, RunError> {
+    let machine = Machine::load(&s.machine)?;
+    let labels: Vec<AxisLabel> = machine
+        .axes
+        .iter()
+        .map(|a| AxisLabel {
+            name: a.name.clone(),
+            rotary: a.is_rotary(&machine),
+        })
+        .collect();
+    validate_against_machine(s, &machine, &labels)?;
+    let axis_map = AxisMap::cartesian(&machine)
+        .map_err(|e| FileError::new(&s.machine, None, e.to_string()))?;
+
+    let program = load_program(s)?;
+    let setpoints = constant_velocity(&program, &axis_map, s.servo_period, s.rapid_speed).map_err(
+        |source| RunError::Plan {
+            path: program.source.clone(),
+            source,
+        },
+    )?;
+
+    let step = s.servo_period / s.substeps as f64;
+    let options = PlantOptions {
+        step,
+        gravity: GRAVITY,
+        initial_positions: setpoints.position(0).to_vec(),
+        include_drive_dynamics: true,
+        solver_iterations: s.solver_iterations,
+    };
+    let plant = Plant::new(&machine, &options).map_err(|source| RunError::Model {
+        path: s.path.clone(),
+        source,
+    })?;
+
+    let loops = machine
+        .axes
+        .iter()
+        .map(|a| {
+            let g = &s.gains[&a.name];
+            Pid::new(g.gains, s.pid_form, s.servo_period, g.output_limit)
+        })
+        .collect();
+    let settings = LoopSettings {
+        servo_period: s.servo_period,
+        substeps: s.substeps,
+        settle_time: s.settle_time,
+        ratios: machine.axes.iter().map(|a| a.drive.ratio()).collect(),
+        encoder_resolution: machine
+            .axes
+            .iter()
+            .map(|a| {
+                let mut drive = a.drive.clone();
+                if let Some((counts, _)) = s.encoder_counts_per_rev.get(&a.name) {
+                    drive.encoder_counts_per_rev = Some(*counts);
+                }
+                drive.encoder_resolution()
+            })
+            .collect(),
+        following_error_limit: labels
+            .iter()
+            .map(|l| {
+                if l.rotary {
+                    s.following_error_limit_rotary
+                } else {
+                    s.following_error_limit_linear
+                }
+            })
+            .collect(),
+        axis_names: labels.iter().map(|l| l.name.clone()).collect(),
+    };
+    let cosim = CoSimulation {
+        plant,
+        controller: Box::new(PidBank::new(loops)),
+        actuators: machine
+            .axes
+            .iter()
+            .map(|a| Actuator::new(s.actuator, &a.drive))
+            .collect(),
+        settings,
+    };
+    let outcome = cosim.run(&setpoints, progress);
+
+    // Report: everything computed so far, whether or not the run completed.
+    let zeros = vec![0.0; machine.axes.len()];
+    let program_origin = kinematics::tool_point(&machine, &zeros);
+    let linear_axes = ["x", "y", "z"].map(|n| machine.axis_index(n));
+    let derived = Derived::compute(
+        &outcome.trace,
+        &PathGeometry::of(&program),
+        &program_origin,
+        linear_axes,
+    );
+    let dc_motor = s.actuator == ActuatorKind::DcMotor;
+    let metrics = Metrics::compute(
+        &s.name,
+        &outcome.trace,
+        &derived,
+        &labels,
+        dc_motor,
+        outcome.physics_steps,
+        outcome.wall_time,
+        outcome.stop.as_ref().map(|e| e.to_string()),
+    );
+    let metrics_json = metrics.to_json();
+
+    std::fs::create_dir_all(out_dir).map_err(|source| ReportError::Io {
+        path: out_dir.to_path_buf(),
+        source,
+    })?;
+    let mut files = Vec::new();
+    let metrics_path = out_dir.join("metrics.json");
+    let text = serde_json::to_string_pretty(&metrics_json).expect("JSON of plain values");
+    std::fs::write(&metrics_path, text + "\n").map_err(|source| ReportError::Io {
+        path: metrics_path.clone(),
+        source,
+    })?;
+    files.push(metrics_path);
+    if s.record_csv {
+        let p = out_dir.join("trace.csv");
+        report::write_trace_csv(&p, &outcome.trace, &derived, &labels, s.decimation)?;
+        files.push(p);
+    }
+    if s.record_rrd {
+        let p = out_dir.join("run.rrd");
+        let trace = &outcome.trace;
+        let poses = |k: usize| {
+            kinematics::link_poses(
+                &machine,
+                &trace.actual[k * trace.axes..(k + 1) * trace.axes],
+            )
+        };
+        let programmed_path = (0..setpoints.len())
+            .step_by(s.decimation)
+            .chain(std::iter::once(setpoints.len() - 1))
+            .map(|k| {
+                let p = axis_map.program_position(setpoints.position(k));
+                (program_origin + nalgebra::Vector3::from(p.linear)).into()
+            })
+            .collect();
+        let content = RecordingContent {
+            name: &s.name,
+            machine: &machine,
+            labels: &labels,
+            link_poses: &poses,
+            programmed_path,
+            dc_motor,
+            decimation: s.decimation,
+        };
+        report::write_recording(&p, trace, &derived, &content)?;
+        files.push(p);
+    }
+    Ok(RunOutput {
+        metrics,
+        metrics_json,
+        stop: outcome.stop,
+        trace: outcome.trace,
+        files,
+    })
+}
+
+fn load_program(s: &Scenario) -> Result<Program, RunError> {
+    Ok(match &s.program {
+        ProgramSource::Circle(c) => circle(c, &s.path),
+        ProgramSource::Polyline(p) => polyline(p, &s.path),
+        ProgramSource::File(f) => {
+            return Err(FileError::new(f, None, "reading part-program files (G-code, HPGL, APT) is not available in this build yet; use a built-in `circle` or `polyline` path").into())
+        }
+    })
+}
+
+/// Axis names in the scenario must be the machine's; every bound must name a real metric.
+fn validate_against_machine(
+    s: &Scenario,
+    machine: &Machine,
+    labels: &[AxisLabel],
+) -> Result<(), FileError> {
+    let names: Vec<&str> = machine.axes.iter().map(|a| a.name.as_str()).collect();
+    for axis in s.gains.keys() {
+        if !names.contains(&axis.as_str()) {
+            let at = s.gains[axis].at;
+            return Err(FileError::new(
+                &s.path,
+                at,
+                format!(
+                    "controller.axes.{axis}: the machine '{}' has no axis '{axis}' (its axes: {})",
+                    machine.name,
+                    names.join(", ")
+                ),
+            ));
+        }
+    }
+    for axis in &names {
+        if !s.gains.contains_key(*axis) {
+            return Err(FileError::new(
+                &s.path,
+                s.controller_at,
+                format!(
+                    "[controller.axes] has no gains for axis '{axis}' of machine '{}'",
+                    machine.name
+                ),
+            ));
+        }
+    }
+    for (axis, (_, at)) in &s.encoder_counts_per_rev {
+        if !names.contains(&axis.as_str()) {
+            return Err(FileError::new(
+                &s.path,
+                *at,
+                format!("feedback.encoder_counts_per_rev.{axis}: the machine has no axis '{axis}'"),
+            ));
+        }
+    }
+    // The metric names a run of this machine produces.
+    let empty = Trace {
+        period: s.servo_period,
+        axes: labels.len(),
+        ..Default::default()
+    };
+    let template = Metrics::compute(
+        &s.name,
+        &empty,
+        &Derived::default(),
+        labels,
+        s.actuator == ActuatorKind::DcMotor,
+        0,
+        0.0,
+        None,
+    )
+    .to_json();
+    let mut known = Vec::new();
+    collect_numeric_paths(&template, "", &mut known);
+    for e in &s.expect {
+        if !known.contains(&e.metric) {
+            return Err(FileError::new(
+                &s.path,
+                e.at,
+                format!(
+                    "expect.{}: no such metric; a run of this scenario reports: {}",
+                    e.metric,
+                    known.join(", ")
+                ),
+            ));
+        }
+    }
+    Ok(())
+}
+
+fn collect_numeric_paths(v: &serde_json::Value, prefix: &str, out: &mut Vec<String>) {
+    match v {
+        serde_json::Value::Object(map) => {
+            for (k, v) in map {
+                let p = if prefix.is_empty() {
+                    k.clone()
+                } else {
+                    format!("{prefix}.{k}")
+                };
+                collect_numeric_paths(v, &p, out);
+            }
+        }
+        serde_json::Value::Number(_) | serde_json::Value::Null => out.push(prefix.to_string()),
+        _ => {}
+    }
+}

@@ -1,0 +1,274 @@
+//! Bad scenario and machine files: a clear error naming the file and the line, never a panic.
+
+use cncsim::scenario::Scenario;
+use std::path::{Path, PathBuf};
+use std::process::Command;
+
+const GOOD: &str = r#"
+machine = "MODEL"
+[program]
+polyline = { points_mm = [[10.0, 10.0, 0.0], [11.0, 10.0, 0.0]] }
+feed_mm_s = 5.0
+[timing]
+servo_period_ms = 1.0
+physics_step_ms = 0.25
+[actuator]
+model = "dc-motor"
+[controller]
+type = "pid"
+axes.x = { kp = 19800.0, ki = 6.1e5, kd = 146.0 }
+axes.y = { kp = 19800.0, ki = 6.1e5, kd = 146.0 }
+axes.z = { kp = 9700.0, ki = 3.0e5, kd = 85.0 }
+"#;
+
+fn model() -> String {
+    Path::new(env!("CARGO_MANIFEST_DIR"))
+        .join("models/xyz_table.urdf")
+        .display()
+        .to_string()
+}
+
+fn scenario_text(edit: impl Fn(&str) -> String) -> String {
+    edit(&GOOD.replace("MODEL", &model()))
+}
+
+fn write(dir: &Path, name: &str, text: &str) -> PathBuf {
+    let p = dir.join(name);
+    std::fs::write(&p, text).unwrap();
+    p
+}
+
+#[test]
+fn the_good_scenario_parses() {
+    let dir = tempfile::tempdir().unwrap();
+    let p = write(dir.path(), "good.toml", &scenario_text(|s| s.to_string()));
+    Scenario::load(&p).unwrap();
+}
+
+/// Each bad input, the line it must point at, and words its message must contain.
+#[test]
+fn bad_scenarios_are_reported_with_file_and_line() {
+    let cases: Vec<(&str, String, usize, &str)> = vec![
+        (
+            "unknown key",
+            scenario_text(|s| s.replace("[timing]\n", "[timing]\nservo_perod_ms = 1.0\n")),
+            7,
+            "unknown field `servo_perod_ms`",
+        ),
+        (
+            "wrong type",
+            scenario_text(|s| s.replace("servo_period_ms = 1.0", "servo_period_ms = \"fast\"")),
+            7,
+            "invalid type: string \"fast\", expected f64",
+        ),
+        (
+            "NaN",
+            scenario_text(|s| s.replace("servo_period_ms = 1.0", "servo_period_ms = nan")),
+            7,
+            "servo_period_ms = NaN: expected a finite number",
+        ),
+        (
+            "negative period",
+            scenario_text(|s| s.replace("servo_period_ms = 1.0", "servo_period_ms = -1.0")),
+            7,
+            "servo_period_ms = -1: expected a number > 0",
+        ),
+        (
+            "zero period",
+            scenario_text(|s| s.replace("servo_period_ms = 1.0", "servo_period_ms = 0.0")),
+            7,
+            "servo_period_ms = 0: expected a number > 0",
+        ),
+        (
+            "step longer than period",
+            scenario_text(|s| s.replace("physics_step_ms = 0.25", "physics_step_ms = 2.0")),
+            8,
+            "is longer than servo_period_ms",
+        ),
+        (
+            "step not dividing period",
+            scenario_text(|s| s.replace("physics_step_ms = 0.25", "physics_step_ms = 0.3")),
+            8,
+            "does not divide",
+        ),
+        (
+            "missing model",
+            scenario_text(|s| s.replace(&model(), "no/such/model.urdf")),
+            2,
+            "machine model 'no/such/model.urdf' not found",
+        ),
+        (
+            "bad actuator",
+            scenario_text(|s| s.replace("dc-motor", "stepper")),
+            10,
+            "unknown variant `stepper`",
+        ),
+        (
+            "negative gain",
+            scenario_text(|s| s.replace("kp = 9700.0", "kp = -1.0")),
+            15,
+            "gains must be finite and ≥ 0",
+        ),
+        (
+            "zero feed",
+            scenario_text(|s| s.replace("feed_mm_s = 5.0", "feed_mm_s = 0.0")),
+            5,
+            "feed_mm_s = 0: expected a number > 0",
+        ),
+        (
+            "two programs",
+            scenario_text(|s| s.replace("feed_mm_s = 5.0", "feed_mm_s = 5.0\nfile = \"x.ngc\"")),
+            3,
+            "needs exactly one of",
+        ),
+        (
+            "bad bound",
+            scenario_text(|s| s.to_owned() + "[expect]\nmax_contour_error_mm = 0.1\n"),
+            17,
+            "expected a bound such as { max = 0.01 }",
+        ),
+        ("not toml", "machine = [\n".to_string(), 1, "unclosed array"),
+    ];
+    let dir = tempfile::tempdir().unwrap();
+    for (what, text, line, words) in cases {
+        let p = write(dir.path(), "bad.toml", &text);
+        let err = Scenario::load(&p).expect_err(what);
+        let shown = err.to_string();
+        assert!(
+            shown.starts_with(&format!("{}:{line}:", p.display())),
+            "{what}: expected line {line}, got: {shown}"
+        );
+        assert!(
+            shown.contains(words),
+            "{what}: message lacks {words:?}: {shown}"
+        );
+    }
+}
+
+fn cncsim(args: &[&str]) -> std::process::Output {
+    Command::new(env!("CARGO_BIN_EXE_cncsim"))
+        .args(args)
+        .current_dir(env!("CARGO_MANIFEST_DIR"))
+        .output()
+        .unwrap()
+}
+
+#[test]
+fn cli_exits_with_2_and_the_location_on_bad_input() {
+    let dir = tempfile::tempdir().unwrap();
+    let p = write(
+        dir.path(),
+        "bad.toml",
+        &scenario_text(|s| s.replace("physics_step_ms = 0.25", "physics_step_ms = 2.0")),
+    );
+    let out = cncsim(&[
+        "run",
+        p.to_str().unwrap(),
+        "--out",
+        dir.path().join("o").to_str().unwrap(),
+    ]);
+    assert_eq!(out.status.code(), Some(2));
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(err.contains(&format!("{}:8:", p.display())), "{err}");
+    assert!(!err.contains("panicked"), "{err}");
+}
+
+#[test]
+fn scenario_naming_a_missing_axis_or_metric_is_rejected_before_running() {
+    let dir = tempfile::tempdir().unwrap();
+    let p = write(
+        dir.path(),
+        "s.toml",
+        &scenario_text(|s| {
+            s.to_owned() + "[expect]\naxes.q.max_following_error_mm = { max = 1.0 }\n"
+        }),
+    );
+    let out = cncsim(&[
+        "run",
+        p.to_str().unwrap(),
+        "--out",
+        dir.path().join("o").to_str().unwrap(),
+    ]);
+    assert_eq!(out.status.code(), Some(2));
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(
+        err.contains("expect.axes.q.max_following_error_mm: no such metric"),
+        "{err}"
+    );
+    assert!(err.contains(":17:"), "{err}");
+
+    let p = write(
+        dir.path(),
+        "s2.toml",
+        &scenario_text(|s| s.replace("axes.z = {", "axes.w = {")),
+    );
+    let out = cncsim(&[
+        "run",
+        p.to_str().unwrap(),
+        "--out",
+        dir.path().join("o").to_str().unwrap(),
+    ]);
+    assert_eq!(out.status.code(), Some(2));
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(err.contains("has no axis 'w'"), "{err}");
+}
+
+#[test]
+fn bad_machine_files_name_the_element() {
+    let dir = tempfile::tempdir().unwrap();
+    let src = std::fs::read_to_string(model()).unwrap();
+    let drives =
+        std::fs::read_to_string(Path::new(&model()).with_extension("drives.toml")).unwrap();
+    let cases = [
+        (
+            "negative mass",
+            src.replace("<mass value=\"8.0\"/>", "<mass value=\"-8.0\"/>"),
+            "link 'x_carriage': mass -8 kg",
+        ),
+        (
+            "bad inertia",
+            src.replace("ixx=\"0.16727\"", "ixx=\"-0.1\""),
+            "inertia is not positive definite",
+        ),
+        (
+            "missing parent",
+            src.replace("<parent link=\"x_carriage\"/>", "<parent link=\"nope\"/>"),
+            "joint 'y': parent link 'nope' does not exist",
+        ),
+        (
+            "not xml",
+            "<robot name=".to_string(),
+            "not a valid URDF document",
+        ),
+    ];
+    for (what, text, words) in cases {
+        let urdf = write(dir.path(), "m.urdf", &text);
+        write(
+            dir.path(),
+            "m.drives.toml",
+            &drives.replace("machine = \"xyz_table\"", "machine = \"xyz_table\""),
+        );
+        let err = cncsim::machine::Machine::load(&urdf)
+            .expect_err(what)
+            .to_string();
+        assert!(
+            err.starts_with(&urdf.display().to_string()),
+            "{what}: {err}"
+        );
+        assert!(err.contains(words), "{what}: {err}");
+    }
+    // A drive sidecar with a negative constant points at its axis table.
+    let urdf = write(dir.path(), "m.urdf", &src);
+    write(
+        dir.path(),
+        "m.drives.toml",
+        &drives.replace("amplifier_gain = 7.68", "amplifier_gain = -7.68"),
+    );
+    let err = cncsim::machine::Machine::load(&urdf)
+        .expect_err("negative gain")
+        .to_string();
+    assert!(
+        err.contains("m.drives.toml:") && err.contains("axis 'z': amplifier_gain = -7.68"),
+        "{err}"
+    );
+}

@@ -1,0 +1,171 @@
+//! The bundled scenarios run and meet their bounds; what a run writes can be read back.
+
+use cncsim::scenario::{check, run_scenario, Scenario};
+use std::collections::BTreeMap;
+use std::path::Path;
+
+fn bundled(name: &str) -> Scenario {
+    Scenario::load(
+        &Path::new(env!("CARGO_MANIFEST_DIR"))
+            .join("scenarios")
+            .join(name),
+    )
+    .unwrap()
+}
+
+#[test]
+fn circle_scenario_meets_its_bounds_and_writes_a_readable_recording() {
+    let scenario = bundled("xyz_circle_5mms.toml");
+    let out = tempfile::tempdir().unwrap();
+    let run = run_scenario(&scenario, out.path(), &mut |_, _| {}).unwrap();
+    assert!(run.stop.is_none(), "{:?}", run.stop);
+    let verdict = check(&scenario, &run.metrics_json);
+    assert!(verdict.passed(), "breaches: {:?}", verdict.breaches);
+    assert_eq!(verdict.checked, 5);
+
+    // metrics.json has the documented keys.
+    let json: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(out.path().join("metrics.json")).unwrap())
+            .unwrap();
+    for key in [
+        "max_contour_error_mm",
+        "max_path_speed_error_mm_s",
+        "sim_time_s",
+        "wall_time_s",
+        "physics_steps",
+        "real_time_factor",
+    ] {
+        assert!(
+            json.get(key).is_some_and(|v| v.is_number()),
+            "metrics.json lacks {key}"
+        );
+    }
+    for axis in ["x", "y", "z"] {
+        for key in [
+            "max_following_error_mm",
+            "rms_following_error_mm",
+            "peak_torque_nm",
+            "peak_voltage_v",
+        ] {
+            assert!(
+                json["axes"][axis][key].is_number(),
+                "metrics.json lacks axes.{axis}.{key}"
+            );
+        }
+    }
+    // The circle takes 2πr/V = 37.7 s; the sampled stream ends exactly there.
+    let sim_time = json["sim_time_s"].as_f64().unwrap();
+    assert!(
+        (sim_time - 2.0 * std::f64::consts::PI * 0.030 / 0.005).abs() < 2e-3,
+        "{sim_time}"
+    );
+    assert_eq!(
+        json["physics_steps"].as_u64().unwrap(),
+        (run.trace.len() as u64 + 500) * 4
+    );
+
+    // The recording: expected entities with one row per recorded tick.
+    let rows = rrd_rows(&out.path().join("run.rrd"));
+    let recorded = run.trace.len().div_ceil(scenario.decimation);
+    for axis in ["x", "y", "z"] {
+        for series in [
+            "commanded",
+            "actual",
+            "following_error",
+            "torque",
+            "voltage",
+        ] {
+            let path = format!("/axes/{axis}/{series}");
+            assert_eq!(rows.get(&path).copied(), Some(recorded), "{path}: {rows:?}");
+        }
+    }
+    for link in ["x_carriage", "y_carriage", "z_slide", "base"] {
+        assert_eq!(
+            rows.get(&format!("/world/machine/{link}")).copied(),
+            Some(recorded),
+            "{link}: {rows:?}"
+        );
+    }
+    for path in ["/world/tool", "/path/contour_error", "/path/speed/actual"] {
+        assert_eq!(rows.get(path).copied(), Some(recorded), "{path}");
+    }
+    for path in [
+        "/world/path/programmed",
+        "/world/path/actual",
+        "/world/machine/z_slide/visual_0",
+    ] {
+        assert!(rows.contains_key(path), "{path} missing: {rows:?}");
+    }
+
+    // The CSV has the same ticks.
+    let csv = std::fs::read_to_string(out.path().join("trace.csv")).unwrap();
+    assert_eq!(csv.lines().count(), recorded + 1);
+    assert!(csv
+        .lines()
+        .next()
+        .unwrap()
+        .starts_with("t_s,x_commanded_mm,x_actual_mm,x_following_error_um"));
+}
+
+#[test]
+fn same_scenario_same_numbers() {
+    let mut scenario = bundled("xyz_circle_5mms.toml");
+    // A shorter path keeps this quick; determinism does not depend on length.
+    scenario.program = cncsim::scenario::ProgramSource::Polyline(cncsim::program::PolylineSpec {
+        points: vec![[0.1, 0.1, 0.0], [0.105, 0.1, 0.0], [0.105, 0.104, 0.0]],
+        speed: 0.01,
+    });
+    scenario.record_rrd = false;
+    let a = tempfile::tempdir().unwrap();
+    let b = tempfile::tempdir().unwrap();
+    let ra = run_scenario(&scenario, a.path(), &mut |_, _| {}).unwrap();
+    let rb = run_scenario(&scenario, b.path(), &mut |_, _| {}).unwrap();
+    assert_eq!(ra.trace, rb.trace, "two runs of one scenario differ");
+}
+
+#[test]
+fn a_runaway_is_stopped_with_time_and_axis_and_the_recording_is_kept() {
+    let mut scenario = bundled("xyz_circle_5mms.toml");
+    // Positive feedback on X: the carriage runs away until the following-error fault trips.
+    let gains = scenario.gains.get_mut("x").unwrap();
+    gains.gains.kp = -gains.gains.kp;
+    gains.gains.ki = 0.0;
+    gains.gains.kd = 0.0;
+    let out = tempfile::tempdir().unwrap();
+    let run = run_scenario(&scenario, out.path(), &mut |_, _| {}).unwrap();
+    let stop = run.stop.expect("the run must stop");
+    let text = stop.to_string();
+    assert!(
+        text.contains("axis 'x'") && text.contains("following-error fault at t = "),
+        "{text}"
+    );
+    assert_eq!(run.metrics_json["completed"], false);
+    assert!(run.metrics_json["stopped"]
+        .as_str()
+        .unwrap()
+        .contains("axis 'x'"));
+    // What was computed is on disk.
+    assert!(!rrd_rows(&out.path().join("run.rrd")).is_empty());
+    assert!(
+        std::fs::read_to_string(out.path().join("trace.csv"))
+            .unwrap()
+            .lines()
+            .count()
+            > 1
+    );
+}
+
+/// Rows per entity path in an .rrd file, decoded with the rerun crate.
+fn rrd_rows(path: &Path) -> BTreeMap<String, usize> {
+    use rerun::external::re_log_encoding::DecoderApp;
+    use rerun::log::{Chunk, LogMsg};
+    let file = std::io::BufReader::new(std::fs::File::open(path).unwrap());
+    let mut rows = BTreeMap::new();
+    for msg in DecoderApp::decode_lazy(file) {
+        if let LogMsg::ArrowMsg(_, arrow) = msg.unwrap() {
+            let chunk = Chunk::from_arrow_msg(&arrow).unwrap();
+            *rows.entry(chunk.entity_path().to_string()).or_insert(0) += chunk.num_rows();
+        }
+    }
+    rows
+}
