@@ -3,7 +3,7 @@
 //! over the bundled circle (r = 30 mm at 5 mm/s about (100, 100) mm, 37.7 s at dt = 0.25 ms).
 //! The exact velocity is fed in, so every difference from the exact circle is rounding.
 //!
-//! Run: `cargo run --release --example float_width`
+//! Run: `cargo run --example float_width`
 
 fn main() {
     let (r, v, cx, cy, dt) = (0.030f64, 0.005f64, 0.100f64, 0.100f64, 2.5e-4f64);

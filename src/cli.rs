@@ -19,6 +19,24 @@ pub enum Command {
         #[arg(long)]
         out: Option<PathBuf>,
     },
+    /// Decode a part program (G-code, HPGL, APT CL data) and print its moves or a summary,
+    /// cut and rapid / pen-up lengths and the program time at programmed feed.
+    Inspect {
+        program: PathBuf,
+        /// Feed over the Euclidean norm of all axis deltas (mm and degrees), as in the 5-axis
+        /// study, instead of LinuxCNC's rule.
+        #[arg(long)]
+        euclidean_feed: bool,
+        /// HPGL: drop a dangling coordinate with a warning instead of rejecting the file.
+        #[arg(long)]
+        lenient: bool,
+        /// HPGL: reorder and reverse strokes to shorten pen-up travel; report before/after.
+        #[arg(long)]
+        optimise_pen_up: bool,
+        /// List every move, however long the program.
+        #[arg(long)]
+        all: bool,
+    },
     /// Run scenarios (files, or folders of *.toml) and check their [expect] bounds; exits
     /// non-zero if any bound is breached or any run fails.
     Check {

@@ -1,4 +1,5 @@
 use clap::Parser;
+use cncsim::program::{inspect, FeedRule, InspectOptions, ReadOptions};
 use cncsim::report::metrics_table;
 use cncsim::scenario::{check, run_scenario, RunOutput, Scenario};
 use indicatif::{ProgressBar, ProgressStyle};
@@ -26,6 +27,34 @@ fn main() -> ExitCode {
         }
         Some(Command::Run { scenario, out }) => run_one(&scenario, out),
         Some(Command::Check { scenarios, out }) => check_all(&scenarios, out),
+        Some(Command::Inspect {
+            program,
+            euclidean_feed,
+            lenient,
+            optimise_pen_up,
+            all,
+        }) => {
+            let mut options = ReadOptions::default();
+            if euclidean_feed {
+                options.feed_rule = FeedRule::EuclideanAllAxes;
+            }
+            options.hpgl.lenient = lenient;
+            options.hpgl.optimise_pen_up = optimise_pen_up;
+            let listing = InspectOptions {
+                list_limit: if all {
+                    usize::MAX
+                } else {
+                    InspectOptions::default().list_limit
+                },
+            };
+            match inspect(&program, &options, &listing) {
+                Ok(report) => {
+                    print!("{report}");
+                    ExitCode::SUCCESS
+                }
+                Err(e) => fail_input(&e),
+            }
+        }
     }
 }
 

@@ -272,3 +272,56 @@ fn bad_machine_files_name_the_element() {
         "{err}"
     );
 }
+
+/// A scenario whose program file is damaged, or drives an axis the machine lacks, fails with
+/// the program's file, line and column.
+#[test]
+fn bad_program_files_are_reported_against_the_program() {
+    let dir = tempfile::tempdir().unwrap();
+    let samples = Path::new(env!("CARGO_MANIFEST_DIR")).join("scenarios/programs");
+    let with_file = |file: &Path| {
+        scenario_text(|s| {
+            s.replace(
+                "polyline = { points_mm = [[10.0, 10.0, 0.0], [11.0, 10.0, 0.0]] }\nfeed_mm_s = 5.0",
+                &format!("file = {:?}", file.display().to_string()),
+            )
+        })
+    };
+    let damaged = samples.join("b_circle_r3mm_as_printed.plt");
+    let p = write(dir.path(), "damaged.toml", &with_file(&damaged));
+    let out = cncsim(&[
+        "run",
+        p.to_str().unwrap(),
+        "--out",
+        dir.path().join("o").to_str().unwrap(),
+    ]);
+    assert_eq!(out.status.code(), Some(2));
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(
+        err.contains(&format!(
+            "{}:1:287: expected x,y pairs after PA",
+            damaged.display()
+        )),
+        "{err}"
+    );
+
+    let rotary = write(
+        dir.path(),
+        "rotary.ngc",
+        "G21 G90\nG1 X1 F60\nG1 A10 F60\nM2\n",
+    );
+    let p = write(dir.path(), "rotary.toml", &with_file(&rotary));
+    let out = cncsim(&[
+        "run",
+        p.to_str().unwrap(),
+        "--out",
+        dir.path().join("o").to_str().unwrap(),
+    ]);
+    assert_eq!(out.status.code(), Some(2));
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(
+        err.contains(&format!("{}:3:", rotary.display()))
+            && err.contains("drives axis A, which the machine 'xyz_table' does not have"),
+        "{err}"
+    );
+}

@@ -169,3 +169,89 @@ fn rrd_rows(path: &Path) -> BTreeMap<String, usize> {
     }
     rows
 }
+
+/// `cncsim check scenarios/` — what CI users run — passes on the bundled scenarios and says so
+/// in the plain closing line.
+#[test]
+fn check_passes_on_every_bundled_scenario() {
+    let out_dir = tempfile::tempdir().unwrap();
+    let out = std::process::Command::new(env!("CARGO_BIN_EXE_cncsim"))
+        .args([
+            "check",
+            "scenarios",
+            "--out",
+            out_dir.path().to_str().unwrap(),
+        ])
+        .current_dir(env!("CARGO_MANIFEST_DIR"))
+        .output()
+        .unwrap();
+    let stdout = String::from_utf8_lossy(&out.stdout);
+    assert_eq!(
+        out.status.code(),
+        Some(0),
+        "{stdout}\n{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let bundled = std::fs::read_dir(Path::new(env!("CARGO_MANIFEST_DIR")).join("scenarios"))
+        .unwrap()
+        .filter(|e| {
+            e.as_ref()
+                .unwrap()
+                .path()
+                .extension()
+                .is_some_and(|x| x == "toml")
+        })
+        .count();
+    assert!(
+        stdout.contains(&format!("{bundled} passed, 0 failed")),
+        "{stdout}"
+    );
+}
+
+/// A bound that the run cannot meet makes `check` fail, naming the bound's line.
+#[test]
+fn check_fails_on_a_breached_bound() {
+    let dir = tempfile::tempdir().unwrap();
+    let text = std::fs::read_to_string(
+        Path::new(env!("CARGO_MANIFEST_DIR")).join("scenarios/xyz_square_arc_gcode.toml"),
+    )
+    .unwrap()
+    .replace(
+        "programs/xyz_square_arc.ngc",
+        &Path::new(env!("CARGO_MANIFEST_DIR"))
+            .join("scenarios/programs/xyz_square_arc.ngc")
+            .display()
+            .to_string(),
+    )
+    .replace(
+        "../models/xyz_table.urdf",
+        &Path::new(env!("CARGO_MANIFEST_DIR"))
+            .join("models/xyz_table.urdf")
+            .display()
+            .to_string(),
+    )
+    .replace(
+        "max_contour_error_mm = { max = 0.09 }",
+        "max_contour_error_mm = { max = 0.00001 }",
+    );
+    let path = dir.path().join("tight.toml");
+    std::fs::write(&path, text).unwrap();
+    let out = std::process::Command::new(env!("CARGO_BIN_EXE_cncsim"))
+        .args([
+            "check",
+            path.to_str().unwrap(),
+            "--out",
+            dir.path().join("o").to_str().unwrap(),
+        ])
+        .output()
+        .unwrap();
+    let stdout = String::from_utf8_lossy(&out.stdout);
+    assert_eq!(out.status.code(), Some(1), "{stdout}");
+    assert!(
+        stdout.contains("FAIL")
+            && stdout.contains("max_contour_error_mm = ")
+            && stdout.contains("expected ≤ 0.00001"),
+        "{stdout}"
+    );
+    assert!(stdout.contains("0 passed, 1 failed"), "{stdout}");
+}

@@ -6,21 +6,16 @@
 
 use super::Setpoints;
 use crate::kinematics::AxisMap;
-use crate::program::{arc_segment, Feed, Motion, Position, Program, Segment};
-use nalgebra::{Point3, Vector3};
+use crate::program::{
+    arc_segment, move_duration, move_length, rotary_travel_degrees, Feed, Motion, Position,
+    Program, Segment,
+};
+use nalgebra::Point3;
 
 #[derive(Debug, Clone, thiserror::Error, PartialEq)]
 pub enum PlanError {
-    #[error("move {index} (line {line}): feed {feed} is not a positive finite speed")]
+    #[error("move {index} (line {line}): feed {feed} gives no positive finite duration")]
     BadFeed { index: usize, line: u32, feed: f64 },
-    #[error(
-        "move {index} (line {line}): {what} is not supported by the constant-velocity interpolator"
-    )]
-    Unsupported {
-        index: usize,
-        line: u32,
-        what: &'static str,
-    },
     #[error("move {index} (line {line}): arc radius {radius} m is degenerate")]
     BadArc {
         index: usize,
@@ -30,6 +25,9 @@ pub enum PlanError {
     #[error("the servo period must be a positive finite number of seconds, got {0}")]
     BadPeriod(f64),
 }
+
+/// A sample of a move: position, and velocity per second (both as program positions).
+type Sample = (Position, Position);
 
 /// Samples `program` at period `period` with the constant-velocity interpolators.
 /// `rapid_speed` (m/s) is used for rapid moves.
@@ -55,33 +53,35 @@ pub fn constant_velocity(
     for (index, m) in program.moves.iter().enumerate() {
         let seg = index as u32;
         let line = m.span.line;
-        let speed = match m.feed {
-            Feed::Rapid => rapid_speed,
-            Feed::PathSpeed(v) => v,
-            Feed::InverseTime(_) => {
-                return Err(PlanError::Unsupported {
-                    index,
-                    line,
-                    what: "inverse-time feed",
-                })
+        // Duration at programmed feed under the move's feed rule; rapids at `rapid_speed`.
+        let duration = match m.feed {
+            Feed::Rapid if !matches!(m.motion, Motion::Dwell { .. }) => {
+                let linear = move_length(&at, m);
+                // As the feed rules do: 1 mm of travel ≙ 1° for a purely rotary move.
+                let rotary = rotary_travel_degrees(&at, m) * 1e-3;
+                Some(if linear > 0.0 { linear } else { rotary } / rapid_speed)
+            }
+            _ => move_duration(&at, m),
+        };
+        let duration = match duration {
+            Some(d) if d.is_finite() && d >= 0.0 => d,
+            _ => {
+                let feed = match m.feed {
+                    Feed::PathSpeed(v) | Feed::InverseTime(v) => v,
+                    Feed::Rapid => rapid_speed,
+                };
+                return Err(PlanError::BadFeed { index, line, feed });
             }
         };
-        if !matches!(m.motion, Motion::Dwell { .. }) && !(speed.is_finite() && speed > 0.0) {
-            return Err(PlanError::BadFeed {
-                index,
-                line,
-                feed: speed,
-            });
-        }
-        let samples: Vec<(Position, [f64; 3])> = match m.motion {
-            Motion::Linear => line_samples(&at, &m.end, speed, period),
+        let samples: Vec<Sample> = match m.motion {
+            Motion::Linear => line_samples(&at, &m.end, duration, period),
             Motion::Arc {
                 center,
                 plane,
                 clockwise,
                 turns,
             } => {
-                let seg = arc_segment(
+                let geometry = arc_segment(
                     Point3::from(at.linear),
                     Point3::from(m.end.linear),
                     Point3::from(center),
@@ -89,32 +89,35 @@ pub fn constant_velocity(
                     clockwise,
                     turns,
                 );
-                arc_samples(&at, &m.end, &seg, speed, period).ok_or(PlanError::BadArc {
+                let bad_arc = PlanError::BadArc {
                     index,
                     line,
                     radius: (Point3::from(at.linear) - Point3::from(center)).norm(),
-                })?
+                };
+                if duration == 0.0 {
+                    return Err(bad_arc);
+                }
+                let speed = move_length(&at, m) / duration;
+                arc_samples(&at, &m.end, &geometry, speed, period).ok_or(bad_arc)?
             }
-            Motion::Dwell { seconds } => {
-                let ticks = (seconds / period).ceil().max(0.0) as usize;
-                vec![(at, [0.0; 3]); ticks]
+            Motion::Dwell { .. } => {
+                let ticks = (duration / period).ceil() as usize;
+                vec![(at, Position::default()); ticks]
             }
         };
         if samples.is_empty() {
             continue;
         }
         if pending_start {
-            velocity_to_axes(axes, &samples[0].1, &mut qd);
+            axes.machine_axes(&samples[0].1, &mut qd);
             out.push(&q, &qd, &zeros, seg);
             pending_start = false;
         }
         for (p, v) in &samples {
             axes.machine_axes(p, &mut q);
-            velocity_to_axes(axes, v, &mut qd);
+            axes.machine_axes(v, &mut qd);
             out.push(&q, &qd, &zeros, seg);
         }
-        // The sample that lands on the target belongs to the move it ends; it carries the
-        // next move's velocity only if that move starts from it, which the next move records.
         at = m.end;
     }
     if pending_start {
@@ -127,32 +130,19 @@ pub fn constant_velocity(
     Ok(out)
 }
 
-fn velocity_to_axes(axes: &AxisMap, v: &[f64; 3], out: &mut [f64]) {
-    axes.machine_axes(
-        &Position {
-            linear: *v,
-            rotary: [0.0; 3],
-        },
-        out,
-    );
-}
-
-/// Samples 1..=⌈N⌉ of a straight move, N = L/(V·T); the last lands exactly on the target.
-/// Rotary axes move in proportion.
-fn line_samples(
-    from: &Position,
-    to: &Position,
-    speed: f64,
-    period: f64,
-) -> Vec<(Position, [f64; 3])> {
-    let d = Vector3::from(to.linear) - Vector3::from(from.linear);
-    let length = d.norm();
-    if length == 0.0 {
+/// Samples 1..=⌈N⌉ of a straight move of the given duration, N = duration/T (= L/(V·T) at
+/// path speed V); the last lands exactly on the target. Rotary axes move in proportion.
+fn line_samples(from: &Position, to: &Position, duration: f64, period: f64) -> Vec<Sample> {
+    if duration == 0.0 || from == to {
         return Vec::new();
     }
-    let steps = length / (speed * period);
+    let steps = duration / period;
     let count = steps.ceil() as usize;
-    let velocity: [f64; 3] = (d * (speed / length)).into();
+    let mut velocity = Position::default();
+    for i in 0..3 {
+        velocity.linear[i] = (to.linear[i] - from.linear[i]) / duration;
+        velocity.rotary[i] = (to.rotary[i] - from.rotary[i]) / duration;
+    }
     (1..=count)
         .map(|k| {
             let p = if (k as f64) < steps {
@@ -172,7 +162,7 @@ fn arc_samples(
     seg: &Segment,
     speed: f64,
     period: f64,
-) -> Option<Vec<(Position, [f64; 3])>> {
+) -> Option<Vec<Sample>> {
     let Segment::Arc {
         center,
         normal,
@@ -185,7 +175,7 @@ fn arc_samples(
     };
     let r0 = start - center;
     let radius = r0.norm();
-    if !(radius > 0.0 && radius.is_finite()) {
+    if !(radius > 0.0 && radius.is_finite() && speed > 0.0 && speed.is_finite()) {
         return None;
     }
     let chord = speed * period;
@@ -199,6 +189,13 @@ fn arc_samples(
     let v = normal.cross(&u);
     let dir = sweep.signum();
     let rate = theta / period; // rad/s along the arc
+    let tangent = |a: f64| {
+        (v * a.cos() - u * a.sin()) * (dir * radius * rate) + normal * (rise / (steps * period))
+    };
+    let as_position = |t: nalgebra::Vector3<f64>| Position {
+        linear: t.into(),
+        rotary: [0.0; 3],
+    };
     Some(
         (1..=count)
             .map(|k| {
@@ -207,15 +204,11 @@ fn arc_samples(
                     let fraction = k as f64 / steps;
                     let p =
                         center + (u * a.cos() + v * a.sin()) * radius + normal * (rise * fraction);
-                    let tangent = (v * a.cos() - u * a.sin()) * (dir * radius * rate)
-                        + normal * (rise / (steps * period));
                     let mut pos = lerp(from, to, fraction);
                     pos.linear = p.into();
-                    (pos, tangent.into())
+                    (pos, as_position(tangent(a)))
                 } else {
-                    let a = sweep;
-                    let tangent = (v * a.cos() - u * a.sin()) * (dir * radius * rate);
-                    (*to, tangent.into())
+                    (*to, as_position(tangent(sweep)))
                 }
             })
             .collect(),
@@ -235,6 +228,7 @@ fn lerp(a: &Position, b: &Position, s: f64) -> Position {
 mod tests {
     use super::*;
     use crate::program::{circle, polyline, CircleSpec, PolylineSpec};
+    use nalgebra::Vector3;
     use std::path::Path;
 
     fn xyz() -> AxisMap {

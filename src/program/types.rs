@@ -45,6 +45,8 @@ pub enum Feed {
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
 pub enum FeedRule {
     /// LinuxCNC: the feed applies to the linear axes; a purely rotary move uses it in deg/min.
+    /// For such a move `Feed::PathSpeed(v)` carries the angular rate with 1 mm ≡ 1 degree:
+    /// the axes turn at v × 1000 degrees per second.
     #[default]
     LinuxCnc,
     /// The 5-axis study: the feed applies to the Euclidean norm of all axis deltas, linear in mm
@@ -69,7 +71,10 @@ pub enum Motion {
     /// Straight line in all axes from the previous position to `Move::end`.
     Linear,
     /// Circular arc in `plane` about `center` (m, absolute), helical when the axis normal to the
-    /// plane changes; `turns` extra full turns (G2/G3 P − 1).
+    /// plane changes; `turns` extra full turns (G2/G3 P − 1). An arc whose end lies at its
+    /// start in the plane is a full circle (as in LinuxCNC). In `plane`'s own axis order
+    /// (XY: X then Y; ZX: Z then X; YZ: Y then Z) counter-clockwise is positive about the
+    /// normal axis. `center`'s coordinate along the normal axis is the arc's start value.
     Arc {
         center: [f64; 3],
         plane: Plane,

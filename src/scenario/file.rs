@@ -3,7 +3,7 @@
 
 use crate::control::{ActuatorKind, PidForm, PidGains};
 use crate::diagnostics::{read_text, toml_error, FileError, LineColumn};
-use crate::program::{CircleSpec, PolylineSpec};
+use crate::program::{CircleSpec, FeedRule, PolylineSpec, ReadOptions};
 use serde::Deserialize;
 use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};
@@ -40,6 +40,24 @@ struct RawProgram {
     polyline: Option<Spanned<RawPolyline>>,
     /// Path speed of the built-in paths (mm/s).
     feed_mm_s: Option<Num>,
+    /// How a program file's feed applies to moves with rotary axes.
+    #[serde(default)]
+    feed_rule: RawFeedRule,
+    /// HPGL: pen heights (mm), lenient decoding of damaged files, pen-up travel optimisation.
+    pen_up_z_mm: Option<f64>,
+    pen_down_z_mm: Option<f64>,
+    #[serde(default)]
+    lenient: bool,
+    #[serde(default)]
+    optimise_pen_up: bool,
+}
+
+#[derive(Deserialize, Default, Clone, Copy)]
+#[serde(rename_all = "kebab-case")]
+enum RawFeedRule {
+    #[default]
+    Linuxcnc,
+    EuclideanAllAxes,
 }
 
 #[derive(Deserialize)]
@@ -208,7 +226,7 @@ impl Default for RawRecording {
 pub enum ProgramSource {
     Circle(CircleSpec),
     Polyline(PolylineSpec),
-    File(PathBuf),
+    File { path: PathBuf, options: ReadOptions },
 }
 
 /// PID settings of one axis.
@@ -354,7 +372,34 @@ impl Scenario {
                     ),
                 ));
             }
-            ProgramSource::File(file)
+            let mut options = ReadOptions {
+                feed_rule: match p.feed_rule {
+                    RawFeedRule::Linuxcnc => FeedRule::LinuxCnc,
+                    RawFeedRule::EuclideanAllAxes => FeedRule::EuclideanAllAxes,
+                },
+                ..ReadOptions::default()
+            };
+            for (value, target) in [
+                (p.pen_up_z_mm, &mut options.hpgl.pen_up_z),
+                (p.pen_down_z_mm, &mut options.hpgl.pen_down_z),
+            ] {
+                if let Some(v) = value {
+                    if !v.is_finite() {
+                        return Err(FileError::new(
+                            path,
+                            program_at,
+                            format!("pen height {v} mm: expected a finite number"),
+                        ));
+                    }
+                    *target = v * 1e-3;
+                }
+            }
+            options.hpgl.lenient = p.lenient;
+            options.hpgl.optimise_pen_up = p.optimise_pen_up;
+            ProgramSource::File {
+                path: file,
+                options,
+            }
         } else if let Some(c) = &p.circle {
             let v = c.get_ref();
             let nums = [

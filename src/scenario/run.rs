@@ -9,7 +9,7 @@ use crate::kinematics::{self, AxisMap};
 use crate::machine::Machine;
 use crate::model::{ModelError, Plant, PlantOptions};
 use crate::plan::{constant_velocity, PlanError};
-use crate::program::{circle, polyline, PathGeometry, Program};
+use crate::program::{circle, polyline, read_program, PathGeometry, Program, ProgramErrors};
 use crate::report::{self, AxisLabel, Derived, Metrics, RecordingContent, ReportError};
 use crate::sim::{CoSimulation, LoopSettings, Stop, Trace};
 use std::path::{Path, PathBuf};
@@ -24,6 +24,8 @@ pub enum RunError {
     Plan { path: PathBuf, source: PlanError },
     #[error(transparent)]
     Report(#[from] ReportError),
+    #[error("{0}")]
+    Program(ProgramErrors),
 }
 
 /// What a run produced.
@@ -59,6 +61,7 @@ pub fn run_scenario(
         .map_err(|e| FileError::new(&s.machine, None, e.to_string()))?;
 
     let program = load_program(s)?;
+    check_program_axes(&program, &machine)?;
     let setpoints = constant_velocity(&program, &axis_map, s.servo_period, s.rapid_speed).map_err(
         |source| RunError::Plan {
             path: program.source.clone(),
@@ -209,10 +212,49 @@ fn load_program(s: &Scenario) -> Result<Program, RunError> {
     Ok(match &s.program {
         ProgramSource::Circle(c) => circle(c, &s.path),
         ProgramSource::Polyline(p) => polyline(p, &s.path),
-        ProgramSource::File(f) => {
-            return Err(FileError::new(f, None, "reading part-program files (G-code, HPGL, APT) is not available in this build yet; use a built-in `circle` or `polyline` path").into())
+        ProgramSource::File { path, options } => {
+            read_program(path, options).map_err(RunError::Program)?
         }
     })
+}
+
+/// A program may only move axes the machine has.
+fn check_program_axes(program: &Program, machine: &Machine) -> Result<(), FileError> {
+    const NAMES: [(&str, bool, usize); 6] = [
+        ("x", true, 0),
+        ("y", true, 1),
+        ("z", true, 2),
+        ("a", false, 0),
+        ("b", false, 1),
+        ("c", false, 2),
+    ];
+    let mut at = program.start;
+    for m in &program.moves {
+        for (name, linear, i) in NAMES {
+            let (from, to) = if linear {
+                (at.linear[i], m.end.linear[i])
+            } else {
+                (at.rotary[i], m.end.rotary[i])
+            };
+            if from != to && machine.axis_index(name).is_none() {
+                let place = Some(crate::diagnostics::LineColumn {
+                    line: m.span.line as usize,
+                    column: m.span.column as usize,
+                });
+                return Err(FileError::new(
+                    &program.source,
+                    place,
+                    format!(
+                        "this move drives axis {}, which the machine '{}' does not have",
+                        name.to_uppercase(),
+                        machine.name
+                    ),
+                ));
+            }
+        }
+        at = m.end;
+    }
+    Ok(())
 }
 
 /// Axis names in the scenario must be the machine's; every bound must name a real metric.

@@ -1,0 +1,193 @@
+//! Settings that steer the readers: feed rule, G-code defaults, HPGL pen heights and
+//! optimisation, APT feed units, error limits.
+
+use super::types::FeedRule;
+
+/// Length units a G-code program starts in (before any G20/G21).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub enum LengthUnit {
+    #[default]
+    Millimetre,
+    Inch,
+}
+
+impl LengthUnit {
+    /// Metres per unit.
+    pub fn metres(self) -> f64 {
+        match self {
+            LengthUnit::Millimetre => 1e-3,
+            LengthUnit::Inch => 0.0254,
+        }
+    }
+
+    /// A length in this unit converted to metres, rounded once.
+    pub fn to_metres(self, value: f64) -> f64 {
+        match self {
+            // Division by 1000 is correctly rounded, so 5 mm becomes exactly 0.005 m.
+            LengthUnit::Millimetre => value / 1000.0,
+            LengthUnit::Inch => value * 0.0254,
+        }
+    }
+
+    /// A length in metres expressed in this unit (for messages).
+    pub fn from_metres(self, metres: f64) -> f64 {
+        match self {
+            LengthUnit::Millimetre => metres * 1000.0,
+            LengthUnit::Inch => metres / 0.0254,
+        }
+    }
+
+    pub fn symbol(self) -> &'static str {
+        match self {
+            LengthUnit::Millimetre => "mm",
+            LengthUnit::Inch => "in",
+        }
+    }
+}
+
+/// LinuxCNC's limits for how far an arc's geometry may be off before it is an error.
+///
+/// Centre format (I J K): with r1 the radius to the start and r2 the radius to the end, the
+/// arc is refused when |r1 − r2| > 100 × `spiral_*`, or when |r1 − r2| > `spiral_*` and also
+/// |r1 − r2| / max(r1, r2) > `spiral_relative` (LinuxCNC 2.8 onwards, `interp_arc.cc`
+/// `arc_data_ijk`; defaults are `CENTER_ARC_RADIUS_TOLERANCE_*` and
+/// `SPIRAL_RELATIVE_TOLERANCE` from `interp_internal.hh`). Radius format (R): refused when
+/// half the chord exceeds |R| by more than `radius_*`; radii below `radius_*` count as zero.
+/// All lengths in the program's own units.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct ArcTolerance {
+    pub spiral_mm: f64,
+    pub spiral_inch: f64,
+    pub spiral_relative: f64,
+    pub radius_mm: f64,
+    pub radius_inch: f64,
+}
+
+impl Default for ArcTolerance {
+    fn default() -> Self {
+        ArcTolerance {
+            // 2 × the last printed digit × √2: any arc whose points were rounded to 0.01 mm
+            // (0.001 in) passes.
+            spiral_mm: 2.0 * 0.01 * std::f64::consts::SQRT_2,
+            spiral_inch: 2.0 * 0.001 * std::f64::consts::SQRT_2,
+            spiral_relative: 0.001,
+            radius_inch: 0.00005,
+            radius_mm: 0.00005 * 25.4,
+        }
+    }
+}
+
+impl ArcTolerance {
+    pub fn spiral(&self, unit: LengthUnit) -> f64 {
+        match unit {
+            LengthUnit::Millimetre => self.spiral_mm,
+            LengthUnit::Inch => self.spiral_inch,
+        }
+    }
+
+    pub fn radius(&self, unit: LengthUnit) -> f64 {
+        match unit {
+            LengthUnit::Millimetre => self.radius_mm,
+            LengthUnit::Inch => self.radius_inch,
+        }
+    }
+}
+
+/// G-code (RS274/NGC) settings.
+#[derive(Debug, Clone, PartialEq)]
+pub struct GcodeOptions {
+    /// Units before the program's first G20/G21.
+    pub initial_units: LengthUnit,
+    /// The block-delete switch: when on, blocks starting with `/` are skipped.
+    pub block_delete: bool,
+    pub arc_tolerance: ArcTolerance,
+}
+
+impl Default for GcodeOptions {
+    fn default() -> Self {
+        GcodeOptions {
+            initial_units: LengthUnit::Millimetre,
+            block_delete: true,
+            arc_tolerance: ArcTolerance::default(),
+        }
+    }
+}
+
+/// HPGL settings.
+#[derive(Debug, Clone, PartialEq)]
+pub struct HpglOptions {
+    /// Machine Z (m) while the pen is up (tool clear of the work).
+    pub pen_up_z: f64,
+    /// Machine Z (m) while the pen is down (tool engaged).
+    pub pen_down_z: f64,
+    /// Plotter units per millimetre (HP plotters: 40, i.e. 0.025 mm per unit).
+    pub units_per_mm: f64,
+    /// Drawing speed (m/s) until the program's first VS. HP 7475 default: 38.1 cm/s.
+    pub default_speed: f64,
+    /// Accept damaged files: a dangling single coordinate is dropped with a warning instead
+    /// of being an error.
+    pub lenient: bool,
+    /// Reorder and reverse pen-down strokes to shorten pen-up travel.
+    pub optimise_pen_up: bool,
+    /// P1 and P2 (plotter units) after IN / a bare IP: the HP 7475's A-size defaults.
+    pub default_p1: [f64; 2],
+    pub default_p2: [f64; 2],
+}
+
+impl Default for HpglOptions {
+    fn default() -> Self {
+        HpglOptions {
+            pen_up_z: 0.005,
+            pen_down_z: 0.0,
+            units_per_mm: 40.0,
+            default_speed: 0.381,
+            lenient: false,
+            optimise_pen_up: false,
+            default_p1: [250.0, 596.0],
+            default_p2: [10250.0, 7796.0],
+        }
+    }
+}
+
+/// Time base of APT `FEDRAT` values.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub enum FeedTimeBase {
+    /// APT's convention (IPM / MMPM): units per minute.
+    #[default]
+    PerMinute,
+    /// Units per second, as some CL listings (e.g. the 5-axis study's tables) print them.
+    PerSecond,
+}
+
+/// APT CL settings.
+#[derive(Debug, Clone, PartialEq, Default)]
+pub struct AptOptions {
+    /// Units before the first `UNITS` record.
+    pub initial_units: LengthUnit,
+    /// How to read a `FEDRAT` value that carries no IPM/MMPM word.
+    pub feed_time_base: FeedTimeBase,
+}
+
+/// Everything the readers can be told.
+#[derive(Debug, Clone, PartialEq)]
+pub struct ReadOptions {
+    /// How feeds are shared out over rotary axes; recorded in every move.
+    pub feed_rule: FeedRule,
+    pub gcode: GcodeOptions,
+    pub hpgl: HpglOptions,
+    pub apt: AptOptions,
+    /// At most this many errors are kept per file (the rest are counted).
+    pub max_errors: usize,
+}
+
+impl Default for ReadOptions {
+    fn default() -> Self {
+        ReadOptions {
+            feed_rule: FeedRule::default(),
+            gcode: GcodeOptions::default(),
+            hpgl: HpglOptions::default(),
+            apt: AptOptions::default(),
+            max_errors: 100,
+        }
+    }
+}
