@@ -255,3 +255,55 @@ fn check_fails_on_a_breached_bound() {
     );
     assert!(stdout.contains("0 passed, 1 failed"), "{stdout}");
 }
+
+fn short_move(scenario: &mut Scenario) {
+    scenario.program = cncsim::scenario::ProgramSource::Polyline(cncsim::program::PolylineSpec {
+        points: vec![[0.1, 0.1, 0.0], [0.102, 0.1, 0.0]],
+        speed: 0.005,
+    });
+    scenario.record_rrd = false;
+    scenario.record_csv = false;
+}
+
+/// The seeds' 4 ms servo period runs (16 physics steps per period) and still tracks.
+#[test]
+fn four_millisecond_servo_period_works() {
+    let mut scenario = bundled("xyz_circle_5mms.toml");
+    short_move(&mut scenario);
+    scenario.servo_period = 4e-3;
+    scenario.substeps = 16;
+    // A slower loop needs lower gains: the same pole placement at ωn = 2π·6 Hz.
+    for g in scenario.gains.values_mut() {
+        g.gains.kp /= 17.0;
+        g.gains.ki /= 70.0;
+        g.gains.kd /= 4.0;
+    }
+    let out = tempfile::tempdir().unwrap();
+    let run = run_scenario(&scenario, out.path(), &mut |_, _| {}).unwrap();
+    assert!(run.stop.is_none(), "{:?}", run.stop);
+    assert_eq!(run.metrics.physics_steps, (run.trace.len() as u64 + 125) * 16);
+    let x = run.metrics.axes["x"].max_following_error_mm.unwrap();
+    assert!(x < 0.2, "x following error {x} mm");
+    // Every tick is 4 ms apart.
+    assert!(run.trace.time.windows(2).all(|w| (w[1] - w[0] - 4e-3).abs() < 1e-12));
+}
+
+/// Quantised feedback: the loop sees positions rounded to whole encoder counts, so while it
+/// holds the measured error at zero the true error wanders within half a count.
+#[test]
+fn encoder_quantisation_shows_in_the_following_error() {
+    let mut scenario = bundled("xyz_circle_5mms.toml");
+    short_move(&mut scenario);
+    let out = tempfile::tempdir().unwrap();
+    let ideal = run_scenario(&scenario, out.path(), &mut |_, _| {}).unwrap();
+    scenario.encoder_counts_per_rev.insert("x".into(), (100, None));
+    let quantised = run_scenario(&scenario, out.path(), &mut |_, _| {}).unwrap();
+    let resolution_mm = 2.0 * std::f64::consts::PI / (100.0 * 4000.0) * 1e3; // 15.7 µm
+    // Steady tracking, after the start transient of the velocity step has died out.
+    let steady = |t: &cncsim::sim::Trace| {
+        (0..t.len()).filter(|&k| t.time[k] >= 0.2).map(|k| (t.commanded[k * t.axes] - t.actual[k * t.axes]).abs() * 1e3).fold(0.0, f64::max)
+    };
+    let (e_ideal, e_quant) = (steady(&ideal.trace), steady(&quantised.trace));
+    assert!(e_ideal < 0.1 * resolution_mm, "ideal feedback: {e_ideal} mm");
+    assert!(e_quant > 0.1 * resolution_mm && e_quant <= 0.5 * resolution_mm, "quantised: {e_quant} mm, resolution {resolution_mm} mm");
+}
