@@ -281,11 +281,18 @@ fn four_millisecond_servo_period_works() {
     let out = tempfile::tempdir().unwrap();
     let run = run_scenario(&scenario, out.path(), &mut |_, _| {}).unwrap();
     assert!(run.stop.is_none(), "{:?}", run.stop);
-    assert_eq!(run.metrics.physics_steps, (run.trace.len() as u64 + 125) * 16);
+    assert_eq!(
+        run.metrics.physics_steps,
+        (run.trace.len() as u64 + 125) * 16
+    );
     let x = run.metrics.axes["x"].max_following_error_mm.unwrap();
     assert!(x < 0.2, "x following error {x} mm");
     // Every tick is 4 ms apart.
-    assert!(run.trace.time.windows(2).all(|w| (w[1] - w[0] - 4e-3).abs() < 1e-12));
+    assert!(run
+        .trace
+        .time
+        .windows(2)
+        .all(|w| (w[1] - w[0] - 4e-3).abs() < 1e-12));
 }
 
 /// Quantised feedback: the loop sees positions rounded to whole encoder counts, so while it
@@ -296,14 +303,25 @@ fn encoder_quantisation_shows_in_the_following_error() {
     short_move(&mut scenario);
     let out = tempfile::tempdir().unwrap();
     let ideal = run_scenario(&scenario, out.path(), &mut |_, _| {}).unwrap();
-    scenario.encoder_counts_per_rev.insert("x".into(), (100, None));
+    scenario
+        .encoder_counts_per_rev
+        .insert("x".into(), (100, None));
     let quantised = run_scenario(&scenario, out.path(), &mut |_, _| {}).unwrap();
     let resolution_mm = 2.0 * std::f64::consts::PI / (100.0 * 4000.0) * 1e3; // 15.7 µm
-    // Steady tracking, after the start transient of the velocity step has died out.
+                                                                             // Steady tracking, after the start transient of the velocity step has died out.
     let steady = |t: &cncsim::sim::Trace| {
-        (0..t.len()).filter(|&k| t.time[k] >= 0.2).map(|k| (t.commanded[k * t.axes] - t.actual[k * t.axes]).abs() * 1e3).fold(0.0, f64::max)
+        (0..t.len())
+            .filter(|&k| t.time[k] >= 0.2)
+            .map(|k| (t.commanded[k * t.axes] - t.actual[k * t.axes]).abs() * 1e3)
+            .fold(0.0, f64::max)
     };
     let (e_ideal, e_quant) = (steady(&ideal.trace), steady(&quantised.trace));
-    assert!(e_ideal < 0.1 * resolution_mm, "ideal feedback: {e_ideal} mm");
-    assert!(e_quant > 0.1 * resolution_mm && e_quant <= 0.5 * resolution_mm, "quantised: {e_quant} mm, resolution {resolution_mm} mm");
+    assert!(
+        e_ideal < 0.1 * resolution_mm,
+        "ideal feedback: {e_ideal} mm"
+    );
+    assert!(
+        e_quant > 0.1 * resolution_mm && e_quant <= 0.5 * resolution_mm,
+        "quantised: {e_quant} mm, resolution {resolution_mm} mm"
+    );
 }

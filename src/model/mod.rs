@@ -279,14 +279,15 @@ impl Plant {
         self.steps += 1;
     }
 
+    /// The machine's multibody (none for a machine without joints).
+    fn multibody(&self) -> Option<&Multibody> {
+        let handle = self.multibody?;
+        self.world.multibody_joints.get(handle).map(|(mb, _)| mb)
+    }
+
     /// Joint coordinate of each axis (m or rad).
     pub fn positions(&self, out: &mut [f64]) {
-        let Some(handle) = self.multibody else { return };
-        let (mb, _) = self
-            .world
-            .multibody_joints
-            .get(handle)
-            .expect("machine multibody");
+        let Some(mb) = self.multibody() else { return };
         for (o, b) in out.iter_mut().zip(&self.axes) {
             *o = mb
                 .link(b.link_id)
@@ -296,12 +297,7 @@ impl Plant {
 
     /// Joint velocity of each axis (m/s or rad/s).
     pub fn velocities(&self, out: &mut [f64]) {
-        let Some(handle) = self.multibody else { return };
-        let (mb, _) = self
-            .world
-            .multibody_joints
-            .get(handle)
-            .expect("machine multibody");
+        let Some(mb) = self.multibody() else { return };
         let v = mb.generalized_velocity();
         for (o, b) in out.iter_mut().zip(&self.axes) {
             *o = v[b.dof];

@@ -1,7 +1,7 @@
 //! The programmed path as geometry in the linear axes, for measuring how far the tool strays
 //! from it (contour error) independently of when it should have been where.
 
-use super::{Motion, Plane, Program};
+use super::{arc_sweep, plane_axes, Motion, Plane, Program};
 use nalgebra::{Point3, Vector3};
 use std::f64::consts::TAU;
 
@@ -138,7 +138,7 @@ impl PathGeometry {
 }
 
 /// Builds an arc from its start, end, centre and plane (G2/G3 semantics: end = start is a
-/// full circle).
+/// full circle; the sweep is the front ends' [`arc_sweep`], signed about the plane normal).
 pub fn arc_segment(
     start: Point3<f64>,
     end: Point3<f64>,
@@ -147,22 +147,16 @@ pub fn arc_segment(
     clockwise: bool,
     turns: u32,
 ) -> Segment {
-    let normal = match plane {
-        Plane::XY => Vector3::z(),
-        Plane::ZX => Vector3::y(),
-        Plane::YZ => Vector3::x(),
-    };
-    let flat = |p: Point3<f64>| p - normal * (p - center).dot(&normal);
-    let (s, e) = (flat(start) - center, flat(end) - center);
-    let mut sweep = normal.dot(&s.cross(&e)).atan2(s.dot(&e));
-    if clockwise {
-        if sweep >= -1e-12 {
-            sweep -= TAU;
-        }
-    } else if sweep <= 1e-12 {
-        sweep += TAU;
-    }
-    sweep += sweep.signum() * TAU * turns as f64;
+    let normal = Vector3::ith(plane_axes(plane).2, 1.0);
+    let magnitude = arc_sweep(
+        &start.into(),
+        &end.into(),
+        &center.into(),
+        plane,
+        clockwise,
+        turns,
+    );
+    let sweep = if clockwise { -magnitude } else { magnitude };
     let rise = (end - start).dot(&normal);
     Segment::Arc {
         center: center + normal * (start - center).dot(&normal),
