@@ -72,7 +72,7 @@ fn run_one(path: &Path, out: Option<PathBuf>) -> ExitCode {
         Ok(s) => s,
         Err(e) => return fail_input(&e),
     };
-    let out = out.unwrap_or_else(|| Path::new("out").join(&scenario.name));
+    let out = out.unwrap_or_else(|| Path::new("out").join(folder_name(&scenario.name)));
     match execute(&scenario, &out) {
         Ok(run) => {
             print!("{}", metrics_table(&run.metrics));
@@ -100,6 +100,12 @@ fn check_all(paths: &[PathBuf], out: Option<PathBuf>) -> ExitCode {
                         .filter(|f| f.extension().is_some_and(|x| x == "toml"))
                         .collect();
                     found.sort();
+                    if found.is_empty() {
+                        return fail_input(&format!(
+                            "{}: no scenario files (*.toml) in this folder",
+                            p.display()
+                        ));
+                    }
                     files.extend(found);
                 }
                 Err(e) => return fail_input(&format!("{}: cannot read folder: {e}", p.display())),
@@ -119,7 +125,7 @@ fn check_all(paths: &[PathBuf], out: Option<PathBuf>) -> ExitCode {
                 continue;
             }
         };
-        match execute(&scenario, &root.join(&scenario.name)) {
+        match execute(&scenario, &root.join(folder_name(&scenario.name))) {
             Ok(run) => {
                 let verdict = check(&scenario, &run.metrics_json);
                 let stopped = run.stop.is_some();
@@ -176,6 +182,25 @@ fn execute(scenario: &Scenario, out: &Path) -> Result<RunOutput, cncsim::scenari
     let result = run_scenario(scenario, out, &mut progress);
     bar.finish_and_clear();
     result
+}
+
+/// A scenario name as a single folder name (no separators, no `..`).
+fn folder_name(name: &str) -> String {
+    let cleaned: String = name
+        .chars()
+        .map(|c| {
+            if c.is_alphanumeric() || "-_.".contains(c) {
+                c
+            } else {
+                '_'
+            }
+        })
+        .collect();
+    if cleaned.trim_matches('.').is_empty() {
+        "scenario".into()
+    } else {
+        cleaned
+    }
 }
 
 fn fail_input(e: &dyn std::fmt::Display) -> ExitCode {

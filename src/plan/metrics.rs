@@ -1,0 +1,139 @@
+//! Checks and recordings of a setpoint stream that depend only on the sampled positions, not on
+//! the planner's bookkeeping.
+
+use std::io::{self, Write};
+
+use super::path::AxisSpec;
+use super::setpoints::Setpoints;
+
+/// Largest |velocity|, |acceleration| and |jerk| of one axis (SI units per s, s², s³).
+#[derive(Debug, Clone, Copy, PartialEq, Default)]
+pub struct AxisExtremes {
+    pub velocity: f64,
+    pub acceleration: f64,
+    pub jerk: f64,
+}
+
+/// Per-axis maxima of |v|, |a|, |j| from the first, second and third finite differences of the
+/// sampled positions (divided by T, T², T³).
+///
+/// A k-th difference over T^k is the k-th derivative averaged with a non-negative B-spline
+/// weight of unit area, so it never exceeds the largest true derivative: the figures are lower
+/// bounds of the continuous-time maxima and converge to them as T shrinks (up to rounding,
+/// which grows like ε·|q|/T³ for the jerk).
+pub fn finite_difference_extremes(setpoints: &Setpoints) -> Vec<AxisExtremes> {
+    let n = setpoints.axes;
+    let t = setpoints.period;
+    let mut out = vec![AxisExtremes::default(); n];
+    let len = setpoints.len();
+    for (axis, extremes) in out.iter_mut().enumerate() {
+        let q = |k: usize| setpoints.position[k * n + axis];
+        for k in 0..len {
+            if k + 1 < len {
+                extremes.velocity = extremes.velocity.max(((q(k + 1) - q(k)) / t).abs());
+            }
+            if k + 2 < len {
+                let d2 = q(k + 2) - 2.0 * q(k + 1) + q(k);
+                extremes.acceleration = extremes.acceleration.max((d2 / (t * t)).abs());
+            }
+            if k + 3 < len {
+                let d3 = q(k + 3) - 3.0 * q(k + 2) + 3.0 * q(k + 1) - q(k);
+                extremes.jerk = extremes.jerk.max((d3 / (t * t * t)).abs());
+            }
+        }
+    }
+    out
+}
+
+/// Writes the setpoint stream as CSV: a header `t_s,<axis names>`, then one row per sample with
+/// the time (s) and the positions in program units (mm for linear axes, deg for rotary ones),
+/// every number in shortest round-trip form (full precision: jerk can be recomputed from
+/// third differences of the file).
+pub fn write_setpoints_csv<W: Write>(
+    mut out: W,
+    setpoints: &Setpoints,
+    axes: &[AxisSpec],
+) -> io::Result<()> {
+    assert_eq!(
+        axes.len(),
+        setpoints.axes,
+        "one axis spec per setpoint axis"
+    );
+    write!(out, "t_s")?;
+    for axis in axes {
+        write!(out, ",{}", axis.name)?;
+    }
+    writeln!(out)?;
+    let scale: Vec<f64> = axes.iter().map(|a| a.kind.program_units_per_si()).collect();
+    for k in 0..setpoints.len() {
+        write!(out, "{:?}", k as f64 * setpoints.period)?;
+        for (q, s) in setpoints.position(k).iter().zip(&scale) {
+            write!(out, ",{:?}", q * s)?;
+        }
+        writeln!(out)?;
+    }
+    Ok(())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::super::path::{AxisKind, AxisLimits};
+    use super::*;
+
+    #[test]
+    fn extremes_of_a_cubic() {
+        // q = t³: third difference is exactly 6 T³.
+        let mut sp = Setpoints::new(0.5, 1);
+        for k in 0..5 {
+            let t = k as f64 * 0.5;
+            sp.push(&[t * t * t], &[0.0], &[0.0], 0);
+        }
+        let e = finite_difference_extremes(&sp);
+        assert!((e[0].jerk - 6.0).abs() < 1e-12);
+        // Largest second difference: between t = 1 and 2 (6·t at the middle: 9).
+        assert!((e[0].acceleration - 9.0).abs() < 1e-12);
+    }
+
+    #[test]
+    fn csv_in_program_units_round_trips() {
+        let axes = vec![
+            AxisSpec {
+                name: "x".into(),
+                kind: AxisKind::Linear,
+                limits: AxisLimits {
+                    velocity: 1.0,
+                    acceleration: 1.0,
+                    jerk: 1.0,
+                },
+            },
+            AxisSpec {
+                name: "c".into(),
+                kind: AxisKind::Rotary,
+                limits: AxisLimits {
+                    velocity: 1.0,
+                    acceleration: 1.0,
+                    jerk: 1.0,
+                },
+            },
+        ];
+        let mut sp = Setpoints::new(0.001, 2);
+        sp.push(
+            &[0.1234567890123, std::f64::consts::PI],
+            &[0.0; 2],
+            &[0.0; 2],
+            0,
+        );
+        sp.push(&[1e-9, -1.0], &[0.0; 2], &[0.0; 2], 0);
+        let mut buf = Vec::new();
+        write_setpoints_csv(&mut buf, &sp, &axes).unwrap();
+        let text = String::from_utf8(buf).unwrap();
+        let lines: Vec<&str> = text.lines().collect();
+        assert_eq!(lines[0], "t_s,x,c");
+        let row: Vec<f64> = lines[1].split(',').map(|f| f.parse().unwrap()).collect();
+        assert_eq!(row, vec![0.0, 0.1234567890123 * 1e3, 180.0]);
+        let row: Vec<f64> = lines[2].split(',').map(|f| f.parse().unwrap()).collect();
+        assert_eq!(row[0], 0.001);
+        assert_eq!(row[1], 1e-9 * 1e3);
+        assert_eq!(row[2], -180.0 / std::f64::consts::PI);
+    }
+}

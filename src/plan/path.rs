@@ -1,0 +1,207 @@
+//! The planner's input: a path on the machine axes, plain data in SI units (m, rad, s).
+//!
+//! It maps one-to-one onto the program representation after inverse kinematics: a program
+//! `Move` with `Motion::Linear` becomes [`Geometry::Line`], `Motion::Arc` becomes
+//! [`Geometry::Arc`] with the plane's two machine axes, `Feed::PathSpeed` becomes `feed`
+//! (`Feed::Rapid` becomes `None`; an inverse-time feed becomes length / time), the `FeedRule`
+//! becomes the per-axis `feed_metric` weights, and `Blend` maps directly.
+
+use std::fmt;
+
+/// Whether an axis translates (m) or rotates (rad).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum AxisKind {
+    Linear,
+    Rotary,
+}
+
+impl AxisKind {
+    /// Factor from SI (m, rad) to program units (mm, deg).
+    pub fn program_units_per_si(self) -> f64 {
+        match self {
+            AxisKind::Linear => 1e3,
+            AxisKind::Rotary => 180.0 / std::f64::consts::PI,
+        }
+    }
+}
+
+/// Per-axis kinematic limits in SI (m or rad per s, s², s³), all strictly positive.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct AxisLimits {
+    pub velocity: f64,
+    pub acceleration: f64,
+    pub jerk: f64,
+}
+
+impl AxisLimits {
+    /// Limits given in program units (mm or deg per s, s², s³), converted to SI.
+    pub fn from_program_units(kind: AxisKind, velocity: f64, acceleration: f64, jerk: f64) -> Self {
+        let k = 1.0 / kind.program_units_per_si();
+        AxisLimits {
+            velocity: velocity * k,
+            acceleration: acceleration * k,
+            jerk: jerk * k,
+        }
+    }
+}
+
+/// One machine axis.
+#[derive(Debug, Clone, PartialEq)]
+pub struct AxisSpec {
+    /// Name as written in reports and CSV headers (`x`, `y`, `z`, `a`, `c`).
+    pub name: String,
+    pub kind: AxisKind,
+    pub limits: AxisLimits,
+}
+
+/// The geometry of one segment; it starts where the previous one ended.
+#[derive(Debug, Clone, PartialEq)]
+pub enum Geometry {
+    /// Straight line in all axes to `end`.
+    Line { end: Vec<f64> },
+    /// Circular arc in the plane of axes `plane = [i, j]` about `center` (coordinates on those
+    /// two axes), counter-clockwise from +i towards +j unless `clockwise`, with `turns` extra
+    /// full turns; every other axis moves linearly with the angle (helix). If the start and end
+    /// radii differ (rounding in the program), the radius changes linearly with the angle.
+    Arc {
+        plane: [usize; 2],
+        center: [f64; 2],
+        clockwise: bool,
+        turns: u32,
+        end: Vec<f64>,
+    },
+}
+
+impl Geometry {
+    pub fn end(&self) -> &[f64] {
+        match self {
+            Geometry::Line { end } | Geometry::Arc { end, .. } => end,
+        }
+    }
+}
+
+/// Corner behaviour at the end of a segment (G61 / G64 P).
+#[derive(Debug, Clone, Copy, PartialEq, Default)]
+pub enum Blend {
+    /// Stop exactly at the programmed point.
+    #[default]
+    ExactStop,
+    /// Pass the corner without stopping, staying within `tolerance` of the programmed point.
+    /// The distance is the Euclidean norm of the axis-space deviation in SI units (m and rad
+    /// alike: 0.05 mm of tolerance allows 5e-5 rad on a rotary axis). `None`: no tolerance
+    /// given, the corner is rounded as far as the adjacent segments allow.
+    Continuous { tolerance: Option<f64> },
+}
+
+/// One segment of the path.
+#[derive(Debug, Clone, PartialEq)]
+pub struct PathSegment {
+    pub geometry: Geometry,
+    /// Programmed path speed (SI, in the `feed_metric`); `None` = as fast as the axes allow.
+    pub feed: Option<f64>,
+    /// Per-axis weights `w_i` of the feed metric: path speed = sqrt(Σ (w_i·q̇_i)²). The
+    /// LinuxCNC rule is 1 on linear axes and 0 on rotary ones; the 5-axis study's rule
+    /// (Euclidean over mm and deg) is 1 on linear axes and (1e-3 m/mm)/(π/180 rad/deg) on rotary
+    /// ones. A segment of zero length in this metric (e.g. purely rotary under the LinuxCNC
+    /// weights) is not limited by the feed.
+    pub feed_metric: Vec<f64>,
+    /// What to do at the end of this segment.
+    pub blend: Blend,
+    /// Index of the program move this segment comes from (copied into the setpoints).
+    pub source_index: u32,
+}
+
+/// A path on the machine axes: where it starts and its segments.
+#[derive(Debug, Clone, PartialEq)]
+pub struct AxisPath {
+    pub axes: Vec<AxisSpec>,
+    pub start: Vec<f64>,
+    pub segments: Vec<PathSegment>,
+}
+
+/// Why a path cannot be planned.
+#[derive(Debug, Clone, PartialEq)]
+pub enum PathError {
+    /// An axis limit is not finite and strictly positive.
+    InvalidLimits { axis: usize },
+    /// A position, weight or feed has the wrong number of entries.
+    AxisCountMismatch {
+        segment: Option<usize>,
+        expected: usize,
+        found: usize,
+    },
+    /// A coordinate, feed, weight or tolerance is not finite (or negative where it must not be).
+    InvalidValue {
+        segment: Option<usize>,
+        what: &'static str,
+    },
+    /// The arc's plane names an axis that does not exist, the same axis twice, or a rotary axis.
+    InvalidArcPlane { segment: usize },
+    /// The arc starts or ends at its centre, or its start and end radii differ by more than
+    /// [`ARC_RADIUS_MISMATCH`] relative.
+    InvalidArcRadius {
+        segment: usize,
+        start_radius: f64,
+        end_radius: f64,
+    },
+    /// Internal: the look-ahead left a segment too short for its speed change (a planner bug).
+    Infeasible { segment: usize },
+}
+
+/// Largest relative difference between an arc's start and end radii that is accepted as
+/// rounding in the program (the radius is then interpolated along the arc).
+pub const ARC_RADIUS_MISMATCH: f64 = 1e-3;
+
+impl fmt::Display for PathError {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        match self {
+            PathError::InvalidLimits { axis } => {
+                write!(
+                    f,
+                    "axis {axis}: limits must be finite and strictly positive"
+                )
+            }
+            PathError::AxisCountMismatch {
+                segment,
+                expected,
+                found,
+            } => {
+                write!(
+                    f,
+                    "{}: expected {expected} axis values, found {found}",
+                    at(*segment)
+                )
+            }
+            PathError::InvalidValue { segment, what } => {
+                write!(f, "{}: invalid {what}", at(*segment))
+            }
+            PathError::InvalidArcPlane { segment } => {
+                write!(
+                    f,
+                    "segment {segment}: the arc plane must be two distinct linear axes"
+                )
+            }
+            PathError::InvalidArcRadius {
+                segment,
+                start_radius,
+                end_radius,
+            } => write!(
+                f,
+                "segment {segment}: arc radii {start_radius} m (start) and {end_radius} m (end) \
+                 are zero or differ by more than {ARC_RADIUS_MISMATCH} relative"
+            ),
+            PathError::Infeasible { segment } => {
+                write!(
+                    f,
+                    "segment {segment}: no feasible speed profile (planner bug)"
+                )
+            }
+        }
+    }
+}
+
+fn at(segment: Option<usize>) -> String {
+    segment.map_or_else(|| "path".to_string(), |s| format!("segment {s}"))
+}
+
+impl std::error::Error for PathError {}

@@ -1,0 +1,167 @@
+//! Helpers shared by the verification tests. Everything here works from sampled positions
+//! only, independently of the planner's bookkeeping.
+#![allow(dead_code)]
+
+use cncsim::plan::{AxisKind, AxisLimits, AxisSpec, Blend, Geometry, PathSegment, Plan, Setpoints};
+
+pub fn axis(name: &str, kind: AxisKind, v: f64, a: f64, j: f64) -> AxisSpec {
+    AxisSpec {
+        name: name.to_string(),
+        kind,
+        limits: AxisLimits {
+            velocity: v,
+            acceleration: a,
+            jerk: j,
+        },
+    }
+}
+
+pub fn linear_axes(limits: &[(f64, f64, f64)]) -> Vec<AxisSpec> {
+    limits
+        .iter()
+        .enumerate()
+        .map(|(i, &(v, a, j))| axis(&format!("q{i}"), AxisKind::Linear, v, a, j))
+        .collect()
+}
+
+pub fn line(end: &[f64], feed: Option<f64>, blend: Blend, index: u32) -> PathSegment {
+    PathSegment {
+        geometry: Geometry::Line { end: end.to_vec() },
+        feed,
+        feed_metric: vec![1.0; end.len()],
+        blend,
+        source_index: index,
+    }
+}
+
+/// Positions of axis `i` over the samples.
+pub fn column(sp: &Setpoints, i: usize) -> Vec<f64> {
+    (0..sp.len()).map(|k| sp.position(k)[i]).collect()
+}
+
+/// Largest |k-th difference| / T^k of a sequence.
+pub fn max_difference(q: &[f64], order: usize, period: f64) -> f64 {
+    let mut d = q.to_vec();
+    for _ in 0..order {
+        d = d.windows(2).map(|w| w[1] - w[0]).collect();
+    }
+    d.iter().fold(0.0_f64, |m, x| m.max(x.abs())) / period.powi(order as i32)
+}
+
+/// Asserts that finite differences of the sampled positions respect every axis limit, allowing a
+/// small relative excess plus the rounding floor of a k-th difference: each position carries a
+/// few ulps of its magnitude, and the sample time k·T carries ε·t, which moves the position by
+/// up to ε·t·v; a k-th difference adds 2^k of these.
+pub fn assert_within_limits(sp: &Setpoints, axes: &[AxisSpec], rel: f64) {
+    assert!(
+        sp.position.iter().all(|x| x.is_finite()),
+        "non-finite position"
+    );
+    let duration = sp.duration();
+    for (i, axis) in axes.iter().enumerate() {
+        let q = column(sp, i);
+        let l = axis.limits;
+        let magnitude = q.iter().fold(1e-3_f64, |m, x| m.max(x.abs()));
+        let ulps = 4.0 * f64::EPSILON * (magnitude + duration * l.velocity);
+        for (order, limit, what) in [
+            (1, l.velocity, "velocity"),
+            (2, l.acceleration, "acceleration"),
+            (3, l.jerk, "jerk"),
+        ] {
+            let floor = 2f64.powi(order) * ulps / sp.period.powi(order);
+            let found = max_difference(&q, order as usize, sp.period);
+            assert!(
+                found <= limit * (1.0 + rel) + floor,
+                "axis {} {what}: {found} > limit {limit} (+ rounding {floor})",
+                axis.name
+            );
+        }
+    }
+}
+
+pub fn distance(a: &[f64], b: &[f64]) -> f64 {
+    a.iter()
+        .zip(b)
+        .map(|(x, y)| (x - y) * (x - y))
+        .sum::<f64>()
+        .sqrt()
+}
+
+/// Smallest distance from any sample to `point`.
+pub fn closest_approach(sp: &Setpoints, point: &[f64]) -> f64 {
+    (0..sp.len())
+        .map(|k| distance(sp.position(k), point))
+        .fold(f64::INFINITY, f64::min)
+}
+
+/// Distance from `p` to the segment `a`–`b`.
+pub fn distance_to_segment(p: &[f64], a: &[f64], b: &[f64]) -> f64 {
+    let ab: Vec<f64> = a.iter().zip(b).map(|(x, y)| y - x).collect();
+    let len2: f64 = ab.iter().map(|x| x * x).sum();
+    let t = if len2 > 0.0 {
+        (p.iter()
+            .zip(a)
+            .zip(&ab)
+            .map(|((p, a), d)| (p - a) * d)
+            .sum::<f64>()
+            / len2)
+            .clamp(0.0, 1.0)
+    } else {
+        0.0
+    };
+    let closest: Vec<f64> = a.iter().zip(&ab).map(|(a, d)| a + t * d).collect();
+    distance(p, &closest)
+}
+
+/// Largest distance from any sample to the polyline through `points`.
+pub fn max_deviation_from_polyline(sp: &Setpoints, points: &[Vec<f64>]) -> f64 {
+    (0..sp.len())
+        .map(|k| {
+            points
+                .windows(2)
+                .map(|w| distance_to_segment(sp.position(k), &w[0], &w[1]))
+                .fold(f64::INFINITY, f64::min)
+        })
+        .fold(0.0, f64::max)
+}
+
+/// The plan sampled finely for checking limits: fine enough to resolve every phase, coarse
+/// enough that rounding stays far below the jerk limits in third differences.
+pub fn fine(plan: &Plan) -> Setpoints {
+    let period = (plan.duration() / 5_000.0).clamp(2e-4, 1e-3);
+    plan.sample(period)
+}
+
+/// The plan sampled very finely for checking distances to programmed points: between samples
+/// the path moves at most v·T, so the closest sample is within (v·T/2)²/(2·d) of the true
+/// closest approach d on a smooth curve.
+pub fn dense(plan: &Plan) -> Setpoints {
+    plan.sample(1e-5)
+}
+
+/// Closed-form time-optimal rest-to-rest duration (Biagiotti & Melchiorri, "Trajectory
+/// Planning for Automatic Machines and Robots", §3.4, with zero boundary velocities), written
+/// independently of the planner: try each regime and keep the one whose assumptions hold.
+pub fn closed_form_duration(length: f64, v: f64, a: f64, j: f64) -> f64 {
+    let l = length.abs();
+    if l == 0.0 {
+        return 0.0;
+    }
+    // Velocity-limited: reaching V takes V/A + A/J if A is reached (V·J ≥ A²), else 2·sqrt(V/J).
+    let t_reach = if v * j >= a * a {
+        v / a + a / j
+    } else {
+        2.0 * (v / j).sqrt()
+    };
+    if l >= v * t_reach {
+        return l / v + t_reach;
+    }
+    // Acceleration-limited (A reached, V not): T = A/J + sqrt((A/J)² + 4L/A).
+    let t = a / j + ((a / j).powi(2) + 4.0 * l / a).sqrt();
+    let peak = a * (t / 2.0 - a / j);
+    if peak * j >= a * a && peak <= v {
+        return t;
+    }
+    // Jerk-limited: T = 4·(L / 2J)^(1/3).
+    4.0 * (l / (2.0 * j)).cbrt()
+}
