@@ -19,6 +19,18 @@ pub enum Command {
         #[arg(long)]
         out: Option<PathBuf>,
     },
+    /// Plan a scenario's program only: cycle time, per-move durations, and max |v|, |a|, |j|
+    /// per machine axis and at the tool tip on the workpiece.
+    Plan {
+        scenario: PathBuf,
+        /// Planner to use instead of the scenario's own.
+        #[arg(long, value_enum)]
+        profile: Option<cncsim::scenario::ProfileName>,
+        /// Write the setpoint positions at the servo period: `t_s`, then one column per axis
+        /// in mm or deg, at full precision.
+        #[arg(long)]
+        csv: Option<PathBuf>,
+    },
     /// Decode a part program (G-code, HPGL, APT CL data) and print its moves or a summary,
     /// cut and rapid / pen-up lengths and the program time at programmed feed.
     Inspect {

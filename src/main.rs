@@ -27,6 +27,11 @@ fn main() -> ExitCode {
         }
         Some(Command::Run { scenario, out }) => run_one(&scenario, out),
         Some(Command::Check { scenarios, out }) => check_all(&scenarios, out),
+        Some(Command::Plan {
+            scenario,
+            profile,
+            csv,
+        }) => plan_one(&scenario, profile, csv),
         Some(Command::Inspect {
             program,
             euclidean_feed,
@@ -89,6 +94,34 @@ fn run_one(path: &Path, out: Option<PathBuf>) -> ExitCode {
     }
 }
 
+fn plan_one(
+    path: &Path,
+    profile: Option<cncsim::scenario::ProfileName>,
+    csv: Option<PathBuf>,
+) -> ExitCode {
+    let scenario = match Scenario::load(path) {
+        Ok(s) => s,
+        Err(e) => return fail_input(&e),
+    };
+    let report = match cncsim::scenario::plan_scenario(&scenario, profile) {
+        Ok(r) => r,
+        Err(e) => return fail_input(&e),
+    };
+    print!("{}", report.text());
+    if let Some(csv) = csv {
+        let written = std::fs::File::create(&csv).and_then(|f| {
+            let mut w = std::io::BufWriter::new(f);
+            cncsim::plan::write_setpoints_csv(&mut w, &report.setpoints, &report.axes)?;
+            std::io::Write::flush(&mut w)
+        });
+        if let Err(e) = written {
+            return fail_input(&format!("{}: cannot write: {e}", csv.display()));
+        }
+        println!("  wrote {}", csv.display());
+    }
+    ExitCode::SUCCESS
+}
+
 fn check_all(paths: &[PathBuf], out: Option<PathBuf>) -> ExitCode {
     let mut files = Vec::new();
     for p in paths {
@@ -115,7 +148,7 @@ fn check_all(paths: &[PathBuf], out: Option<PathBuf>) -> ExitCode {
         }
     }
     let root = out.unwrap_or_else(|| PathBuf::from("out"));
-    let (mut passed, mut failed) = (0, 0);
+    let (mut passed, mut failed, mut skipped) = (0, 0, 0);
     for f in &files {
         let scenario = match Scenario::load(f) {
             Ok(s) => s,
@@ -125,6 +158,14 @@ fn check_all(paths: &[PathBuf], out: Option<PathBuf>) -> ExitCode {
                 continue;
             }
         };
+        if scenario.actuator.is_none() && scenario.expect.is_empty() {
+            println!(
+                "SKIP {} (planning scenario: no [actuator] or [controller] to run)",
+                f.display()
+            );
+            skipped += 1;
+            continue;
+        }
         match execute(&scenario, &root.join(folder_name(&scenario.name))) {
             Ok(run) => {
                 let verdict = check(&scenario, &run.metrics_json);
@@ -154,7 +195,7 @@ fn check_all(paths: &[PathBuf], out: Option<PathBuf>) -> ExitCode {
             }
         }
     }
-    println!("{passed} passed, {failed} failed");
+    println!("{passed} passed, {failed} failed, {skipped} skipped");
     if failed == 0 {
         ExitCode::SUCCESS
     } else {

@@ -43,6 +43,17 @@ impl AxisMap {
         AxisMap { sources }
     }
 
+    /// The machine axis fed by a program coordinate (linear index 0–2 = X, Y, Z; rotary 0–2 =
+    /// A, B, C), if the machine has one.
+    pub fn machine_axis(&self, linear: bool, index: usize) -> Option<usize> {
+        self.sources.iter().position(|&s| s == (linear, index))
+    }
+
+    /// Whether machine axis `i` takes a rotary program coordinate.
+    pub fn is_rotary(&self, i: usize) -> bool {
+        !self.sources[i].0
+    }
+
     pub fn axes(&self) -> usize {
         self.sources.len()
     }
@@ -98,4 +109,12 @@ pub fn link_poses(machine: &Machine, q: &[f64]) -> Vec<nalgebra::Isometry3<f64>>
 /// Tool point in the machine base frame for joint coordinates `q`.
 pub fn tool_point(machine: &Machine, q: &[f64]) -> nalgebra::Point3<f64> {
     link_poses(machine, q)[machine.tool_link] * nalgebra::Point3::from(machine.tool.offset_m)
+}
+
+/// Tool point in the workpiece link's frame for joint coordinates `q`: where the tool is on
+/// the part, whichever of them the axes move.
+pub fn tool_in_workpiece(machine: &Machine, q: &[f64]) -> nalgebra::Point3<f64> {
+    let poses = link_poses(machine, q);
+    let tool = poses[machine.tool_link] * nalgebra::Point3::from(machine.tool.offset_m);
+    poses[machine.workpiece_link].inverse_transform_point(&tool)
 }

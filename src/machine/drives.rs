@@ -192,6 +192,13 @@ pub struct Tool {
     pub offset_m: [f64; 3],
 }
 
+/// The link that carries the workpiece (tool-tip figures are given in its frame).
+#[derive(Debug, Clone, PartialEq, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct Workpiece {
+    pub link: String,
+}
+
 /// Contents of a drive sidecar file.
 #[derive(Debug, Clone, PartialEq, Deserialize)]
 #[serde(deny_unknown_fields)]
@@ -199,6 +206,9 @@ pub struct DrivesFile {
     /// The URDF `<robot name>` this file belongs to.
     pub machine: String,
     pub tool: Tool,
+    /// Absent: the workpiece sits on the machine base.
+    #[serde(default)]
+    pub workpiece: Option<Workpiece>,
     /// Drives keyed by the program letter of the axis.
     pub axes: BTreeMap<String, toml::Spanned<Drive>>,
     #[serde(skip)]
@@ -244,6 +254,20 @@ impl DrivesFile {
                     format!("tool link '{}' is not a link of the URDF", self.tool.link),
                 )
             })?;
+        let workpiece_link = match &self.workpiece {
+            None => tree.root,
+            Some(w) => tree
+                .links
+                .iter()
+                .position(|l| l.name == w.link)
+                .ok_or_else(|| {
+                    FileError::new(
+                        path,
+                        at("[workpiece]"),
+                        format!("workpiece link '{}' is not a link of the URDF", w.link),
+                    )
+                })?,
+        };
         if !self.tool.offset_m.iter().all(|v| v.is_finite()) {
             return Err(FileError::new(
                 path,
@@ -306,6 +330,7 @@ impl DrivesFile {
             axes,
             tool: self.tool,
             tool_link,
+            workpiece_link,
         })
     }
 }

@@ -6,7 +6,7 @@
 mod drives;
 mod urdf;
 
-pub use drives::{DcMotor, Drive, DrivesFile, Tool, Transmission};
+pub use drives::{DcMotor, Drive, DrivesFile, Tool, Transmission, Workpiece};
 pub use urdf::load_urdf;
 
 use crate::diagnostics::FileError;
@@ -88,6 +88,8 @@ pub struct Machine {
     pub tool: Tool,
     /// Index of the tool link.
     pub tool_link: usize,
+    /// Index of the link carrying the workpiece (the root unless the sidecar names one).
+    pub workpiece_link: usize,
 }
 
 impl Machine {

@@ -142,22 +142,28 @@ pub(crate) fn parse_urdf(path: &Path, text: &str) -> Result<KinematicTree, FileE
     })
 }
 
-/// Joint indices in breadth-first order from the root, or `None` if some link is unreachable.
+/// Joint indices with every parent link placed before its children, keeping the file's order
+/// wherever it already is (so axes come out in the order the URDF lists them); `None` if some
+/// link cannot be reached from the root.
 fn order_parents_first(joints: &[Joint], root: usize, n_links: usize) -> Option<Vec<usize>> {
     let mut placed = vec![false; n_links];
     placed[root] = true;
+    let mut taken = vec![false; joints.len()];
     let mut order = Vec::with_capacity(joints.len());
-    let mut frontier = vec![root];
-    while let Some(link) = frontier.pop() {
+    while order.len() < joints.len() {
+        let before = order.len();
         for (i, j) in joints.iter().enumerate() {
-            if j.parent == link && !placed[j.child] {
+            if !taken[i] && placed[j.parent] {
+                taken[i] = true;
                 placed[j.child] = true;
                 order.push(i);
-                frontier.push(j.child);
             }
         }
+        if order.len() == before {
+            return None;
+        }
     }
-    (order.len() == joints.len()).then_some(order)
+    Some(order)
 }
 
 fn link_from_urdf(l: &urdf_rs::Link) -> Result<Link, String> {

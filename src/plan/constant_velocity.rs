@@ -24,6 +24,20 @@ pub enum PlanError {
     },
     #[error("the servo period must be a positive finite number of seconds, got {0}")]
     BadPeriod(f64),
+    #[error("move {index} (line {line}): {what} is not supported")]
+    Unsupported {
+        index: usize,
+        line: u32,
+        what: &'static str,
+    },
+    #[error(
+        "the stretch of moves from move {first_move} (line {line}) cannot be planned: {message}"
+    )]
+    Path {
+        first_move: usize,
+        line: u32,
+        message: String,
+    },
 }
 
 /// A sample of a move: position, and velocity per second (both as program positions).

@@ -11,6 +11,7 @@
 
 pub mod blend;
 mod constant_velocity;
+mod from_program;
 mod geometry;
 pub mod metrics;
 pub mod path;
@@ -20,6 +21,7 @@ pub mod setpoints;
 pub mod trapezoid;
 
 pub use constant_velocity::{constant_velocity, PlanError};
+pub use from_program::{plan_program, BlendChoice, PlanSettings, Planner};
 pub use metrics::{finite_difference_extremes, write_setpoints_csv, AxisExtremes};
 pub use path::{AxisKind, AxisLimits, AxisPath, AxisSpec, Blend, Geometry, PathError, PathSegment};
 pub use planner::{plan, Plan, SegmentTiming};

@@ -54,6 +54,31 @@ impl Setpoints {
         &self.acceleration[k * self.axes..(k + 1) * self.axes]
     }
 
+    /// Appends a stream that starts where this one ends, dropping its first sample (the
+    /// shared point). An empty `self` takes all of `next`.
+    pub fn append_continuing(&mut self, next: &Setpoints) {
+        debug_assert_eq!(self.axes, next.axes);
+        let skip = usize::from(!self.is_empty()).min(next.len());
+        let n = self.axes;
+        self.position.extend_from_slice(&next.position[skip * n..]);
+        self.velocity.extend_from_slice(&next.velocity[skip * n..]);
+        self.acceleration
+            .extend_from_slice(&next.acceleration[skip * n..]);
+        self.segment.extend_from_slice(&next.segment[skip..]);
+    }
+
+    /// Holds the last position at rest for `ticks` more samples (a dwell).
+    pub fn hold(&mut self, ticks: usize, segment: u32) {
+        if self.is_empty() {
+            return;
+        }
+        let last = self.position(self.len() - 1).to_vec();
+        let zeros = vec![0.0; self.axes];
+        for _ in 0..ticks {
+            self.push(&last, &zeros, &zeros, segment);
+        }
+    }
+
     /// Time of the last sample (s).
     pub fn duration(&self) -> f64 {
         self.len().saturating_sub(1) as f64 * self.period

@@ -3,6 +3,7 @@
 
 use crate::control::{ActuatorKind, PidForm, PidGains};
 use crate::diagnostics::{read_text, toml_error, FileError, LineColumn};
+use crate::plan::BlendChoice;
 use crate::program::{CircleSpec, FeedRule, PolylineSpec, ReadOptions};
 use serde::Deserialize;
 use std::collections::BTreeMap;
@@ -22,8 +23,9 @@ struct RawScenario {
     #[serde(default)]
     planner: RawPlanner,
     timing: RawTiming,
-    actuator: RawActuator,
-    controller: RawController,
+    /// Needed to run; a scenario used only for `cncsim plan` may leave these out.
+    actuator: Option<RawActuator>,
+    controller: Option<RawController>,
     #[serde(default)]
     feedback: RawFeedback,
     #[serde(default)]
@@ -91,9 +93,19 @@ struct RawPolyline {
 #[serde(deny_unknown_fields)]
 struct RawPlanner {
     #[serde(default)]
-    profile: Profile,
+    profile: ProfileName,
     #[serde(default = "default_rapid")]
     rapid_mm_s: Num,
+    /// Trapezoid profile: path acceleration (mm/s²).
+    acceleration_mm_s2: Option<Num>,
+    /// Corner behaviour: as programmed, or forced.
+    #[serde(default)]
+    blend: RawBlend,
+    /// Tolerance of `blend = "continuous"` (mm); absent = as far as the segments allow.
+    tolerance_mm: Option<Num>,
+    /// Jerk-limited planner: limits per machine axis in mm or deg per s, s², s³.
+    #[serde(default)]
+    limits: BTreeMap<String, Spanned<RawLimits>>,
 }
 
 fn default_rapid() -> Num {
@@ -103,19 +115,59 @@ fn default_rapid() -> Num {
 impl Default for RawPlanner {
     fn default() -> Self {
         RawPlanner {
-            profile: Profile::default(),
+            profile: ProfileName::default(),
             rapid_mm_s: default_rapid(),
+            acceleration_mm_s2: None,
+            blend: RawBlend::default(),
+            tolerance_mm: None,
+            limits: BTreeMap::new(),
         }
     }
 }
 
-/// Which interpolator turns the program into setpoints.
+/// Which planner turns the program into setpoints.
+#[derive(Deserialize, Debug, Clone, Copy, PartialEq, Eq, Default, clap::ValueEnum)]
+#[serde(rename_all = "kebab-case")]
+pub enum ProfileName {
+    /// Seed constant-velocity interpolators (equal steps V·T, equal chords).
+    #[default]
+    #[value(name = "constant")]
+    ConstantVelocity,
+    /// Seed trapezoidal profile on straight moves (needs acceleration_mm_s2).
+    Trapezoid,
+    /// Jerk-limited look-ahead planner on the machine axes (needs limits per axis).
+    #[value(name = "jerk")]
+    JerkLimited,
+}
+
 #[derive(Deserialize, Debug, Clone, Copy, PartialEq, Eq, Default)]
 #[serde(rename_all = "kebab-case")]
-pub enum Profile {
-    /// Seed digest §1.4/§1.6: constant path speed, equal steps and chords.
+enum RawBlend {
     #[default]
-    ConstantVelocity,
+    Program,
+    ExactStop,
+    Continuous,
+}
+
+#[derive(Deserialize)]
+#[serde(deny_unknown_fields)]
+struct RawLimits {
+    velocity: f64,
+    acceleration: f64,
+    jerk: f64,
+}
+
+/// The planner part of a scenario: the profile it names and the parameters of every profile
+/// it gives (limits stay in program units: the axis kinds come from the machine).
+#[derive(Debug, Clone, PartialEq)]
+pub struct PlannerSettings {
+    pub profile: ProfileName,
+    /// Trapezoid path acceleration (m/s²).
+    pub acceleration: Option<f64>,
+    /// Jerk-limited planner, per axis: [velocity, acceleration, jerk] in mm or deg units.
+    pub limits: BTreeMap<String, ([f64; 3], Option<LineColumn>)>,
+    /// Where the `[planner]` table is.
+    pub at: Option<LineColumn>,
 }
 
 #[derive(Deserialize)]
@@ -256,13 +308,15 @@ pub struct Scenario {
     pub machine: PathBuf,
     pub machine_at: Option<LineColumn>,
     pub program: ProgramSource,
-    pub profile: Profile,
+    pub planner: PlannerSettings,
+    pub blend: BlendChoice,
     pub rapid_speed: f64,
     pub servo_period: f64,
     pub substeps: usize,
     pub solver_iterations: usize,
     pub settle_time: f64,
-    pub actuator: ActuatorKind,
+    /// `None`: the scenario has no `[actuator]` (it can be planned, not run).
+    pub actuator: Option<ActuatorKind>,
     pub pid_form: PidForm,
     pub gains: BTreeMap<String, AxisGains>,
     pub controller_at: Option<LineColumn>,
@@ -477,7 +531,12 @@ impl Scenario {
         }
 
         let mut gains = BTreeMap::new();
-        for (axis, g) in raw.controller.axes.get_ref() {
+        let no_axes = BTreeMap::new();
+        let controller_axes = raw
+            .controller
+            .as_ref()
+            .map_or(&no_axes, |c| c.axes.get_ref());
+        for (axis, g) in controller_axes {
             let v = g.get_ref();
             let limit = v.output_limit.unwrap_or(f64::INFINITY);
             let ok = [v.kp, v.ki, v.kd]
@@ -501,7 +560,6 @@ impl Scenario {
                 },
             );
         }
-        let _ = raw.controller.kind; // only PID so far; the enum rejects other names
 
         let mut encoder_counts_per_rev = BTreeMap::new();
         for (axis, c) in &raw.feedback.encoder_counts_per_rev {
@@ -528,6 +586,42 @@ impl Scenario {
             return Err(err(raw.recording.decimation.span(), format!("decimation = {decimation}: expected a whole number ≥ 1 (record every k-th tick)")));
         }
 
+        let rp = &raw.planner;
+        let acceleration = match &rp.acceleration_mm_s2 {
+            Some(a) => Some(positive(a, "acceleration_mm_s2")? * 1e-3),
+            None => None,
+        };
+        let mut limits = BTreeMap::new();
+        for (axis, l) in &rp.limits {
+            let v = l.get_ref();
+            let values = [v.velocity, v.acceleration, v.jerk];
+            if !values.iter().all(|x| x.is_finite() && *x > 0.0) {
+                return Err(err(l.span(), format!("planner.limits.{axis}: velocity, acceleration and jerk must be finite and > 0, found {values:?}")));
+            }
+            limits.insert(axis.clone(), (values, at(l.span().start)));
+        }
+        let planner = PlannerSettings {
+            profile: rp.profile,
+            acceleration,
+            limits,
+            at: LineColumn::of_first(text, "[planner]"),
+        };
+        let tolerance = match &rp.tolerance_mm {
+            Some(t) => Some(positive(t, "tolerance_mm")? * 1e-3),
+            None => None,
+        };
+        let blend = match rp.blend {
+            RawBlend::Program => BlendChoice::Program,
+            RawBlend::ExactStop => BlendChoice::ExactStop,
+            RawBlend::Continuous => BlendChoice::Continuous { tolerance },
+        };
+        if tolerance.is_some() && rp.blend != RawBlend::Continuous {
+            return Err(err(
+                rp.tolerance_mm.as_ref().unwrap().span(),
+                "tolerance_mm applies to blend = \"continuous\"".into(),
+            ));
+        }
+
         let mut expect = Vec::new();
         for (key, value) in &raw.expect {
             flatten_expectations(
@@ -549,22 +643,27 @@ impl Scenario {
             machine,
             machine_at: at(raw.machine.span().start),
             program,
-            profile: raw.planner.profile,
+            planner,
+            blend,
             rapid_speed: positive(&raw.planner.rapid_mm_s, "rapid_mm_s")? * 1e-3,
             servo_period,
             substeps: substeps as usize,
             solver_iterations: solver_iterations as usize,
             settle_time,
-            actuator: match raw.actuator.model {
+            actuator: raw.actuator.map(|a| match a.model {
                 ActuatorModel::IdealTorque => ActuatorKind::IdealTorque,
                 ActuatorModel::DcMotor => ActuatorKind::DcMotor,
-            },
-            pid_form: match raw.controller.form {
-                RawPidForm::Positional => PidForm::Positional,
-                RawPidForm::Incremental => PidForm::Incremental,
+            }),
+            // Only PID so far: the `type` enum rejects other names.
+            pid_form: match raw.controller.as_ref().map(|c| (c.kind, c.form)) {
+                Some((ControllerType::Pid, RawPidForm::Incremental)) => PidForm::Incremental,
+                _ => PidForm::Positional,
             },
             gains,
-            controller_at: at(raw.controller.axes.span().start),
+            controller_at: raw
+                .controller
+                .as_ref()
+                .and_then(|c| at(c.axes.span().start)),
             encoder_counts_per_rev,
             following_error_limit_linear,
             following_error_limit_rotary,

@@ -3,8 +3,10 @@
 
 mod check;
 mod file;
+mod plan;
 mod run;
 
 pub use check::{check, Breach, Verdict};
-pub use file::{AxisGains, Expectation, Profile, ProgramSource, Scenario};
-pub use run::{run_scenario, RunError, RunOutput};
+pub use file::{AxisGains, Expectation, PlannerSettings, ProfileName, ProgramSource, Scenario};
+pub use plan::{plan_scenario, PlanReport};
+pub use run::{load_checked_program, plan_settings, run_scenario, RunError, RunOutput};

@@ -2,13 +2,14 @@
 //! A run that stops early (divergence, following-error fault) still writes everything it
 //! computed and says where it stopped.
 
+use super::ProfileName;
 use super::{ProgramSource, Scenario};
 use crate::control::{Actuator, ActuatorKind, Pid, PidBank};
 use crate::diagnostics::FileError;
 use crate::kinematics::{self, AxisMap};
 use crate::machine::Machine;
 use crate::model::{ModelError, Plant, PlantOptions};
-use crate::plan::{constant_velocity, PlanError};
+use crate::plan::{plan_program, AxisKind, AxisLimits, PlanError, PlanSettings, Planner};
 use crate::program::{circle, polyline, read_program, PathGeometry, Program, ProgramErrors};
 use crate::report::{self, AxisLabel, Derived, Metrics, RecordingContent, ReportError};
 use crate::sim::{CoSimulation, LoopSettings, Stop, Trace};
@@ -47,6 +48,10 @@ pub fn run_scenario(
     out_dir: &Path,
     progress: &mut dyn FnMut(usize, usize),
 ) -> Result<RunOutput, RunError> {
+    let (Some(actuator), false) = (s.actuator, s.gains.is_empty()) else {
+        let message = "running a scenario needs [actuator] and [controller] sections (planning with `cncsim plan` does not)";
+        return Err(FileError::new(&s.path, None, message).into());
+    };
     let machine = Machine::load(&s.machine)?;
     let labels: Vec<AxisLabel> = machine
         .axes
@@ -60,14 +65,13 @@ pub fn run_scenario(
     let axis_map = AxisMap::cartesian(&machine)
         .map_err(|e| FileError::new(&s.machine, None, e.to_string()))?;
 
-    let program = load_program(s)?;
-    check_program_axes(&program, &machine)?;
-    let setpoints = constant_velocity(&program, &axis_map, s.servo_period, s.rapid_speed).map_err(
-        |source| RunError::Plan {
+    let program = load_checked_program(s, &machine)?;
+    let settings = plan_settings(s, &machine, s.planner.profile)?;
+    let setpoints =
+        plan_program(&program, &axis_map, &settings).map_err(|source| RunError::Plan {
             path: program.source.clone(),
             source,
-        },
-    )?;
+        })?;
 
     let step = s.servo_period / s.substeps as f64;
     let options = PlantOptions {
@@ -124,7 +128,7 @@ pub fn run_scenario(
         actuators: machine
             .axes
             .iter()
-            .map(|a| Actuator::new(s.actuator, &a.drive))
+            .map(|a| Actuator::new(actuator, &a.drive))
             .collect(),
         settings,
     };
@@ -140,7 +144,7 @@ pub fn run_scenario(
         &program_origin,
         linear_axes,
     );
-    let dc_motor = s.actuator == ActuatorKind::DcMotor;
+    let dc_motor = actuator == ActuatorKind::DcMotor;
     let metrics = Metrics::compute(
         &s.name,
         &outcome.trace,
@@ -206,6 +210,68 @@ pub fn run_scenario(
         trace: outcome.trace,
         files,
     })
+}
+
+/// The planner settings of a scenario for its machine, with `profile` (the scenario's own or
+/// a command-line override); limits are converted to SI per axis kind.
+pub fn plan_settings(
+    s: &Scenario,
+    machine: &Machine,
+    profile: ProfileName,
+) -> Result<PlanSettings, FileError> {
+    let p = &s.planner;
+    let planner = match profile {
+        ProfileName::ConstantVelocity => Planner::ConstantVelocity,
+        ProfileName::Trapezoid => Planner::Trapezoid {
+            acceleration: p.acceleration.ok_or_else(|| {
+                FileError::new(
+                    &s.path,
+                    p.at,
+                    "the trapezoid profile needs [planner] acceleration_mm_s2",
+                )
+            })?,
+        },
+        ProfileName::JerkLimited => {
+            for (axis, (_, place)) in &p.limits {
+                if machine.axis_index(axis).is_none() {
+                    return Err(FileError::new(
+                        &s.path,
+                        *place,
+                        format!(
+                            "planner.limits.{axis}: the machine '{}' has no axis '{axis}'",
+                            machine.name
+                        ),
+                    ));
+                }
+            }
+            let limits = machine
+                .axes
+                .iter()
+                .map(|a| {
+                    let ([v, acc, j], _) = p.limits.get(&a.name).ok_or_else(|| {
+                        FileError::new(&s.path, p.at, format!("the jerk-limited profile needs planner.limits.{} (velocity, acceleration, jerk in mm or deg units)", a.name))
+                    })?;
+                    let kind = if a.is_rotary(machine) { AxisKind::Rotary } else { AxisKind::Linear };
+                    Ok(AxisLimits::from_program_units(kind, *v, *acc, *j))
+                })
+                .collect::<Result<_, FileError>>()?;
+            Planner::JerkLimited { limits }
+        }
+    };
+    Ok(PlanSettings {
+        planner,
+        period: s.servo_period,
+        rapid_speed: s.rapid_speed,
+        blend: s.blend,
+        axis_names: machine.axes.iter().map(|a| a.name.clone()).collect(),
+    })
+}
+
+/// Reads the scenario's program (built-in path or file) and checks it against the machine.
+pub fn load_checked_program(s: &Scenario, machine: &Machine) -> Result<Program, RunError> {
+    let program = load_program(s)?;
+    check_program_axes(&program, machine)?;
+    Ok(program)
 }
 
 fn load_program(s: &Scenario) -> Result<Program, RunError> {
@@ -310,7 +376,7 @@ fn validate_against_machine(
         &empty,
         &Derived::default(),
         labels,
-        s.actuator == ActuatorKind::DcMotor,
+        s.actuator == Some(ActuatorKind::DcMotor),
         0,
         0.0,
         None,

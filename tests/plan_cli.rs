@@ -1,0 +1,101 @@
+//! `cncsim plan` on the 5-axis study's program, checked from the CSV it writes alone: the
+//! programmed points are passed exactly, and third differences of the positions stay within
+//! the jerk limit on every machine axis.
+
+use std::path::Path;
+use std::process::Command;
+
+fn plan(scenario: &str, extra: &[&str]) -> (String, Vec<Vec<f64>>, Vec<String>) {
+    let dir = tempfile::tempdir().unwrap();
+    let csv = dir.path().join("setpoints.csv");
+    let root = Path::new(env!("CARGO_MANIFEST_DIR"));
+    let mut args = vec!["plan", scenario, "--csv", csv.to_str().unwrap()];
+    args.extend_from_slice(extra);
+    let out = Command::new(env!("CARGO_BIN_EXE_cncsim"))
+        .args(&args)
+        .current_dir(root)
+        .output()
+        .unwrap();
+    let stdout = String::from_utf8_lossy(&out.stdout).into_owned();
+    assert!(
+        out.status.success(),
+        "{stdout}{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let text = std::fs::read_to_string(&csv).unwrap();
+    let mut lines = text.lines();
+    let header: Vec<String> = lines.next().unwrap().split(',').map(String::from).collect();
+    let rows = lines
+        .map(|l| l.split(',').map(|v| v.parse().unwrap()).collect())
+        .collect();
+    (stdout, rows, header)
+}
+
+#[test]
+fn study_program_in_exact_stop_respects_every_limit_and_hits_every_point() {
+    let (stdout, rows, header) = plan("scenarios/plan_table2_jerk.toml", &[]);
+    assert_eq!(header, ["t_s", "x", "y", "z", "a", "c"]);
+    // Cycle time: the sum of the closed-form jerk-limited times of each move's longest axis,
+    // 4·(L/2J)^(1/3) for L = 50, 60, 50, 40, 30 (mm or deg) and J = 1000, sampled at 1 ms.
+    let exact: f64 = [50.0f64, 60.0, 50.0, 40.0, 30.0]
+        .iter()
+        .map(|l| 4.0 * (l / 2000.0).cbrt())
+        .sum();
+    let samples = rows.len() as f64;
+    assert!(
+        (samples - 1.0) * 1e-3 >= exact - 1e-9 && (samples - 1.0) * 1e-3 < exact + 5e-3,
+        "{samples} samples for {exact} s"
+    );
+    assert!(stdout.contains("cycle time"), "{stdout}");
+
+    // Every programmed point is passed at rest (exact stop). The stop instant is not a multiple
+    // of T, so the nearest sample is off by at most the jerk-limited creep of one period,
+    // j·T³/6 = 1.7e-7 mm (or deg).
+    let creep = 1000.0 * 1e-9 / 6.0;
+    let points = [
+        [20.0, 10.0, 30.0, 10.0, 50.0],
+        [-40.0, 20.0, 0.0, 10.0, 30.0],
+        [10.0, 30.0, -30.0, 20.0, 10.0],
+        [50.0, 40.0, 0.0, 20.0, -10.0],
+        [60.0, 50.0, 30.0, 20.0, -30.0],
+    ];
+    for p in points {
+        let hit = rows
+            .iter()
+            .any(|r| (1..6).all(|i| (r[i] - p[i - 1]).abs() <= creep));
+        assert!(hit, "programmed point {p:?} is not passed");
+    }
+    // Limits from differences of the positions alone (mm or deg units, T = 1 ms).
+    let t = 1e-3;
+    for axis in 1..6 {
+        let q: Vec<f64> = rows.iter().map(|r| r[axis]).collect();
+        let v = q
+            .windows(2)
+            .map(|w| (w[1] - w[0]) / t)
+            .fold(0.0f64, |m, x| m.max(x.abs()));
+        let a = q
+            .windows(3)
+            .map(|w| (w[2] - 2.0 * w[1] + w[0]) / (t * t))
+            .fold(0.0f64, |m, x| m.max(x.abs()));
+        let j = q
+            .windows(4)
+            .map(|w| (w[3] - 3.0 * w[2] + 3.0 * w[1] - w[0]) / (t * t * t))
+            .fold(0.0f64, |m, x| m.max(x.abs()));
+        assert!(
+            v <= 150.0 * 1.001 && a <= 1000.0 * 1.001 && j <= 1000.0 * 1.001,
+            "axis {}: v {v} a {a} j {j}",
+            header[axis]
+        );
+    }
+}
+
+#[test]
+fn constant_velocity_profile_reproduces_the_study_segment_times() {
+    let (stdout, rows, _) = plan(
+        "scenarios/plan_table2_jerk.toml",
+        &["--profile", "constant"],
+    );
+    // 0.422 + 0.471 + 0.422 + 0.365 + 0.258 s = 1.938 s; each move rounds up to whole ticks.
+    let duration = (rows.len() - 1) as f64 * 1e-3;
+    assert!((1.938..1.944).contains(&duration), "{duration}\n{stdout}");
+}
