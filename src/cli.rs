@@ -31,6 +31,46 @@ pub enum Command {
         #[arg(long)]
         csv: Option<PathBuf>,
     },
+    /// Rigid-body inverse dynamics of a URDF at one state: joint torques τ, M(q), C(q,q̇)q̇ and
+    /// g(q) (SI units, joints in URDF order).
+    Dynamics {
+        urdf: PathBuf,
+        /// Joint positions, comma-separated (m or rad).
+        #[arg(
+            long,
+            value_delimiter = ',',
+            allow_negative_numbers = true,
+            required = true
+        )]
+        q: Vec<f64>,
+        /// Joint velocities (m/s or rad/s).
+        #[arg(
+            long,
+            value_delimiter = ',',
+            allow_negative_numbers = true,
+            required = true
+        )]
+        qd: Vec<f64>,
+        /// Joint accelerations (m/s² or rad/s²).
+        #[arg(
+            long,
+            value_delimiter = ',',
+            allow_negative_numbers = true,
+            required = true
+        )]
+        qdd: Vec<f64>,
+        /// Gravity in the base frame (m/s²).
+        #[arg(
+            long,
+            value_delimiter = ',',
+            allow_negative_numbers = true,
+            default_value = "0,0,-9.81"
+        )]
+        gravity: Vec<f64>,
+        /// Print {"tau": [...], "mass_matrix": [[...]], "coriolis": [...], "gravity": [...]}.
+        #[arg(long)]
+        json: bool,
+    },
     /// Decode a part program (G-code, HPGL, APT CL data) and print its moves or a summary,
     /// cut and rapid / pen-up lengths and the program time at programmed feed.
     Inspect {

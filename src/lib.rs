@@ -7,6 +7,7 @@
 
 pub mod control;
 pub mod diagnostics;
+pub mod dynamics;
 pub mod kinematics;
 pub mod machine;
 pub mod model;

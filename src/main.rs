@@ -32,6 +32,14 @@ fn main() -> ExitCode {
             profile,
             csv,
         }) => plan_one(&scenario, profile, csv),
+        Some(Command::Dynamics {
+            urdf,
+            q,
+            qd,
+            qdd,
+            gravity,
+            json,
+        }) => dynamics(&urdf, &q, &qd, &qdd, &gravity, json),
         Some(Command::Inspect {
             program,
             euclidean_feed,
@@ -120,6 +128,46 @@ fn plan_one(
         println!("  wrote {}", csv.display());
     }
     ExitCode::SUCCESS
+}
+
+fn dynamics(
+    urdf: &Path,
+    q: &[f64],
+    qd: &[f64],
+    qdd: &[f64],
+    gravity: &[f64],
+    json: bool,
+) -> ExitCode {
+    let &[gx, gy, gz] = gravity else {
+        return fail_input(&format!(
+            "--gravity takes 3 values (x,y,z in m/s²), got {}",
+            gravity.len()
+        ));
+    };
+    let tree = match cncsim::machine::load_urdf(urdf) {
+        Ok(t) => t,
+        Err(e) => return fail_input(&e),
+    };
+    match cncsim::dynamics::DynamicsReport::evaluate(
+        &tree,
+        nalgebra::Vector3::new(gx, gy, gz),
+        q,
+        qd,
+        qdd,
+    ) {
+        Ok(report) if json => {
+            println!(
+                "{}",
+                serde_json::to_string_pretty(&report.to_json()).expect("JSON of numbers")
+            );
+            ExitCode::SUCCESS
+        }
+        Ok(report) => {
+            print!("{}", report.to_text());
+            ExitCode::SUCCESS
+        }
+        Err(e) => fail_input(&format!("{}: {e}", urdf.display())),
+    }
 }
 
 fn check_all(paths: &[PathBuf], out: Option<PathBuf>) -> ExitCode {
