@@ -30,6 +30,9 @@ pub enum Command {
         /// in mm or deg, at full precision.
         #[arg(long)]
         csv: Option<PathBuf>,
+        /// Write a Rerun recording of the setpoints and the tool path on the workpiece.
+        #[arg(long)]
+        rrd: Option<PathBuf>,
     },
     /// Rigid-body inverse dynamics of a URDF at one state: joint torques τ, M(q), C(q,q̇)q̇ and
     /// g(q) (SI units, joints in URDF order).

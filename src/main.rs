@@ -31,7 +31,8 @@ fn main() -> ExitCode {
             scenario,
             profile,
             csv,
-        }) => plan_one(&scenario, profile, csv),
+            rrd,
+        }) => plan_one(&scenario, profile, csv, rrd),
         Some(Command::Dynamics {
             urdf,
             q,
@@ -106,6 +107,7 @@ fn plan_one(
     path: &Path,
     profile: Option<cncsim::scenario::ProfileName>,
     csv: Option<PathBuf>,
+    rrd: Option<PathBuf>,
 ) -> ExitCode {
     let scenario = match Scenario::load(path) {
         Ok(s) => s,
@@ -126,6 +128,26 @@ fn plan_one(
             return fail_input(&format!("{}: cannot write: {e}", csv.display()));
         }
         println!("  wrote {}", csv.display());
+    }
+    if let Some(rrd) = rrd {
+        let labels: Vec<cncsim::report::AxisLabel> = report
+            .axes
+            .iter()
+            .map(|a| cncsim::report::AxisLabel {
+                name: a.name.clone(),
+                rotary: a.kind == cncsim::plan::AxisKind::Rotary,
+            })
+            .collect();
+        if let Err(e) = cncsim::report::write_setpoints_recording(
+            &rrd,
+            &scenario.name,
+            &report.setpoints,
+            &labels,
+            &report.tool_path,
+        ) {
+            return fail_input(&e);
+        }
+        println!("  wrote {}", rrd.display());
     }
     ExitCode::SUCCESS
 }

@@ -2,6 +2,8 @@
 //! programmed points are passed exactly, and third differences of the positions stay within
 //! the jerk limit on every machine axis.
 
+mod common;
+
 use std::path::Path;
 use std::process::Command;
 
@@ -98,4 +100,29 @@ fn constant_velocity_profile_reproduces_the_study_segment_times() {
     // 0.422 + 0.471 + 0.422 + 0.365 + 0.258 s = 1.938 s; each move rounds up to whole ticks.
     let duration = (rows.len() - 1) as f64 * 1e-3;
     assert!((1.938..1.944).contains(&duration), "{duration}\n{stdout}");
+}
+
+#[test]
+fn plan_writes_a_recording_of_the_setpoints() {
+    let dir = tempfile::tempdir().unwrap();
+    let rrd = dir.path().join("plan.rrd");
+    let (_, rows, _) = plan(
+        "scenarios/plan_table2_jerk.toml",
+        &["--rrd", rrd.to_str().unwrap()],
+    );
+    let recorded = common::rrd_rows(&rrd);
+    for axis in ["x", "y", "z", "a", "c"] {
+        for series in ["position", "velocity", "acceleration"] {
+            let path = format!("/setpoints/{axis}/{series}");
+            assert_eq!(
+                recorded.get(&path).copied(),
+                Some(rows.len()),
+                "{path}: {recorded:?}"
+            );
+        }
+    }
+    assert!(
+        recorded.contains_key("/workpiece/tool_path"),
+        "{recorded:?}"
+    );
 }

@@ -1,7 +1,9 @@
 //! The bundled scenarios run and meet their bounds; what a run writes can be read back.
 
+mod common;
+
 use cncsim::scenario::{check, run_scenario, Scenario};
-use std::collections::BTreeMap;
+use common::rrd_rows;
 use std::path::Path;
 
 fn bundled(name: &str) -> Scenario {
@@ -153,21 +155,6 @@ fn a_runaway_is_stopped_with_time_and_axis_and_the_recording_is_kept() {
             .count()
             > 1
     );
-}
-
-/// Rows per entity path in an .rrd file, decoded with the rerun crate.
-fn rrd_rows(path: &Path) -> BTreeMap<String, usize> {
-    use rerun::external::re_log_encoding::DecoderApp;
-    use rerun::log::{Chunk, LogMsg};
-    let file = std::io::BufReader::new(std::fs::File::open(path).unwrap());
-    let mut rows = BTreeMap::new();
-    for msg in DecoderApp::decode_lazy(file) {
-        if let LogMsg::ArrowMsg(_, arrow) = msg.unwrap() {
-            let chunk = Chunk::from_arrow_msg(&arrow).unwrap();
-            *rows.entry(chunk.entity_path().to_string()).or_insert(0) += chunk.num_rows();
-        }
-    }
-    rows
 }
 
 /// `cncsim check scenarios/` — what CI users run — passes on the bundled scenarios and says so

@@ -8,7 +8,7 @@ mod table;
 
 pub use csv::write_trace_csv;
 pub use metrics::{AxisMetrics, Derived, Metrics};
-pub use recording::{write_recording, RecordingContent};
+pub use recording::{write_recording, write_setpoints_recording, RecordingContent};
 pub use table::metrics_table;
 
 /// Report errors: only I/O and the recorder can fail here.

@@ -195,3 +195,61 @@ fn transform(p: &Isometry3<f64>) -> rerun::Transform3D {
 fn f32x3(v: &nalgebra::Vector3<f64>) -> [f32; 3] {
     [v.x as f32, v.y as f32, v.z as f32]
 }
+
+/// A recording of a planned setpoint stream (`cncsim plan --rrd`): per machine axis position,
+/// velocity and acceleration (mm or deg units) under `setpoints/<axis>/…`, and the tool path on
+/// the workpiece (`workpiece/tool_path`, m) when given.
+pub fn write_setpoints_recording(
+    path: &Path,
+    name: &str,
+    setpoints: &crate::plan::Setpoints,
+    labels: &[AxisLabel],
+    tool_on_workpiece: &[[f64; 3]],
+) -> Result<(), ReportError> {
+    let fail = |e: &dyn std::fmt::Display| ReportError::Recording {
+        path: path.to_path_buf(),
+        message: e.to_string(),
+    };
+    let rec = rerun::RecordingStreamBuilder::new("cncsim")
+        .recording_name(name)
+        .save(path)
+        .map_err(|e| fail(&e))?;
+    let log = || -> rerun::RecordingStreamResult<()> {
+        let n = setpoints.axes;
+        let times = || {
+            TimeColumn::new_duration_secs(
+                "sim_time",
+                (0..setpoints.len()).map(|k| k as f64 * setpoints.period),
+            )
+        };
+        for (i, l) in labels.iter().enumerate() {
+            let s = l.scale();
+            for (series, values) in [
+                ("position", &setpoints.position),
+                ("velocity", &setpoints.velocity),
+                ("acceleration", &setpoints.acceleration),
+            ] {
+                let column: Vec<f64> = (0..setpoints.len())
+                    .map(|k| values[k * n + i] * s)
+                    .collect();
+                rec.send_columns(
+                    format!("setpoints/{}/{series}", l.name).as_str(),
+                    [times()],
+                    rerun::Scalars::new(column).columns_of_unit_batches()?,
+                )?;
+            }
+        }
+        if !tool_on_workpiece.is_empty() {
+            let strip: Vec<[f32; 3]> = tool_on_workpiece
+                .iter()
+                .map(|p| [p[0] as f32, p[1] as f32, p[2] as f32])
+                .collect();
+            rec.log_static("workpiece", &rerun::ViewCoordinates::RIGHT_HAND_Z_UP())?;
+            rec.log_static("workpiece/tool_path", &rerun::LineStrips3D::new([strip]))?;
+        }
+        Ok(())
+    };
+    log().map_err(|e| fail(&e))?;
+    rec.flush_blocking().map_err(|e| fail(&e))?;
+    Ok(())
+}

@@ -24,6 +24,9 @@ pub struct PlanReport {
     pub tool_extremes: Vec<AxisExtremes>,
     /// Per program move that moved: (move index, source line, duration in s).
     pub move_durations: Vec<(u32, u32, f64)>,
+    /// Tool tip on the workpiece at every sample (m).
+    pub tool_path: Vec<[f64; 3]>,
+    pub machine_name: String,
 }
 
 pub fn plan_scenario(s: &Scenario, profile: Option<ProfileName>) -> Result<PlanReport, RunError> {
@@ -67,9 +70,11 @@ pub fn plan_scenario(s: &Scenario, profile: Option<ProfileName>) -> Result<PlanR
     // Tool tip on the workpiece at every sample, as a 3-axis stream for the same differences.
     let mut tool = Setpoints::new(setpoints.period, 3);
     let zeros = [0.0; 3];
+    let mut tool_path = Vec::with_capacity(setpoints.len());
     for k in 0..setpoints.len() {
         let p = kinematics::tool_in_workpiece(&machine, setpoints.position(k));
         tool.push(&[p.x, p.y, p.z], &zeros, &zeros, setpoints.segment[k]);
+        tool_path.push([p.x, p.y, p.z]);
     }
 
     let mut move_durations = Vec::new();
@@ -91,6 +96,8 @@ pub fn plan_scenario(s: &Scenario, profile: Option<ProfileName>) -> Result<PlanR
         setpoints,
         axes,
         move_durations,
+        tool_path,
+        machine_name: machine.name.clone(),
     })
 }
 

@@ -165,3 +165,18 @@ pub fn closed_form_duration(length: f64, v: f64, a: f64, j: f64) -> f64 {
     // Jerk-limited: T = 4·(L / 2J)^(1/3).
     4.0 * (l / (2.0 * j)).cbrt()
 }
+
+/// Rows per entity path in an .rrd file, decoded with the rerun crate.
+pub fn rrd_rows(path: &std::path::Path) -> std::collections::BTreeMap<String, usize> {
+    use rerun::external::re_log_encoding::DecoderApp;
+    use rerun::log::{Chunk, LogMsg};
+    let file = std::io::BufReader::new(std::fs::File::open(path).unwrap());
+    let mut rows = std::collections::BTreeMap::new();
+    for msg in DecoderApp::decode_lazy(file) {
+        if let LogMsg::ArrowMsg(_, arrow) = msg.unwrap() {
+            let chunk = Chunk::from_arrow_msg(&arrow).unwrap();
+            *rows.entry(chunk.entity_path().to_string()).or_insert(0) += chunk.num_rows();
+        }
+    }
+    rows
+}
