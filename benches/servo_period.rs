@@ -74,7 +74,7 @@ fn benches(c: &mut Criterion) {
                     },
                 }
             },
-            |sim| sim.run(&setpoints, &mut |_, _| {}),
+            |sim| sim.run(&setpoints, &mut |_, _| true),
             BatchSize::LargeInput,
         )
     });

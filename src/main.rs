@@ -5,6 +5,7 @@ use cncsim::scenario::{check, run_scenario, RunOutput, Scenario};
 use indicatif::{ProgressBar, ProgressStyle};
 use std::path::{Path, PathBuf};
 use std::process::ExitCode;
+use std::sync::atomic::{AtomicBool, Ordering};
 use std::time::Duration;
 
 mod cli;
@@ -13,9 +14,19 @@ use cli::{Cli, Command};
 /// The bundled scenario `cncsim` runs without arguments.
 const DEFAULT_SCENARIO: &str = "scenarios/xyz_circle_5mms.toml";
 
+/// Set by Ctrl-C: a running simulation stops at its next progress report and still writes
+/// everything it computed.
+static INTERRUPTED: AtomicBool = AtomicBool::new(false);
+
 /// Exit codes: 0 success, 1 a check failed or a run stopped early, 2 bad input.
 fn main() -> ExitCode {
     let cli = Cli::parse();
+    // A second Ctrl-C while the first is being handled ends the process the usual way.
+    let _ = ctrlc::set_handler(|| {
+        if INTERRUPTED.swap(true, Ordering::Relaxed) {
+            std::process::exit(130);
+        }
+    });
     match cli.command {
         None => {
             let scenario = default_scenario();
@@ -289,6 +300,7 @@ fn execute(scenario: &Scenario, out: &Path) -> Result<RunOutput, cncsim::scenari
             bar.set_length(total as u64);
             bar.set_position(done as u64);
         }
+        !INTERRUPTED.load(Ordering::Relaxed)
     };
     let result = run_scenario(scenario, out, &mut progress);
     bar.finish_and_clear();

@@ -19,7 +19,7 @@ fn bundled(name: &str) -> Scenario {
 fn circle_scenario_meets_its_bounds_and_writes_a_readable_recording() {
     let scenario = bundled("xyz_circle_5mms.toml");
     let out = tempfile::tempdir().unwrap();
-    let run = run_scenario(&scenario, out.path(), &mut |_, _| {}).unwrap();
+    let run = run_scenario(&scenario, out.path(), &mut |_, _| true).unwrap();
     assert!(run.stop.is_none(), "{:?}", run.stop);
     let verdict = check(&scenario, &run.metrics_json);
     assert!(verdict.passed(), "breaches: {:?}", verdict.breaches);
@@ -120,8 +120,8 @@ fn same_scenario_same_numbers() {
     scenario.record_rrd = false;
     let a = tempfile::tempdir().unwrap();
     let b = tempfile::tempdir().unwrap();
-    let ra = run_scenario(&scenario, a.path(), &mut |_, _| {}).unwrap();
-    let rb = run_scenario(&scenario, b.path(), &mut |_, _| {}).unwrap();
+    let ra = run_scenario(&scenario, a.path(), &mut |_, _| true).unwrap();
+    let rb = run_scenario(&scenario, b.path(), &mut |_, _| true).unwrap();
     assert_eq!(ra.trace, rb.trace, "two runs of one scenario differ");
 }
 
@@ -134,7 +134,7 @@ fn a_runaway_is_stopped_with_time_and_axis_and_the_recording_is_kept() {
     gains.gains.ki = 0.0;
     gains.gains.kd = 0.0;
     let out = tempfile::tempdir().unwrap();
-    let run = run_scenario(&scenario, out.path(), &mut |_, _| {}).unwrap();
+    let run = run_scenario(&scenario, out.path(), &mut |_, _| true).unwrap();
     let stop = run.stop.expect("the run must stop");
     let text = stop.to_string();
     assert!(
@@ -266,7 +266,7 @@ fn four_millisecond_servo_period_works() {
         g.gains.kd /= 4.0;
     }
     let out = tempfile::tempdir().unwrap();
-    let run = run_scenario(&scenario, out.path(), &mut |_, _| {}).unwrap();
+    let run = run_scenario(&scenario, out.path(), &mut |_, _| true).unwrap();
     assert!(run.stop.is_none(), "{:?}", run.stop);
     assert_eq!(
         run.metrics.physics_steps,
@@ -289,11 +289,11 @@ fn encoder_quantisation_shows_in_the_following_error() {
     let mut scenario = bundled("xyz_circle_5mms.toml");
     short_move(&mut scenario);
     let out = tempfile::tempdir().unwrap();
-    let ideal = run_scenario(&scenario, out.path(), &mut |_, _| {}).unwrap();
+    let ideal = run_scenario(&scenario, out.path(), &mut |_, _| true).unwrap();
     scenario
         .encoder_counts_per_rev
         .insert("x".into(), (100, None));
-    let quantised = run_scenario(&scenario, out.path(), &mut |_, _| {}).unwrap();
+    let quantised = run_scenario(&scenario, out.path(), &mut |_, _| true).unwrap();
     let resolution_mm = 2.0 * std::f64::consts::PI / (100.0 * 4000.0) * 1e3; // 15.7 µm
                                                                              // Steady tracking, after the start transient of the velocity step has died out.
     let steady = |t: &cncsim::sim::Trace| {
@@ -310,5 +310,33 @@ fn encoder_quantisation_shows_in_the_following_error() {
     assert!(
         e_quant > 0.1 * resolution_mm && e_quant <= 0.5 * resolution_mm,
         "quantised: {e_quant} mm, resolution {resolution_mm} mm"
+    );
+}
+
+/// An interrupted run (Ctrl-C in the CLI) stops where it was and still writes its outputs.
+#[test]
+fn an_interrupted_run_keeps_what_it_computed() {
+    let mut scenario = bundled("xyz_circle_5mms.toml");
+    scenario.record_csv = false;
+    let out = tempfile::tempdir().unwrap();
+    // Let the first progress report through, stop at the second (tick 1024).
+    let mut reports = 0;
+    let run = run_scenario(&scenario, out.path(), &mut |_, _| {
+        reports += 1;
+        reports < 2
+    })
+    .unwrap();
+    let stop = run.stop.expect("interrupted");
+    assert!(
+        stop.to_string().starts_with("interrupted at t = 1.024"),
+        "{stop}"
+    );
+    assert_eq!(run.trace.len(), 1025);
+    assert_eq!(run.metrics_json["completed"], false);
+    assert_eq!(
+        rrd_rows(&out.path().join("run.rrd"))
+            .get("/axes/x/actual")
+            .copied(),
+        Some(1025usize.div_ceil(scenario.decimation))
     );
 }

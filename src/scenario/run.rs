@@ -46,7 +46,7 @@ const GRAVITY: [f64; 3] = [0.0, 0.0, -9.81];
 pub fn run_scenario(
     s: &Scenario,
     out_dir: &Path,
-    progress: &mut dyn FnMut(usize, usize),
+    progress: &mut dyn FnMut(usize, usize) -> bool,
 ) -> Result<RunOutput, RunError> {
     let (Some(actuator), false) = (s.actuator, s.gains.is_empty()) else {
         let message = "running a scenario needs [actuator] and [controller] sections (planning with `cncsim plan` does not)";

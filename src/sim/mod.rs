@@ -78,6 +78,8 @@ pub enum Stop {
         axis: String,
         what: String,
     },
+    #[error("interrupted at t = {time:.6} s")]
+    Interrupted { time: f64 },
     #[error("following-error fault at t = {time:.6} s on axis '{axis}': |error| = {error:.6e} exceeds the limit {limit:.6e}")]
     FollowingError {
         time: f64,
@@ -105,8 +107,13 @@ pub struct CoSimulation<'a> {
 }
 
 impl CoSimulation<'_> {
-    /// Runs the setpoints through the loop. `progress(done, total)` is called now and then.
-    pub fn run(mut self, setpoints: &Setpoints, progress: &mut dyn FnMut(usize, usize)) -> Outcome {
+    /// Runs the setpoints through the loop. `progress(done, total)` is called now and then; when
+    /// it returns `false` the run stops there (the user interrupted it), keeping what it traced.
+    pub fn run(
+        mut self,
+        setpoints: &Setpoints,
+        progress: &mut dyn FnMut(usize, usize) -> bool,
+    ) -> Outcome {
         let started = Instant::now();
         let n = setpoints.axes;
         let t = self.settings.servo_period;
@@ -152,8 +159,9 @@ impl CoSimulation<'_> {
                     stop = Some(s);
                     break;
                 }
-                if k % 4096 == 0 {
-                    progress(k, total);
+                if k % 1024 == 0 && !progress(k, total) {
+                    stop = Some(Stop::Interrupted { time: tick.time });
+                    break;
                 }
             }
         }
