@@ -126,3 +126,53 @@ fn plan_writes_a_recording_of_the_setpoints() {
         "{recorded:?}"
     );
 }
+
+/// APT cutter-location data reaches the planner through the A-C mill's inverse kinematics; a
+/// point the mill cannot reach is refused with its line.
+#[test]
+fn cl_data_is_planned_through_the_inverse_kinematics() {
+    let (stdout, rows, header) = plan("scenarios/plan_table1_cl.toml", &[]);
+    assert_eq!(header, ["t_s", "x", "y", "z", "a", "c"]);
+    assert!(
+        stdout.contains("tool tip in workpiece coordinates"),
+        "{stdout}"
+    );
+    // The last CL point, (50, 100, 75) mm with axis (0.2, 0.5, 0.5), in machine coordinates
+    // (A = atan2(√(i²+j²), k) = 47.124°, C = atan2(i, j) = 21.801°).
+    let last = rows.last().unwrap();
+    let expected = [64.9934, 145.9339, -196.0821, 47.1240, 21.8014];
+    assert!(
+        (1..6).all(|i| (last[i] - expected[i - 1]).abs() < 1e-3),
+        "{last:?}"
+    );
+
+    let dir = tempfile::tempdir().unwrap();
+    let root = Path::new(env!("CARGO_MANIFEST_DIR"));
+    let text = std::fs::read_to_string(root.join("scenarios/plan_table1_cl.toml"))
+        .unwrap()
+        .replace(
+            "programs/d_table1_reachable.apt",
+            &root
+                .join("scenarios/programs/d_table1.apt")
+                .display()
+                .to_string(),
+        )
+        .replace(
+            "../models/ac_mill.urdf",
+            &root.join("models/ac_mill.urdf").display().to_string(),
+        );
+    let scenario = dir.path().join("full.toml");
+    std::fs::write(&scenario, text).unwrap();
+    let out = Command::new(env!("CARGO_BIN_EXE_cncsim"))
+        .args(["plan", scenario.to_str().unwrap()])
+        .output()
+        .unwrap();
+    assert_eq!(out.status.code(), Some(2));
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(
+        err.contains(
+            "d_table1.apt:6:1: outside the machine's travel: axis 'a' would be at 135.000°"
+        ),
+        "{err}"
+    );
+}

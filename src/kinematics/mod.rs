@@ -4,6 +4,13 @@
 //! same name one to one (LinuxCNC's "trivial kinematics"); the 5-axis table adds inverse
 //! kinematics here.
 
+pub mod ac_table;
+
+pub use ac_table::{
+    AcAxes, AcAxis, AcInverseError, AcSolution, AcTableKinematics, AcTopologyError, Branch,
+    CutterLocation, RotarySolutions, TravelViolation,
+};
+
 use crate::machine::Machine;
 use crate::program::Position;
 

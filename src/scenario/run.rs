@@ -6,7 +6,7 @@ use super::ProfileName;
 use super::{ProgramSource, Scenario};
 use crate::control::{Actuator, ActuatorKind, Pid, PidBank};
 use crate::diagnostics::FileError;
-use crate::kinematics::{self, AxisMap};
+use crate::kinematics::{self, AcAxes, AcTableKinematics, AxisMap};
 use crate::machine::Machine;
 use crate::model::{ModelError, Plant, PlantOptions};
 use crate::plan::{plan_program, AxisKind, AxisLimits, PlanError, PlanSettings, Planner};
@@ -269,7 +269,17 @@ pub fn plan_settings(
 
 /// Reads the scenario's program (built-in path or file) and checks it against the machine.
 pub fn load_checked_program(s: &Scenario, machine: &Machine) -> Result<Program, RunError> {
-    let program = load_program(s)?;
+    let mut program = load_program(s)?;
+    if program.moves.iter().any(|m| m.tool_axis.is_some()) {
+        // Cutter-location data (tool tip and axis on the workpiece): machine axes come from the
+        // 5-axis inverse kinematics, starting from machine zero.
+        let kinematics = AcTableKinematics::new(machine).map_err(|e| {
+            FileError::new(&program.source, None, format!("the program gives tool-axis vectors (CL data), which need a table-tilting A-C machine: {e}"))
+        })?;
+        program = kinematics
+            .program_to_machine(&program, &AcAxes::default())
+            .map_err(RunError::Program)?;
+    }
     check_program_axes(&program, machine)?;
     Ok(program)
 }

@@ -7,6 +7,8 @@
 //! The controller runs once per T on sampled (optionally quantised) positions; its output is
 //! held while the actuator and the physics advance in `substeps` steps of T/substeps.
 
+pub mod analytic;
+
 use crate::control::{Actuator, Controller, ControllerInput};
 use crate::model::Plant;
 use crate::plan::Setpoints;

@@ -1,0 +1,948 @@
+//! Analytic reference model of the machine axes: the same discrete controller and setpoints as
+//! [`CoSimulation`](super), driving an ODE model of each axis instead of Rapier, so that the
+//! physics can be checked against a plant whose equations are written down (seed digest §2.1).
+//!
+//! # The plant, per axis (joint units: m, N, kg; motor units where the name says so)
+//!
+//! ```text
+//!   amplifier   V = clamp(K_a·u, ±V_supply)                       (u held over the servo period)
+//!   armature    L·di/dt = V − R·i − K_b·ω,    ω = k·v_drive,  T = K_m·i
+//!   drive side  m_d·a_d = k·T − c_d·v_d − λ                       m_d = J·k², c_d = C·k²
+//!   carriage    m_c·a_c = λ − c_c·v_c + m_c·g_axis − F_friction
+//! ```
+//!
+//! k = [`Drive::ratio`] (motor rad per joint unit). The ideal torque actuator replaces the first
+//! two lines by T = clamp(u, ±T_peak). λ is the force the transmission passes to the carriage.
+//! Without backlash drive and carriage are one rigid body of mass m_d + m_c with damping
+//! c_d + c_c, which is exactly the Rapier model (armature J·k², damping C·k² + joint damping).
+//!
+//! # Coulomb friction: a switching (Karnopp-type) stick/slip model with event location
+//!
+//! Friction acts on the carriage's guides. While sliding it is −F_c·sign(v) with the sign
+//! frozen for the mode, so each mode is a smooth ODE that RK4 integrates at full order. The body
+//! sticks when its velocity reaches zero and the applied force (everything but friction) is
+//! within ±F_c; it then has exactly zero velocity until the applied force leaves that band.
+//! Both switching instants are located inside the step by bisection, so there is no chatter
+//! (no sign flipping from step to step around v = 0) and no creep below breakaway, which a
+//! regularised (tanh or linear-zone) model would show and which would hide exactly the
+//! stick-slip effects the reference is meant to show. Static and kinetic friction are equal.
+//!
+//! # Backlash: a dead zone of width b between drive and carriage, with rigid inelastic ends
+//!
+//! The drive side carries the motor and transmission inertia, the carriage the moved mass. The
+//! gap δ = x_drive − x_carriage is free within [−b/2, +b/2] (δ = 0: drive and carriage
+//! positions coincide, so the setpoint means the same thing for both). At a gap end the two
+//! bodies collide inelastically (common velocity from momentum) and then move as one body
+//! while the contact force pushes (λ·side ≥ 0); they separate when it would pull. This is what
+//! a short-travel joint with rigid limits ±b/2 does (Rapier's joint limits are rigid and
+//! without restitution), and unlike a stiff spring-damper it needs no stiffness that is not in
+//! the source data and no step small enough to resolve a contact oscillation. The price is
+//! the same as for friction: impacts and separations are events located inside the step.
+//!
+//! # Integration and the loop
+//!
+//! Classical RK4 at a fixed step (the servo period over `steps_per_period`), restarted at every
+//! event; the mean motor torque over a hold interval is the integral of the current (a
+//! quadrature state), so it is exact to the integrator's order. [`run_reference`] is
+//! `CoSimulation::run` with the plant swapped: the same settle phase, the same sampling at the
+//! start of each tick, the same encoder rounding, the controller once per tick, its output held.
+
+use crate::control::{Controller, ControllerInput};
+use crate::machine::{Drive, JointKind, Machine};
+use crate::plan::Setpoints;
+use nalgebra::{UnitQuaternion, Vector3};
+
+/// Which position the controller is fed back: they differ only with backlash.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub enum Feedback {
+    /// Motor encoder (semi-closed loop): the drive-side position, as `Drive::encoder_counts_per_rev`
+    /// describes. Backlash is then outside the loop and shows as lost motion at reversals.
+    #[default]
+    Motor,
+    /// Linear scale on the carriage (fully closed loop).
+    Carriage,
+}
+
+/// Effects that the rigid Rapier model leaves out; all off by default.
+#[derive(Debug, Clone, Copy, PartialEq, Default)]
+pub struct AxisModelOptions {
+    /// Coulomb (and breakaway) friction force on the carriage guides, ≥ 0 (N or N·m).
+    pub coulomb_friction: f64,
+    /// Lost motion between drive and carriage, ≥ 0 (m or rad, at the joint).
+    pub backlash: f64,
+    /// Command is motor torque clamped to `Drive::peak_torque_nm`, instead of amplifier input.
+    pub ideal_actuator: bool,
+    pub feedback: Feedback,
+}
+
+/// Why an axis model could not be built.
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+pub enum AxisModelError {
+    #[error("{name} = {value}: expected a finite value ≥ 0")]
+    Negative { name: &'static str, value: f64 },
+    #[error("{name} = {value}: expected a finite value > 0")]
+    NotPositive { name: &'static str, value: f64 },
+    #[error("backlash needs a carriage with mass (moved mass is 0)")]
+    MasslessCarriage,
+    #[error("axis '{axis}': the reference model takes prismatic axes on prismatic chains only (load and gravity would depend on the pose)")]
+    PoseDependent { axis: String },
+}
+
+/// What the actuator does over one hold interval.
+#[derive(Debug, Clone, Copy, PartialEq)]
+enum ActuatorInput {
+    /// Armature voltage (V), already clamped to the supply.
+    Voltage(f64),
+    /// Motor torque (N·m), already clamped to the peak torque.
+    Torque(f64),
+}
+
+#[derive(Debug, Clone, Copy, PartialEq)]
+enum Actuator {
+    DcMotor {
+        torque_constant: f64,
+        back_emf_constant: f64,
+        resistance: f64,
+        inductance: f64,
+        amplifier_gain: f64,
+        supply_voltage: f64,
+    },
+    IdealTorque {
+        peak_torque: f64,
+        /// Only to report a current.
+        torque_constant: f64,
+    },
+}
+
+/// State of one axis. Positions and velocities in joint units; the drive side is the motor
+/// divided by the ratio. `charge` is ∫i dt since the start of the hold interval.
+#[derive(Debug, Clone, Copy, PartialEq, Default)]
+struct AxisState {
+    drive_position: f64,
+    drive_velocity: f64,
+    carriage_position: f64,
+    carriage_velocity: f64,
+    current: f64,
+    charge: f64,
+}
+
+impl AxisState {
+    /// `self + h·rate`, component-wise.
+    fn plus(&self, h: f64, rate: &AxisState) -> AxisState {
+        AxisState {
+            drive_position: self.drive_position + h * rate.drive_position,
+            drive_velocity: self.drive_velocity + h * rate.drive_velocity,
+            carriage_position: self.carriage_position + h * rate.carriage_position,
+            carriage_velocity: self.carriage_velocity + h * rate.carriage_velocity,
+            current: self.current + h * rate.current,
+            charge: self.charge + h * rate.charge,
+        }
+    }
+
+    fn is_finite(&self) -> bool {
+        [
+            self.drive_position,
+            self.drive_velocity,
+            self.carriage_position,
+            self.carriage_velocity,
+            self.current,
+        ]
+        .iter()
+        .all(|v| v.is_finite())
+    }
+}
+
+/// How drive and carriage are coupled.
+#[derive(Debug, Clone, Copy, PartialEq)]
+enum Contact {
+    /// No backlash: one rigid body.
+    Rigid,
+    /// Gap open: drive and carriage move independently.
+    Open,
+    /// Gap closed at δ = side·b/2 (side = +1: the drive pushes the carriage forward).
+    Closed { side: f64 },
+}
+
+/// State of the guide friction of the body that carries the carriage.
+#[derive(Debug, Clone, Copy, PartialEq)]
+enum Guide {
+    /// Friction −F_c·direction; direction is ±1, or 0 when there is no Coulomb friction.
+    Sliding { direction: f64 },
+    /// Held by static friction: velocity exactly zero.
+    Stuck,
+}
+
+#[derive(Debug, Clone, Copy, PartialEq)]
+struct Mode {
+    contact: Contact,
+    guide: Guide,
+}
+
+/// Below this speed (joint units/s) a body at a switching point counts as at rest: 1 nm/s,
+/// far below anything a servo commands, far above what bisection leaves at a zero crossing.
+const REST_SPEED: f64 = 1e-9;
+/// Tolerance on the gap at its ends (joint units), for the same reason: 0.1 nm.
+const GAP_TOLERANCE: f64 = 1e-10;
+/// Halvings of a step to locate an event: the instant to 2⁻⁴⁴ of the step.
+const BISECTIONS: usize = 44;
+/// Events handled within one step before the rest of the step is taken without switching
+/// (guards a chain of simultaneous events, e.g. an impact that immediately sticks).
+const MAX_EVENTS_PER_STEP: usize = 16;
+
+/// One machine axis as an ODE model. See the module documentation for the equations.
+#[derive(Debug, Clone, PartialEq)]
+pub struct AxisModel {
+    ratio: f64,
+    actuator: Actuator,
+    /// Drive-side inertia and damping at the joint: J·k², C·k².
+    drive_mass: f64,
+    drive_damping: f64,
+    /// Carriage (moved mass) and the guide's own viscous damping.
+    carriage_mass: f64,
+    carriage_damping: f64,
+    /// Gravity force on the carriage along the joint axis (N).
+    gravity_force: f64,
+    coulomb_friction: f64,
+    backlash: f64,
+    feedback: Feedback,
+    state: AxisState,
+    mode: Mode,
+}
+
+/// What an axis did over one hold interval.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct HoldInterval {
+    /// Mean motor torque over the interval (N·m).
+    pub mean_torque: f64,
+    /// Armature voltage (V); zero for the ideal actuator.
+    pub voltage: f64,
+}
+
+impl AxisModel {
+    /// An axis at rest at position 0 with the gap centred.
+    ///
+    /// `moved_mass`: mass the joint moves (kg; kg·m² for a rotary joint whose inertia does not
+    /// depend on the pose). `gravity_along_axis`: component of gravity along the joint axis
+    /// (m/s², e.g. −9.81 for a Z axis pointing up). `joint_damping`: the guide's own viscous
+    /// damping (the URDF joint's), added to the drive's reflected damping.
+    pub fn from_drive(
+        drive: &Drive,
+        moved_mass: f64,
+        gravity_along_axis: f64,
+        joint_damping: f64,
+        options: AxisModelOptions,
+    ) -> Result<AxisModel, AxisModelError> {
+        let at_least_zero = [
+            ("moved_mass", moved_mass),
+            ("joint_damping", joint_damping),
+            ("coulomb_friction", options.coulomb_friction),
+            ("backlash", options.backlash),
+            (
+                "viscous_damping_nm_s_per_rad",
+                drive.viscous_damping_nm_s_per_rad,
+            ),
+            ("back_emf_v_s_per_rad", drive.motor.back_emf_v_s_per_rad),
+        ];
+        for (name, value) in at_least_zero {
+            if !(value.is_finite() && value >= 0.0) {
+                return Err(AxisModelError::Negative { name, value });
+            }
+        }
+        let m = &drive.motor;
+        let positive = [
+            ("ratio", drive.ratio()),
+            ("motor-side inertia", drive.motor_side_inertia()),
+            ("torque_constant_nm_per_a", m.torque_constant_nm_per_a),
+            ("resistance_ohm", m.resistance_ohm),
+            ("inductance_h", m.inductance_h),
+            ("peak_torque_nm", drive.peak_torque_nm),
+        ];
+        for (name, value) in positive {
+            if !(value.is_finite() && value > 0.0) {
+                return Err(AxisModelError::NotPositive { name, value });
+            }
+        }
+        if !gravity_along_axis.is_finite() {
+            return Err(AxisModelError::Negative {
+                name: "gravity_along_axis",
+                value: gravity_along_axis,
+            });
+        }
+        if options.backlash > 0.0 && moved_mass == 0.0 {
+            return Err(AxisModelError::MasslessCarriage);
+        }
+        let actuator = if options.ideal_actuator {
+            Actuator::IdealTorque {
+                peak_torque: drive.peak_torque_nm,
+                torque_constant: m.torque_constant_nm_per_a,
+            }
+        } else {
+            Actuator::DcMotor {
+                torque_constant: m.torque_constant_nm_per_a,
+                back_emf_constant: m.back_emf_v_s_per_rad,
+                resistance: m.resistance_ohm,
+                inductance: m.inductance_h,
+                amplifier_gain: drive.amplifier_gain,
+                supply_voltage: drive.supply_voltage_v,
+            }
+        };
+        let mut model = AxisModel {
+            ratio: drive.ratio(),
+            actuator,
+            drive_mass: drive.reflected_inertia(),
+            drive_damping: drive.reflected_damping(),
+            carriage_mass: moved_mass,
+            carriage_damping: joint_damping,
+            gravity_force: moved_mass * gravity_along_axis,
+            coulomb_friction: options.coulomb_friction,
+            backlash: options.backlash,
+            feedback: options.feedback,
+            state: AxisState::default(),
+            mode: Mode {
+                contact: Contact::Rigid,
+                guide: Guide::Stuck,
+            },
+        };
+        model.rest_at(0.0);
+        Ok(model)
+    }
+
+    /// One model per machine axis, in the machine's axis order, with the same options for
+    /// all. The moved mass is every link downstream of the joint; gravity (base frame, m/s²)
+    /// is projected on the joint axis. Only prismatic axes below prismatic or fixed joints
+    /// (Cartesian machines), where both are constants.
+    pub fn for_machine(
+        machine: &Machine,
+        gravity: [f64; 3],
+        options: AxisModelOptions,
+    ) -> Result<Vec<AxisModel>, AxisModelError> {
+        machine
+            .axes
+            .iter()
+            .map(|axis| {
+                let pose_dependent = || AxisModelError::PoseDependent {
+                    axis: axis.name.clone(),
+                };
+                let joint = &machine.joints[axis.joint];
+                if joint.kind != JointKind::Prismatic {
+                    return Err(pose_dependent());
+                }
+                // Orientation of the joint frame in the base at q = 0, constant as long as no
+                // joint above it rotates.
+                let mut rotation = joint.origin.rotation;
+                let mut link = joint.parent;
+                while let Some(j) = machine.parent_joint(link) {
+                    let above = &machine.joints[j];
+                    if above.kind == JointKind::Revolute {
+                        return Err(pose_dependent());
+                    }
+                    rotation = above.origin.rotation * rotation;
+                    link = above.parent;
+                }
+                let along = gravity_component(&rotation, &joint.axis, gravity);
+                let mut moved = vec![false; machine.links.len()];
+                moved[joint.child] = true;
+                // Joints are ordered parents first, so one pass collects the subtree.
+                for j in &machine.joints {
+                    if moved[j.parent] {
+                        moved[j.child] = true;
+                    }
+                }
+                let mass = (machine.links.iter().zip(&moved))
+                    .filter(|(_, &m)| m)
+                    .map(|(l, _)| l.mass)
+                    .sum();
+                AxisModel::from_drive(&axis.drive, mass, along, joint.damping, options)
+            })
+            .collect()
+    }
+
+    /// Puts the axis at rest at `position` (drive and carriage, gap centred, no current).
+    pub fn rest_at(&mut self, position: f64) {
+        self.state = AxisState {
+            drive_position: position,
+            carriage_position: position,
+            ..AxisState::default()
+        };
+        let mut state = self.state;
+        self.mode = self.resolve(&mut state, self.input(0.0));
+        self.state = state;
+    }
+
+    /// Carriage (joint) position: what the tool does.
+    pub fn position(&self) -> f64 {
+        self.state.carriage_position
+    }
+
+    pub fn velocity(&self) -> f64 {
+        self.state.carriage_velocity
+    }
+
+    /// Drive-side position: motor angle over the ratio (equals the position without backlash).
+    pub fn drive_position(&self) -> f64 {
+        self.state.drive_position
+    }
+
+    pub fn drive_velocity(&self) -> f64 {
+        self.state.drive_velocity
+    }
+
+    /// The position the feedback sensor sees (before encoder rounding).
+    pub fn feedback_position(&self) -> f64 {
+        match self.feedback {
+            Feedback::Motor => self.state.drive_position,
+            Feedback::Carriage => self.state.carriage_position,
+        }
+    }
+
+    /// Armature current (A); torque/K_m for the ideal actuator.
+    pub fn current(&self) -> f64 {
+        self.state.current
+    }
+
+    /// Inertia the motor accelerates with the gap closed, at the joint: J·k² + moved mass.
+    pub fn effective_mass(&self) -> f64 {
+        self.drive_mass + self.carriage_mass
+    }
+
+    /// Viscous damping at the joint: C·k² + the joint's own.
+    pub fn effective_damping(&self) -> f64 {
+        self.drive_damping + self.carriage_damping
+    }
+
+    /// Motor radians per joint unit.
+    pub fn ratio(&self) -> f64 {
+        self.ratio
+    }
+
+    /// Holds `command` (V at the amplifier input, or N·m for the ideal actuator) for
+    /// `duration` seconds, integrated in `steps` equal RK4 steps.
+    pub fn advance(&mut self, command: f64, duration: f64, steps: usize) -> HoldInterval {
+        assert!(
+            steps > 0 && duration > 0.0,
+            "advance needs steps ≥ 1 and a positive duration"
+        );
+        let input = self.input(command);
+        let mut state = self.state;
+        if let (
+            ActuatorInput::Torque(torque),
+            Actuator::IdealTorque {
+                torque_constant, ..
+            },
+        ) = (input, self.actuator)
+        {
+            state.current = torque / torque_constant;
+        }
+        state.charge = 0.0;
+        // A new command is an event: the applied force may have left the stiction band or
+        // reversed the contact force.
+        self.mode = self.resolve(&mut state, input);
+        let h = duration / steps as f64;
+        for _ in 0..steps {
+            state = self.step(state, input, h);
+        }
+        self.state = state;
+        match (self.actuator, input) {
+            (
+                Actuator::DcMotor {
+                    torque_constant, ..
+                },
+                ActuatorInput::Voltage(voltage),
+            ) => HoldInterval {
+                mean_torque: torque_constant * state.charge / duration,
+                voltage,
+            },
+            (Actuator::IdealTorque { .. }, ActuatorInput::Torque(torque)) => HoldInterval {
+                mean_torque: torque,
+                voltage: 0.0,
+            },
+            _ => unreachable!("input() matches the actuator"),
+        }
+    }
+
+    fn input(&self, command: f64) -> ActuatorInput {
+        match self.actuator {
+            Actuator::DcMotor {
+                amplifier_gain,
+                supply_voltage,
+                ..
+            } => ActuatorInput::Voltage(
+                (amplifier_gain * command).clamp(-supply_voltage, supply_voltage),
+            ),
+            Actuator::IdealTorque { peak_torque, .. } => {
+                ActuatorInput::Torque(command.clamp(-peak_torque, peak_torque))
+            }
+        }
+    }
+
+    /// Motor force at the joint (N) and di/dt in state `y`.
+    fn motor(&self, y: &AxisState, input: ActuatorInput) -> (f64, f64) {
+        match (self.actuator, input) {
+            (
+                Actuator::DcMotor {
+                    torque_constant,
+                    back_emf_constant,
+                    resistance,
+                    inductance,
+                    ..
+                },
+                ActuatorInput::Voltage(v),
+            ) => {
+                let omega = self.ratio * y.drive_velocity;
+                let di = (v - resistance * y.current - back_emf_constant * omega) / inductance;
+                (self.ratio * torque_constant * y.current, di)
+            }
+            (Actuator::IdealTorque { .. }, ActuatorInput::Torque(t)) => (self.ratio * t, 0.0),
+            _ => unreachable!("input() matches the actuator"),
+        }
+    }
+
+    /// Acceleration of the combined body (gap closed or no backlash) while sliding.
+    fn combined_acceleration(&self, y: &AxisState, motor_force: f64, direction: f64) -> f64 {
+        let v = y.carriage_velocity;
+        (motor_force - self.effective_damping() * v + self.gravity_force
+            - self.coulomb_friction * direction)
+            / self.effective_mass()
+    }
+
+    /// Force the drive passes to the carriage with the gap closed.
+    fn contact_force(&self, y: &AxisState, guide: Guide, input: ActuatorInput) -> f64 {
+        let (motor_force, _) = self.motor(y, input);
+        match guide {
+            Guide::Stuck => motor_force,
+            Guide::Sliding { direction } => {
+                let a = self.combined_acceleration(y, motor_force, direction);
+                motor_force - self.drive_damping * y.drive_velocity - self.drive_mass * a
+            }
+        }
+    }
+
+    /// Force on the friction-carrying body other than friction and damping, at rest.
+    fn applied_force_at_rest(&self, y: &AxisState, contact: Contact, input: ActuatorInput) -> f64 {
+        match contact {
+            Contact::Open => self.gravity_force,
+            Contact::Rigid | Contact::Closed { .. } => self.motor(y, input).0 + self.gravity_force,
+        }
+    }
+
+    /// Time derivative of the state in a mode.
+    fn rate(&self, y: &AxisState, mode: Mode, input: ActuatorInput) -> AxisState {
+        let (motor_force, di) = self.motor(y, input);
+        let mut rate = AxisState {
+            current: di,
+            charge: y.current,
+            ..AxisState::default()
+        };
+        match mode.contact {
+            Contact::Rigid | Contact::Closed { .. } => {
+                let a = match mode.guide {
+                    Guide::Stuck => 0.0,
+                    Guide::Sliding { direction } => {
+                        self.combined_acceleration(y, motor_force, direction)
+                    }
+                };
+                rate.drive_position = y.carriage_velocity;
+                rate.carriage_position = y.carriage_velocity;
+                rate.drive_velocity = a;
+                rate.carriage_velocity = a;
+            }
+            Contact::Open => {
+                rate.drive_position = y.drive_velocity;
+                rate.drive_velocity =
+                    (motor_force - self.drive_damping * y.drive_velocity) / self.drive_mass;
+                rate.carriage_position = y.carriage_velocity;
+                rate.carriage_velocity = match mode.guide {
+                    Guide::Stuck => 0.0,
+                    Guide::Sliding { direction } => {
+                        (self.gravity_force
+                            - self.carriage_damping * y.carriage_velocity
+                            - self.coulomb_friction * direction)
+                            / self.carriage_mass
+                    }
+                };
+            }
+        }
+        rate
+    }
+
+    fn rk4(&self, y: &AxisState, mode: Mode, input: ActuatorInput, h: f64) -> AxisState {
+        let k1 = self.rate(y, mode, input);
+        let k2 = self.rate(&y.plus(h / 2.0, &k1), mode, input);
+        let k3 = self.rate(&y.plus(h / 2.0, &k2), mode, input);
+        let k4 = self.rate(&y.plus(h, &k3), mode, input);
+        let slope = k1.plus(2.0, &k2).plus(2.0, &k3).plus(1.0, &k4);
+        y.plus(h / 6.0, &slope)
+    }
+
+    /// Whether `mode` is still the right description of state `y` (its guards hold).
+    fn mode_holds(&self, y: &AxisState, mode: Mode, input: ActuatorInput) -> bool {
+        let contact_holds = match mode.contact {
+            Contact::Rigid => true,
+            Contact::Open => (y.drive_position - y.carriage_position).abs() <= self.backlash / 2.0,
+            Contact::Closed { side } => side * self.contact_force(y, mode.guide, input) >= 0.0,
+        };
+        let guide_holds = match mode.guide {
+            Guide::Sliding { direction } => direction * y.carriage_velocity >= 0.0,
+            Guide::Stuck => {
+                self.applied_force_at_rest(y, mode.contact, input).abs() <= self.coulomb_friction
+            }
+        };
+        contact_holds && guide_holds
+    }
+
+    /// Picks the mode that fits state `y`, applying the jumps a switch implies: the velocity
+    /// jump of an inelastic impact, exact zero velocity on sticking.
+    fn resolve(&self, y: &mut AxisState, input: ActuatorInput) -> Mode {
+        if self.backlash == 0.0 {
+            let contact = Contact::Rigid;
+            return Mode {
+                contact,
+                guide: self.resolve_guide(y, contact, input),
+            };
+        }
+        let half = self.backlash / 2.0;
+        let gap = y.drive_position - y.carriage_position;
+        let closing = y.drive_velocity - y.carriage_velocity;
+        let side = if gap >= half - GAP_TOLERANCE && closing >= -REST_SPEED {
+            Some(1.0)
+        } else if gap <= -half + GAP_TOLERANCE && closing <= REST_SPEED {
+            Some(-1.0)
+        } else {
+            None
+        };
+        if let Some(side) = side {
+            // Inelastic impact (or resting contact): common velocity conserving momentum.
+            // Positions are put exactly at the gap end, moving the centre of mass not at all.
+            let (md, mc) = (self.drive_mass, self.carriage_mass);
+            let v = (md * y.drive_velocity + mc * y.carriage_velocity) / (md + mc);
+            let excess = gap - side * half;
+            let mut closed = *y;
+            closed.drive_velocity = v;
+            closed.carriage_velocity = v;
+            closed.drive_position -= excess * mc / (md + mc);
+            closed.carriage_position += excess * md / (md + mc);
+            let contact = Contact::Closed { side };
+            let guide = self.resolve_guide(&mut closed, contact, input);
+            if side * self.contact_force(&closed, guide, input) >= 0.0 {
+                *y = closed;
+                return Mode { contact, guide };
+            }
+            // The drive pulls away: the bodies part (after the impact, if there was one).
+            y.drive_velocity = closed.drive_velocity;
+            y.carriage_velocity = closed.carriage_velocity;
+        }
+        let contact = Contact::Open;
+        Mode {
+            contact,
+            guide: self.resolve_guide(y, contact, input),
+        }
+    }
+
+    fn resolve_guide(&self, y: &mut AxisState, contact: Contact, input: ActuatorInput) -> Guide {
+        if self.coulomb_friction == 0.0 {
+            return Guide::Sliding { direction: 0.0 };
+        }
+        let v = y.carriage_velocity;
+        if v.abs() > REST_SPEED {
+            return Guide::Sliding {
+                direction: v.signum(),
+            };
+        }
+        y.carriage_velocity = 0.0;
+        if contact != Contact::Open {
+            y.drive_velocity = 0.0;
+        }
+        let applied = self.applied_force_at_rest(y, contact, input);
+        if applied.abs() <= self.coulomb_friction {
+            Guide::Stuck
+        } else {
+            Guide::Sliding {
+                direction: applied.signum(),
+            }
+        }
+    }
+
+    /// One integration step of length h, switching modes at located events.
+    fn step(&mut self, start: AxisState, input: ActuatorInput, h: f64) -> AxisState {
+        let mut y = start;
+        let mut remaining = h;
+        let mut events = 0;
+        loop {
+            let trial = self.rk4(&y, self.mode, input, remaining);
+            if events >= MAX_EVENTS_PER_STEP || self.mode_holds(&trial, self.mode, input) {
+                return self.project(trial);
+            }
+            // Bisect for the first instant the mode stops holding.
+            let (mut holds_until, mut fails_at, mut at_fail) = (0.0, remaining, trial);
+            for _ in 0..BISECTIONS {
+                let mid = 0.5 * (holds_until + fails_at);
+                let y_mid = self.rk4(&y, self.mode, input, mid);
+                if self.mode_holds(&y_mid, self.mode, input) {
+                    holds_until = mid;
+                } else {
+                    fails_at = mid;
+                    at_fail = y_mid;
+                }
+            }
+            y = self.project(at_fail);
+            self.mode = self.resolve(&mut y, input);
+            remaining -= fails_at;
+            events += 1;
+            if remaining <= 0.0 {
+                return y;
+            }
+        }
+    }
+
+    /// Removes the round-off drift of the constraints a mode imposes.
+    fn project(&self, mut y: AxisState) -> AxisState {
+        match self.mode.contact {
+            Contact::Rigid => {
+                y.drive_position = y.carriage_position;
+                y.drive_velocity = y.carriage_velocity;
+            }
+            Contact::Closed { side } => {
+                y.drive_position = y.carriage_position + side * self.backlash / 2.0;
+                y.drive_velocity = y.carriage_velocity;
+            }
+            Contact::Open => {}
+        }
+        y
+    }
+}
+
+fn gravity_component(
+    rotation: &UnitQuaternion<f64>,
+    axis: &Vector3<f64>,
+    gravity: [f64; 3],
+) -> f64 {
+    (rotation * axis).dot(&Vector3::from(gravity))
+}
+
+/// How [`run_reference`] runs the loop.
+#[derive(Debug, Clone, PartialEq)]
+pub struct ReferenceSettings {
+    /// Servo period T (s).
+    pub servo_period: f64,
+    /// RK4 steps per servo period.
+    pub steps_per_period: usize,
+    /// Time the first setpoint is held before the program starts (s); not traced.
+    pub settle_time: f64,
+    /// Encoder resolution in joint units per axis; `None` = ideal feedback.
+    pub encoder_resolution: Vec<Option<f64>>,
+}
+
+/// Per-tick record, laid out like `sim::Trace`: sample k of axis i at `k * axes + i`.
+#[derive(Debug, Clone, PartialEq, Default)]
+pub struct ReferenceTrace {
+    pub period: f64,
+    pub axes: usize,
+    pub time: Vec<f64>,
+    pub commanded: Vec<f64>,
+    pub commanded_velocity: Vec<f64>,
+    /// Carriage position and velocity at the start of the tick.
+    pub actual: Vec<f64>,
+    pub actual_velocity: Vec<f64>,
+    /// Drive-side position (motor angle / ratio) at the start of the tick.
+    pub drive_position: Vec<f64>,
+    /// Controller output (N·m or V).
+    pub command: Vec<f64>,
+    /// Mean motor torque over the hold interval that follows the sample (N·m).
+    pub torque: Vec<f64>,
+    /// Armature voltage (V), zero with the ideal actuator.
+    pub voltage: Vec<f64>,
+    /// Armature current at the start of the tick (A).
+    pub current: Vec<f64>,
+    pub segment: Vec<u32>,
+}
+
+impl ReferenceTrace {
+    pub fn len(&self) -> usize {
+        self.time.len()
+    }
+
+    pub fn is_empty(&self) -> bool {
+        self.time.is_empty()
+    }
+
+    /// Value of axis `i` at sample `k` of one of the per-axis series.
+    pub fn at(series: &[f64], axes: usize, k: usize, i: usize) -> f64 {
+        series[k * axes + i]
+    }
+}
+
+/// The state of an axis stopped being finite.
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+#[error("reference model diverged at t = {time:.6} s on axis {axis}")]
+pub struct Diverged {
+    pub time: f64,
+    pub axis: usize,
+}
+
+/// A reference run: everything traced, and where it diverged if it did.
+#[derive(Debug, Clone)]
+pub struct ReferenceRun {
+    pub trace: ReferenceTrace,
+    pub diverged: Option<Diverged>,
+}
+
+/// Runs `setpoints` through `controller` and the axis models, with the servo-loop structure of
+/// `CoSimulation::run`. Each model is first put at rest at the first setpoint.
+///
+/// Panics if the numbers of models, setpoint axes and encoder entries differ, or if
+/// `steps_per_period` is 0.
+pub fn run_reference(
+    models: &mut [AxisModel],
+    controller: &mut dyn Controller,
+    setpoints: &Setpoints,
+    settings: &ReferenceSettings,
+) -> ReferenceRun {
+    let n = setpoints.axes;
+    assert_eq!(models.len(), n, "one axis model per setpoint axis");
+    assert_eq!(
+        settings.encoder_resolution.len(),
+        n,
+        "one encoder entry per axis"
+    );
+    assert!(
+        settings.steps_per_period > 0,
+        "steps_per_period must be ≥ 1"
+    );
+    let t = settings.servo_period;
+    let mut trace = ReferenceTrace {
+        period: t,
+        axes: n,
+        ..Default::default()
+    };
+    if setpoints.is_empty() {
+        return ReferenceRun {
+            trace,
+            diverged: None,
+        };
+    }
+    for (model, &p) in models.iter_mut().zip(setpoints.position(0)) {
+        model.rest_at(p);
+    }
+    let zeros = vec![0.0; n];
+    let mut tick = TickBuffers::new(n);
+    let settle_ticks = (settings.settle_time / t).round() as usize;
+    for k in 0..settle_ticks {
+        let time = (k as f64 - settle_ticks as f64) * t;
+        let input = ControllerInput {
+            setpoint_position: setpoints.position(0),
+            setpoint_velocity: &zeros,
+            setpoint_acceleration: &zeros,
+            measured_position: &[],
+        };
+        if let Err(d) = servo_tick(models, controller, settings, input, time, &mut tick) {
+            return ReferenceRun {
+                trace,
+                diverged: Some(d),
+            };
+        }
+    }
+    for k in 0..setpoints.len() {
+        let time = k as f64 * t;
+        let input = ControllerInput {
+            setpoint_position: setpoints.position(k),
+            setpoint_velocity: setpoints.velocity(k),
+            setpoint_acceleration: setpoints.acceleration(k),
+            measured_position: &[],
+        };
+        let result = servo_tick(models, controller, settings, input, time, &mut tick);
+        trace.time.push(time);
+        trace.commanded.extend_from_slice(input.setpoint_position);
+        trace
+            .commanded_velocity
+            .extend_from_slice(input.setpoint_velocity);
+        trace.actual.extend_from_slice(&tick.position);
+        trace.actual_velocity.extend_from_slice(&tick.velocity);
+        trace.drive_position.extend_from_slice(&tick.drive_position);
+        trace.command.extend_from_slice(&tick.command);
+        trace.torque.extend_from_slice(&tick.torque);
+        trace.voltage.extend_from_slice(&tick.voltage);
+        trace.current.extend_from_slice(&tick.current);
+        trace.segment.push(setpoints.segment[k]);
+        if let Err(d) = result {
+            return ReferenceRun {
+                trace,
+                diverged: Some(d),
+            };
+        }
+    }
+    ReferenceRun {
+        trace,
+        diverged: None,
+    }
+}
+
+/// Per-tick values, reused (the loop allocates nothing but the trace).
+struct TickBuffers {
+    position: Vec<f64>,
+    velocity: Vec<f64>,
+    drive_position: Vec<f64>,
+    current: Vec<f64>,
+    measured: Vec<f64>,
+    command: Vec<f64>,
+    torque: Vec<f64>,
+    voltage: Vec<f64>,
+}
+
+impl TickBuffers {
+    fn new(n: usize) -> Self {
+        let z = || vec![0.0; n];
+        TickBuffers {
+            position: z(),
+            velocity: z(),
+            drive_position: z(),
+            current: z(),
+            measured: z(),
+            command: z(),
+            torque: z(),
+            voltage: z(),
+        }
+    }
+}
+
+/// One servo period: sample, control, hold. `input.measured_position` is filled in here.
+fn servo_tick(
+    models: &mut [AxisModel],
+    controller: &mut dyn Controller,
+    settings: &ReferenceSettings,
+    input: ControllerInput<'_>,
+    time: f64,
+    b: &mut TickBuffers,
+) -> Result<(), Diverged> {
+    for (i, model) in models.iter().enumerate() {
+        if !model.state.is_finite() {
+            return Err(Diverged { time, axis: i });
+        }
+        b.position[i] = model.position();
+        b.velocity[i] = model.velocity();
+        b.drive_position[i] = model.drive_position();
+        b.current[i] = model.current();
+        let sensed = model.feedback_position();
+        b.measured[i] = match settings.encoder_resolution[i] {
+            Some(res) => (sensed / res).round() * res,
+            None => sensed,
+        };
+    }
+    let input = ControllerInput {
+        measured_position: &b.measured,
+        ..input
+    };
+    controller.update(&input, &mut b.command);
+    for (i, model) in models.iter_mut().enumerate() {
+        let hold = model.advance(
+            b.command[i],
+            settings.servo_period,
+            settings.steps_per_period,
+        );
+        b.torque[i] = hold.mean_torque;
+        b.voltage[i] = hold.voltage;
+    }
+    Ok(())
+}
+
+#[cfg(test)]
+mod tests;

@@ -1,0 +1,601 @@
+//! Checks of the reference model against closed forms, its own convergence order, and the
+//! linear servo theory. Figures in the assertions are derived in the comments next to them.
+
+use super::*;
+use crate::control::{Pid, PidBank, PidForm, PidGains};
+use crate::machine::Machine;
+use nalgebra::{SMatrix, SVector};
+use std::path::Path;
+
+fn machine() -> Machine {
+    let path = Path::new(env!("CARGO_MANIFEST_DIR")).join("models/xyz_table.urdf");
+    Machine::load(&path).expect("the XYZ table loads")
+}
+
+fn x_drive() -> Drive {
+    let m = machine();
+    m.axes[m.axis_index("x").unwrap()].drive.clone()
+}
+
+/// The X axis alone: 20 kg moved, no gravity along it, no guide damping.
+fn x_axis(options: AxisModelOptions) -> AxisModel {
+    AxisModel::from_drive(&x_drive(), 20.0, 0.0, 0.0, options).unwrap()
+}
+
+fn relative(a: f64, b: f64) -> f64 {
+    (a - b).abs() / b.abs().max(f64::MIN_POSITIVE)
+}
+
+/// Position and velocity of a mass m with damping c under a constant force F from rest.
+fn damped_mass_under_force(f: f64, m: f64, c: f64, t: f64) -> (f64, f64) {
+    let tau = m / c;
+    let decay = (-t / tau).exp();
+    (f / c * (t - tau * (1.0 - decay)), f / c * (1.0 - decay))
+}
+
+#[test]
+fn model_takes_its_masses_from_the_machine() {
+    let models = AxisModel::for_machine(&machine(), [0.0, 0.0, -9.81], Default::default()).unwrap();
+    // X moves 8 + 11.5 + 0.5 kg, Y 11.5 + 0.5 kg, Z 0.5 kg (URDF); J·k² on top.
+    let expected_moved = [20.0, 12.0, 0.5];
+    for (model, moved) in models.iter().zip(expected_moved) {
+        let reflected = model.drive_mass;
+        assert!(relative(model.effective_mass(), moved + reflected) < 1e-12);
+        assert!(relative(model.carriage_mass, moved) < 1e-12);
+    }
+    assert_eq!(models[0].gravity_force, 0.0);
+    assert_eq!(models[1].gravity_force, 0.0);
+    assert!(relative(models[2].gravity_force, -0.5 * 9.81) < 1e-12);
+    // X: J_m·(N/r)² = 3.89e-5 · 4000² = 622.4 kg.
+    assert!(relative(models[0].drive_mass, 622.4) < 1e-12);
+}
+
+#[test]
+fn free_axis_under_constant_torque_follows_the_closed_form() {
+    let mut axis = x_axis(AxisModelOptions {
+        ideal_actuator: true,
+        ..Default::default()
+    });
+    let torque = 0.5;
+    let (m, c, f) = (
+        axis.effective_mass(),
+        axis.effective_damping(),
+        torque * axis.ratio(),
+    );
+    let (period, steps) = (1e-3, 10);
+    let duration = 2.0;
+    // Errors relative to the end values: early on x ~ t² is computed by the closed form with
+    // cancellation, so a pointwise relative error would measure the reference, not the model.
+    let (x_end, v_end) = damped_mass_under_force(f, m, c, duration);
+    let mut worst: f64 = 0.0;
+    for k in 1..=(duration / period).round() as usize {
+        let hold = axis.advance(torque, period, steps);
+        assert_eq!(hold.mean_torque, torque);
+        let (x, v) = damped_mass_under_force(f, m, c, k as f64 * period);
+        worst = worst
+            .max((axis.position() - x).abs() / x_end)
+            .max((axis.velocity() - v).abs() / v_end);
+    }
+    assert!(worst < 1e-10, "relative error {worst:e}");
+}
+
+/// z = [x, v, i, ∫i, 1]: the armature and the mechanics under constant voltage are linear, so
+/// z(t) = e^(A·t)·z(0) exactly.
+fn dc_motor_exact(axis: &AxisModel, drive: &Drive, voltage: f64, t: f64) -> SVector<f64, 5> {
+    let (m, c, k) = (
+        axis.effective_mass(),
+        axis.effective_damping(),
+        axis.ratio(),
+    );
+    let mo = &drive.motor;
+    let (km, kb, r, l) = (
+        mo.torque_constant_nm_per_a,
+        mo.back_emf_v_s_per_rad,
+        mo.resistance_ohm,
+        mo.inductance_h,
+    );
+    #[rustfmt::skip]
+    let a = SMatrix::<f64, 5, 5>::from_row_slice(&[
+        0.0, 1.0,           0.0,        0.0, 0.0,
+        0.0, -c / m,        k * km / m, 0.0, 0.0,
+        0.0, -kb * k / l,   -r / l,     0.0, voltage / l,
+        0.0, 0.0,           1.0,        0.0, 0.0,
+        0.0, 0.0,           0.0,        0.0, 0.0,
+    ]);
+    (a * t).exp() * SVector::<f64, 5>::new(0.0, 0.0, 0.0, 0.0, 1.0)
+}
+
+#[test]
+fn dc_motor_step_response_matches_the_linear_ode() {
+    let drive = x_drive();
+    let mut axis = x_axis(Default::default());
+    let (command, period, steps) = (1.0, 1e-3, 20);
+    let voltage = drive.amplifier_gain * command;
+    let mut worst: f64 = 0.0;
+    let mut previous_charge = 0.0;
+    for k in 1..=200 {
+        let hold = axis.advance(command, period, steps);
+        assert_eq!(hold.voltage, voltage);
+        let exact = dc_motor_exact(&axis, &drive, voltage, k as f64 * period);
+        let mean_torque =
+            drive.motor.torque_constant_nm_per_a * (exact[3] - previous_charge) / period;
+        previous_charge = exact[3];
+        // Scales: the values at the end of the run (the response is monotone or nearly).
+        let end = dc_motor_exact(&axis, &drive, voltage, 0.2);
+        worst = worst
+            .max((axis.position() - exact[0]).abs() / end[0])
+            .max((axis.velocity() - exact[1]).abs() / end[1])
+            .max((axis.current() - exact[2]).abs() / (voltage / drive.motor.resistance_ohm))
+            .max((hold.mean_torque - mean_torque).abs() / (0.055 * voltage / 1.1));
+    }
+    // RK4 at h = 50 µs against the fastest pole (−395 /s): h·λ = 0.02, global error ~1e-10.
+    assert!(worst < 1e-8, "relative error {worst:e}");
+}
+
+#[test]
+fn coulomb_friction_holds_an_axis_below_breakaway() {
+    let friction = 50.0;
+    for ideal_actuator in [true, false] {
+        let mut axis = x_axis(AxisModelOptions {
+            coulomb_friction: friction,
+            ideal_actuator,
+            ..Default::default()
+        });
+        // 80 % of breakaway at the joint: torque 40 N / k, or the voltage whose stall current
+        // gives 40 N: V = 40·R/(k·K_m) = 0.2 V, u = V/K_a.
+        let command = if ideal_actuator {
+            40.0 / axis.ratio()
+        } else {
+            40.0 * 1.1 / (axis.ratio() * 0.055) / 4.0
+        };
+        for _ in 0..1000 {
+            axis.advance(command, 1e-3, 10);
+        }
+        assert_eq!(axis.position(), 0.0, "ideal actuator: {ideal_actuator}");
+        assert_eq!(axis.velocity(), 0.0);
+        assert!(relative(axis.ratio() * 0.055 * axis.current(), 40.0) < 1e-9);
+    }
+}
+
+#[test]
+fn coulomb_friction_above_breakaway_subtracts_from_the_drive_force() {
+    let friction = 50.0;
+    let mut axis = x_axis(AxisModelOptions {
+        coulomb_friction: friction,
+        ideal_actuator: true,
+        ..Default::default()
+    });
+    let f = 80.0;
+    let (m, c) = (axis.effective_mass(), axis.effective_damping());
+    for _ in 0..500 {
+        axis.advance(f / axis.ratio(), 1e-3, 10);
+    }
+    let (x, v) = damped_mass_under_force(f - friction, m, c, 0.5);
+    assert!(relative(axis.position(), x) < 1e-10);
+    assert!(relative(axis.velocity(), v) < 1e-10);
+}
+
+#[test]
+fn breakaway_happens_when_the_rising_current_reaches_the_friction_force() {
+    // Stalled, the current rises as i(t) = I∞·(1 − e^(−t/τ)); the axis must start moving at
+    // the instant k·K_m·i = F_c, located inside the step, not at the next step boundary.
+    let friction = 100.0;
+    let mut axis = x_axis(AxisModelOptions {
+        coulomb_friction: friction,
+        ..Default::default()
+    });
+    let (command, k, km, r, l) = (0.5, axis.ratio(), 0.055, 1.1, 2.3e-3);
+    let force_at_stall = k * km * 4.0 * command / r;
+    let breakaway = -(l / r) * (1.0 - friction / force_at_stall).ln();
+    let chunk = 1e-6;
+    let mut t = 0.0;
+    while axis.velocity() == 0.0 {
+        axis.advance(command, chunk, 1);
+        t += chunk;
+    }
+    assert!(
+        (t - chunk..=t).contains(&breakaway),
+        "moved in ({:.7}, {t:.7}], breakaway at {breakaway:.7}",
+        t - chunk
+    );
+}
+
+#[test]
+fn at_constant_speed_the_drive_force_is_damping_plus_friction() {
+    let friction = 50.0;
+    let drive = x_drive();
+    let mut axis = x_axis(AxisModelOptions {
+        coulomb_friction: friction,
+        ..Default::default()
+    });
+    let command = 2.0;
+    let (k, km, kb, r) = (axis.ratio(), 0.055, 0.0554, 1.1);
+    let voltage = drive.amplifier_gain * command;
+    let mut hold = axis.advance(command, 1e-3, 10);
+    for _ in 0..1000 {
+        hold = axis.advance(command, 1e-3, 10);
+    }
+    let c = axis.effective_damping();
+    let v = axis.velocity();
+    // Steady state: k·K_m·(V − K_b·k·v)/R = c·v + F_c.
+    let speed = (k * km * voltage / r - friction) / (c + k * k * km * kb / r);
+    assert!(relative(v, speed) < 1e-9, "{v} vs {speed}");
+    assert!(relative(k * hold.mean_torque, c * v + friction) < 1e-9);
+}
+
+/// The scenario's X loop: positional PID, 1 ms servo period, ±6 V.
+fn x_pid() -> PidBank {
+    let gains = PidGains {
+        kp: 19800.0,
+        ki: 6.1e5,
+        kd: 146.0,
+    };
+    PidBank::new(vec![Pid::new(gains, PidForm::Positional, 1e-3, 6.0)])
+}
+
+/// One axis: position(t) sampled every `period` for `duration` seconds.
+fn setpoints(period: f64, duration: f64, position: impl Fn(f64) -> (f64, f64, f64)) -> Setpoints {
+    let mut s = Setpoints::new(period, 1);
+    let ticks = (duration / period).round() as usize;
+    for k in 0..=ticks {
+        let (p, v, a) = position(k as f64 * period);
+        s.push(&[p], &[v], &[a], 0);
+    }
+    s
+}
+
+fn settings(steps_per_period: usize) -> ReferenceSettings {
+    ReferenceSettings {
+        servo_period: 1e-3,
+        steps_per_period,
+        settle_time: 0.1,
+        encoder_resolution: vec![None],
+    }
+}
+
+fn run(mut axis: AxisModel, s: &Setpoints, steps_per_period: usize) -> ReferenceTrace {
+    let run = run_reference(
+        std::slice::from_mut(&mut axis),
+        &mut x_pid(),
+        s,
+        &settings(steps_per_period),
+    );
+    assert!(run.diverged.is_none());
+    run.trace
+}
+
+/// Forward at `speed` for `leg` seconds, back for as long, then hold; from 10 mm.
+fn out_and_back(speed: f64, leg: f64) -> Setpoints {
+    setpoints(1e-3, 2.0 * leg + 0.5, |t| {
+        let start = 0.01;
+        if t <= leg {
+            (start + speed * t, speed, 0.0)
+        } else if t <= 2.0 * leg {
+            (start + speed * (2.0 * leg - t), -speed, 0.0)
+        } else {
+            (start, 0.0, 0.0)
+        }
+    })
+}
+
+#[test]
+fn backlash_is_lost_motion_at_a_reversal() {
+    let backlash = 0.32e-3;
+    let speed = 2e-3;
+    let axis = x_axis(AxisModelOptions {
+        coulomb_friction: 20.0,
+        backlash,
+        ..Default::default()
+    });
+    let trace = run(axis, &out_and_back(speed, 1.0), 10);
+    // The drive turns at the top; the carriage, pushed no more, coasts a few nm and stops,
+    // held by friction with the gap open, until the drive has crossed the gap and picks it up from the other side.
+    let top = (0..trace.len())
+        .max_by(|&a, &b| trace.drive_position[a].total_cmp(&trace.drive_position[b]))
+        .unwrap();
+    let standstill: Vec<usize> = (top..trace.len())
+        .skip_while(|&k| trace.actual_velocity[k] != 0.0)
+        .take_while(|&k| trace.actual_velocity[k] == 0.0)
+        .collect();
+    let (first, last) = (standstill[0], *standstill.last().unwrap());
+    let carriage_moved = trace.actual[last] - trace.actual[first];
+    assert_eq!(carriage_moved, 0.0);
+    // Ticks sample the drive every 1 ms; at ≤ 2 mm/s that is ≤ 2 µm of 320 µm.
+    let lost = trace.drive_position[first] - trace.drive_position[last + 1];
+    assert!(
+        relative(lost, backlash) < 0.02,
+        "lost motion {lost:e} vs backlash {backlash:e}"
+    );
+    // With the motor encoder in the loop (type 2: drive error → 0) the carriage trails the
+    // setpoint by b/2 on each leg, so the contour error jumps by b at the reversal.
+    let error_at = |t: f64| {
+        let k = (t / 1e-3).round() as usize;
+        trace.commanded[k] - trace.actual[k]
+    };
+    assert!(
+        relative(error_at(0.9), backlash / 2.0) < 1e-3,
+        "{}",
+        error_at(0.9)
+    );
+    assert!(
+        relative(error_at(1.9), -backlash / 2.0) < 1e-3,
+        "{}",
+        error_at(1.9)
+    );
+}
+
+#[test]
+fn without_backlash_there_is_no_dead_band() {
+    let axis = x_axis(AxisModelOptions {
+        coulomb_friction: 20.0,
+        ..Default::default()
+    });
+    let trace = run(axis, &out_and_back(2e-3, 1.0), 10);
+    assert_eq!(trace.drive_position, trace.actual);
+    let error_at = |t: f64| {
+        let k = (t / 1e-3).round() as usize;
+        trace.commanded[k] - trace.actual[k]
+    };
+    assert!(error_at(0.9).abs() < 1e-9 && error_at(1.9).abs() < 1e-9);
+}
+
+/// Max |a − b| of the carriage positions of two traces of the same run.
+fn max_difference(a: &ReferenceTrace, b: &ReferenceTrace) -> f64 {
+    a.actual
+        .iter()
+        .zip(&b.actual)
+        .map(|(x, y)| (x - y).abs())
+        .fold(0.0, f64::max)
+}
+
+/// Ratio of successive differences at 2, 4, 8 steps per period, the finest difference, and
+/// the finest trace.
+fn convergence_ratio(options: AxisModelOptions, s: &Setpoints) -> (f64, f64, ReferenceTrace) {
+    let [coarse, medium, fine] = [2, 4, 8].map(|steps| run(x_axis(options), s, steps));
+    let (d1, d2) = (
+        max_difference(&coarse, &medium),
+        max_difference(&medium, &fine),
+    );
+    (d1 / d2, d2, fine)
+}
+
+#[test]
+fn halving_the_step_shrinks_the_difference_sixteenfold() {
+    // Closed loop, so the test covers the runner. Steps of 0.5, 0.25, 0.125 ms against the
+    // fastest pole (−395 /s) keep the differences (~1e-10 m) far above round-off; the ratio
+    // measured over 1, 2, 4, 8, 16 steps per period goes 19.0, 17.4, 16.7, 16.3: fourth order.
+    let s = out_and_back(10e-3, 0.3);
+    let (ratio, finest, _) = convergence_ratio(Default::default(), &s);
+    println!("no friction, no backlash: ratio {ratio:.2}, finest difference {finest:.2e} m");
+    assert!((14.5..18.5).contains(&ratio), "ratio {ratio}");
+}
+
+#[test]
+fn closed_loop_with_friction_and_backlash_converges_at_fourth_order() {
+    // Most switches here come with a new command, at tick boundaries common to all step sizes;
+    // the test that switches inside steps is `located_events_keep_fourth_order_...`. Measured
+    // over 1, 2, 4, 8, 16 steps per period: 13.6, 17.4, 16.4, 14.8.
+    let s = out_and_back(10e-3, 0.3);
+    let options = AxisModelOptions {
+        coulomb_friction: 20.0,
+        backlash: 0.32e-3,
+        ..Default::default()
+    };
+    let (ratio, finest, trace) = convergence_ratio(options, &s);
+    // The run does switch: the carriage sticks and the gap opens at the reversal.
+    assert!(trace.actual_velocity.contains(&0.0));
+    assert!(trace
+        .drive_position
+        .iter()
+        .zip(&trace.actual)
+        .any(|(d, c)| (d - c).abs() < 1e-5));
+    assert!(trace
+        .drive_position
+        .iter()
+        .zip(&trace.actual)
+        .any(|(d, c)| (d - c).abs() > 1e-4));
+    println!("friction + backlash: ratio {ratio:.2}, finest difference {finest:.2e} m");
+    assert!(ratio > 12.0, "ratio {ratio}");
+}
+
+#[test]
+fn located_events_keep_fourth_order_within_one_long_hold() {
+    // One hold of 50 ms, so every switch falls inside a step: stalled, the current rises until
+    // breakaway (no backlash), or the drive crosses the gap and strikes the stuck carriage
+    // (backlash). Switching at step ends instead would leave an O(h) error: ratio ≈ 2.
+    for backlash in [0.0, 0.32e-3] {
+        let options = AxisModelOptions {
+            coulomb_friction: 100.0,
+            backlash,
+            ..Default::default()
+        };
+        let end = |steps: usize| {
+            let mut axis = x_axis(options);
+            axis.advance(0.5, 0.05, steps);
+            assert!(axis.velocity() > 0.0);
+            axis.position()
+        };
+        // Steps of 250, 125, 62.5 µs: in the asymptotic range (at 1 ms, h·R/L ≈ 0.5 is not).
+        let [coarse, medium, fine] = [200, 400, 800].map(end);
+        let ratio = (coarse - medium).abs() / (medium - fine).abs();
+        println!("one hold, backlash {backlash:e}: ratio {ratio:.2}");
+        assert!((12.0..20.0).contains(&ratio), "ratio {ratio}");
+    }
+}
+
+/// Steady velocity per volt at the amplifier input, dx/dt / u at s → 0 (m/(V·s)).
+fn velocity_gain(axis: &AxisModel, drive: &Drive) -> f64 {
+    let (k, m) = (axis.ratio(), &drive.motor);
+    let (km, kb, r) = (
+        m.torque_constant_nm_per_a,
+        m.back_emf_v_s_per_rad,
+        m.resistance_ohm,
+    );
+    drive.amplifier_gain * k * km / (r * axis.effective_damping() + kb * km * k * k)
+}
+
+#[test]
+fn type_two_loop_tracks_a_ramp_without_error() {
+    // Plant integrator + PID integrator: the ramp error decays to zero, also against friction
+    // (the integral supplies damping + friction force).
+    let (speed, friction) = (5e-3, 30.0);
+    let options = AxisModelOptions {
+        coulomb_friction: friction,
+        ..Default::default()
+    };
+    let s = setpoints(1e-3, 2.0, |t| (0.01 + speed * t, speed, 0.0));
+    let trace = run(x_axis(options), &s, 10);
+    let error: Vec<f64> = (0..trace.len())
+        .map(|k| trace.commanded[k] - trace.actual[k])
+        .collect();
+    let peak = error.iter().fold(0.0f64, |m, e| m.max(e.abs()));
+    let end = error[error.len() - 1].abs();
+    println!("ramp {speed} m/s: peak following error {peak:.3e} m, after 2 s {end:.3e} m");
+    assert!(peak > 1e-6, "the velocity step must excite a transient");
+    assert!(end < 1e-12, "steady ramp error {end:e}");
+    // And the drive force at constant speed is damping + friction.
+    let axis = x_axis(options);
+    let last = trace.len() - 2;
+    let force = axis.ratio() * trace.torque[last];
+    assert!(relative(force, axis.effective_damping() * speed + friction) < 1e-6);
+}
+
+#[test]
+fn type_two_loop_lags_a_parabola_by_acceleration_over_ka() {
+    // Constant acceleration A: the integrator must ramp u at A/G₀ (G₀ = steady m/s per V), so
+    // it needs a constant error e with Ki·e = A/G₀: e = A/(Ki·G₀), the 1/K_a of linear theory.
+    let acceleration = 0.01;
+    let s = setpoints(1e-3, 2.0, |t| {
+        (
+            0.01 + acceleration * t * t / 2.0,
+            acceleration * t,
+            acceleration,
+        )
+    });
+    let axis = x_axis(Default::default());
+    let expected = acceleration / (6.1e5 * velocity_gain(&axis, &x_drive()));
+    let trace = run(axis, &s, 10);
+    let e = trace.commanded[trace.len() - 1] - trace.actual[trace.len() - 1];
+    println!("parabola: steady error {e:.4e} m, theory {expected:.4e} m");
+    assert!(relative(e, expected) < 1e-4, "{e:e} vs {expected:e}");
+    let command = trace.command[trace.len() - 1];
+    assert!(
+        command.abs() < 6.0,
+        "the loop must stay linear (u = {command} V)"
+    );
+}
+
+#[test]
+fn z_axis_holds_its_weight() {
+    let models = AxisModel::for_machine(&machine(), [0.0, 0.0, -9.81], Default::default()).unwrap();
+    let mut z = [models[2].clone()];
+    let gains = PidGains {
+        kp: 9700.0,
+        ki: 3.0e5,
+        kd: 85.0,
+    };
+    let mut pid = PidBank::new(vec![Pid::new(gains, PidForm::Positional, 1e-3, 3.125)]);
+    let s = setpoints(1e-3, 2.0, |_| (-0.02, 0.0, 0.0));
+    let run = run_reference(&mut z, &mut pid, &s, &settings(10));
+    let trace = run.trace;
+    let last = trace.len() - 1;
+    // Holding torque m·g/k = 0.5·9.81/(2π/5 mm) = 3.90e-3 N·m, and no position error.
+    let holding = 0.5 * 9.81 / z[0].ratio();
+    assert!(relative(trace.torque[last], holding) < 1e-6);
+    assert!((trace.actual[last] + 0.02).abs() < 1e-12);
+}
+
+/// Passes everything to a PID bank and keeps what the controller was shown.
+struct Recording {
+    inner: PidBank,
+    measured: Vec<f64>,
+}
+
+impl Controller for Recording {
+    fn update(&mut self, input: &ControllerInput<'_>, command: &mut [f64]) {
+        self.measured.extend_from_slice(input.measured_position);
+        self.inner.update(input, command);
+    }
+}
+
+#[test]
+fn the_controller_sees_encoder_counts() {
+    let resolution = 1e-6;
+    let s = setpoints(1e-3, 0.3, |t| (0.01 + 5e-3 * t, 5e-3, 0.0));
+    let mut axis = [x_axis(Default::default())];
+    let settings = ReferenceSettings {
+        encoder_resolution: vec![Some(resolution)],
+        ..settings(10)
+    };
+    let mut controller = Recording {
+        inner: x_pid(),
+        measured: Vec::new(),
+    };
+    let trace = run_reference(&mut axis, &mut controller, &s, &settings).trace;
+    let settle = controller.measured.len() - trace.len();
+    for (k, &seen) in controller.measured[settle..].iter().enumerate() {
+        let counts = seen / resolution;
+        assert!((counts - counts.round()).abs() < 1e-6, "tick {k}: {seen:e}");
+        assert!((seen - trace.actual[k]).abs() <= resolution / 2.0 + 1e-15);
+    }
+}
+
+#[test]
+#[ignore = "timing: cargo test --release -- --ignored --nocapture"]
+fn servo_period_cost() {
+    let ticks = 20_000;
+    for (label, options) in [
+        ("rigid", AxisModelOptions::default()),
+        (
+            "friction + backlash",
+            AxisModelOptions {
+                coulomb_friction: 20.0,
+                backlash: 0.3e-3,
+                ..Default::default()
+            },
+        ),
+    ] {
+        for steps in [4, 10, 40] {
+            let mut axes = AxisModel::for_machine(&machine(), [0.0, 0.0, -9.81], options).unwrap();
+            let s = Setpoints {
+                period: 1e-3,
+                axes: 3,
+                ..Default::default()
+            };
+            let mut s = s;
+            for k in 0..=ticks {
+                let p = 0.01 + 0.01 * (k as f64 * 1e-3 * 3.0).sin();
+                s.push(&[p, p, -0.02 + p], &[0.0; 3], &[0.0; 3], 0);
+            }
+            let xy = PidGains {
+                kp: 19800.0,
+                ki: 6.1e5,
+                kd: 146.0,
+            };
+            let z = PidGains {
+                kp: 9700.0,
+                ki: 3.0e5,
+                kd: 85.0,
+            };
+            let mut pid = PidBank::new(vec![
+                Pid::new(xy, PidForm::Positional, 1e-3, 6.0),
+                Pid::new(xy, PidForm::Positional, 1e-3, 6.0),
+                Pid::new(z, PidForm::Positional, 1e-3, 3.125),
+            ]);
+            let settings = ReferenceSettings {
+                servo_period: 1e-3,
+                steps_per_period: steps,
+                settle_time: 0.0,
+                encoder_resolution: vec![None; 3],
+            };
+            let started = std::time::Instant::now();
+            let run = run_reference(&mut axes, &mut pid, &s, &settings);
+            let per_tick = started.elapsed().as_secs_f64() / ticks as f64;
+            assert!(run.diverged.is_none());
+            println!(
+                "{label:>20}, {steps:>2} RK4 steps per period: {:.2} µs per servo period (3 axes)",
+                per_tick * 1e6
+            );
+        }
+    }
+}
