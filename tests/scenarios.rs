@@ -23,7 +23,7 @@ fn circle_scenario_meets_its_bounds_and_writes_a_readable_recording() {
     assert!(run.stop.is_none(), "{:?}", run.stop);
     let verdict = check(&scenario, &run.metrics_json);
     assert!(verdict.passed(), "breaches: {:?}", verdict.breaches);
-    assert_eq!(verdict.checked, 5);
+    assert_eq!(verdict.checked, 8);
 
     // metrics.json has the documented keys.
     let json: serde_json::Value =
@@ -88,7 +88,13 @@ fn circle_scenario_meets_its_bounds_and_writes_a_readable_recording() {
             "{link}: {rows:?}"
         );
     }
-    for path in ["/world/tool", "/path/contour_error", "/path/speed/actual"] {
+    for path in [
+        "/world/tool",
+        "/path/contour_error",
+        "/path/speed/actual",
+        "/analytic/axes/x/actual",
+        "/analytic/axes/y/following_error",
+    ] {
         assert_eq!(rows.get(path).copied(), Some(recorded), "{path}");
     }
     for path in [

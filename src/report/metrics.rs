@@ -67,6 +67,11 @@ pub struct AxisMetrics {
     pub rms_following_error_deg: Option<f64>,
     /// Time of the largest following error (s).
     pub max_following_error_time_s: f64,
+    /// Largest difference between the physics and the analytic reference model (when run).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub max_physics_vs_analytic_mm: Option<f64>,
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub max_physics_vs_analytic_deg: Option<f64>,
     pub peak_torque_nm: f64,
     pub rms_torque_nm: f64,
     #[serde(skip_serializing_if = "Option::is_none")]
@@ -144,6 +149,8 @@ impl Metrics {
                     max_following_error_deg: deg.map(|v| v.0),
                     rms_following_error_deg: deg.map(|v| v.1),
                     max_following_error_time_s: trace.time.get(worst_k).copied().unwrap_or(0.0),
+                    max_physics_vs_analytic_mm: None,
+                    max_physics_vs_analytic_deg: None,
                     peak_torque_nm: max(&mut (0..n).map(|k| torque(k).abs())),
                     rms_torque_nm: rms(&mut (0..n).map(torque)),
                     peak_voltage_v: dc_motor.then(|| {
@@ -175,6 +182,32 @@ impl Metrics {
             physics_steps,
             servo_ticks: n,
             axes,
+        }
+    }
+
+    /// Records, per axis, the largest |physics − analytic| position difference; `analytic`
+    /// holds the reference model's positions in the trace's layout.
+    pub fn add_analytic_comparison(
+        &mut self,
+        trace: &Trace,
+        analytic: &[f64],
+        labels: &[AxisLabel],
+    ) {
+        for (i, label) in labels.iter().enumerate() {
+            let worst = (0..trace.len().min(analytic.len() / trace.axes.max(1)))
+                .map(|k| {
+                    (Trace::at(&trace.actual, trace.axes, k, i) - analytic[k * trace.axes + i])
+                        .abs()
+                })
+                .fold(0.0f64, f64::max)
+                * label.scale();
+            if let Some(m) = self.axes.get_mut(&label.name) {
+                if label.rotary {
+                    m.max_physics_vs_analytic_deg = Some(worst);
+                } else {
+                    m.max_physics_vs_analytic_mm = Some(worst);
+                }
+            }
         }
     }
 

@@ -26,6 +26,8 @@ pub struct RecordingContent<'a> {
     pub programmed_path: Vec<[f64; 3]>,
     pub dc_motor: bool,
     pub decimation: usize,
+    /// Positions of the analytic reference model in the trace's layout, when it was run.
+    pub analytic_actual: Option<&'a [f64]>,
 }
 
 pub fn write_recording(
@@ -158,6 +160,26 @@ fn log_all(
             series(
                 format!("{base}/voltage"),
                 ticks.iter().map(|&k| at(&trace.voltage, k)).collect(),
+            )?;
+        }
+    }
+    if let Some(analytic) = c.analytic_actual {
+        // The reference model under its own entity paths, beside the physics in the viewer.
+        for (i, l) in c.labels.iter().enumerate() {
+            let s = l.scale();
+            let err_scale = if l.rotary { s } else { 1e6 };
+            let at = |k: usize| analytic[k * n + i];
+            let base = format!("analytic/axes/{}", l.name);
+            series(
+                format!("{base}/actual"),
+                ticks.iter().map(|&k| at(k) * s).collect(),
+            )?;
+            series(
+                format!("{base}/following_error"),
+                ticks
+                    .iter()
+                    .map(|&k| (Trace::at(&trace.commanded, n, k, i) - at(k)) * err_scale)
+                    .collect(),
             )?;
         }
     }

@@ -36,6 +36,23 @@ pub fn metrics_table(m: &Metrics) -> String {
         m.rms_contour_error_mm * 1e3,
         m.max_path_speed_error_mm_s
     ));
+    let comparison: Vec<String> = m
+        .axes
+        .iter()
+        .filter_map(|(name, a)| {
+            match (a.max_physics_vs_analytic_mm, a.max_physics_vs_analytic_deg) {
+                (Some(mm), _) => Some(format!("{name} {:.4} µm", mm * 1e3)),
+                (_, Some(deg)) => Some(format!("{name} {deg:.6} deg")),
+                _ => None,
+            }
+        })
+        .collect();
+    if !comparison.is_empty() {
+        s.push_str(&format!(
+            "  physics vs analytic model, max |difference|: {}\n",
+            comparison.join(", ")
+        ));
+    }
     s.push_str(&format!(
         "  simulated {:.3} s in {:.3} s wall ({:.1}× real time), {} servo ticks, {} physics steps\n",
         m.sim_time_s, m.wall_time_s, m.real_time_factor, m.servo_ticks, m.physics_steps

@@ -30,6 +30,8 @@ struct RawScenario {
     feedback: RawFeedback,
     #[serde(default)]
     recording: RawRecording,
+    /// Run the analytic reference model beside the physics.
+    analytic: Option<RawAnalytic>,
     #[serde(default)]
     expect: BTreeMap<String, Spanned<toml::Value>>,
 }
@@ -246,6 +248,20 @@ struct RawFeedback {
 
 #[derive(Deserialize)]
 #[serde(deny_unknown_fields)]
+struct RawAnalytic {
+    #[serde(default = "yes")]
+    enabled: bool,
+    /// RK4 steps per servo period.
+    #[serde(default = "sixteen")]
+    steps_per_period: Spanned<i64>,
+}
+
+fn sixteen() -> Spanned<i64> {
+    Spanned::new(0..0, 16)
+}
+
+#[derive(Deserialize)]
+#[serde(deny_unknown_fields)]
 struct RawRecording {
     #[serde(default = "yes")]
     rrd: bool,
@@ -327,6 +343,8 @@ pub struct Scenario {
     pub record_rrd: bool,
     pub record_csv: bool,
     pub decimation: usize,
+    /// RK4 steps per servo period of the analytic reference model; `None` = not run.
+    pub analytic_steps: Option<usize>,
     pub expect: Vec<Expectation>,
 }
 
@@ -622,6 +640,22 @@ impl Scenario {
             ));
         }
 
+        let analytic_steps = match &raw.analytic {
+            Some(a) if a.enabled => {
+                let steps = *a.steps_per_period.get_ref();
+                if !(1..=10_000).contains(&steps) {
+                    return Err(err(
+                        a.steps_per_period.span(),
+                        format!(
+                            "steps_per_period = {steps}: expected a whole number from 1 to 10000"
+                        ),
+                    ));
+                }
+                Some(steps as usize)
+            }
+            _ => None,
+        };
+
         let mut expect = Vec::new();
         for (key, value) in &raw.expect {
             flatten_expectations(
@@ -670,6 +704,7 @@ impl Scenario {
             record_rrd: raw.recording.rrd,
             record_csv: raw.recording.csv,
             decimation: decimation as usize,
+            analytic_steps,
             expect,
         })
     }

@@ -12,6 +12,9 @@ use crate::model::{ModelError, Plant, PlantOptions};
 use crate::plan::{plan_program, AxisKind, AxisLimits, PlanError, PlanSettings, Planner};
 use crate::program::{circle, polyline, read_program, PathGeometry, Program, ProgramErrors};
 use crate::report::{self, AxisLabel, Derived, Metrics, RecordingContent, ReportError};
+use crate::sim::analytic::{
+    run_reference, AxisModel, AxisModelOptions, ReferenceSettings, ReferenceTrace,
+};
 use crate::sim::{CoSimulation, LoopSettings, Stop, Trace};
 use std::path::{Path, PathBuf};
 
@@ -86,12 +89,15 @@ pub fn run_scenario(
         source,
     })?;
 
-    let loops = machine
+    let encoder_resolution: Vec<Option<f64>> = machine
         .axes
         .iter()
         .map(|a| {
-            let g = &s.gains[&a.name];
-            Pid::new(g.gains, s.pid_form, s.servo_period, g.output_limit)
+            let mut drive = a.drive.clone();
+            if let Some((counts, _)) = s.encoder_counts_per_rev.get(&a.name) {
+                drive.encoder_counts_per_rev = Some(*counts);
+            }
+            drive.encoder_resolution()
         })
         .collect();
     let settings = LoopSettings {
@@ -99,17 +105,7 @@ pub fn run_scenario(
         substeps: s.substeps,
         settle_time: s.settle_time,
         ratios: machine.axes.iter().map(|a| a.drive.ratio()).collect(),
-        encoder_resolution: machine
-            .axes
-            .iter()
-            .map(|a| {
-                let mut drive = a.drive.clone();
-                if let Some((counts, _)) = s.encoder_counts_per_rev.get(&a.name) {
-                    drive.encoder_counts_per_rev = Some(*counts);
-                }
-                drive.encoder_resolution()
-            })
-            .collect(),
+        encoder_resolution: encoder_resolution.clone(),
         following_error_limit: labels
             .iter()
             .map(|l| {
@@ -124,7 +120,7 @@ pub fn run_scenario(
     };
     let cosim = CoSimulation {
         plant,
-        controller: Box::new(PidBank::new(loops)),
+        controller: Box::new(pid_bank(s, &machine)),
         actuators: machine
             .axes
             .iter()
@@ -133,6 +129,16 @@ pub fn run_scenario(
         settings,
     };
     let outcome = cosim.run(&setpoints, progress);
+    let analytic = match s.analytic_steps {
+        Some(steps) => Some(run_analytic(
+            s,
+            &machine,
+            &setpoints,
+            &encoder_resolution,
+            steps,
+        )?),
+        None => None,
+    };
 
     // Report: everything computed so far, whether or not the run completed.
     let zeros = vec![0.0; machine.axes.len()];
@@ -145,7 +151,7 @@ pub fn run_scenario(
         linear_axes,
     );
     let dc_motor = actuator == ActuatorKind::DcMotor;
-    let metrics = Metrics::compute(
+    let mut metrics = Metrics::compute(
         &s.name,
         &outcome.trace,
         &derived,
@@ -155,6 +161,9 @@ pub fn run_scenario(
         outcome.wall_time,
         outcome.stop.as_ref().map(|e| e.to_string()),
     );
+    if let Some(reference) = &analytic {
+        metrics.add_analytic_comparison(&outcome.trace, &reference.actual, &labels);
+    }
     let metrics_json = metrics.to_json();
 
     std::fs::create_dir_all(out_dir).map_err(|source| ReportError::Io {
@@ -199,6 +208,7 @@ pub fn run_scenario(
             programmed_path,
             dc_motor,
             decimation: s.decimation,
+            analytic_actual: analytic.as_ref().map(|r| r.actual.as_slice()),
         };
         report::write_recording(&p, trace, &derived, &content)?;
         files.push(p);
@@ -210,6 +220,46 @@ pub fn run_scenario(
         trace: outcome.trace,
         files,
     })
+}
+
+/// The analytic reference model on the same setpoints with a fresh copy of the controller.
+fn run_analytic(
+    s: &Scenario,
+    machine: &Machine,
+    setpoints: &crate::plan::Setpoints,
+    encoder_resolution: &[Option<f64>],
+    steps: usize,
+) -> Result<ReferenceTrace, RunError> {
+    let fail = |m: String| RunError::File(FileError::new(&s.path, None, m));
+    let options = AxisModelOptions {
+        ideal_actuator: s.actuator == Some(ActuatorKind::IdealTorque),
+        ..AxisModelOptions::default()
+    };
+    let mut models = AxisModel::for_machine(machine, GRAVITY, options)
+        .map_err(|e| fail(format!("[analytic]: {e}")))?;
+    let mut controller = pid_bank(s, machine);
+    let settings = ReferenceSettings {
+        servo_period: s.servo_period,
+        steps_per_period: steps,
+        settle_time: s.settle_time,
+        encoder_resolution: encoder_resolution.to_vec(),
+    };
+    let run = run_reference(&mut models, &mut controller, setpoints, &settings);
+    Ok(run.trace)
+}
+
+/// One PID loop per machine axis, with the scenario's gains.
+fn pid_bank(s: &Scenario, machine: &Machine) -> PidBank {
+    PidBank::new(
+        machine
+            .axes
+            .iter()
+            .map(|a| {
+                let g = &s.gains[&a.name];
+                Pid::new(g.gains, s.pid_form, s.servo_period, g.output_limit)
+            })
+            .collect(),
+    )
 }
 
 /// The planner settings of a scenario for its machine, with `profile` (the scenario's own or
@@ -381,7 +431,7 @@ fn validate_against_machine(
         axes: labels.len(),
         ..Default::default()
     };
-    let template = Metrics::compute(
+    let mut template = Metrics::compute(
         &s.name,
         &empty,
         &Derived::default(),
@@ -390,8 +440,11 @@ fn validate_against_machine(
         0,
         0.0,
         None,
-    )
-    .to_json();
+    );
+    if s.analytic_steps.is_some() {
+        template.add_analytic_comparison(&empty, &[], labels);
+    }
+    let template = template.to_json();
     let mut known = Vec::new();
     collect_numeric_paths(&template, "", &mut known);
     for e in &s.expect {
