@@ -128,3 +128,61 @@ fn z_slide_falls_slowed_by_reflected_inertia() {
         v[2]
     );
 }
+
+/// Under constant acceleration, the tool point's velocity read from the engine matches the
+/// axis velocity (the joint's generalised velocity) at the same instant.
+#[test]
+fn tool_velocity_is_the_axis_velocity() {
+    let mut machine = table();
+    for a in &mut machine.axes {
+        a.drive.viscous_damping_nm_s_per_rad = 0.0;
+    }
+    let options = PlantOptions {
+        step: 2.5e-4,
+        gravity: [0.0; 3],
+        initial_positions: vec![0.0; 3],
+        include_drive_dynamics: true,
+        solver_iterations: 1,
+    };
+    let mut plant = Plant::new(&machine, &options).unwrap();
+    plant.set_joint_forces(&[500.0, 0.0, 0.0]);
+    for _ in 0..400 {
+        plant.step();
+    }
+    let mut v = [0.0; 3];
+    plant.velocities(&mut v);
+    let tool = plant.tool_velocity();
+    assert!(
+        (tool.x - v[0]).abs() <= 1e-12 * v[0].abs(),
+        "tool {} m/s, axis {} m/s",
+        tool.x,
+        v[0]
+    );
+}
+
+/// While moving, the engine's link poses stay those of the forward kinematics of its joint
+/// coordinates (no step of lag between the two).
+#[test]
+fn moving_link_poses_match_joint_coordinates() {
+    let machine = table();
+    let options = PlantOptions {
+        step: 2.5e-4,
+        gravity: [0.0, 0.0, -9.81],
+        initial_positions: vec![0.1, 0.1, 0.0],
+        include_drive_dynamics: true,
+        solver_iterations: 1,
+    };
+    let mut plant = Plant::new(&machine, &options).unwrap();
+    plant.set_joint_forces(&[500.0, -300.0, 10.0]);
+    for _ in 0..400 {
+        plant.step();
+    }
+    let mut q = [0.0; 3];
+    plant.positions(&mut q);
+    let fk = kinematics::tool_point(&machine, &q);
+    let d = (plant.tool_point() - fk).norm();
+    assert!(
+        d < 1e-12,
+        "engine tool point is {d} m from the kinematics of its coordinates"
+    );
+}

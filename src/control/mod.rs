@@ -3,9 +3,11 @@
 //! torque at the physics rate.
 
 mod actuator;
+mod computed_torque;
 mod pid;
 
 pub use actuator::{Actuator, ActuatorKind, ActuatorOutput};
+pub use computed_torque::ComputedTorque;
 pub use pid::{Pid, PidForm, PidGains};
 
 /// What a controller sees at a servo tick, per axis (joint units: m or rad).

@@ -64,6 +64,8 @@ struct AxisBinding {
     link_id: usize,
     /// Index into the joint coordinate array (0 = translation along the joint axis, 3 = rotation).
     coordinate: usize,
+    /// Whether this joint lies between the root and the tool (moves the tool point).
+    carries_tool: bool,
 }
 
 /// The simulated machine.
@@ -153,6 +155,13 @@ impl Plant {
             joint_handles.push(handle);
         }
 
+        // The joints on the path from the root to the tool link.
+        let mut joints_to_tool = Vec::new();
+        let mut link = machine.tool_link;
+        while let Some(j) = machine.parent_joint(link) {
+            joints_to_tool.push(j);
+            link = machine.joints[j].parent;
+        }
         let mut axes = Vec::with_capacity(machine.axes.len());
         for axis in &machine.axes {
             let joint = &machine.joints[axis.joint];
@@ -172,6 +181,7 @@ impl Plant {
                 } else {
                     0
                 },
+                carries_tool: joints_to_tool.contains(&axis.joint),
             });
         }
 
@@ -318,11 +328,28 @@ impl Plant {
         from_pose(body.position()) * self.tool_offset
     }
 
-    /// Velocity of the tool point (m/s).
+    /// Velocity of the tool point (m/s), from the joints' generalised velocities along the
+    /// chain to the tool (a Jacobian product). Rapier's per-link body velocities of a multibody
+    /// are one step older than its joint velocities and positions, so they are not used.
     pub fn tool_velocity(&self) -> Vector3<f64> {
-        let body = &self.world.bodies[self.link_bodies[self.tool_link]];
-        let p = convert::to_vec(&self.tool_point().coords);
-        convert::from_vec(&body.velocity_at_point(p))
+        let Some(mb) = self.multibody() else {
+            return Vector3::zeros();
+        };
+        let v = mb.generalized_velocity();
+        let tool = self.tool_point();
+        let mut velocity = Vector3::zeros();
+        for b in self.axes.iter().filter(|b| b.carries_tool) {
+            let frame = from_pose(self.world.bodies[b.child].position());
+            let axis = frame.rotation * b.local_axis;
+            velocity += match b.kind {
+                JointKind::Prismatic => axis * v[b.dof],
+                JointKind::Revolute => {
+                    axis.cross(&(tool - Point3::from(frame.translation.vector))) * v[b.dof]
+                }
+                JointKind::Fixed => Vector3::zeros(),
+            };
+        }
+        velocity
     }
 }
 

@@ -17,16 +17,16 @@ pub fn metrics_table(m: &Metrics) -> String {
         let (max, rms, unit) = match (a.max_following_error_mm, a.rms_following_error_mm) {
             (Some(max), Some(rms)) => (max * 1e3, rms * 1e3, "µm"),
             _ => (
-                a.max_following_error_deg.unwrap_or(f64::NAN),
-                a.rms_following_error_deg.unwrap_or(f64::NAN),
-                "deg",
+                a.max_following_error_deg.unwrap_or(f64::NAN) * 1e3,
+                a.rms_following_error_deg.unwrap_or(f64::NAN) * 1e3,
+                "mdeg",
             ),
         };
         let volts = a
             .peak_voltage_v
             .map_or("—".to_string(), |v| format!("{v:.3}"));
         s.push_str(&format!(
-            "  {:<6} {:>11.3} {unit:<2} {:>11.3} {unit:<2} {:>12.5} {:>12.5} {:>10}\n",
+            "  {:<6} {:>11.3} {unit:<4} {:>11.3} {unit:<4} {:>12.5} {:>12.5} {:>10}\n",
             name, max, rms, a.peak_torque_nm, a.rms_torque_nm, volts
         ));
     }

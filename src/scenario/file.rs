@@ -208,13 +208,30 @@ struct RawController {
     kind: ControllerType,
     #[serde(default)]
     form: RawPidForm,
-    axes: Spanned<BTreeMap<String, Spanned<RawGains>>>,
+    /// PID gains per axis (`type = "pid"`).
+    axes: Option<Spanned<BTreeMap<String, Spanned<RawGains>>>>,
+    /// Inverse dynamics: closed-loop natural frequency (Hz) and damping ratio of every axis.
+    natural_frequency_hz: Option<Num>,
+    damping_ratio: Option<Num>,
+    /// Inverse dynamics: scale on every link mass and inertia of the controller's model (1 =
+    /// the true machine), to study robustness to model error.
+    model_mass_scale: Option<Num>,
+}
+
+/// The computed-torque controller's settings.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct InverseDynamicsSettings {
+    /// Closed-loop natural frequency (rad/s).
+    pub omega_n: f64,
+    pub damping_ratio: f64,
+    pub model_mass_scale: f64,
 }
 
 #[derive(Deserialize, Clone, Copy)]
 #[serde(rename_all = "kebab-case")]
 enum ControllerType {
     Pid,
+    InverseDynamics,
 }
 
 #[derive(Deserialize, Default, Clone, Copy)]
@@ -336,6 +353,8 @@ pub struct Scenario {
     pub pid_form: PidForm,
     pub gains: BTreeMap<String, AxisGains>,
     pub controller_at: Option<LineColumn>,
+    /// `Some` when the controller is the computed-torque one (then `gains` is empty).
+    pub inverse_dynamics: Option<InverseDynamicsSettings>,
     pub encoder_counts_per_rev: BTreeMap<String, (u32, Option<LineColumn>)>,
     /// Following-error fault limits: m for linear axes, rad for rotary axes.
     pub following_error_limit_linear: f64,
@@ -548,12 +567,70 @@ impl Scenario {
             ));
         }
 
+        let controller_table = LineColumn::of_first(text, "[controller]");
+        let inverse_dynamics = match &raw.controller {
+            Some(c) if matches!(c.kind, ControllerType::InverseDynamics) => {
+                if let Some(axes) = &c.axes {
+                    return Err(err(
+                        axes.span(),
+                        "controller.axes (PID gains) do not apply to type = \"inverse-dynamics\""
+                            .into(),
+                    ));
+                }
+                let omega_n = match &c.natural_frequency_hz {
+                    Some(f) => positive(f, "natural_frequency_hz")? * std::f64::consts::TAU,
+                    None => {
+                        return Err(FileError::new(
+                            path,
+                            controller_table,
+                            "type = \"inverse-dynamics\" needs natural_frequency_hz",
+                        ))
+                    }
+                };
+                let damping_ratio = match &c.damping_ratio {
+                    Some(z) => positive(z, "damping_ratio")?,
+                    None => 1.0,
+                };
+                let model_mass_scale = match &c.model_mass_scale {
+                    Some(m) => positive(m, "model_mass_scale")?,
+                    None => 1.0,
+                };
+                Some(InverseDynamicsSettings {
+                    omega_n,
+                    damping_ratio,
+                    model_mass_scale,
+                })
+            }
+            Some(c) => {
+                let extra = [
+                    (&c.natural_frequency_hz, "natural_frequency_hz"),
+                    (&c.damping_ratio, "damping_ratio"),
+                    (&c.model_mass_scale, "model_mass_scale"),
+                ];
+                if let Some((v, name)) = extra
+                    .iter()
+                    .find_map(|(v, name)| v.as_ref().map(|v| (v, name)))
+                {
+                    return Err(err(
+                        v.span(),
+                        format!("{name} applies to type = \"inverse-dynamics\", not to PID"),
+                    ));
+                }
+                if c.axes.is_none() {
+                    return Err(FileError::new(path, controller_table, "type = \"pid\" needs gains per axis: axes.<name> = { kp = …, ki = …, kd = … }"));
+                }
+                None
+            }
+            None => None,
+        };
+
         let mut gains = BTreeMap::new();
         let no_axes = BTreeMap::new();
         let controller_axes = raw
             .controller
             .as_ref()
-            .map_or(&no_axes, |c| c.axes.get_ref());
+            .and_then(|c| c.axes.as_ref())
+            .map_or(&no_axes, |a| a.get_ref());
         for (axis, g) in controller_axes {
             let v = g.get_ref();
             let limit = v.output_limit.unwrap_or(f64::INFINITY);
@@ -697,7 +774,9 @@ impl Scenario {
             controller_at: raw
                 .controller
                 .as_ref()
-                .and_then(|c| at(c.axes.span().start)),
+                .and_then(|c| c.axes.as_ref())
+                .and_then(|a| at(a.span().start)),
+            inverse_dynamics,
             encoder_counts_per_rev,
             following_error_limit_linear,
             following_error_limit_rotary,

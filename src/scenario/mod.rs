@@ -7,6 +7,9 @@ mod plan;
 mod run;
 
 pub use check::{check, Breach, Verdict};
-pub use file::{AxisGains, Expectation, PlannerSettings, ProfileName, ProgramSource, Scenario};
+pub use file::{
+    AxisGains, Expectation, InverseDynamicsSettings, PlannerSettings, ProfileName, ProgramSource,
+    Scenario,
+};
 pub use plan::{plan_scenario, PlanReport};
 pub use run::{load_checked_program, plan_settings, run_scenario, RunError, RunOutput};

@@ -4,8 +4,9 @@
 
 use super::ProfileName;
 use super::{ProgramSource, Scenario};
-use crate::control::{Actuator, ActuatorKind, Pid, PidBank};
+use crate::control::{Actuator, ActuatorKind, ComputedTorque, Controller, Pid, PidBank};
 use crate::diagnostics::FileError;
+use crate::dynamics::DynamicsModel;
 use crate::kinematics::{self, AcAxes, AcTableKinematics, AxisMap};
 use crate::machine::Machine;
 use crate::model::{ModelError, Plant, PlantOptions};
@@ -51,10 +52,21 @@ pub fn run_scenario(
     out_dir: &Path,
     progress: &mut dyn FnMut(usize, usize) -> bool,
 ) -> Result<RunOutput, RunError> {
-    let (Some(actuator), false) = (s.actuator, s.gains.is_empty()) else {
+    let (Some(actuator), true) = (
+        s.actuator,
+        !s.gains.is_empty() || s.inverse_dynamics.is_some(),
+    ) else {
         let message = "running a scenario needs [actuator] and [controller] sections (planning with `cncsim plan` does not)";
         return Err(FileError::new(&s.path, None, message).into());
     };
+    if s.analytic_steps.is_some() && s.inverse_dynamics.is_some() {
+        return Err(FileError::new(
+            &s.path,
+            None,
+            "[analytic] runs with the PID controller; turn it off for type = \"inverse-dynamics\"",
+        )
+        .into());
+    }
     let machine = Machine::load(&s.machine)?;
     let labels: Vec<AxisLabel> = machine
         .axes
@@ -120,7 +132,7 @@ pub fn run_scenario(
     };
     let cosim = CoSimulation {
         plant,
-        controller: Box::new(pid_bank(s, &machine)),
+        controller: controller_for(s, &machine, actuator)?,
         actuators: machine
             .axes
             .iter()
@@ -246,6 +258,45 @@ fn run_analytic(
     };
     let run = run_reference(&mut models, &mut controller, setpoints, &settings);
     Ok(run.trace)
+}
+
+/// The scenario's controller for this machine.
+fn controller_for(
+    s: &Scenario,
+    machine: &Machine,
+    actuator: ActuatorKind,
+) -> Result<Box<dyn Controller>, RunError> {
+    let Some(id) = s.inverse_dynamics else {
+        return Ok(Box::new(pid_bank(s, machine)));
+    };
+    // The controller's model of the machine: the drives' reflected damping on the joints, the
+    // rotor inertia as armature, and (for robustness studies) every link's mass scaled.
+    let mut model_machine = machine.clone();
+    for axis in &machine.axes {
+        model_machine.joints[axis.joint].damping += axis.drive.reflected_damping();
+    }
+    for link in &mut model_machine.links {
+        link.mass *= id.model_mass_scale;
+        link.inertia *= id.model_mass_scale;
+    }
+    let model = DynamicsModel::from_machine(&model_machine, nalgebra::Vector3::from(GRAVITY))
+        .and_then(|m| m.with_drive_armature(&model_machine))
+        .map_err(|e| {
+            FileError::new(
+                &s.machine,
+                None,
+                format!("the inverse-dynamics controller's model: {e}"),
+            )
+        })?;
+    let drives: Vec<_> = machine.axes.iter().map(|a| a.drive.clone()).collect();
+    Ok(Box::new(ComputedTorque::new(
+        model,
+        &drives,
+        actuator,
+        s.servo_period,
+        id.omega_n,
+        id.damping_ratio,
+    )))
 }
 
 /// One PID loop per machine axis, with the scenario's gains.
@@ -404,7 +455,7 @@ fn validate_against_machine(
             ));
         }
     }
-    for axis in &names {
+    for axis in names.iter().filter(|_| s.inverse_dynamics.is_none()) {
         if !s.gains.contains_key(*axis) {
             return Err(FileError::new(
                 &s.path,

@@ -1,0 +1,102 @@
+//! Inverse-dynamics (computed-torque) control in joint space, seed digest §1.3:
+//!
+//!   ν = q̈_d + K_D(q̇_d − q̇) + K_P(q_d − q),   τ = M(q)ν + C(q,q̇)q̇ + F q̇ + g(q)
+//!
+//! With a perfect model the closed loop is ë + K_D ė + K_P e = 0 on every axis, whatever the
+//! configuration of the tilting table; with the gains K_P = ωn², K_D = 2ζωn it is a
+//! second-order system of natural frequency ωn and damping ζ. The model is whatever the
+//! controller is given (it may be perturbed to study robustness); q̇ is estimated from the
+//! sampled encoder positions, as a drive would, corrected for the half-period lag of the
+//! difference by the acceleration last commanded.
+
+use super::{ActuatorKind, Controller, ControllerInput};
+use crate::dynamics::{DynamicsModel, DynamicsWorkspace};
+use crate::machine::Drive;
+
+pub struct ComputedTorque {
+    model: DynamicsModel,
+    workspace: DynamicsWorkspace,
+    kp: f64,
+    kd: f64,
+    period: f64,
+    actuator: ActuatorKind,
+    drives: Vec<Drive>,
+    previous_position: Option<Vec<f64>>,
+    velocity: Vec<f64>,
+    nu: Vec<f64>,
+    tau: Vec<f64>,
+}
+
+impl ComputedTorque {
+    /// `model` in the machine's axis order (its armature and damping should be the drives');
+    /// closed-loop natural frequency `omega_n` (rad/s) and damping ratio `zeta` on every axis.
+    pub fn new(
+        model: DynamicsModel,
+        drives: &[Drive],
+        actuator: ActuatorKind,
+        period: f64,
+        omega_n: f64,
+        zeta: f64,
+    ) -> Self {
+        let n = model.dof();
+        ComputedTorque {
+            workspace: model.workspace(),
+            model,
+            kp: omega_n * omega_n,
+            kd: 2.0 * zeta * omega_n,
+            period,
+            actuator,
+            drives: drives.to_vec(),
+            previous_position: None,
+            velocity: vec![0.0; n],
+            nu: vec![0.0; n],
+            tau: vec![0.0; n],
+        }
+    }
+}
+
+impl Controller for ComputedTorque {
+    fn update(&mut self, input: &ControllerInput<'_>, command: &mut [f64]) {
+        let q = input.measured_position;
+        // Backward difference of the sampled positions, which is the velocity half a period
+        // ago; the acceleration commanded over that period brings it up to now.
+        match &mut self.previous_position {
+            Some(previous) => {
+                for i in 0..q.len() {
+                    self.velocity[i] =
+                        (q[i] - previous[i]) / self.period + self.nu[i] * self.period / 2.0;
+                }
+                previous.copy_from_slice(q);
+            }
+            None => self.previous_position = Some(q.to_vec()),
+        }
+        for i in 0..q.len() {
+            self.nu[i] = input.setpoint_acceleration[i]
+                + self.kd * (input.setpoint_velocity[i] - self.velocity[i])
+                + self.kp * (input.setpoint_position[i] - q[i]);
+        }
+        self.model.inverse_dynamics(
+            &mut self.workspace,
+            q,
+            &self.velocity,
+            &self.nu,
+            &mut self.tau,
+        );
+        for (i, drive) in self.drives.iter().enumerate() {
+            // Joint force → motor torque through the transmission.
+            let k = drive.ratio();
+            let motor_torque = self.tau[i] / k;
+            command[i] = match self.actuator {
+                ActuatorKind::IdealTorque => motor_torque,
+                // The armature voltage that drives this torque at the present speed
+                // (inductance neglected: the loop is far slower than L/R), as amplifier input.
+                ActuatorKind::DcMotor => {
+                    let m = &drive.motor;
+                    let current = motor_torque / m.torque_constant_nm_per_a;
+                    (m.resistance_ohm * current + m.back_emf_v_s_per_rad * k * self.velocity[i])
+                        / drive.amplifier_gain
+                }
+            };
+        }
+    }
+}
