@@ -19,6 +19,16 @@ pub enum Command {
         #[arg(long)]
         out: Option<PathBuf>,
     },
+    /// A/B: run two scenarios that share program, planner and servo period (e.g. PID against
+    /// inverse dynamics) and compare contour error, following error, torque and time side by
+    /// side; writes OUT/ab.md, OUT/ab.json and each variant's outputs.
+    Ab {
+        a: PathBuf,
+        b: PathBuf,
+        /// Output folder (default: out/ab_<a>_vs_<b>).
+        #[arg(long)]
+        out: Option<PathBuf>,
+    },
     /// Plan a scenario's program only: cycle time, per-move durations, and max |v|, |a|, |j|
     /// per machine axis and at the tool tip on the workpiece.
     Plan {

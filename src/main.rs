@@ -52,6 +52,7 @@ fn main() -> ExitCode {
             gravity,
             json,
         }) => dynamics(&urdf, &q, &qd, &qdd, &gravity, json),
+        Some(Command::Ab { a, b, out }) => ab(&a, &b, out),
         Some(Command::Inspect {
             program,
             euclidean_feed,
@@ -201,6 +202,38 @@ fn dynamics(
         }
         Err(e) => fail_input(&format!("{}: {e}", urdf.display())),
     }
+}
+
+fn ab(a: &Path, b: &Path, out: Option<PathBuf>) -> ExitCode {
+    let (sa, sb) = match (Scenario::load(a), Scenario::load(b)) {
+        (Ok(sa), Ok(sb)) => (sa, sb),
+        (Err(e), _) | (_, Err(e)) => return fail_input(&e),
+    };
+    let out = out.unwrap_or_else(|| {
+        Path::new("out").join(folder_name(&format!("ab_{}_vs_{}", sa.name, sb.name)))
+    });
+    let mut progress = |_: usize, _: usize| !INTERRUPTED.load(Ordering::Relaxed);
+    let (report, ra, rb) = match cncsim::scenario::run_ab(&sa, &sb, &out, &mut progress) {
+        Ok(r) => r,
+        Err(e) => return fail_input(&e),
+    };
+    let table = report.markdown();
+    print!("{table}");
+    let json = serde_json::to_string_pretty(&report).expect("plain numbers");
+    for (name, text) in [("ab.md", table), ("ab.json", json + "\n")] {
+        let path = out.join(name);
+        if let Err(e) = std::fs::write(&path, text) {
+            return fail_input(&format!("{}: cannot write: {e}", path.display()));
+        }
+        println!("  wrote {}", path.display());
+    }
+    for (s, r) in [(&sa, &ra), (&sb, &rb)] {
+        if let Some(stop) = &r.stop {
+            eprintln!("error: {}: {stop}", s.path.display());
+            return ExitCode::from(1);
+        }
+    }
+    ExitCode::SUCCESS
 }
 
 fn check_all(paths: &[PathBuf], out: Option<PathBuf>) -> ExitCode {

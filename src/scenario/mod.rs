@@ -1,11 +1,13 @@
 //! Scenario files: what to run (machine, program, planner, controller, timing, recording)
 //! and the bounds the result must meet. Running one is the whole data flow end to end.
 
+mod ab;
 mod check;
 mod file;
 mod plan;
 mod run;
 
+pub use ab::{run_ab, AbReport, AbRow};
 pub use check::{check, Breach, Verdict};
 pub use file::{
     AxisGains, Expectation, InverseDynamicsSettings, PlannerSettings, ProfileName, ProgramSource,
