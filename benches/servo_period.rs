@@ -81,5 +81,35 @@ fn benches(c: &mut Criterion) {
     group.finish();
 }
 
-criterion_group!(servo, benches);
+/// One servo period of the A-C mill (5 axes, 4 physics steps of 0.25 ms) with each controller,
+/// on the first 1000 ticks of the study's program: per-axis PID against computed torque (RNEA
+/// on the URDF model every period).
+fn mill(c: &mut Criterion) {
+    let root = Path::new(env!("CARGO_MANIFEST_DIR"));
+    let mut group = c.benchmark_group("servo period, A-C mill");
+    group.throughput(criterion::Throughput::Elements(1000));
+    for name in ["mill_table2_pid", "mill_table2_id"] {
+        let scenario = cncsim::scenario::Scenario::load(&root.join(format!("scenarios/{name}.toml"))).unwrap();
+        group.bench_function(format!("{name}, per 1000 ticks"), |b| {
+            b.iter_batched(
+                || {
+                    let prepared = cncsim::scenario::prepare(&scenario).unwrap();
+                    let full = &prepared.setpoints;
+                    let mut first = Setpoints::new(full.period, full.axes);
+                    for k in 0..1000.min(full.len()) {
+                        first.push(full.position(k), full.velocity(k), full.acceleration(k), full.segment[k]);
+                    }
+                    let mut cosim = prepared.cosim;
+                    cosim.settings.settle_time = 0.0;
+                    (cosim, first)
+                },
+                |(cosim, first)| cosim.run(&first, &mut |_, _| true),
+                BatchSize::LargeInput,
+            )
+        });
+    }
+    group.finish();
+}
+
+criterion_group!(servo, benches, mill);
 criterion_main!(servo);

@@ -47,11 +47,21 @@ pub struct RunOutput {
 /// Gravity in the machine base frame: URDF convention, z up.
 const GRAVITY: [f64; 3] = [0.0, 0.0, -9.81];
 
-pub fn run_scenario(
-    s: &Scenario,
-    out_dir: &Path,
-    progress: &mut dyn FnMut(usize, usize) -> bool,
-) -> Result<RunOutput, RunError> {
+/// Everything a run needs, wired and ready: the machine, its program and setpoints, and the
+/// co-simulation (plant, controller, actuators).
+pub struct Prepared {
+    pub machine: Machine,
+    pub labels: Vec<AxisLabel>,
+    pub axis_map: AxisMap,
+    pub program: Program,
+    pub setpoints: crate::plan::Setpoints,
+    pub encoder_resolution: Vec<Option<f64>>,
+    pub actuator: ActuatorKind,
+    pub cosim: CoSimulation<'static>,
+}
+
+/// Loads, checks, plans and wires a scenario without running it.
+pub fn prepare(s: &Scenario) -> Result<Prepared, RunError> {
     let (Some(actuator), true) = (
         s.actuator,
         !s.gains.is_empty() || s.inverse_dynamics.is_some(),
@@ -140,6 +150,15 @@ pub fn run_scenario(
             .collect(),
         settings,
     };
+    Ok(Prepared { machine, labels, axis_map, program, setpoints, encoder_resolution, actuator, cosim })
+}
+
+pub fn run_scenario(
+    s: &Scenario,
+    out_dir: &Path,
+    progress: &mut dyn FnMut(usize, usize) -> bool,
+) -> Result<RunOutput, RunError> {
+    let Prepared { machine, labels, axis_map, program, setpoints, encoder_resolution, actuator, cosim } = prepare(s)?;
     let outcome = cosim.run(&setpoints, progress);
     let analytic = match s.analytic_steps {
         Some(steps) => Some(run_analytic(
