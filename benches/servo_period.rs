@@ -89,7 +89,8 @@ fn mill(c: &mut Criterion) {
     let mut group = c.benchmark_group("servo period, A-C mill");
     group.throughput(criterion::Throughput::Elements(1000));
     for name in ["mill_table2_pid", "mill_table2_id"] {
-        let scenario = cncsim::scenario::Scenario::load(&root.join(format!("scenarios/{name}.toml"))).unwrap();
+        let scenario =
+            cncsim::scenario::Scenario::load(&root.join(format!("scenarios/{name}.toml"))).unwrap();
         group.bench_function(format!("{name}, per 1000 ticks"), |b| {
             b.iter_batched(
                 || {
@@ -97,7 +98,12 @@ fn mill(c: &mut Criterion) {
                     let full = &prepared.setpoints;
                     let mut first = Setpoints::new(full.period, full.axes);
                     for k in 0..1000.min(full.len()) {
-                        first.push(full.position(k), full.velocity(k), full.acceleration(k), full.segment[k]);
+                        first.push(
+                            full.position(k),
+                            full.velocity(k),
+                            full.acceleration(k),
+                            full.segment[k],
+                        );
                     }
                     let mut cosim = prepared.cosim;
                     cosim.settings.settle_time = 0.0;

@@ -14,4 +14,6 @@ pub use file::{
     Scenario,
 };
 pub use plan::{plan_scenario, PlanReport};
-pub use run::{prepare, Prepared, load_checked_program, plan_settings, run_scenario, RunError, RunOutput};
+pub use run::{
+    load_checked_program, plan_settings, prepare, run_scenario, Prepared, RunError, RunOutput,
+};

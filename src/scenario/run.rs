@@ -13,9 +13,7 @@ use crate::model::{ModelError, Plant, PlantOptions};
 use crate::plan::{plan_program, AxisKind, AxisLimits, PlanError, PlanSettings, Planner};
 use crate::program::{circle, polyline, read_program, PathGeometry, Program, ProgramErrors};
 use crate::report::{self, AxisLabel, Derived, Metrics, RecordingContent, ReportError};
-use crate::sim::analytic::{
-    run_reference, AxisModel, AxisModelOptions, ReferenceSettings, ReferenceTrace,
-};
+use crate::sim::analytic::{run_reference, AxisModel, AxisModelOptions, ReferenceSettings};
 use crate::sim::{CoSimulation, LoopSettings, Stop, Trace};
 use std::path::{Path, PathBuf};
 
@@ -150,7 +148,16 @@ pub fn prepare(s: &Scenario) -> Result<Prepared, RunError> {
             .collect(),
         settings,
     };
-    Ok(Prepared { machine, labels, axis_map, program, setpoints, encoder_resolution, actuator, cosim })
+    Ok(Prepared {
+        machine,
+        labels,
+        axis_map,
+        program,
+        setpoints,
+        encoder_resolution,
+        actuator,
+        cosim,
+    })
 }
 
 pub fn run_scenario(
@@ -158,7 +165,16 @@ pub fn run_scenario(
     out_dir: &Path,
     progress: &mut dyn FnMut(usize, usize) -> bool,
 ) -> Result<RunOutput, RunError> {
-    let Prepared { machine, labels, axis_map, program, setpoints, encoder_resolution, actuator, cosim } = prepare(s)?;
+    let Prepared {
+        machine,
+        labels,
+        axis_map,
+        program,
+        setpoints,
+        encoder_resolution,
+        actuator,
+        cosim,
+    } = prepare(s)?;
     let outcome = cosim.run(&setpoints, progress);
     let analytic = match s.analytic_steps {
         Some(steps) => Some(run_analytic(
@@ -260,7 +276,7 @@ fn run_analytic(
     setpoints: &crate::plan::Setpoints,
     encoder_resolution: &[Option<f64>],
     steps: usize,
-) -> Result<ReferenceTrace, RunError> {
+) -> Result<Trace, RunError> {
     let fail = |m: String| RunError::File(FileError::new(&s.path, None, m));
     let options = AxisModelOptions {
         ideal_actuator: s.actuator == Some(ActuatorKind::IdealTorque),

@@ -732,45 +732,6 @@ pub struct ReferenceSettings {
     pub encoder_resolution: Vec<Option<f64>>,
 }
 
-/// Per-tick record, laid out like `sim::Trace`: sample k of axis i at `k * axes + i`.
-#[derive(Debug, Clone, PartialEq, Default)]
-pub struct ReferenceTrace {
-    pub period: f64,
-    pub axes: usize,
-    pub time: Vec<f64>,
-    pub commanded: Vec<f64>,
-    pub commanded_velocity: Vec<f64>,
-    /// Carriage position and velocity at the start of the tick.
-    pub actual: Vec<f64>,
-    pub actual_velocity: Vec<f64>,
-    /// Drive-side position (motor angle / ratio) at the start of the tick.
-    pub drive_position: Vec<f64>,
-    /// Controller output (N·m or V).
-    pub command: Vec<f64>,
-    /// Mean motor torque over the hold interval that follows the sample (N·m).
-    pub torque: Vec<f64>,
-    /// Armature voltage (V), zero with the ideal actuator.
-    pub voltage: Vec<f64>,
-    /// Armature current at the start of the tick (A).
-    pub current: Vec<f64>,
-    pub segment: Vec<u32>,
-}
-
-impl ReferenceTrace {
-    pub fn len(&self) -> usize {
-        self.time.len()
-    }
-
-    pub fn is_empty(&self) -> bool {
-        self.time.is_empty()
-    }
-
-    /// Value of axis `i` at sample `k` of one of the per-axis series.
-    pub fn at(series: &[f64], axes: usize, k: usize, i: usize) -> f64 {
-        series[k * axes + i]
-    }
-}
-
 /// The state of an axis stopped being finite.
 #[derive(Debug, Clone, PartialEq, thiserror::Error)]
 #[error("reference model diverged at t = {time:.6} s on axis {axis}")]
@@ -782,7 +743,13 @@ pub struct Diverged {
 /// A reference run: everything traced, and where it diverged if it did.
 #[derive(Debug, Clone)]
 pub struct ReferenceRun {
-    pub trace: ReferenceTrace,
+    /// The same record as the physics run's (without the tool point, which needs the
+    /// kinematics): carriage positions and velocities, commands, torque, voltage.
+    pub trace: super::Trace,
+    /// Drive-side position (motor angle / ratio) at the start of each tick, per axis.
+    pub drive_position: Vec<f64>,
+    /// Armature current at the start of each tick, per axis (A).
+    pub current: Vec<f64>,
     pub diverged: Option<Diverged>,
 }
 
@@ -809,7 +776,8 @@ pub fn run_reference(
         "steps_per_period must be ≥ 1"
     );
     let t = settings.servo_period;
-    let mut trace = ReferenceTrace {
+    let (mut drive_position, mut current) = (Vec::new(), Vec::new());
+    let mut trace = super::Trace {
         period: t,
         axes: n,
         ..Default::default()
@@ -817,6 +785,8 @@ pub fn run_reference(
     if setpoints.is_empty() {
         return ReferenceRun {
             trace,
+            drive_position,
+            current,
             diverged: None,
         };
     }
@@ -837,6 +807,8 @@ pub fn run_reference(
         if let Err(d) = servo_tick(models, controller, settings, input, time, &mut tick) {
             return ReferenceRun {
                 trace,
+                drive_position,
+                current,
                 diverged: Some(d),
             };
         }
@@ -857,21 +829,25 @@ pub fn run_reference(
             .extend_from_slice(input.setpoint_velocity);
         trace.actual.extend_from_slice(&tick.position);
         trace.actual_velocity.extend_from_slice(&tick.velocity);
-        trace.drive_position.extend_from_slice(&tick.drive_position);
+        drive_position.extend_from_slice(&tick.drive_position);
         trace.command.extend_from_slice(&tick.command);
         trace.torque.extend_from_slice(&tick.torque);
         trace.voltage.extend_from_slice(&tick.voltage);
-        trace.current.extend_from_slice(&tick.current);
+        current.extend_from_slice(&tick.current);
         trace.segment.push(setpoints.segment[k]);
         if let Err(d) = result {
             return ReferenceRun {
                 trace,
+                drive_position,
+                current,
                 diverged: Some(d),
             };
         }
     }
     ReferenceRun {
         trace,
+        drive_position,
+        current,
         diverged: None,
     }
 }

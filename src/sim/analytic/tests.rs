@@ -253,7 +253,7 @@ fn settings(steps_per_period: usize) -> ReferenceSettings {
     }
 }
 
-fn run(mut axis: AxisModel, s: &Setpoints, steps_per_period: usize) -> ReferenceTrace {
+fn run(mut axis: AxisModel, s: &Setpoints, steps_per_period: usize) -> ReferenceRun {
     let run = run_reference(
         std::slice::from_mut(&mut axis),
         &mut x_pid(),
@@ -261,7 +261,7 @@ fn run(mut axis: AxisModel, s: &Setpoints, steps_per_period: usize) -> Reference
         &settings(steps_per_period),
     );
     assert!(run.diverged.is_none());
-    run.trace
+    run
 }
 
 /// Forward at `speed` for `leg` seconds, back for as long, then hold; from 10 mm.
@@ -287,11 +287,12 @@ fn backlash_is_lost_motion_at_a_reversal() {
         backlash,
         ..Default::default()
     });
-    let trace = run(axis, &out_and_back(speed, 1.0), 10);
+    let r = run(axis, &out_and_back(speed, 1.0), 10);
+    let trace = &r.trace;
     // The drive turns at the top; the carriage, pushed no more, coasts a few nm and stops,
     // held by friction with the gap open, until the drive has crossed the gap and picks it up from the other side.
     let top = (0..trace.len())
-        .max_by(|&a, &b| trace.drive_position[a].total_cmp(&trace.drive_position[b]))
+        .max_by(|&a, &b| r.drive_position[a].total_cmp(&r.drive_position[b]))
         .unwrap();
     let standstill: Vec<usize> = (top..trace.len())
         .skip_while(|&k| trace.actual_velocity[k] != 0.0)
@@ -301,7 +302,7 @@ fn backlash_is_lost_motion_at_a_reversal() {
     let carriage_moved = trace.actual[last] - trace.actual[first];
     assert_eq!(carriage_moved, 0.0);
     // Ticks sample the drive every 1 ms; at ≤ 2 mm/s that is ≤ 2 µm of 320 µm.
-    let lost = trace.drive_position[first] - trace.drive_position[last + 1];
+    let lost = r.drive_position[first] - r.drive_position[last + 1];
     assert!(
         relative(lost, backlash) < 0.02,
         "lost motion {lost:e} vs backlash {backlash:e}"
@@ -330,8 +331,9 @@ fn without_backlash_there_is_no_dead_band() {
         coulomb_friction: 20.0,
         ..Default::default()
     });
-    let trace = run(axis, &out_and_back(2e-3, 1.0), 10);
-    assert_eq!(trace.drive_position, trace.actual);
+    let r = run(axis, &out_and_back(2e-3, 1.0), 10);
+    let trace = &r.trace;
+    assert_eq!(r.drive_position, trace.actual);
     let error_at = |t: f64| {
         let k = (t / 1e-3).round() as usize;
         trace.commanded[k] - trace.actual[k]
@@ -340,7 +342,7 @@ fn without_backlash_there_is_no_dead_band() {
 }
 
 /// Max |a − b| of the carriage positions of two traces of the same run.
-fn max_difference(a: &ReferenceTrace, b: &ReferenceTrace) -> f64 {
+fn max_difference(a: &crate::sim::Trace, b: &crate::sim::Trace) -> f64 {
     a.actual
         .iter()
         .zip(&b.actual)
@@ -350,11 +352,11 @@ fn max_difference(a: &ReferenceTrace, b: &ReferenceTrace) -> f64 {
 
 /// Ratio of successive differences at 2, 4, 8 steps per period, the finest difference, and
 /// the finest trace.
-fn convergence_ratio(options: AxisModelOptions, s: &Setpoints) -> (f64, f64, ReferenceTrace) {
+fn convergence_ratio(options: AxisModelOptions, s: &Setpoints) -> (f64, f64, ReferenceRun) {
     let [coarse, medium, fine] = [2, 4, 8].map(|steps| run(x_axis(options), s, steps));
     let (d1, d2) = (
-        max_difference(&coarse, &medium),
-        max_difference(&medium, &fine),
+        max_difference(&coarse.trace, &medium.trace),
+        max_difference(&medium.trace, &fine.trace),
     );
     (d1 / d2, d2, fine)
 }
@@ -381,15 +383,16 @@ fn closed_loop_with_friction_and_backlash_converges_at_fourth_order() {
         backlash: 0.32e-3,
         ..Default::default()
     };
-    let (ratio, finest, trace) = convergence_ratio(options, &s);
+    let (ratio, finest, r) = convergence_ratio(options, &s);
+    let trace = &r.trace;
     // The run does switch: the carriage sticks and the gap opens at the reversal.
     assert!(trace.actual_velocity.contains(&0.0));
-    assert!(trace
+    assert!(r
         .drive_position
         .iter()
         .zip(&trace.actual)
         .any(|(d, c)| (d - c).abs() < 1e-5));
-    assert!(trace
+    assert!(r
         .drive_position
         .iter()
         .zip(&trace.actual)
@@ -444,7 +447,8 @@ fn type_two_loop_tracks_a_ramp_without_error() {
         ..Default::default()
     };
     let s = setpoints(1e-3, 2.0, |t| (0.01 + speed * t, speed, 0.0));
-    let trace = run(x_axis(options), &s, 10);
+    let r = run(x_axis(options), &s, 10);
+    let trace = &r.trace;
     let error: Vec<f64> = (0..trace.len())
         .map(|k| trace.commanded[k] - trace.actual[k])
         .collect();
@@ -474,7 +478,8 @@ fn type_two_loop_lags_a_parabola_by_acceleration_over_ka() {
     });
     let axis = x_axis(Default::default());
     let expected = acceleration / (6.1e5 * velocity_gain(&axis, &x_drive()));
-    let trace = run(axis, &s, 10);
+    let r = run(axis, &s, 10);
+    let trace = &r.trace;
     let e = trace.commanded[trace.len() - 1] - trace.actual[trace.len() - 1];
     println!("parabola: steady error {e:.4e} m, theory {expected:.4e} m");
     assert!(relative(e, expected) < 1e-4, "{e:e} vs {expected:e}");
