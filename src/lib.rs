@@ -3,7 +3,8 @@
 //! The modules follow the data flow (see `README.md`):
 //! program text → [`program`] → [`kinematics`] → [`plan`] → [`sim`] (with [`control`] and the
 //! Rapier [`model`]) → [`report`]; [`scenario`] ties a run together. [`machine`] is the
-//! machine description every stage reads. A stage never imports a later one.
+//! machine description every stage reads, [`dynamics`] its rigid-body dynamics (used by the
+//! inverse-dynamics controller). A stage never imports a later one.
 
 pub mod control;
 pub mod diagnostics;

@@ -1,6 +1,6 @@
-//! Controllers and actuator models. A controller runs once per servo period on sampled
-//! feedback and returns one command per axis; an actuator turns a held command into motor
-//! torque at the physics rate.
+//! Controllers (per-axis PID, inverse dynamics) and actuator models. A controller runs once per
+//! servo period on sampled feedback and returns one command per axis; an actuator turns a held
+//! command into motor torque at the physics rate.
 
 mod actuator;
 mod computed_torque;
