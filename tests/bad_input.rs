@@ -243,11 +243,7 @@ fn bad_machine_files_name_the_element() {
     ];
     for (what, text, words) in cases {
         let urdf = write(dir.path(), "m.urdf", &text);
-        write(
-            dir.path(),
-            "m.drives.toml",
-            &drives.replace("machine = \"xyz_table\"", "machine = \"xyz_table\""),
-        );
+        write(dir.path(), "m.drives.toml", &drives);
         let err = cncsim::machine::Machine::load(&urdf)
             .expect_err(what)
             .to_string();

@@ -56,6 +56,8 @@ impl ComputedTorque {
 }
 
 impl Controller for ComputedTorque {
+    // Five parallel per-axis slices: one index reads clearer than zipped iterators.
+    #[allow(clippy::needless_range_loop)]
     fn update(&mut self, input: &ControllerInput<'_>, command: &mut [f64]) {
         let q = input.measured_position;
         // Backward difference of the sampled positions, which is the velocity half a period

@@ -445,9 +445,9 @@ impl Scenario {
             }
         };
         let program = if let Some(f) = &p.file {
-            if p.feed_mm_s.is_some() {
+            if let Some(feed) = &p.feed_mm_s {
                 return Err(err(
-                    p.feed_mm_s.as_ref().unwrap().span(),
+                    feed.span(),
                     "feed_mm_s applies to built-in paths; a program file programs its own feed"
                         .into(),
                 ));
