@@ -145,6 +145,20 @@ fn bad_scenarios_are_reported_with_file_and_line() {
     }
 }
 
+/// `cncsim run SCENARIO` must fail as bad input (exit 2, no panic); returns its stderr.
+fn run_expecting_bad_input(scenario: &Path, dir: &Path) -> String {
+    let out = cncsim(&[
+        "run",
+        scenario.to_str().unwrap(),
+        "--out",
+        dir.join("o").to_str().unwrap(),
+    ]);
+    let err = String::from_utf8_lossy(&out.stderr).into_owned();
+    assert_eq!(out.status.code(), Some(2), "{err}");
+    assert!(!err.contains("panicked"), "{err}");
+    err
+}
+
 fn cncsim(args: &[&str]) -> std::process::Output {
     Command::new(env!("CARGO_BIN_EXE_cncsim"))
         .args(args)
@@ -161,14 +175,7 @@ fn cli_exits_with_2_and_the_location_on_bad_input() {
         "bad.toml",
         &scenario_text(|s| s.replace("physics_step_ms = 0.25", "physics_step_ms = 2.0")),
     );
-    let out = cncsim(&[
-        "run",
-        p.to_str().unwrap(),
-        "--out",
-        dir.path().join("o").to_str().unwrap(),
-    ]);
-    assert_eq!(out.status.code(), Some(2));
-    let err = String::from_utf8_lossy(&out.stderr);
+    let err = run_expecting_bad_input(&p, dir.path());
     assert!(err.contains(&format!("{}:8:", p.display())), "{err}");
     assert!(!err.contains("panicked"), "{err}");
 }
@@ -183,14 +190,7 @@ fn scenario_naming_a_missing_axis_or_metric_is_rejected_before_running() {
             s.to_owned() + "[expect]\naxes.q.max_following_error_mm = { max = 1.0 }\n"
         }),
     );
-    let out = cncsim(&[
-        "run",
-        p.to_str().unwrap(),
-        "--out",
-        dir.path().join("o").to_str().unwrap(),
-    ]);
-    assert_eq!(out.status.code(), Some(2));
-    let err = String::from_utf8_lossy(&out.stderr);
+    let err = run_expecting_bad_input(&p, dir.path());
     assert!(
         err.contains("expect.axes.q.max_following_error_mm: no such metric"),
         "{err}"
@@ -202,14 +202,7 @@ fn scenario_naming_a_missing_axis_or_metric_is_rejected_before_running() {
         "s2.toml",
         &scenario_text(|s| s.replace("axes.z = {", "axes.w = {")),
     );
-    let out = cncsim(&[
-        "run",
-        p.to_str().unwrap(),
-        "--out",
-        dir.path().join("o").to_str().unwrap(),
-    ]);
-    assert_eq!(out.status.code(), Some(2));
-    let err = String::from_utf8_lossy(&out.stderr);
+    let err = run_expecting_bad_input(&p, dir.path());
     assert!(err.contains("has no axis 'w'"), "{err}");
 }
 
@@ -285,14 +278,7 @@ fn bad_program_files_are_reported_against_the_program() {
     };
     let damaged = samples.join("b_circle_r3mm_as_printed.plt");
     let p = write(dir.path(), "damaged.toml", &with_file(&damaged));
-    let out = cncsim(&[
-        "run",
-        p.to_str().unwrap(),
-        "--out",
-        dir.path().join("o").to_str().unwrap(),
-    ]);
-    assert_eq!(out.status.code(), Some(2));
-    let err = String::from_utf8_lossy(&out.stderr);
+    let err = run_expecting_bad_input(&p, dir.path());
     assert!(
         err.contains(&format!(
             "{}:1:287: expected x,y pairs after PA",
@@ -307,14 +293,7 @@ fn bad_program_files_are_reported_against_the_program() {
         "G21 G90\nG1 X1 F60\nG1 A10 F60\nM2\n",
     );
     let p = write(dir.path(), "rotary.toml", &with_file(&rotary));
-    let out = cncsim(&[
-        "run",
-        p.to_str().unwrap(),
-        "--out",
-        dir.path().join("o").to_str().unwrap(),
-    ]);
-    assert_eq!(out.status.code(), Some(2));
-    let err = String::from_utf8_lossy(&out.stderr);
+    let err = run_expecting_bad_input(&p, dir.path());
     assert!(
         err.contains(&format!("{}:3:", rotary.display()))
             && err.contains("drives axis A, which the machine 'xyz_table' does not have"),

@@ -26,7 +26,6 @@ pub struct PlanReport {
     pub move_durations: Vec<(u32, u32, f64)>,
     /// Tool tip on the workpiece at every sample (m).
     pub tool_path: Vec<[f64; 3]>,
-    pub machine_name: String,
 }
 
 pub fn plan_scenario(s: &Scenario, profile: Option<ProfileName>) -> Result<PlanReport, RunError> {
@@ -97,7 +96,6 @@ pub fn plan_scenario(s: &Scenario, profile: Option<ProfileName>) -> Result<PlanR
         axes,
         move_durations,
         tool_path,
-        machine_name: machine.name.clone(),
     })
 }
 
