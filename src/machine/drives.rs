@@ -81,6 +81,36 @@ pub struct DcMotor {
     pub inductance_h: f64,
 }
 
+/// Which position the servo loop is closed on. The two differ only with backlash.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Deserialize)]
+#[serde(rename_all = "kebab-case")]
+pub enum Feedback {
+    /// Motor encoder (semi-closed loop): the drive-side position. Backlash is then outside
+    /// the loop and shows as lost motion at reversals.
+    #[default]
+    Motor,
+    /// Linear scale on the carriage (fully closed loop).
+    Carriage,
+}
+
+/// The guide a linear carriage slides on. The carriage gets a free degree of freedom along
+/// the guide normal and rests on the guide under its own weight and everything it carries, so
+/// the contact (not the joint) carries the load and Coulomb friction μ·N emerges from it.
+#[derive(Debug, Clone, Copy, PartialEq, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct Guide {
+    /// Coulomb friction coefficient of the guide contact (static = kinetic).
+    pub friction_coefficient: f64,
+    /// Outward normal of the guide surface (the direction the carriage is lifted off), in the
+    /// joint frame; must be perpendicular to the joint axis.
+    #[serde(default = "up")]
+    pub normal: [f64; 3],
+}
+
+fn up() -> [f64; 3] {
+    [0.0, 0.0, 1.0]
+}
+
 /// One axis's drive, all on the motor side unless the name says otherwise.
 #[derive(Debug, Clone, PartialEq, Deserialize)]
 #[serde(deny_unknown_fields)]
@@ -100,9 +130,16 @@ pub struct Drive {
     pub supply_voltage_v: f64,
     /// Torque limit of the ideal torque actuator (N·m at the motor).
     pub peak_torque_nm: f64,
-    /// Lost motion of the transmission at the joint (m or rad).
+    /// Lost motion of the transmission at the joint (m or rad): the physics model puts a
+    /// dead band of this width between the drive side and the carriage.
     #[serde(default)]
     pub backlash: f64,
+    /// Guide contact with friction (linear axes); absent = a frictionless rigid joint.
+    #[serde(default)]
+    pub guide: Option<Guide>,
+    /// Where the position feedback is measured.
+    #[serde(default)]
+    pub feedback: Feedback,
     /// Motor encoder resolution, counts per motor revolution; absent = ideal feedback.
     #[serde(default)]
     pub encoder_counts_per_rev: Option<u32>,
@@ -171,6 +208,23 @@ impl Drive {
         ] {
             if !(v.is_finite() && v >= 0.0) {
                 return Err(format!("{name} = {v}: expected a finite value ≥ 0"));
+            }
+        }
+        if let Some(guide) = &self.guide {
+            let mu = guide.friction_coefficient;
+            if !(mu.is_finite() && mu >= 0.0) {
+                return Err(format!(
+                    "guide.friction_coefficient = {mu}: expected a finite value ≥ 0"
+                ));
+            }
+            let n = guide.normal;
+            if !(n.iter().all(|v| v.is_finite()) && n.iter().any(|v| *v != 0.0)) {
+                return Err(format!(
+                    "guide.normal = {n:?}: expected a finite, non-zero vector"
+                ));
+            }
+            if self.transmission.joint_kind() != JointKind::Prismatic {
+                return Err("a guide (friction contact) needs a linear axis".into());
             }
         }
         if self.encoder_counts_per_rev == Some(0) {
@@ -297,6 +351,15 @@ impl DrivesFile {
                     "a {:?} transmission cannot drive the {kind:?} joint '{}'",
                     drive.transmission, drive.joint
                 )));
+            }
+            if let Some(guide) = &drive.guide {
+                let normal = nalgebra::Vector3::from(guide.normal).normalize();
+                if normal.dot(&tree.joints[joint].axis).abs() > 1e-9 {
+                    return Err(fail(format!(
+                        "guide.normal = {:?} is not perpendicular to the axis of joint '{}'",
+                        guide.normal, drive.joint
+                    )));
+                }
             }
             if axes.iter().any(|a: &Axis| a.joint == joint) {
                 return Err(fail(format!("joint '{}' is driven twice", drive.joint)));

@@ -9,8 +9,8 @@
 
 mod convert;
 
-use crate::machine::{JointKind, Machine};
-use convert::{from_pose, to_pose, to_vec};
+use crate::machine::{Feedback, Guide, JointKind, Machine};
+use convert::{from_pose, from_vec, to_pose, to_vec};
 use nalgebra::{Isometry3, Point3, Translation3, UnitQuaternion, Vector3};
 use rapier3d_f64::prelude::*;
 
@@ -52,20 +52,42 @@ pub enum ModelError {
     Joint(String),
 }
 
-struct AxisBinding {
-    child: RigidBodyHandle,
-    parent: RigidBodyHandle,
-    /// Joint axis in the child link frame.
+/// One degree of freedom of the multibody that moves the tool.
+struct ChainDof {
+    /// Body whose joint owns the DOF.
+    body: RigidBodyHandle,
+    /// Direction of the DOF in that body's frame.
     local_axis: Vector3<f64>,
     kind: JointKind,
-    /// Index of the joint's DOF in the multibody's generalised coordinates.
     dof: usize,
-    /// The multibody link of the child, for reading its joint coordinate.
-    link_id: usize,
-    /// Index into the joint coordinate array (0 = translation along the joint axis, 3 = rotation).
+}
+
+/// Where a machine axis lives in the multibody.
+struct AxisBinding {
+    /// The body the drive pushes: the drive side of the transmission when the axis has
+    /// backlash, the carriage itself otherwise.
+    driven: RigidBodyHandle,
+    /// Where the motor is mounted (the reaction goes there).
+    parent: RigidBodyHandle,
+    /// Joint axis in the driven body's frame.
+    local_axis: Vector3<f64>,
+    kind: JointKind,
+    /// Multibody link and DOF of the drive joint.
+    drive_link: usize,
+    drive_dof: usize,
+    /// Multibody link and DOF of the dead band between drive and carriage, if any.
+    slack: Option<(usize, usize)>,
+    /// Index into a joint's coordinate array (0 = translation along the joint x, 3 = rotation).
     coordinate: usize,
-    /// Whether this joint lies between the root and the tool (moves the tool point).
-    carries_tool: bool,
+    feedback: Feedback,
+}
+
+/// The colliders of one guide contact (carriage runner on the parent's guide).
+struct GuidePair {
+    guide: ColliderHandle,
+    runner: ColliderHandle,
+    /// Guide normal in the world frame (constant: guides sit on linear chains).
+    normal: Vector3<f64>,
 }
 
 /// The simulated machine.
@@ -73,11 +95,17 @@ pub struct Plant {
     world: PhysicsWorld,
     link_bodies: Vec<RigidBodyHandle>,
     axes: Vec<AxisBinding>,
+    tool_dofs: Vec<ChainDof>,
+    guides: Vec<Option<GuidePair>>,
     multibody: Option<MultibodyJointHandle>,
     tool_link: usize,
     tool_offset: Point3<f64>,
     steps: u64,
 }
+
+/// Half-size of a guide runner: a 40 mm × 40 mm pad, 5 mm thick. Its size does not enter the
+/// friction force (μ·N), only where the contact points sit.
+const RUNNER_HALF: [f64; 3] = [0.02, 0.02, 0.0025];
 
 impl Plant {
     pub fn new(machine: &Machine, options: &PlantOptions) -> Result<Plant, ModelError> {
@@ -107,9 +135,12 @@ impl Plant {
             return Err(ModelError::SolverIterations);
         }
         let mut world = PhysicsWorld::new();
-        world.integration_parameters.num_solver_iterations = options.solver_iterations;
+        let parameters = &mut world.integration_parameters;
+        parameters.num_solver_iterations = options.solver_iterations;
+        parameters.dt = options.step;
+        // One Coulomb cone per contact point (the default groups four points per constraint).
+        parameters.friction_model = FrictionModel::Coulomb;
         world.gravity = to_vec(&Vector3::from(options.gravity));
-        world.integration_parameters.dt = options.step;
 
         // Bodies at their home poses (all joints at zero); the multibody places them.
         let home = home_poses(machine);
@@ -135,71 +166,182 @@ impl Plant {
         }
 
         let mut multibody = None;
-        let mut joint_handles = Vec::with_capacity(machine.joints.len());
-        for joint in &machine.joints {
-            // Joint frames whose local x is the joint axis, so the free coordinate is x / angle-x.
-            let align = x_to_axis(&joint.axis);
+        // Per URDF joint: the multibody handles of the joint that moves its child link
+        // (the dead band when there is one) and of the drive joint.
+        let mut child_joint = Vec::with_capacity(machine.joints.len());
+        let mut drive_joint = Vec::with_capacity(machine.joints.len());
+        let mut drive_body = Vec::with_capacity(machine.joints.len());
+        let mut guides: Vec<Option<GuidePair>> = (0..machine.axes.len()).map(|_| None).collect();
+        for (j, joint) in machine.joints.iter().enumerate() {
+            let axis = machine.axes.iter().position(|a| a.joint == j);
+            let drive = axis.map(|a| &machine.axes[a].drive);
+            let backlash = drive.map_or(0.0, |d| d.backlash);
+            let guide = drive.and_then(|d| d.guide);
+            let parent = link_bodies[joint.parent];
+            let child = link_bodies[joint.child];
+            // Joint frames: x along the joint axis and, for a guided carriage, z along the
+            // guide normal, so the free coordinates are x (travel) and z (lift-off).
+            let frame = joint_frame(&joint.axis, guide.map(|g| Vector3::from(g.normal)));
+            let free_normal = if guide.is_some() {
+                JointAxesMask::LIN_Z
+            } else {
+                JointAxesMask::empty()
+            };
             let locked = match joint.kind {
                 JointKind::Fixed => JointAxesMask::LOCKED_FIXED_AXES,
                 JointKind::Prismatic => JointAxesMask::LOCKED_PRISMATIC_AXES,
                 JointKind::Revolute => JointAxesMask::LOCKED_REVOLUTE_AXES,
             };
-            let data = GenericJointBuilder::new(locked)
-                .local_frame1(to_pose(&(joint.origin * align)))
-                .local_frame2(to_pose(&align))
-                .build();
-            let handle = world
-                .insert_multibody_joint(link_bodies[joint.parent], link_bodies[joint.child], data)
-                .ok_or_else(|| ModelError::Joint(joint.name.clone()))?;
-            multibody.get_or_insert(handle);
-            joint_handles.push(handle);
+            let mut insert = |world: &mut PhysicsWorld, a, b, data| {
+                let handle = world
+                    .insert_multibody_joint(a, b, data)
+                    .ok_or_else(|| ModelError::Joint(joint.name.clone()))?;
+                multibody.get_or_insert(handle);
+                Ok::<_, ModelError>(handle)
+            };
+            if backlash > 0.0 {
+                // The drive side (motor, gearbox, pulley or screw nut) as its own body: no mass
+                // of its own, its inertia is the drive's armature on its DOF. The carriage
+                // follows it through a short-travel joint with rigid limits ±b/2.
+                let d = world.insert_body(
+                    RigidBodyBuilder::dynamic()
+                        .can_sleep(false)
+                        .pose(to_pose(&home[joint.child])),
+                );
+                let drive_data = GenericJointBuilder::new(locked)
+                    .local_frame1(to_pose(&(joint.origin * frame)))
+                    .local_frame2(to_pose(&frame))
+                    .contacts_enabled(false)
+                    .build();
+                let (slack_axis, slack_locked) = match joint.kind {
+                    JointKind::Revolute => (JointAxis::AngX, JointAxesMask::LOCKED_REVOLUTE_AXES),
+                    _ => (JointAxis::LinX, JointAxesMask::LOCKED_PRISMATIC_AXES),
+                };
+                let slack_data = GenericJointBuilder::new(slack_locked & !free_normal)
+                    .local_frame1(to_pose(&frame))
+                    .local_frame2(to_pose(&frame))
+                    .limits(slack_axis, [-backlash / 2.0, backlash / 2.0])
+                    .contacts_enabled(false)
+                    .build();
+                drive_joint.push(Some(insert(&mut world, parent, d, drive_data)?));
+                child_joint.push(insert(&mut world, d, child, slack_data)?);
+                drive_body.push(d);
+            } else {
+                let data = GenericJointBuilder::new(locked & !free_normal)
+                    .local_frame1(to_pose(&(joint.origin * frame)))
+                    .local_frame2(to_pose(&frame))
+                    .contacts_enabled(guide.is_some())
+                    .build();
+                let handle = insert(&mut world, parent, child, data)?;
+                drive_joint.push(axis.map(|_| handle));
+                child_joint.push(handle);
+                drive_body.push(child);
+            }
+            if let (Some(a), Some(g)) = (axis, guide) {
+                guides[a] = Some(insert_guide(
+                    &mut world,
+                    (parent, child),
+                    joint,
+                    &frame,
+                    g,
+                    &home[joint.parent],
+                ));
+            }
         }
 
-        // The joints on the path from the root to the tool link.
-        let mut joints_to_tool = Vec::new();
-        let mut link = machine.tool_link;
-        while let Some(j) = machine.parent_joint(link) {
-            joints_to_tool.push(j);
-            link = machine.joints[j].parent;
-        }
+        let link_of = |world: &PhysicsWorld, handle| {
+            world
+                .multibody_joints
+                .get(handle)
+                .expect("joint just inserted")
+                .1
+        };
+        let coordinate = |kind| if kind == JointKind::Revolute { 3 } else { 0 };
         let mut axes = Vec::with_capacity(machine.axes.len());
         for axis in &machine.axes {
-            let joint = &machine.joints[axis.joint];
-            let (_, link_id) = world
-                .multibody_joints
-                .get(joint_handles[axis.joint])
-                .expect("joint just inserted");
+            let j = axis.joint;
+            let joint = &machine.joints[j];
+            let drive = drive_joint[j].expect("every axis has a drive joint");
+            let slack = (drive != child_joint[j]).then(|| link_of(&world, child_joint[j]));
             axes.push(AxisBinding {
-                child: link_bodies[joint.child],
+                driven: drive_body[j],
                 parent: link_bodies[joint.parent],
                 local_axis: joint.axis,
                 kind: joint.kind,
-                dof: usize::MAX, // known once the fixed root is resolved (configure_dofs)
-                link_id,
-                coordinate: if joint.kind == JointKind::Revolute {
-                    3
-                } else {
-                    0
-                },
-                carries_tool: joints_to_tool.contains(&axis.joint),
+                drive_link: link_of(&world, drive),
+                drive_dof: usize::MAX, // known once the fixed root is resolved (configure_dofs)
+                slack: slack.map(|link| (link, usize::MAX)),
+                coordinate: coordinate(joint.kind),
+                feedback: axis.drive.feedback,
             });
+        }
+
+        // Every DOF between the root and the tool link, for the tool velocity.
+        let mut tool_dofs = Vec::new();
+        let mut link = machine.tool_link;
+        while let Some(j) = machine.parent_joint(link) {
+            let joint = &machine.joints[j];
+            if joint.kind != JointKind::Fixed {
+                let child = link_bodies[joint.child];
+                let dof = |l| (l, 0);
+                let mut push = |body, local_axis, kind, at: (usize, usize)| {
+                    tool_dofs.push((
+                        ChainDof {
+                            body,
+                            local_axis,
+                            kind,
+                            dof: usize::MAX,
+                        },
+                        at,
+                    ))
+                };
+                let drive = drive_joint[j].expect("moving joints have drives");
+                let guide = machine
+                    .axes
+                    .iter()
+                    .find(|a| a.joint == j)
+                    .and_then(|a| a.drive.guide);
+                push(drive_body[j], joint.axis, joint.kind, dof(link_of(&world, drive)));
+                if drive != child_joint[j] {
+                    push(child, joint.axis, joint.kind, dof(link_of(&world, child_joint[j])));
+                }
+                if let Some(g) = guide {
+                    // The lift-off DOF follows the travel DOF in the carriage's joint.
+                    let normal = Vector3::from(g.normal).normalize();
+                    push(
+                        child,
+                        normal,
+                        JointKind::Prismatic,
+                        (link_of(&world, child_joint[j]), 1),
+                    );
+                }
+            }
+            link = joint.parent;
         }
 
         let mut plant = Plant {
             world,
             link_bodies,
             axes,
+            tool_dofs: Vec::new(),
+            guides,
             multibody,
             tool_link: machine.tool_link,
             tool_offset: Point3::from(machine.tool.offset_m),
             steps: 0,
         };
-        plant.configure_dofs(machine, options);
+        plant.configure_dofs(machine, options, tool_dofs);
         Ok(plant)
     }
 
-    /// Armature, damping and initial coordinates of the driven DOFs.
-    fn configure_dofs(&mut self, machine: &Machine, options: &PlantOptions) {
+    /// Armature, damping and initial coordinates of the driven DOFs, and the final DOF indices.
+    /// `tool_dofs` carry (multibody link, DOF offset within the link's joint).
+    fn configure_dofs(
+        &mut self,
+        machine: &Machine,
+        options: &PlantOptions,
+        tool_dofs: Vec<(ChainDof, (usize, usize))>,
+    ) {
         let Some(handle) = self.multibody else { return };
         let PhysicsWorld {
             multibody_joints,
@@ -216,7 +358,10 @@ impl Plant {
             .iter_mut()
             .zip(machine.axes.iter().zip(&options.initial_positions))
         {
-            binding.dof = mb.link(binding.link_id).expect("axis link").assembly_id();
+            binding.drive_dof = mb.link(binding.drive_link).expect("axis link").assembly_id();
+            if let Some((link, dof)) = &mut binding.slack {
+                *dof = mb.link(*link).expect("slack link").assembly_id();
+            }
             let joint = &machine.joints[axis.joint];
             let (armature, drive_damping) = if options.include_drive_dynamics {
                 (
@@ -226,10 +371,17 @@ impl Plant {
             } else {
                 (0.0, 0.0)
             };
-            mb.armature_mut()[binding.dof] = armature;
-            mb.damping_mut()[binding.dof] = drive_damping + joint.damping;
-            displacement[binding.dof] = q0;
+            mb.armature_mut()[binding.drive_dof] = armature;
+            mb.damping_mut()[binding.drive_dof] = drive_damping + joint.damping;
+            displacement[binding.drive_dof] = q0;
         }
+        self.tool_dofs = tool_dofs
+            .into_iter()
+            .map(|(mut d, (link, offset))| {
+                d.dof = mb.link(link).expect("tool chain link").assembly_id() + offset;
+                d
+            })
+            .collect();
         mb.apply_displacements(&displacement);
         mb.forward_kinematics(bodies, false);
         mb.update_rigid_bodies(bodies, true);
@@ -250,30 +402,29 @@ impl Plant {
     }
 
     /// Sets the generalised force each drive applies at its joint (N or N·m), held until the
-    /// next call.
+    /// next call. It acts on the drive side of the transmission, the reaction on the link the
+    /// motor is mounted on.
     pub fn set_joint_forces(&mut self, forces: &[f64]) {
-        for body in &self.link_bodies {
-            if let Some(rb) = self.world.bodies.get_mut(*body) {
-                rb.reset_forces(false);
-                rb.reset_torques(false);
-            }
+        for (_, rb) in self.world.bodies.iter_mut() {
+            rb.reset_forces(false);
+            rb.reset_torques(false);
         }
         for (binding, &f) in self.axes.iter().zip(forces) {
             let direction = {
-                let child = &self.world.bodies[binding.child];
-                from_pose(child.position()).rotation * binding.local_axis
+                let driven = &self.world.bodies[binding.driven];
+                from_pose(driven.position()).rotation * binding.local_axis
             };
             let load = to_vec(&(direction * f));
             let parent_moves = self.world.bodies[binding.parent].is_dynamic();
             match binding.kind {
                 JointKind::Prismatic => {
-                    self.world.bodies[binding.child].add_force(load, false);
+                    self.world.bodies[binding.driven].add_force(load, false);
                     if parent_moves {
                         self.world.bodies[binding.parent].add_force(-load, false);
                     }
                 }
                 JointKind::Revolute => {
-                    self.world.bodies[binding.child].add_torque(load, false);
+                    self.world.bodies[binding.driven].add_torque(load, false);
                     if parent_moves {
                         self.world.bodies[binding.parent].add_torque(-load, false);
                     }
@@ -295,23 +446,78 @@ impl Plant {
         self.world.multibody_joints.get(handle).map(|(mb, _)| mb)
     }
 
-    /// Joint coordinate of each axis (m or rad).
+    fn coordinate(mb: &Multibody, link: usize, index: usize) -> f64 {
+        mb.link(link)
+            .map_or(f64::NAN, |l| l.joint().coords()[index])
+    }
+
+    /// Carriage (load-side) coordinate of each axis (m or rad): the drive's coordinate plus
+    /// where the carriage sits in the dead band.
     pub fn positions(&self, out: &mut [f64]) {
         let Some(mb) = self.multibody() else { return };
         for (o, b) in out.iter_mut().zip(&self.axes) {
-            *o = mb
-                .link(b.link_id)
-                .map_or(f64::NAN, |l| l.joint().coords()[b.coordinate]);
+            *o = Self::coordinate(mb, b.drive_link, b.coordinate)
+                + b.slack
+                    .map_or(0.0, |(link, _)| Self::coordinate(mb, link, b.coordinate));
         }
     }
 
-    /// Joint velocity of each axis (m/s or rad/s).
+    /// Drive-side coordinate of each axis (m or rad): motor angle over the transmission ratio.
+    pub fn drive_positions(&self, out: &mut [f64]) {
+        let Some(mb) = self.multibody() else { return };
+        for (o, b) in out.iter_mut().zip(&self.axes) {
+            *o = Self::coordinate(mb, b.drive_link, b.coordinate);
+        }
+    }
+
+    /// The position each axis's feedback device measures: the drive side for a motor encoder,
+    /// the carriage for a linear scale.
+    pub fn feedback_positions(&self, out: &mut [f64]) {
+        let Some(mb) = self.multibody() else { return };
+        for (o, b) in out.iter_mut().zip(&self.axes) {
+            let drive = Self::coordinate(mb, b.drive_link, b.coordinate);
+            *o = match (b.feedback, b.slack) {
+                (Feedback::Carriage, Some((link, _))) => {
+                    drive + Self::coordinate(mb, link, b.coordinate)
+                }
+                _ => drive,
+            };
+        }
+    }
+
+    /// Carriage velocity of each axis (m/s or rad/s).
     pub fn velocities(&self, out: &mut [f64]) {
         let Some(mb) = self.multibody() else { return };
         let v = mb.generalized_velocity();
         for (o, b) in out.iter_mut().zip(&self.axes) {
-            *o = v[b.dof];
+            *o = v[b.drive_dof] + b.slack.map_or(0.0, |(_, dof)| v[dof]);
         }
+    }
+
+    /// Drive-side velocity of each axis (m/s or rad/s): the motor speed over the ratio.
+    pub fn drive_velocities(&self, out: &mut [f64]) {
+        let Some(mb) = self.multibody() else { return };
+        let v = mb.generalized_velocity();
+        for (o, b) in out.iter_mut().zip(&self.axes) {
+            *o = v[b.drive_dof];
+        }
+    }
+
+    /// Normal force each axis's guide contact carries (N), from the contact impulses of the
+    /// last step; `None` for an axis without a guide.
+    pub fn guide_normal_forces(&self) -> Vec<Option<f64>> {
+        let dt = self.step_size();
+        self.guides
+            .iter()
+            .map(|g| {
+                let g = g.as_ref()?;
+                let pair = self.world.narrow_phase.contact_pair(g.guide, g.runner);
+                let impulse = pair.map_or(Vector3::zeros(), |p| from_vec(&p.total_impulse()));
+                // The impulse is the one the pair applies to its first collider; either way
+                // its component along the guide normal is the load, up to sign.
+                Some((impulse.dot(&g.normal)).abs() / dt)
+            })
+            .collect()
     }
 
     /// World pose of every link, in the machine's link order.
@@ -338,19 +544,71 @@ impl Plant {
         let v = mb.generalized_velocity();
         let tool = self.tool_point();
         let mut velocity = Vector3::zeros();
-        for b in self.axes.iter().filter(|b| b.carries_tool) {
-            let frame = from_pose(self.world.bodies[b.child].position());
-            let axis = frame.rotation * b.local_axis;
-            velocity += match b.kind {
-                JointKind::Prismatic => axis * v[b.dof],
+        for d in &self.tool_dofs {
+            let frame = from_pose(self.world.bodies[d.body].position());
+            let axis = frame.rotation * d.local_axis;
+            velocity += match d.kind {
+                JointKind::Prismatic => axis * v[d.dof],
                 JointKind::Revolute => {
-                    axis.cross(&(tool - Point3::from(frame.translation.vector))) * v[b.dof]
+                    axis.cross(&(tool - Point3::from(frame.translation.vector))) * v[d.dof]
                 }
                 JointKind::Fixed => Vector3::zeros(),
             };
         }
         velocity
     }
+}
+
+/// Inserts the guide (on the parent link) and the runner (under the carriage) of a guided
+/// joint. At the home pose the runner's bottom face lies on the guide's top face at the joint
+/// origin; the guide runs the whole travel so the contact never ends.
+fn insert_guide(
+    world: &mut PhysicsWorld,
+    (parent, child): (RigidBodyHandle, RigidBodyHandle),
+    joint: &crate::machine::Joint,
+    frame: &Isometry3<f64>,
+    guide: Guide,
+    parent_home: &Isometry3<f64>,
+) -> GuidePair {
+    let [lo, hi] = joint.limits.unwrap_or([-0.5, 0.5]);
+    let [ha, hb, ht] = RUNNER_HALF;
+    // In the joint frame `frame`: x along the travel, z along the guide normal.
+    let runner_shape = ColliderBuilder::cuboid(ha, hb, ht);
+    let guide_half_length = (hi - lo) / 2.0 + ha;
+    let guide_shape = ColliderBuilder::cuboid(guide_half_length, hb, ht);
+    let mu = guide.friction_coefficient;
+    let finish = |b: ColliderBuilder, pose: Isometry3<f64>| {
+        b.position(to_pose(&pose))
+            .density(0.0)
+            .friction(mu)
+            .friction_combine_rule(CoefficientCombineRule::Min)
+            .restitution(0.0)
+            .build()
+    };
+    let runner_pose = frame * Translation3::new(0.0, 0.0, ht);
+    let guide_pose = joint.origin * frame * Translation3::new((lo + hi) / 2.0, 0.0, -ht);
+    let runner = world.insert_collider(finish(runner_shape, runner_pose), Some(child));
+    let guide_collider = world.insert_collider(finish(guide_shape, guide_pose), Some(parent));
+    let normal = (parent_home * joint.origin * frame).rotation * Vector3::z();
+    GuidePair {
+        guide: guide_collider,
+        runner,
+        normal,
+    }
+}
+
+/// A joint frame whose x is `axis` and, if given, whose z is `normal` (perpendicular to it).
+fn joint_frame(axis: &Vector3<f64>, normal: Option<Vector3<f64>>) -> Isometry3<f64> {
+    let Some(normal) = normal else {
+        return x_to_axis(axis);
+    };
+    let x = axis.normalize();
+    let z = normal.normalize();
+    let y = z.cross(&x);
+    let rotation = UnitQuaternion::from_rotation_matrix(
+        &nalgebra::Rotation3::from_matrix_unchecked(nalgebra::Matrix3::from_columns(&[x, y, z])),
+    );
+    Isometry3::from_parts(Translation3::identity(), rotation)
 }
 
 /// A rotation taking the x axis onto `axis` (unit).

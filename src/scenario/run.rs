@@ -13,7 +13,7 @@ use crate::model::{ModelError, Plant, PlantOptions};
 use crate::plan::{plan_program, AxisKind, AxisLimits, PlanError, PlanSettings, Planner};
 use crate::program::{circle, polyline, read_program, PathGeometry, Program, ProgramErrors};
 use crate::report::{self, AxisLabel, Derived, Metrics, RecordingContent, ReportError};
-use crate::sim::analytic::{run_reference, AxisModel, AxisModelOptions, ReferenceSettings};
+use crate::sim::analytic::{run_reference, AxisModel, ReferenceSettings};
 use crate::sim::{CoSimulation, LoopSettings, Stop, Trace};
 use std::path::{Path, PathBuf};
 
@@ -278,11 +278,8 @@ fn run_analytic(
     steps: usize,
 ) -> Result<Trace, RunError> {
     let fail = |m: String| RunError::File(FileError::new(&s.path, None, m));
-    let options = AxisModelOptions {
-        ideal_actuator: s.actuator == Some(ActuatorKind::IdealTorque),
-        ..AxisModelOptions::default()
-    };
-    let mut models = AxisModel::for_machine(machine, GRAVITY, options)
+    let ideal_actuator = s.actuator == Some(ActuatorKind::IdealTorque);
+    let mut models = AxisModel::for_machine(machine, GRAVITY, ideal_actuator)
         .map_err(|e| fail(format!("[analytic]: {e}")))?;
     let mut controller = pid_bank(s, machine);
     let settings = ReferenceSettings {

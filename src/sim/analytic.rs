@@ -48,22 +48,11 @@
 //! start of each tick, the same encoder rounding, the controller once per tick, its output held.
 
 use crate::control::{Controller, ControllerInput};
-use crate::machine::{Drive, JointKind, Machine};
+use crate::machine::{Drive, Feedback, JointKind, Machine};
 use crate::plan::Setpoints;
 use nalgebra::{UnitQuaternion, Vector3};
 
-/// Which position the controller is fed back: they differ only with backlash.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
-pub enum Feedback {
-    /// Motor encoder (semi-closed loop): the drive-side position, as `Drive::encoder_counts_per_rev`
-    /// describes. Backlash is then outside the loop and shows as lost motion at reversals.
-    #[default]
-    Motor,
-    /// Linear scale on the carriage (fully closed loop).
-    Carriage,
-}
-
-/// Effects that the rigid Rapier model leaves out; all off by default.
+/// Per-axis effects and actuator choice; all off by default.
 #[derive(Debug, Clone, Copy, PartialEq, Default)]
 pub struct AxisModelOptions {
     /// Coulomb (and breakaway) friction force on the carriage guides, ≥ 0 (N or N·m).
@@ -84,6 +73,8 @@ pub enum AxisModelError {
     NotPositive { name: &'static str, value: f64 },
     #[error("backlash needs a carriage with mass (moved mass is 0)")]
     MasslessCarriage,
+    #[error("axis '{axis}': gravity pulls the carriage off its guide (check guide.normal)")]
+    LiftsOff { axis: String },
     #[error("axis '{axis}': the reference model takes prismatic axes on prismatic chains only (load and gravity would depend on the pose)")]
     PoseDependent { axis: String },
 }
@@ -307,14 +298,15 @@ impl AxisModel {
         Ok(model)
     }
 
-    /// One model per machine axis, in the machine's axis order, with the same options for
-    /// all. The moved mass is every link downstream of the joint; gravity (base frame, m/s²)
-    /// is projected on the joint axis. Only prismatic axes below prismatic or fixed joints
-    /// (Cartesian machines), where both are constants.
+    /// One model per machine axis, in the machine's axis order, with the machine's own
+    /// backlash, guide friction and feedback per axis. The moved mass is every link downstream
+    /// of the joint; gravity (base frame, m/s²) is projected on the joint axis, and on the guide
+    /// normal for the friction load N (μ·N is the Coulomb force). Only prismatic axes below
+    /// prismatic or fixed joints (Cartesian machines), where all of these are constants.
     pub fn for_machine(
         machine: &Machine,
         gravity: [f64; 3],
-        options: AxisModelOptions,
+        ideal_actuator: bool,
     ) -> Result<Vec<AxisModel>, AxisModelError> {
         machine
             .axes
@@ -348,10 +340,29 @@ impl AxisModel {
                         moved[j.child] = true;
                     }
                 }
-                let mass = (machine.links.iter().zip(&moved))
+                let mass: f64 = (machine.links.iter().zip(&moved))
                     .filter(|(_, &m)| m)
                     .map(|(l, _)| l.mass)
                     .sum();
+                let coulomb_friction = match &axis.drive.guide {
+                    None => 0.0,
+                    Some(guide) => {
+                        let normal = Vector3::from(guide.normal).normalize();
+                        let load = -mass * gravity_component(&rotation, &normal, gravity);
+                        if load < 0.0 {
+                            return Err(AxisModelError::LiftsOff {
+                                axis: axis.name.clone(),
+                            });
+                        }
+                        guide.friction_coefficient * load
+                    }
+                };
+                let options = AxisModelOptions {
+                    coulomb_friction,
+                    backlash: axis.drive.backlash,
+                    ideal_actuator,
+                    feedback: axis.drive.feedback,
+                };
                 AxisModel::from_drive(&axis.drive, mass, along, joint.damping, options)
             })
             .collect()

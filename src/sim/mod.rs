@@ -181,6 +181,7 @@ impl CoSimulation<'_> {
         let s = &self.settings;
         self.plant.positions(&mut b.q);
         self.plant.velocities(&mut b.qd);
+        self.plant.feedback_positions(&mut b.measured);
         b.tool = self.plant.tool_point().into();
         b.tool_velocity = self.plant.tool_velocity().into();
         for i in 0..b.q.len() {
@@ -201,10 +202,9 @@ impl CoSimulation<'_> {
                     limit: s.following_error_limit[i],
                 });
             }
-            b.measured[i] = match s.encoder_resolution[i] {
-                Some(res) => (b.q[i] / res).round() * res,
-                None => b.q[i],
-            };
+            if let Some(res) = s.encoder_resolution[i] {
+                b.measured[i] = (b.measured[i] / res).round() * res;
+            }
         }
         let input = ControllerInput {
             setpoint_position: tick.position,
@@ -215,7 +215,8 @@ impl CoSimulation<'_> {
         self.controller.update(&input, &mut b.command);
         b.torque.iter_mut().for_each(|v| *v = 0.0);
         for _ in 0..s.substeps {
-            self.plant.velocities(&mut b.qd_live);
+            // The motor turns with the drive side of the transmission (back-EMF).
+            self.plant.drive_velocities(&mut b.qd_live);
             for i in 0..b.q.len() {
                 let out = self.actuators[i].step(b.command[i], s.ratios[i] * b.qd_live[i], dt);
                 b.force[i] = out.torque * s.ratios[i];

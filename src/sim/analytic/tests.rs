@@ -35,7 +35,7 @@ fn damped_mass_under_force(f: f64, m: f64, c: f64, t: f64) -> (f64, f64) {
 
 #[test]
 fn model_takes_its_masses_from_the_machine() {
-    let models = AxisModel::for_machine(&machine(), [0.0, 0.0, -9.81], Default::default()).unwrap();
+    let models = AxisModel::for_machine(&machine(), [0.0, 0.0, -9.81], false).unwrap();
     // X moves 8 + 11.5 + 0.5 kg, Y 11.5 + 0.5 kg, Z 0.5 kg (URDF); J·k² on top.
     let expected_moved = [20.0, 12.0, 0.5];
     for (model, moved) in models.iter().zip(expected_moved) {
@@ -492,7 +492,7 @@ fn type_two_loop_lags_a_parabola_by_acceleration_over_ka() {
 
 #[test]
 fn z_axis_holds_its_weight() {
-    let models = AxisModel::for_machine(&machine(), [0.0, 0.0, -9.81], Default::default()).unwrap();
+    let models = AxisModel::for_machine(&machine(), [0.0, 0.0, -9.81], false).unwrap();
     let mut z = [models[2].clone()];
     let gains = PidGains {
         kp: 9700.0,
