@@ -30,9 +30,9 @@ fn table(mu: f64, backlash: [f64; 2]) -> Machine {
 /// Mass carried by the guide of axis `axis` (its carriage and everything on it), from the URDF.
 fn carried_mass(machine: &Machine, axis: usize) -> f64 {
     let names: &[&str] = if axis == 0 {
-        &["x_carriage", "y_carriage", "z_slide"]
+        &["x_carriage", "y_carriage", "z_column", "z_slide"]
     } else {
-        &["y_carriage", "z_slide"]
+        &["y_carriage", "z_column", "z_slide"]
     };
     names
         .iter()
@@ -86,6 +86,13 @@ fn guides_carry_the_weight_above_them() {
         );
     }
     assert_eq!(normal[2], None, "Z has no guide");
+    // The carriages sit on their guides: the tool is where the joint coordinates put it, up
+    // to the contact's static sag.
+    let mut q = [0.0; 3];
+    plant.positions(&mut q);
+    let sag = (plant.tool_point() - cncsim::kinematics::tool_point(&machine, &q)).norm();
+    eprintln!("sag {sag:e} m");
+    assert!(sag < 2e-6, "tool sags {:.3} µm into the guides", sag * 1e6);
 }
 
 /// A velocity loop (PI on the drive force) holds the carriage at constant speed; the mean

@@ -101,6 +101,8 @@ mod tests {
             supply_voltage_v: 24.0,
             peak_torque_nm: 1.2,
             backlash: 0.0,
+            guide: None,
+            feedback: Default::default(),
             encoder_counts_per_rev: None,
         }
     }

@@ -3,6 +3,7 @@
 
 use crate::control::{ActuatorKind, PidForm, PidGains};
 use crate::diagnostics::{read_text, toml_error, FileError, LineColumn};
+use crate::machine::Feedback;
 use crate::plan::BlendChoice;
 use crate::program::{CircleSpec, FeedRule, PolylineSpec, ReadOptions};
 use serde::Deserialize;
@@ -28,6 +29,8 @@ struct RawScenario {
     controller: Option<RawController>,
     #[serde(default)]
     feedback: RawFeedback,
+    #[serde(default)]
+    mechanics: RawMechanics,
     #[serde(default)]
     recording: RawRecording,
     /// Run the analytic reference model beside the physics.
@@ -254,9 +257,31 @@ struct RawGains {
     output_limit: Option<f64>,
 }
 
+/// Which of the machine's nonlinear mechanics the run keeps (both on by default): turning one
+/// off removes it from the physics and the analytic model alike.
+#[derive(Deserialize)]
+#[serde(deny_unknown_fields)]
+struct RawMechanics {
+    #[serde(default = "yes")]
+    friction: bool,
+    #[serde(default = "yes")]
+    backlash: bool,
+}
+
+impl Default for RawMechanics {
+    fn default() -> Self {
+        RawMechanics {
+            friction: true,
+            backlash: true,
+        }
+    }
+}
+
 #[derive(Deserialize, Default)]
 #[serde(deny_unknown_fields)]
 struct RawFeedback {
+    /// Where every axis's loop is closed, instead of the drive file's choice.
+    position: Option<Feedback>,
     #[serde(default)]
     encoder_counts_per_rev: BTreeMap<String, Spanned<i64>>,
     following_error_limit_mm: Option<Num>,
@@ -356,6 +381,11 @@ pub struct Scenario {
     /// `Some` when the controller is the computed-torque one (then `gains` is empty).
     pub inverse_dynamics: Option<InverseDynamicsSettings>,
     pub encoder_counts_per_rev: BTreeMap<String, (u32, Option<LineColumn>)>,
+    /// Feedback position for every axis, overriding the drive file; `None` = the drive's.
+    pub feedback_position: Option<Feedback>,
+    /// Keep the guides' contact friction / the transmissions' backlash of the machine.
+    pub friction: bool,
+    pub backlash: bool,
     /// Following-error fault limits: m for linear axes, rad for rotary axes.
     pub following_error_limit_linear: f64,
     pub following_error_limit_rotary: f64,
@@ -778,6 +808,9 @@ impl Scenario {
                 .and_then(|a| at(a.span().start)),
             inverse_dynamics,
             encoder_counts_per_rev,
+            feedback_position: raw.feedback.position,
+            friction: raw.mechanics.friction,
+            backlash: raw.mechanics.backlash,
             following_error_limit_linear,
             following_error_limit_rotary,
             record_rrd: raw.recording.rrd,

@@ -58,6 +58,23 @@ pub struct Prepared {
     pub cosim: CoSimulation<'static>,
 }
 
+/// The scenario's machine with its `[mechanics]` and `[feedback]` choices applied.
+pub fn machine_for(s: &Scenario) -> Result<Machine, RunError> {
+    let mut machine = Machine::load(&s.machine)?;
+    for axis in &mut machine.axes {
+        if !s.friction {
+            axis.drive.guide = None;
+        }
+        if !s.backlash {
+            axis.drive.backlash = 0.0;
+        }
+        if let Some(feedback) = s.feedback_position {
+            axis.drive.feedback = feedback;
+        }
+    }
+    Ok(machine)
+}
+
 /// Loads, checks, plans and wires a scenario without running it.
 pub fn prepare(s: &Scenario) -> Result<Prepared, RunError> {
     let (Some(actuator), true) = (
@@ -75,7 +92,7 @@ pub fn prepare(s: &Scenario) -> Result<Prepared, RunError> {
         )
         .into());
     }
-    let machine = Machine::load(&s.machine)?;
+    let machine = machine_for(s)?;
     let labels: Vec<AxisLabel> = machine
         .axes
         .iter()

@@ -549,19 +549,17 @@ fn the_controller_sees_encoder_counts() {
 #[ignore = "timing: cargo test --release -- --ignored --nocapture"]
 fn servo_period_cost() {
     let ticks = 20_000;
-    for (label, options) in [
-        ("rigid", AxisModelOptions::default()),
-        (
-            "friction + backlash",
-            AxisModelOptions {
-                coulomb_friction: 20.0,
-                backlash: 0.3e-3,
-                ..Default::default()
-            },
-        ),
-    ] {
+    let rigid = {
+        let mut m = machine();
+        for a in &mut m.axes {
+            a.drive.guide = None;
+            a.drive.backlash = 0.0;
+        }
+        m
+    };
+    for (label, machine) in [("rigid", rigid), ("friction + backlash", machine())] {
         for steps in [4, 10, 40] {
-            let mut axes = AxisModel::for_machine(&machine(), [0.0, 0.0, -9.81], options).unwrap();
+            let mut axes = AxisModel::for_machine(&machine, [0.0, 0.0, -9.81], false).unwrap();
             let s = Setpoints {
                 period: 1e-3,
                 axes: 3,
