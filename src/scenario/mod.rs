@@ -15,5 +15,6 @@ pub use file::{
 };
 pub use plan::{plan_scenario, PlanReport};
 pub use run::{
-    load_checked_program, plan_settings, prepare, run_scenario, Prepared, RunError, RunOutput,
+    load_checked_program, machine_for, plan_settings, prepare, prepare_with, run_scenario,
+    run_scenario_with, Prepared, RunError, RunOutput,
 };

@@ -77,6 +77,12 @@ pub fn machine_for(s: &Scenario) -> Result<Machine, RunError> {
 
 /// Loads, checks, plans and wires a scenario without running it.
 pub fn prepare(s: &Scenario) -> Result<Prepared, RunError> {
+    prepare_with(s, machine_for(s)?)
+}
+
+/// [`prepare`] on a machine given in memory (e.g. one whose parameters a calibration varies)
+/// instead of the scenario's model file.
+pub fn prepare_with(s: &Scenario, machine: Machine) -> Result<Prepared, RunError> {
     let (Some(actuator), true) = (
         s.actuator,
         !s.gains.is_empty() || s.inverse_dynamics.is_some(),
@@ -92,7 +98,6 @@ pub fn prepare(s: &Scenario) -> Result<Prepared, RunError> {
         )
         .into());
     }
-    let machine = machine_for(s)?;
     let labels: Vec<AxisLabel> = machine
         .axes
         .iter()
@@ -182,6 +187,16 @@ pub fn run_scenario(
     out_dir: &Path,
     progress: &mut dyn FnMut(usize, usize) -> bool,
 ) -> Result<RunOutput, RunError> {
+    run_scenario_with(s, machine_for(s)?, out_dir, progress)
+}
+
+/// [`run_scenario`] on a machine given in memory.
+pub fn run_scenario_with(
+    s: &Scenario,
+    machine: Machine,
+    out_dir: &Path,
+    progress: &mut dyn FnMut(usize, usize) -> bool,
+) -> Result<RunOutput, RunError> {
     let Prepared {
         machine,
         labels,
@@ -191,7 +206,7 @@ pub fn run_scenario(
         encoder_resolution,
         actuator,
         cosim,
-    } = prepare(s)?;
+    } = prepare_with(s, machine)?;
     let outcome = cosim.run(&setpoints, progress);
     let analytic = match s.analytic_steps {
         Some(steps) => Some(run_analytic(
