@@ -6,6 +6,7 @@ mod check;
 mod file;
 mod plan;
 mod run;
+mod tune;
 
 pub use ab::{run_ab, AbReport, AbRow};
 pub use check::{check, Breach, Verdict};
@@ -16,4 +17,7 @@ pub use file::{
 pub use plan::{plan_scenario, PlanReport};
 pub use run::{
     load_checked_program, plan_settings, prepare, run_scenario, Prepared, RunError, RunOutput,
+};
+pub use tune::{
+    outcome_text, tune_scenario, LinearPrediction, TuneError, TuneOptions, TunePlant, TuneReport,
 };
