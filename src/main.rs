@@ -1,7 +1,7 @@
 use clap::Parser;
+use cncsim::machine::Machine;
 use cncsim::program::{inspect, FeedRule, InspectOptions, ReadOptions};
 use cncsim::report::metrics_table;
-use cncsim::machine::Machine;
 use cncsim::scenario::{
     check, outcome_text, run_scenario, tune_scenario, RunOutput, Scenario, TuneError, TuneOptions,
     TunePlant,
@@ -292,9 +292,9 @@ fn tune(
             "  K = {:.5e}: {}{}",
             t.gain,
             outcome_text(t),
-            t.oscillation
-                .ratio
-                .map_or(String::new(), |r| format!(", swing ratio per period {r:.4}"))
+            t.oscillation.ratio.map_or(String::new(), |r| format!(
+                ", swing ratio per period {r:.4}"
+            ))
         );
     };
     match tune_scenario(&scenario, &options, plant, &mut progress) {

@@ -259,7 +259,11 @@ pub fn run_scenario(
 }
 
 /// The scenario's physics model of the machine at rest at `initial` (joint units per axis).
-pub(crate) fn new_plant(s: &Scenario, machine: &Machine, initial: &[f64]) -> Result<Plant, RunError> {
+pub(crate) fn new_plant(
+    s: &Scenario,
+    machine: &Machine,
+    initial: &[f64],
+) -> Result<Plant, RunError> {
     let options = PlantOptions {
         step: s.servo_period / s.substeps as f64,
         gravity: GRAVITY,

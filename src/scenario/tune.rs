@@ -183,7 +183,10 @@ pub fn tune_scenario(
         max_simulations: options.max_simulations,
     };
     if settings.start_gain <= 0.0 {
-        return Err(bad(format!("controller.axes.{}: kp = 0 gives no start gain for the search; pass --start-gain", options.axis)));
+        return Err(bad(format!(
+            "controller.axes.{}: kp = 0 gives no start gain for the search; pass --start-gain",
+            options.axis
+        )));
     }
 
     // The trial: start at rest at the program's first point (one sample there, which both
@@ -219,13 +222,12 @@ pub fn tune_scenario(
         TunePlant::Physics => probe.physics(gain),
         TunePlant::Analytic(o) => probe.analytic(gain, o),
     };
-    let ultimate = find_ultimate(&settings, &mut simulate, progress).map_err(|source| {
-        TuneError::Search {
+    let ultimate =
+        find_ultimate(&settings, &mut simulate, progress).map_err(|source| TuneError::Search {
             path: s.path.clone(),
             axis: options.axis.clone(),
             source,
-        }
-    })?;
+        })?;
 
     let gains = ZieglerNichols::from_ultimate(ultimate.gain, ultimate.period);
     let linear = linear_model(&machine, axis, actuator).map(|axis_model| {
@@ -270,7 +272,11 @@ pub fn tune_scenario(
 
 fn check_options(s: &Scenario, o: &TuneOptions, rotary: bool) -> Result<(), String> {
     let (unit, scale, limit) = if rotary {
-        ("deg", 180.0 / std::f64::consts::PI, s.following_error_limit_rotary)
+        (
+            "deg",
+            180.0 / std::f64::consts::PI,
+            s.following_error_limit_rotary,
+        )
     } else {
         ("mm", 1e3, s.following_error_limit_linear)
     };
@@ -344,7 +350,8 @@ struct Probe<'a> {
 impl Probe<'_> {
     /// The scenario's controller with the tuned axis under P control at `gain`.
     fn controller(&self, gain: f64) -> Result<ProportionalOn<'static>, String> {
-        let hold = controller_for(self.s, self.machine, self.actuator).map_err(|e| e.to_string())?;
+        let hold =
+            controller_for(self.s, self.machine, self.actuator).map_err(|e| e.to_string())?;
         let p = PidGains {
             kp: gain,
             ki: 0.0,
@@ -353,7 +360,12 @@ impl Probe<'_> {
         Ok(ProportionalOn {
             hold,
             axis: self.axis,
-            pid: Pid::new(p, PidForm::Positional, self.s.servo_period, self.output_limit),
+            pid: Pid::new(
+                p,
+                PidForm::Positional,
+                self.s.servo_period,
+                self.output_limit,
+            ),
         })
     }
 

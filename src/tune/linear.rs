@@ -231,7 +231,10 @@ mod tests {
         // lower gain, and lower still at a slower servo.
         let ms1 = axis.discrete_ultimate(1e-3).unwrap();
         let ms4 = axis.discrete_ultimate(4e-3).unwrap();
-        assert!(ms4.gain < ms1.gain && ms1.gain < fine.gain, "{ms4:?} {ms1:?} {fine:?}");
+        assert!(
+            ms4.gain < ms1.gain && ms1.gain < fine.gain,
+            "{ms4:?} {ms1:?} {fine:?}"
+        );
         assert!(ms4.period > ms1.period && ms1.period > fine.period);
     }
 

@@ -187,8 +187,7 @@ mod tests {
         (0..n)
             .map(|k| {
                 let t = k as f64 * T;
-                offset
-                    + 1e-4 * ratio.powf(t / period) * (std::f64::consts::TAU * t / period).cos()
+                offset + 1e-4 * ratio.powf(t / period) * (std::f64::consts::TAU * t / period).cos()
             })
             .collect()
     }
@@ -205,7 +204,10 @@ mod tests {
             let o = analyse(&damped(ratio, p, 0.5, 0.0), T, 1e-9);
             assert_eq!(o.verdict, verdict, "ratio {ratio}: {o:?}");
             let r = o.ratio.unwrap();
-            assert!((r / ratio - 1.0).abs() < 2e-3, "ratio {ratio} fitted as {r}");
+            assert!(
+                (r / ratio - 1.0).abs() < 2e-3,
+                "ratio {ratio} fitted as {r}"
+            );
             assert!((o.period.unwrap() / p - 1.0).abs() < 2e-3, "{o:?}");
         }
         let o = analyse(&damped(1.0, p, 0.5, 0.0), T, 1e-9);
@@ -249,7 +251,9 @@ mod tests {
     #[test]
     fn a_signal_that_dies_out_has_settled() {
         // Overdamped: one monotone approach to zero.
-        let s: Vec<f64> = (0..500).map(|k| 1e-4 * (-(k as f64) * 0.02).exp()).collect();
+        let s: Vec<f64> = (0..500)
+            .map(|k| 1e-4 * (-(k as f64) * 0.02).exp())
+            .collect();
         let o = analyse(&s, T, 1e-9);
         assert_eq!(o.verdict, Verdict::Settled);
         assert!(!o.verdict.oscillates());

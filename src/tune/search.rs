@@ -305,7 +305,11 @@ mod tests {
     }
 
     /// The exact sampled loop x⁺ = Φx + Γu, u = clamp(K·(r − q)), as a simulator.
-    fn sampled_loop(axis: LinearAxis, s: &SearchSettings, seconds: f64) -> impl FnMut(f64) -> Result<Response, String> {
+    fn sampled_loop(
+        axis: LinearAxis,
+        s: &SearchSettings,
+        seconds: f64,
+    ) -> impl FnMut(f64) -> Result<Response, String> {
         let (phi, gamma) = axis.discretise(s.servo_period);
         let (step, limit, n) = (s.step, s.saturation, (seconds / s.servo_period) as usize);
         move |gain: f64| {
@@ -328,8 +332,16 @@ mod tests {
         let exact = x_axis().discrete_ultimate(1e-3).unwrap();
         let mut sim = sampled_loop(x_axis(), &s, 1.0);
         let u = find_ultimate(&s, &mut sim, &mut |_| {}).unwrap();
-        assert!((u.gain / exact.gain - 1.0).abs() < 1e-3, "{} vs {exact:?}", u.gain);
-        assert!((u.period / exact.period - 1.0).abs() < 5e-3, "{} vs {exact:?}", u.period);
+        assert!(
+            (u.gain / exact.gain - 1.0).abs() < 1e-3,
+            "{} vs {exact:?}",
+            u.gain
+        );
+        assert!(
+            (u.period / exact.period - 1.0).abs() < 5e-3,
+            "{} vs {exact:?}",
+            u.period
+        );
         assert!(u.lower.gain <= u.gain && u.gain <= u.upper.gain);
         assert!(!u.limit_cycle);
         assert!(u.trials.len() < 20, "{} simulations", u.trials.len());
@@ -362,7 +374,10 @@ mod tests {
         let mut sim = sampled_loop(axis, &s, 0.3);
         let e = find_ultimate(&s, &mut sim, &mut |_| {}).unwrap_err();
         assert!(matches!(e, SearchError::NoOscillation { .. }), "{e}");
-        assert!(e.to_string().contains("no sustained oscillation up to K"), "{e}");
+        assert!(
+            e.to_string().contains("no sustained oscillation up to K"),
+            "{e}"
+        );
     }
 
     #[test]
@@ -379,7 +394,11 @@ mod tests {
         let u = find_ultimate(&s, &mut sim, &mut |_| {}).unwrap();
         assert!(!u.limit_cycle);
         let exact = x_axis().discrete_ultimate(1e-3).unwrap();
-        assert!((u.gain / exact.gain - 1.0).abs() < 5e-3, "{} vs {exact:?}", u.gain);
+        assert!(
+            (u.gain / exact.gain - 1.0).abs() < 5e-3,
+            "{} vs {exact:?}",
+            u.gain
+        );
     }
 
     #[test]
