@@ -111,7 +111,7 @@ fn friction_and_backlash_end_the_search_with_a_result_or_a_reason() {
     let linear = tune(&s, "x", TunePlant::Analytic(AxisModelOptions::default()))
         .ultimate
         .gain;
-    let mut run = |friction: f64, backlash: f64, feedback: Feedback| {
+    let run = |friction: f64, backlash: f64, feedback: Feedback| {
         let options = AxisModelOptions {
             coulomb_friction: friction,
             backlash,
