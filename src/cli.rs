@@ -102,6 +102,39 @@ pub enum Command {
         #[arg(long)]
         all: bool,
     },
+    /// Ziegler–Nichols gains for one axis: find the ultimate gain K_cr and period P_cr of the
+    /// scenario's simulated axis (P only, raised until sustained oscillation), print Kp, Ki, Kd
+    /// and a ready-to-paste `axes.<axis> = { ... }` line.
+    Tune {
+        scenario: PathBuf,
+        /// Machine axis to tune (e.g. x).
+        #[arg(long)]
+        axis: String,
+        /// Setpoint step that excites a linear axis (mm).
+        #[arg(long, default_value_t = 0.05)]
+        step_mm: f64,
+        /// Setpoint step that excites a rotary axis (deg).
+        #[arg(long, default_value_t = 0.05)]
+        step_deg: f64,
+        /// Relative width of the final gain bracket, K_hi/K_lo − 1.
+        #[arg(long, default_value_t = 0.005)]
+        tolerance: f64,
+        /// Simulated time per trial (s); several ultimate periods.
+        #[arg(long, default_value_t = 1.0)]
+        trial_s: f64,
+        /// First gain tried (default: the scenario's kp for the axis).
+        #[arg(long)]
+        start_gain: Option<f64>,
+        /// Give up after this many simulations.
+        #[arg(long, default_value_t = 60)]
+        max_simulations: usize,
+        /// Run the trials on the analytic reference model instead of the physics.
+        #[arg(long)]
+        analytic: bool,
+        /// Print the report as JSON (progress still goes to stderr).
+        #[arg(long)]
+        json: bool,
+    },
     /// Run scenarios (files, or folders of *.toml) and check their [expect] bounds; exits
     /// non-zero if any bound is breached or any run fails.
     Check {

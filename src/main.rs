@@ -1,7 +1,11 @@
 use clap::Parser;
+use cncsim::machine::Machine;
 use cncsim::program::{inspect, FeedRule, InspectOptions, ReadOptions};
 use cncsim::report::metrics_table;
-use cncsim::scenario::{check, run_scenario, RunOutput, Scenario};
+use cncsim::scenario::{
+    check, outcome_text, run_scenario, tune_scenario, RunOutput, Scenario, TuneError, TuneOptions,
+    TunePlant,
+};
 use indicatif::{ProgressBar, ProgressStyle};
 use std::path::{Path, PathBuf};
 use std::process::ExitCode;
@@ -18,7 +22,8 @@ const DEFAULT_SCENARIO: &str = "scenarios/xyz_circle_5mms.toml";
 /// everything it computed.
 static INTERRUPTED: AtomicBool = AtomicBool::new(false);
 
-/// Exit codes: 0 success, 1 a check failed or a run stopped early, 2 bad input.
+/// Exit codes: 0 success, 1 a check failed, a run stopped early or a tune found no boundary,
+/// 2 bad input.
 fn main() -> ExitCode {
     let cli = Cli::parse();
     // A second Ctrl-C while the first is being handled ends the process the usual way.
@@ -53,6 +58,25 @@ fn main() -> ExitCode {
             json,
         }) => dynamics(&urdf, &q, &qd, &qdd, &gravity, json),
         Some(Command::Ab { a, b, out }) => ab(&a, &b, out),
+        Some(Command::Tune {
+            scenario,
+            axis,
+            step_mm,
+            step_deg,
+            tolerance,
+            trial_s,
+            start_gain,
+            max_simulations,
+            analytic,
+            json,
+        }) => {
+            let mut options = TuneOptions::new(&axis, step_mm * 1e-3);
+            options.tolerance = tolerance;
+            options.trial_time = trial_s;
+            options.start_gain = start_gain;
+            options.max_simulations = max_simulations;
+            tune(&scenario, options, step_deg.to_radians(), analytic, json)
+        }
         Some(Command::Inspect {
             program,
             euclidean_feed,
@@ -234,6 +258,63 @@ fn ab(a: &Path, b: &Path, out: Option<PathBuf>) -> ExitCode {
         }
     }
     ExitCode::SUCCESS
+}
+
+fn tune(
+    path: &Path,
+    mut options: TuneOptions,
+    rotary_step: f64,
+    analytic: bool,
+    json: bool,
+) -> ExitCode {
+    let scenario = match Scenario::load(path) {
+        Ok(s) => s,
+        Err(e) => return fail_input(&e),
+    };
+    // The step is given per axis kind; the tuner learns the kind from the machine.
+    let rotary = Machine::load(&scenario.machine)
+        .ok()
+        .and_then(|m| {
+            let i = m.axis_index(&options.axis)?;
+            Some(m.axes[i].is_rotary(&m))
+        })
+        .unwrap_or(false);
+    if rotary {
+        options.step = rotary_step;
+    }
+    let plant = if analytic {
+        TunePlant::Analytic(Default::default())
+    } else {
+        TunePlant::Physics
+    };
+    let mut progress = |t: &cncsim::tune::Trial| {
+        eprintln!(
+            "  K = {:.5e}: {}{}",
+            t.gain,
+            outcome_text(t),
+            t.oscillation.ratio.map_or(String::new(), |r| format!(
+                ", swing ratio per period {r:.4}"
+            ))
+        );
+    };
+    match tune_scenario(&scenario, &options, plant, &mut progress) {
+        Ok(report) if json => {
+            println!(
+                "{}",
+                serde_json::to_string_pretty(&report.to_json()).expect("plain values")
+            );
+            ExitCode::SUCCESS
+        }
+        Ok(report) => {
+            print!("{}", report.text());
+            ExitCode::SUCCESS
+        }
+        Err(e @ TuneError::Search { .. }) => {
+            eprintln!("error: {e}");
+            ExitCode::from(1)
+        }
+        Err(e) => fail_input(&e),
+    }
 }
 
 fn check_all(paths: &[PathBuf], out: Option<PathBuf>) -> ExitCode {

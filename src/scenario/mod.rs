@@ -6,6 +6,7 @@ mod check;
 mod file;
 mod plan;
 mod run;
+mod tune;
 
 pub use ab::{run_ab, AbReport, AbRow};
 pub use check::{check, Breach, Verdict};
@@ -17,4 +18,7 @@ pub use plan::{plan_scenario, PlanReport};
 pub use run::{
     load_checked_program, machine_for, plan_settings, prepare, prepare_with, run_scenario,
     run_scenario_with, Prepared, RunError, RunOutput,
+};
+pub use tune::{
+    outcome_text, tune_scenario, LinearPrediction, TuneError, TuneOptions, TunePlant, TuneReport,
 };

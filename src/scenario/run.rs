@@ -43,7 +43,7 @@ pub struct RunOutput {
 }
 
 /// Gravity in the machine base frame: URDF convention, z up.
-const GRAVITY: [f64; 3] = [0.0, 0.0, -9.81];
+pub(crate) const GRAVITY: [f64; 3] = [0.0, 0.0, -9.81];
 
 /// Everything a run needs, wired and ready: the machine, its program and setpoints, and the
 /// co-simulation (plant, controller, actuators).
@@ -118,18 +118,7 @@ pub fn prepare_with(s: &Scenario, machine: Machine) -> Result<Prepared, RunError
             source,
         })?;
 
-    let step = s.servo_period / s.substeps as f64;
-    let options = PlantOptions {
-        step,
-        gravity: GRAVITY,
-        initial_positions: setpoints.position(0).to_vec(),
-        include_drive_dynamics: true,
-        solver_iterations: s.solver_iterations,
-    };
-    let plant = Plant::new(&machine, &options).map_err(|source| RunError::Model {
-        path: s.path.clone(),
-        source,
-    })?;
+    let plant = new_plant(s, &machine, setpoints.position(0))?;
 
     let encoder_resolution: Vec<Option<f64>> = machine
         .axes
@@ -301,6 +290,25 @@ pub fn run_scenario_with(
     })
 }
 
+/// The scenario's physics model of the machine at rest at `initial` (joint units per axis).
+pub(crate) fn new_plant(
+    s: &Scenario,
+    machine: &Machine,
+    initial: &[f64],
+) -> Result<Plant, RunError> {
+    let options = PlantOptions {
+        step: s.servo_period / s.substeps as f64,
+        gravity: GRAVITY,
+        initial_positions: initial.to_vec(),
+        include_drive_dynamics: true,
+        solver_iterations: s.solver_iterations,
+    };
+    Plant::new(machine, &options).map_err(|source| RunError::Model {
+        path: s.path.clone(),
+        source,
+    })
+}
+
 /// The analytic reference model on the same setpoints with a fresh copy of the controller.
 fn run_analytic(
     s: &Scenario,
@@ -325,7 +333,7 @@ fn run_analytic(
 }
 
 /// The scenario's controller for this machine.
-fn controller_for(
+pub(crate) fn controller_for(
     s: &Scenario,
     machine: &Machine,
     actuator: ActuatorKind,

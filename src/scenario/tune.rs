@@ -1,0 +1,606 @@
+//! `cncsim tune`: Ziegler–Nichols gains for one axis of a scenario, found on the scenario's own
+//! simulated machine (or on the analytic reference model of it).
+//!
+//! Each trial is the scenario's loop as `run` wires it (machine, actuator, servo period,
+//! physics step, encoder), with one change: the tuned axis is under P control at the trial
+//! gain (I and D off, the scenario's output limit kept), while the other axes stay under the
+//! scenario's own controller, so they are held as in a real run and couple as they would. The
+//! axis starts at rest at the program's first point and its setpoint steps by `step` at t = 0.
+
+use super::run::{controller_for, new_plant, prepare, Prepared, RunError, GRAVITY};
+use super::Scenario;
+use crate::control::{Actuator, ActuatorKind, Controller, ControllerInput, Pid, PidForm, PidGains};
+use crate::diagnostics::FileError;
+use crate::machine::Machine;
+use crate::plan::Setpoints;
+use crate::sim::analytic::{run_reference, AxisModel, AxisModelOptions, ReferenceSettings};
+use crate::sim::{CoSimulation, LoopSettings, Trace};
+use crate::tune::{
+    find_ultimate, LinearActuator, LinearAxis, Response, SearchError, SearchSettings, Trial,
+    Ultimate, UltimateCycle, ZieglerNichols,
+};
+use serde::Serialize;
+use std::path::PathBuf;
+use std::time::Instant;
+
+/// Which model the trials run on.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub enum TunePlant {
+    /// The Rapier co-simulation, as `cncsim run` runs the scenario.
+    Physics,
+    /// The analytic per-axis ODE model (`sim::analytic`), with these effects.
+    Analytic(AxisModelOptions),
+}
+
+/// What to tune and how (SI units: the step in m or rad).
+#[derive(Debug, Clone, PartialEq)]
+pub struct TuneOptions {
+    pub axis: String,
+    /// Setpoint step (m or rad, > 0).
+    pub step: f64,
+    /// Relative width of the final gain bracket.
+    pub tolerance: f64,
+    /// Simulated time per trial (s).
+    pub trial_time: f64,
+    /// First gain tried; default the scenario's own Kp for the axis.
+    pub start_gain: Option<f64>,
+    pub max_simulations: usize,
+}
+
+impl TuneOptions {
+    pub fn new(axis: &str, step: f64) -> Self {
+        TuneOptions {
+            axis: axis.to_string(),
+            step,
+            tolerance: 0.005,
+            trial_time: 1.0,
+            start_gain: None,
+            max_simulations: 60,
+        }
+    }
+}
+
+/// The longest trial accepted: a tune is meant to take seconds, not to run a long program.
+const MAX_TRIAL_TIME: f64 = 60.0;
+
+#[derive(Debug, thiserror::Error)]
+pub enum TuneError {
+    /// Bad input: the scenario, the machine or the options.
+    #[error(transparent)]
+    Input(#[from] RunError),
+    /// The search ran and could not find the boundary.
+    #[error("{path}: axis '{axis}': {source}")]
+    Search {
+        path: PathBuf,
+        axis: String,
+        source: SearchError,
+    },
+}
+
+impl From<FileError> for TuneError {
+    fn from(e: FileError) -> Self {
+        TuneError::Input(RunError::File(e))
+    }
+}
+
+/// The ultimate cycle of the linear model of the axis (no friction, no backlash, no limits).
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct LinearPrediction {
+    pub axis: LinearAxis,
+    /// Of the sampled loop (ZOH at the servo period): what the search should find.
+    pub sampled: UltimateCycle,
+    /// Continuous-time (T → 0), DC-motor actuator only.
+    pub continuous_gain: Option<f64>,
+    pub continuous_period: Option<f64>,
+}
+
+/// Everything `tune` found, for the terminal and for `--json`.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct TuneReport {
+    pub scenario: String,
+    pub axis: String,
+    pub rotary: bool,
+    /// "physics" or "analytic".
+    pub plant: &'static str,
+    pub actuator: &'static str,
+    /// Unit of the controller output: "V" (amplifier input) or "N·m".
+    pub output_unit: &'static str,
+    pub servo_period_s: f64,
+    pub physics_step_s: f64,
+    pub trial_time_s: f64,
+    pub settings: SearchSettings,
+    /// The scenario's output limit for the axis (kept during the search); `None` = none.
+    pub output_limit: Option<f64>,
+    /// The actuator's own limit in output units (supply / K_a, or peak torque).
+    pub actuator_limit: f64,
+    pub ultimate: Ultimate,
+    pub gains: ZieglerNichols,
+    /// `axes.<axis> = { kp = …, ki = …, kd = …, output_limit = … }`
+    pub toml: String,
+    pub linear: Option<LinearPrediction>,
+    pub simulations: usize,
+    pub simulated_time_s: f64,
+    pub wall_time_s: f64,
+}
+
+/// Finds the ultimate gain and period of `options.axis` and the Ziegler–Nichols gains.
+/// `progress` hears about every trial.
+pub fn tune_scenario(
+    s: &Scenario,
+    options: &TuneOptions,
+    plant: TunePlant,
+    progress: &mut dyn FnMut(&Trial),
+) -> Result<TuneReport, TuneError> {
+    let started = Instant::now();
+    let bad = |m: String| TuneError::from(FileError::new(&s.path, None, m));
+    if s.inverse_dynamics.is_some() {
+        return Err(bad("tune designs PID gains for one axis while the scenario's PID holds the others; this scenario's controller is type = \"inverse-dynamics\" (use a scenario with type = \"pid\")".into()));
+    }
+    let Prepared {
+        machine,
+        labels,
+        setpoints,
+        encoder_resolution,
+        actuator,
+        cosim,
+        ..
+    } = prepare(s)?;
+    let Some(axis) = machine.axis_index(&options.axis) else {
+        let names: Vec<&str> = machine.axes.iter().map(|a| a.name.as_str()).collect();
+        return Err(bad(format!(
+            "--axis {}: the machine '{}' has no such axis (its axes: {})",
+            options.axis,
+            machine.name,
+            names.join(", ")
+        )));
+    };
+    let rotary = labels[axis].rotary;
+    check_options(s, options, rotary).map_err(bad)?;
+
+    let drive = &machine.axes[axis].drive;
+    let output_limit = s.gains[&options.axis].output_limit;
+    let (actuator_limit, actuator_name, output_unit) = match actuator {
+        ActuatorKind::DcMotor => (
+            drive.supply_voltage_v / drive.amplifier_gain,
+            "dc-motor",
+            "V",
+        ),
+        ActuatorKind::IdealTorque => (drive.peak_torque_nm, "ideal-torque", "N·m"),
+    };
+    let resolution = encoder_resolution[axis].unwrap_or(0.0);
+    let settings = SearchSettings {
+        servo_period: s.servo_period,
+        step: options.step,
+        start_gain: options
+            .start_gain
+            .unwrap_or(s.gains[&options.axis].gains.kp),
+        growth: 2.0,
+        tolerance: options.tolerance,
+        saturation: output_limit.min(actuator_limit),
+        // Two encoder counts (a count of dither is not an oscillation), and at least 10⁻⁴ of
+        // the step so that numerical noise makes no peaks.
+        hysteresis: (2.0 * resolution).max(1e-4 * options.step),
+        max_simulations: options.max_simulations,
+    };
+    if settings.start_gain <= 0.0 {
+        return Err(bad(format!(
+            "controller.axes.{}: kp = 0 gives no start gain for the search; pass --start-gain",
+            options.axis
+        )));
+    }
+
+    // The trial: start at rest at the program's first point (one sample there, which both
+    // loops take as the rest position), then the tuned axis's setpoint steps.
+    let start = setpoints.position(0).to_vec();
+    let ticks = (options.trial_time / s.servo_period).round() as usize;
+    let n = machine.axes.len();
+    let mut target = start.clone();
+    target[axis] += options.step;
+    let mut trial_setpoints = Setpoints::new(s.servo_period, n);
+    let zeros = vec![0.0; n];
+    trial_setpoints.push(&start, &zeros, &zeros, 0);
+    for _ in 0..ticks {
+        trial_setpoints.push(&target, &zeros, &zeros, 0);
+    }
+    let loop_settings = LoopSettings {
+        settle_time: 0.0,
+        ..cosim.settings.clone()
+    };
+    drop(cosim);
+    let probe = Probe {
+        s,
+        machine: &machine,
+        actuator,
+        axis,
+        setpoints: &trial_setpoints,
+        loop_settings: &loop_settings,
+        encoder_resolution: &encoder_resolution,
+        start: &start,
+        output_limit,
+    };
+    let mut simulate = |gain: f64| match plant {
+        TunePlant::Physics => probe.physics(gain),
+        TunePlant::Analytic(o) => probe.analytic(gain, o),
+    };
+    let ultimate =
+        find_ultimate(&settings, &mut simulate, progress).map_err(|source| TuneError::Search {
+            path: s.path.clone(),
+            axis: options.axis.clone(),
+            source,
+        })?;
+
+    let gains = ZieglerNichols::from_ultimate(ultimate.gain, ultimate.period);
+    let linear = linear_model(&machine, axis, actuator).map(|axis_model| {
+        let sampled = axis_model.discrete_ultimate(s.servo_period);
+        (axis_model, sampled)
+    });
+    let linear = match linear {
+        Some((a, Some(sampled))) => Some(LinearPrediction {
+            axis: a,
+            sampled,
+            continuous_gain: a.continuous_ultimate_gain(),
+            continuous_period: a.continuous_ultimate_period(),
+        }),
+        _ => None,
+    };
+    let simulations = ultimate.trials.len();
+    Ok(TuneReport {
+        scenario: s.name.clone(),
+        axis: options.axis.clone(),
+        rotary,
+        plant: match plant {
+            TunePlant::Physics => "physics",
+            TunePlant::Analytic(_) => "analytic",
+        },
+        actuator: actuator_name,
+        output_unit,
+        servo_period_s: s.servo_period,
+        physics_step_s: s.servo_period / s.substeps as f64,
+        trial_time_s: ticks as f64 * s.servo_period,
+        settings,
+        output_limit: output_limit.is_finite().then_some(output_limit),
+        actuator_limit,
+        toml: toml_line(&options.axis, &gains, output_limit),
+        gains,
+        ultimate,
+        linear,
+        simulations,
+        simulated_time_s: simulations as f64 * ticks as f64 * s.servo_period,
+        wall_time_s: started.elapsed().as_secs_f64(),
+    })
+}
+
+fn check_options(s: &Scenario, o: &TuneOptions, rotary: bool) -> Result<(), String> {
+    let (unit, scale, limit) = if rotary {
+        (
+            "deg",
+            180.0 / std::f64::consts::PI,
+            s.following_error_limit_rotary,
+        )
+    } else {
+        ("mm", 1e3, s.following_error_limit_linear)
+    };
+    if !(o.step.is_finite() && o.step > 0.0 && o.step < limit) {
+        return Err(format!(
+            "step {} {unit}: expected a number > 0 and below the following-error limit {} {unit}",
+            o.step * scale,
+            limit * scale
+        ));
+    }
+    if !(o.tolerance > 0.0 && o.tolerance < 1.0) {
+        return Err(format!(
+            "tolerance {}: expected a relative width between 0 and 1 (e.g. 0.005)",
+            o.tolerance
+        ));
+    }
+    if !(o.trial_time >= 10.0 * s.servo_period && o.trial_time <= MAX_TRIAL_TIME) {
+        return Err(format!(
+            "trial time {} s: expected between 10 servo periods ({} s) and {MAX_TRIAL_TIME} s",
+            o.trial_time,
+            10.0 * s.servo_period
+        ));
+    }
+    if let Some(g) = o.start_gain {
+        if !(g.is_finite() && g > 0.0) {
+            return Err(format!("start gain {g}: expected a number > 0"));
+        }
+    }
+    if o.max_simulations == 0 {
+        return Err("max simulations: expected at least 1".into());
+    }
+    Ok(())
+}
+
+/// The linear model of the axis for the discrete-time check, where the analytic model has one
+/// (prismatic axes on Cartesian chains).
+fn linear_model(machine: &Machine, axis: usize, actuator: ActuatorKind) -> Option<LinearAxis> {
+    let models = AxisModel::for_machine(machine, GRAVITY, AxisModelOptions::default()).ok()?;
+    let m = &models[axis];
+    let drive = &machine.axes[axis].drive;
+    Some(LinearAxis {
+        mass: m.effective_mass(),
+        damping: m.effective_damping(),
+        ratio: m.ratio(),
+        actuator: match actuator {
+            ActuatorKind::IdealTorque => LinearActuator::IdealTorque,
+            ActuatorKind::DcMotor => LinearActuator::DcMotor {
+                amplifier_gain: drive.amplifier_gain,
+                torque_constant: drive.motor.torque_constant_nm_per_a,
+                back_emf_constant: drive.motor.back_emf_v_s_per_rad,
+                resistance: drive.motor.resistance_ohm,
+                inductance: drive.motor.inductance_h,
+            },
+        },
+    })
+}
+
+/// Everything a trial needs, shared by all trials.
+struct Probe<'a> {
+    s: &'a Scenario,
+    machine: &'a Machine,
+    actuator: ActuatorKind,
+    axis: usize,
+    setpoints: &'a Setpoints,
+    loop_settings: &'a LoopSettings,
+    encoder_resolution: &'a [Option<f64>],
+    start: &'a [f64],
+    output_limit: f64,
+}
+
+impl Probe<'_> {
+    /// The scenario's controller with the tuned axis under P control at `gain`.
+    fn controller(&self, gain: f64) -> Result<ProportionalOn<'static>, String> {
+        let hold =
+            controller_for(self.s, self.machine, self.actuator).map_err(|e| e.to_string())?;
+        let p = PidGains {
+            kp: gain,
+            ki: 0.0,
+            kd: 0.0,
+        };
+        Ok(ProportionalOn {
+            hold,
+            axis: self.axis,
+            pid: Pid::new(
+                p,
+                PidForm::Positional,
+                self.s.servo_period,
+                self.output_limit,
+            ),
+        })
+    }
+
+    fn physics(&self, gain: f64) -> Result<Response, String> {
+        let cosim = CoSimulation {
+            plant: new_plant(self.s, self.machine, self.start).map_err(|e| e.to_string())?,
+            controller: Box::new(self.controller(gain)?),
+            actuators: self
+                .machine
+                .axes
+                .iter()
+                .map(|a| Actuator::new(self.actuator, &a.drive))
+                .collect(),
+            settings: self.loop_settings.clone(),
+        };
+        let outcome = cosim.run(self.setpoints, &mut |_, _| true);
+        let mut r = self.response(&outcome.trace);
+        r.stopped = outcome.stop.map(|e| e.to_string());
+        Ok(r)
+    }
+
+    fn analytic(&self, gain: f64, options: AxisModelOptions) -> Result<Response, String> {
+        let options = AxisModelOptions {
+            ideal_actuator: self.actuator == ActuatorKind::IdealTorque,
+            ..options
+        };
+        let mut models = AxisModel::for_machine(self.machine, GRAVITY, options)
+            .map_err(|e| format!("the analytic model: {e}"))?;
+        let settings = ReferenceSettings {
+            servo_period: self.s.servo_period,
+            steps_per_period: self.s.analytic_steps.unwrap_or(16),
+            settle_time: 0.0,
+            encoder_resolution: self.encoder_resolution.to_vec(),
+        };
+        let mut controller = self.controller(gain)?;
+        let run = run_reference(&mut models, &mut controller, self.setpoints, &settings);
+        let mut r = self.response(&run.trace);
+        r.stopped = run.diverged.map(|d| d.to_string());
+        Ok(r)
+    }
+
+    /// The tuned axis's error and command from the step on (the rest sample before it left
+    /// out).
+    fn response(&self, trace: &Trace) -> Response {
+        let (n, i) = (trace.axes, self.axis);
+        Response {
+            error: (1..trace.len())
+                .map(|k| Trace::at(&trace.commanded, n, k, i) - Trace::at(&trace.actual, n, k, i))
+                .collect(),
+            command: (1..trace.len())
+                .map(|k| Trace::at(&trace.command, n, k, i))
+                .collect(),
+            stopped: None,
+        }
+    }
+}
+
+/// The hold controller for every axis, its output replaced on one axis by a P loop.
+struct ProportionalOn<'a> {
+    hold: Box<dyn Controller + 'a>,
+    axis: usize,
+    pid: Pid,
+}
+
+impl Controller for ProportionalOn<'_> {
+    fn update(&mut self, input: &ControllerInput<'_>, command: &mut [f64]) {
+        self.hold.update(input, command);
+        let i = self.axis;
+        command[i] = self
+            .pid
+            .update(input.setpoint_position[i] - input.measured_position[i]);
+    }
+}
+
+/// `axes.x = { kp = …, ki = …, kd = …, output_limit = … }` with four significant digits.
+fn toml_line(axis: &str, g: &ZieglerNichols, output_limit: f64) -> String {
+    let mut line = format!(
+        "axes.{axis} = {{ kp = {}, ki = {}, kd = {}",
+        toml_number(g.kp),
+        toml_number(g.ki),
+        toml_number(g.kd)
+    );
+    if output_limit.is_finite() {
+        line += &format!(", output_limit = {}", toml_number(output_limit));
+    }
+    line + " }"
+}
+
+/// A TOML float (always with a '.' or an exponent) rounded to four significant digits.
+fn toml_number(x: f64) -> String {
+    if x == 0.0 || !x.is_finite() {
+        return "0.0".into();
+    }
+    let scale = 10f64.powi(3 - x.abs().log10().floor() as i32);
+    let rounded = (x * scale).round() / scale;
+    let text = format!("{rounded:?}");
+    if text.contains(['.', 'e', 'E']) {
+        text
+    } else {
+        text + ".0"
+    }
+}
+
+impl TuneReport {
+    /// The report for the terminal.
+    pub fn text(&self) -> String {
+        let u = &self.ultimate;
+        let (err_unit, step_text) = if self.rotary {
+            ("rad", format!("{:.4} deg", self.settings.step.to_degrees()))
+        } else {
+            ("m", format!("{:.4} mm", self.settings.step * 1e3))
+        };
+        let out = self.output_unit;
+        let gain_unit = format!("{out}/{err_unit}");
+        let mut t = String::new();
+        let plant = match self.plant {
+            "physics" => format!(
+                "physics (Rapier), servo period {} ms, physics step {} ms",
+                self.servo_period_s * 1e3,
+                self.physics_step_s * 1e3
+            ),
+            _ => format!(
+                "analytic reference model, servo period {} ms",
+                self.servo_period_s * 1e3
+            ),
+        };
+        t += &format!(
+            "Ziegler–Nichols ultimate cycle: {} axis {} on {plant}, {} actuator\n",
+            self.scenario, self.axis, self.actuator
+        );
+        t += &format!(
+            "  excitation   setpoint step of {step_text} from rest at the program start; other axes held by the scenario's PID; {} s per run\n",
+            self.trial_time_s
+        );
+        t += &format!(
+            "  search       P only (I, D off), K ×{} from {} until oscillation, bisection to {} %: {} simulations, {:.1} s simulated, {:.2} s wall\n",
+            self.settings.growth,
+            toml_number(self.settings.start_gain),
+            self.settings.tolerance * 100.0,
+            self.simulations,
+            self.simulated_time_s,
+            self.wall_time_s
+        );
+        for (name, trial) in [("lower bound", &u.lower), ("upper bound", &u.upper)] {
+            t += &format!(
+                "  {name}  K = {:.5e} {gain_unit}: {}, swing ratio per period {}, {} peaks, max |u| = {:.3} {out}\n",
+                trial.gain,
+                outcome_text(trial),
+                trial
+                    .oscillation
+                    .ratio
+                    .map_or("-".into(), |r| format!("{r:.4}")),
+                trial.oscillation.extrema,
+                trial.max_command
+            );
+        }
+        let limit = match self.output_limit {
+            Some(l) => format!("controller output limit {} {out} (kept)", toml_number(l)),
+            None => "no controller output limit".into(),
+        };
+        t += &format!(
+            "  saturation   {limit}; the actuator saturates at {:.4} {out}; runs are judged only before the first saturated sample\n",
+            self.actuator_limit
+        );
+        t += &format!(
+            "  ultimate     K_cr = {:.5e} {gain_unit}, P_cr = {:.3} ms\n",
+            u.gain,
+            u.period * 1e3
+        );
+        if u.limit_cycle {
+            t += "  WARNING      a run ended in a limit cycle (constant amplitude set by friction or backlash, not by the gain): K_cr is not the linear ultimate gain\n";
+        }
+        if let Some(l) = &self.linear {
+            t += &format!(
+                "  linear model sampled (ZOH) loop: K_cr = {:.5e} {gain_unit}, P_cr = {:.3} ms (search/model: {:+.2} %, {:+.2} %)",
+                l.sampled.gain,
+                l.sampled.period * 1e3,
+                (u.gain / l.sampled.gain - 1.0) * 100.0,
+                (u.period / l.sampled.period - 1.0) * 100.0
+            );
+            if let (Some(k), Some(p)) = (l.continuous_gain, l.continuous_period) {
+                t += &format!(
+                    "; continuous time: K_cr = {k:.5e} {gain_unit}, P_cr = {:.3} ms",
+                    p * 1e3
+                );
+            }
+            t += "\n";
+        }
+        let g = &self.gains;
+        t += &format!(
+            "Ziegler–Nichols gains (error in {err_unit}, output in {out}{}):\n",
+            if out == "V" {
+                " at the amplifier input"
+            } else {
+                " of motor torque"
+            }
+        );
+        t += &format!(
+            "  Kp = {:.5e}  T_i = {:.4} s  T_d = {:.5} s  Ki = {:.5e}  Kd = {:.5e}\n",
+            g.kp, g.ti, g.td, g.ki, g.kd
+        );
+        t += &format!("  {}\n", self.toml);
+        t
+    }
+
+    pub fn to_json(&self) -> serde_json::Value {
+        serde_json::to_value(self).expect("plain numbers and strings")
+    }
+}
+
+/// One trial's outcome in words, for progress lines and the report.
+pub fn outcome_text(t: &Trial) -> String {
+    let mut s = format!("{:?}", t.outcome).to_lowercase();
+    if s == "limitcycle" {
+        s = "limit cycle".into();
+    }
+    if let Some(at) = t.saturated_at {
+        s += &format!(" (saturated at {:.3} s)", at);
+    }
+    if let Some(why) = &t.stopped {
+        s += &format!(" ({why})");
+    }
+    s
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn toml_numbers_are_floats_with_four_digits() {
+        assert_eq!(toml_number(19876.5), "19880.0");
+        assert_eq!(toml_number(6.0), "6.0");
+        assert_eq!(toml_number(0.0012345), "0.001235");
+        assert_eq!(toml_number(6.1e5), "610000.0");
+        assert!(toml_number(1.2345e-9).parse::<f64>().unwrap() == 1.235e-9);
+    }
+}
