@@ -283,7 +283,7 @@ fn tune(
         options.step = rotary_step;
     }
     let plant = if analytic {
-        TunePlant::Analytic(Default::default())
+        TunePlant::Analytic
     } else {
         TunePlant::Physics
     };

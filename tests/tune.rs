@@ -11,8 +11,10 @@
 //! (+4 % at 0.25 ms on X, measured); it is compared through its extrapolation to step → 0
 //! from the scenario's step and half of it (Richardson), which removes that term.
 
-use cncsim::scenario::{tune_scenario, Scenario, TuneOptions, TunePlant, TuneReport};
-use cncsim::sim::analytic::{AxisModelOptions, Feedback};
+use cncsim::machine::{Feedback, Guide};
+use cncsim::scenario::{
+    machine_for, tune_scenario, tune_scenario_with, Scenario, TuneOptions, TunePlant, TuneReport,
+};
 use std::path::Path;
 use std::process::Command;
 
@@ -35,7 +37,7 @@ fn rel(a: f64, b: f64) -> f64 {
 #[test]
 fn physics_analytic_and_discrete_time_derivation_agree_on_x() {
     let s = circle();
-    let analytic = tune(&s, "x", TunePlant::Analytic(AxisModelOptions::default()));
+    let analytic = tune(&s, "x", TunePlant::Analytic);
     let exact = analytic
         .linear
         .as_ref()
@@ -91,7 +93,7 @@ fn z_under_gravity_agrees_too() {
     // Z carries its own weight: P control holds it with an offset, which the swing-based
     // judgement ignores.
     let s = circle();
-    let analytic = tune(&s, "z", TunePlant::Analytic(AxisModelOptions::default()));
+    let analytic = tune(&s, "z", TunePlant::Analytic);
     let exact = analytic.linear.as_ref().unwrap().sampled;
     assert!(rel(analytic.ultimate.gain, exact.gain) < 5e-3);
     assert!(rel(analytic.ultimate.period, exact.period) < 5e-3);
@@ -108,20 +110,28 @@ fn friction_and_backlash_end_the_search_with_a_result_or_a_reason() {
     // The analytic model with the nonlinearities the physics will get: the search must stop
     // within its budget and say what it found.
     let s = circle();
-    let linear = tune(&s, "x", TunePlant::Analytic(AxisModelOptions::default()))
+    let linear = tune(&s, "x", TunePlant::Analytic)
         .ultimate
         .gain;
     let run = |friction: f64, backlash: f64, feedback: Feedback| {
-        let options = AxisModelOptions {
-            coulomb_friction: friction,
-            backlash,
-            feedback,
-            ..Default::default()
-        };
+        // The scenario's machine with a guide giving `friction` newtons on X.
+        let mut machine = machine_for(&s).unwrap();
+        let x = machine.axis_index("x").unwrap();
+        let carried: f64 = ["x_carriage", "y_carriage", "z_column", "z_slide"]
+            .iter()
+            .map(|l| machine.links[machine.link_index(l).unwrap()].mass)
+            .sum();
+        let drive = &mut machine.axes[x].drive;
+        drive.guide = Some(Guide {
+            friction_coefficient: friction / (carried * 9.81),
+            normal: [0.0, 0.0, 1.0],
+        });
+        drive.backlash = backlash;
+        drive.feedback = feedback;
         let mut o = TuneOptions::new("x", 5e-5);
         o.max_simulations = 30;
         let mut trials = 0;
-        let r = tune_scenario(&s, &o, TunePlant::Analytic(options), &mut |_| trials += 1);
+        let r = tune_scenario_with(&s, machine, &o, TunePlant::Analytic, &mut |_| trials += 1);
         assert!(trials <= 30);
         r
     };

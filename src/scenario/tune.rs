@@ -7,13 +7,15 @@
 //! scenario's own controller, so they are held as in a real run and couple as they would. The
 //! axis starts at rest at the program's first point and its setpoint steps by `step` at t = 0.
 
-use super::run::{controller_for, new_plant, prepare, Prepared, RunError, GRAVITY};
+use super::run::{
+    controller_for, machine_for, new_plant, prepare_with, Prepared, RunError, GRAVITY,
+};
 use super::Scenario;
 use crate::control::{Actuator, ActuatorKind, Controller, ControllerInput, Pid, PidForm, PidGains};
 use crate::diagnostics::FileError;
 use crate::machine::Machine;
 use crate::plan::Setpoints;
-use crate::sim::analytic::{run_reference, AxisModel, AxisModelOptions, ReferenceSettings};
+use crate::sim::analytic::{run_reference, AxisModel, ReferenceSettings};
 use crate::sim::{CoSimulation, LoopSettings, Trace};
 use crate::tune::{
     find_ultimate, LinearActuator, LinearAxis, Response, SearchError, SearchSettings, Trial,
@@ -28,8 +30,8 @@ use std::time::Instant;
 pub enum TunePlant {
     /// The Rapier co-simulation, as `cncsim run` runs the scenario.
     Physics,
-    /// The analytic per-axis ODE model (`sim::analytic`), with these effects.
-    Analytic(AxisModelOptions),
+    /// The analytic per-axis ODE model (`sim::analytic`) of the same machine.
+    Analytic,
 }
 
 /// What to tune and how (SI units: the step in m or rad).
@@ -131,6 +133,17 @@ pub fn tune_scenario(
     plant: TunePlant,
     progress: &mut dyn FnMut(&Trial),
 ) -> Result<TuneReport, TuneError> {
+    tune_scenario_with(s, machine_for(s)?, options, plant, progress)
+}
+
+/// [`tune_scenario`] on a machine given in memory (e.g. during a calibration).
+pub fn tune_scenario_with(
+    s: &Scenario,
+    machine: Machine,
+    options: &TuneOptions,
+    plant: TunePlant,
+    progress: &mut dyn FnMut(&Trial),
+) -> Result<TuneReport, TuneError> {
     let started = Instant::now();
     let bad = |m: String| TuneError::from(FileError::new(&s.path, None, m));
     if s.inverse_dynamics.is_some() {
@@ -144,7 +157,7 @@ pub fn tune_scenario(
         actuator,
         cosim,
         ..
-    } = prepare(s)?;
+    } = prepare_with(s, machine)?;
     let Some(axis) = machine.axis_index(&options.axis) else {
         let names: Vec<&str> = machine.axes.iter().map(|a| a.name.as_str()).collect();
         return Err(bad(format!(
@@ -220,7 +233,7 @@ pub fn tune_scenario(
     };
     let mut simulate = |gain: f64| match plant {
         TunePlant::Physics => probe.physics(gain),
-        TunePlant::Analytic(o) => probe.analytic(gain, o),
+        TunePlant::Analytic => probe.analytic(gain),
     };
     let ultimate =
         find_ultimate(&settings, &mut simulate, progress).map_err(|source| TuneError::Search {
@@ -250,7 +263,7 @@ pub fn tune_scenario(
         rotary,
         plant: match plant {
             TunePlant::Physics => "physics",
-            TunePlant::Analytic(_) => "analytic",
+            TunePlant::Analytic => "analytic",
         },
         actuator: actuator_name,
         output_unit,
@@ -314,7 +327,13 @@ fn check_options(s: &Scenario, o: &TuneOptions, rotary: bool) -> Result<(), Stri
 /// The linear model of the axis for the discrete-time check, where the analytic model has one
 /// (prismatic axes on Cartesian chains).
 fn linear_model(machine: &Machine, axis: usize, actuator: ActuatorKind) -> Option<LinearAxis> {
-    let models = AxisModel::for_machine(machine, GRAVITY, AxisModelOptions::default()).ok()?;
+    // The linear part only: friction and backlash have no place in a linear model.
+    let mut linear = machine.clone();
+    for a in &mut linear.axes {
+        a.drive.guide = None;
+        a.drive.backlash = 0.0;
+    }
+    let models = AxisModel::for_machine(&linear, GRAVITY, false).ok()?;
     let m = &models[axis];
     let drive = &machine.axes[axis].drive;
     Some(LinearAxis {
@@ -387,12 +406,9 @@ impl Probe<'_> {
         Ok(r)
     }
 
-    fn analytic(&self, gain: f64, options: AxisModelOptions) -> Result<Response, String> {
-        let options = AxisModelOptions {
-            ideal_actuator: self.actuator == ActuatorKind::IdealTorque,
-            ..options
-        };
-        let mut models = AxisModel::for_machine(self.machine, GRAVITY, options)
+    fn analytic(&self, gain: f64) -> Result<Response, String> {
+        let ideal = self.actuator == ActuatorKind::IdealTorque;
+        let mut models = AxisModel::for_machine(self.machine, GRAVITY, ideal)
             .map_err(|e| format!("the analytic model: {e}"))?;
         let settings = ReferenceSettings {
             servo_period: self.s.servo_period,
