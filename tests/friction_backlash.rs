@@ -141,7 +141,11 @@ fn sliding_friction_is_mu_times_the_load() {
             "axis {axis} at {speed} m/s: drive force {force:.4} N, μ·N = {expected:.4} N ({:.3} %)",
             error * 100.0
         );
-        assert_eq!(force.signum(), speed.signum(), "friction opposes the motion");
+        assert_eq!(
+            force.signum(),
+            speed.signum(),
+            "friction opposes the motion"
+        );
     }
 }
 
@@ -236,7 +240,10 @@ fn backlash_is_lost_motion_at_reversal() {
         .expect("carriage comes back")
         + turn;
     let lost = drive_top - path[moved].0;
-    eprintln!("lead {lead:e}, lost {lost:e}, end {:e}", path.last().unwrap().1 - path.last().unwrap().0);
+    eprintln!(
+        "lead {lead:e}, lost {lost:e}, end {:e}",
+        path.last().unwrap().1 - path.last().unwrap().0
+    );
     assert!(
         (lost - b).abs() < 0.02 * b,
         "lost motion {:.2} µm, backlash {:.2} µm",
@@ -257,9 +264,6 @@ fn backlash_is_lost_motion_at_reversal() {
 #[test]
 fn without_backlash_the_axis_is_stiff() {
     let path = triangle(0.0);
-    let worst = path
-        .iter()
-        .map(|(d, c)| (d - c).abs())
-        .fold(0.0, f64::max);
+    let worst = path.iter().map(|(d, c)| (d - c).abs()).fold(0.0, f64::max);
     assert_eq!(worst, 0.0, "no dead band: carriage is the drive");
 }

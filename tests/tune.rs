@@ -110,9 +110,7 @@ fn friction_and_backlash_end_the_search_with_a_result_or_a_reason() {
     // The analytic model with the nonlinearities the physics will get: the search must stop
     // within its budget and say what it found.
     let s = circle();
-    let linear = tune(&s, "x", TunePlant::Analytic)
-        .ultimate
-        .gain;
+    let linear = tune(&s, "x", TunePlant::Analytic).ultimate.gain;
     let run = |friction: f64, backlash: f64, feedback: Feedback| {
         // The scenario's machine with a guide giving `friction` newtons on X.
         let mut machine = machine_for(&s).unwrap();

@@ -310,9 +310,19 @@ impl Plant {
                     .iter()
                     .find(|a| a.joint == j)
                     .and_then(|a| a.drive.guide);
-                push(drive_body[j], joint.axis, joint.kind, dof(link_of(&world, drive)));
+                push(
+                    drive_body[j],
+                    joint.axis,
+                    joint.kind,
+                    dof(link_of(&world, drive)),
+                );
                 if drive != child_joint[j] {
-                    push(child, joint.axis, joint.kind, dof(link_of(&world, child_joint[j])));
+                    push(
+                        child,
+                        joint.axis,
+                        joint.kind,
+                        dof(link_of(&world, child_joint[j])),
+                    );
                 }
                 if let Some(g) = guide {
                     // The lift-off DOF follows the travel DOF in the carriage's joint.
@@ -367,7 +377,10 @@ impl Plant {
             .iter_mut()
             .zip(machine.axes.iter().zip(&options.initial_positions))
         {
-            binding.drive_dof = mb.link(binding.drive_link).expect("axis link").assembly_id();
+            binding.drive_dof = mb
+                .link(binding.drive_link)
+                .expect("axis link")
+                .assembly_id();
             if let Some((link, dof)) = &mut binding.slack {
                 *dof = mb.link(*link).expect("slack link").assembly_id();
             }

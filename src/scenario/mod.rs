@@ -20,5 +20,6 @@ pub use run::{
     run_scenario_with, Prepared, RunError, RunOutput,
 };
 pub use tune::{
-    outcome_text, tune_scenario, tune_scenario_with, LinearPrediction, TuneError, TuneOptions, TunePlant, TuneReport,
+    outcome_text, tune_scenario, tune_scenario_with, LinearPrediction, TuneError, TuneOptions,
+    TunePlant, TuneReport,
 };
