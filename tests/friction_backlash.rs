@@ -74,9 +74,9 @@ fn guides_carry_the_weight_above_them() {
     let hold = z_hold(&machine);
     run(&mut plant, 0.5, |_| [0.0, 0.0, hold]);
     let normal = plant.guide_normal_forces();
-    for axis in 0..2 {
+    for (axis, measured) in normal.iter().take(2).enumerate() {
         let expected = carried_mass(&machine, axis) * G;
-        let measured = normal[axis].expect("axis has a guide");
+        let measured = measured.expect("axis has a guide");
         let error = (measured - expected).abs() / expected;
         eprintln!("axis {axis}: normal {measured:.6} N vs weight {expected:.6} N");
         assert!(
