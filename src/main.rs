@@ -255,6 +255,18 @@ fn ab(
         }
         println!("  wrote {}", path.display());
     }
+    let plot = out.join("contour_error.png");
+    let labels = [format!("A: {}", sa.name), format!("B: {}", sb.name)];
+    let series =
+        [(&labels[0], &ra), (&labels[1], &rb)].map(|(label, r)| cncsim::report::ContourSeries {
+            label,
+            time: &r.trace.time,
+            contour_error: &r.derived.contour_error,
+        });
+    if let Err(e) = cncsim::report::write_contour_error_plot(&plot, &series) {
+        return fail_input(&e);
+    }
+    println!("  wrote {}", plot.display());
     for (s, r) in [(&sa, &ra), (&sb, &rb)] {
         if let Some(stop) = &r.stop {
             eprintln!("error: {}: {stop}", s.path.display());

@@ -118,6 +118,22 @@ fn one_scenario_with_overrides_compares_pid_and_inverse_dynamics() {
     assert!(out
         .join("b_mill_table2_fast_controller=inverse-dynamics/metrics.json")
         .is_file());
+    // The plot decodes as a PNG of the documented size with something drawn in it.
+    let decoder = png::Decoder::new(std::io::BufReader::new(
+        std::fs::File::open(out.join("contour_error.png")).unwrap(),
+    ));
+    let mut reader = decoder.read_info().unwrap();
+    let mut pixels = vec![0; reader.output_buffer_size().unwrap()];
+    let frame = reader.next_frame(&mut pixels).unwrap();
+    assert_eq!((frame.width, frame.height), cncsim::report::PLOT_SIZE);
+    let coloured = pixels
+        .chunks(3)
+        .filter(|p| p[0].abs_diff(p[1]) > 60 || p[1].abs_diff(p[2]) > 60)
+        .count();
+    assert!(
+        coloured > 1000,
+        "only {coloured} coloured pixels: no curves drawn?"
+    );
     let table = std::fs::read_to_string(out.join("ab.md")).unwrap();
     assert!(
         table.contains("A: mill_table2_fast controller=pid"),

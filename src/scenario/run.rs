@@ -38,6 +38,8 @@ pub struct RunOutput {
     pub metrics_json: serde_json::Value,
     pub stop: Option<Stop>,
     pub trace: Trace,
+    /// Per-sample figures derived from the trace (contour error, path speed).
+    pub derived: Derived,
     /// Files written, in the order written.
     pub files: Vec<PathBuf>,
 }
@@ -265,6 +267,7 @@ pub fn run_scenario(
         metrics_json,
         stop: outcome.stop,
         trace: outcome.trace,
+        derived,
         files,
     })
 }
