@@ -210,3 +210,40 @@ fn overrides_that_change_the_setpoints_are_refused() {
     assert_eq!(run.status.code(), Some(2));
     assert!(String::from_utf8_lossy(&run.stderr).contains("do not run the same setpoints"));
 }
+
+#[test]
+fn task_space_inverse_dynamics_tracks_the_study_program_through_a_zero() {
+    // The program starts at A = 0, where C cannot move the tool axis and the task Jacobian
+    // loses rank, and its first move turns C while A is still near zero.
+    let dir = tempfile::tempdir().unwrap();
+    let (run, json) = ab_args(
+        &[
+            FAST,
+            "--a",
+            "controller.space=joint",
+            "--b",
+            "controller.space=task",
+        ],
+        dir.path(),
+    );
+    assert!(
+        run.status.success(),
+        "{}",
+        String::from_utf8_lossy(&run.stderr)
+    );
+    let (joint, task) = row(&json, "max contour error");
+    assert!(
+        task < 1.2 * joint && task < 4.0,
+        "contour error: joint {joint} µm, task {task} µm"
+    );
+    let (joint, task) = row(&json, "c: max following error");
+    assert!(
+        task < 1.2 * joint,
+        "C: joint {joint} mdeg, task {task} mdeg"
+    );
+    let (joint, task) = row(&json, "c: peak torque");
+    assert!(
+        task < 1.1 * joint,
+        "C torque: joint {joint}, task {task} N·m"
+    );
+}
