@@ -316,3 +316,101 @@ mod tests {
         );
     }
 }
+
+#[cfg(test)]
+mod file_tests {
+    use super::*;
+
+    /// The bundled fast mill scenario with absolute paths, written to a temporary folder, with
+    /// `edit` applied to its text.
+    fn scenario(edit: impl Fn(&str) -> String) -> (tempfile::TempDir, std::path::PathBuf, String) {
+        let root = Path::new(env!("CARGO_MANIFEST_DIR"));
+        let text = std::fs::read_to_string(root.join("scenarios/mill_table2_fast.toml"))
+            .unwrap()
+            .replace("../models/", &format!("{}/models/", root.display()))
+            .replace(
+                "programs/",
+                &format!("{}/scenarios/programs/", root.display()),
+            );
+        let text = edit(&text);
+        let dir = tempfile::tempdir().unwrap();
+        let path = dir.path().join("s.toml");
+        std::fs::write(&path, &text).unwrap();
+        (dir, path, text)
+    }
+
+    fn line_of(text: &str, needle: &str) -> usize {
+        LineColumn::of_first(text, needle).unwrap().line
+    }
+
+    #[test]
+    fn errors_on_lines_the_overrides_left_alone_point_into_the_file() {
+        let (_dir, path, text) = scenario(|t| t.replace("settle_s = 0.5", "settle_s = -0.5"));
+        // A new key in [controller] and a new root table: lines are added before the error.
+        let overrides: Vec<Override> = ["controller.task_damping=0.1", "analytic.enabled=false"]
+            .iter()
+            .map(|o| Override::parse(o).unwrap())
+            .collect();
+        let e = Scenario::load_with_overrides(&path, &overrides, "--b").unwrap_err();
+        assert_eq!(
+            e.at.map(|at| at.line),
+            Some(line_of(&text, "settle_s")),
+            "{e}"
+        );
+        assert!(
+            e.message.starts_with("settle_s = -0.5: expected a number ≥ 0 (with --b controller.task_damping=0.1 analytic.enabled=false)"),
+            "{e}"
+        );
+    }
+
+    #[test]
+    fn positions_of_a_loaded_variant_are_the_files() {
+        let (_dir, path, text) = scenario(|t| t.to_string());
+        let overrides = [
+            Override::parse("planner.blend=exact-stop").unwrap(),
+            Override::parse("controller.damping_ratio=0.9").unwrap(),
+        ];
+        let s = Scenario::load_with_overrides(&path, &overrides, "--a").unwrap();
+        assert_eq!(
+            s.name,
+            "mill_table2_fast planner.blend=exact-stop controller.damping_ratio=0.9"
+        );
+        assert_eq!(
+            s.gains["x"].at.map(|at| at.line),
+            Some(line_of(&text, "axes.x"))
+        );
+        assert_eq!(
+            s.expect
+                .iter()
+                .find(|e| e.metric == "max_contour_error_mm")
+                .and_then(|e| e.at)
+                .map(|at| at.line),
+            Some(line_of(&text, "max_contour_error_mm = "))
+        );
+        assert_eq!(s.inverse_dynamics.unwrap().damping_ratio, 0.9);
+    }
+
+    #[test]
+    fn settings_of_the_controller_not_chosen_are_still_checked() {
+        let (_dir, path, _) = scenario(|t| t.replace("kp = 5806.0", "kp = -5806.0"));
+        let e = Scenario::load_with_overrides(&path, &[], "--a").unwrap_err();
+        assert!(
+            e.message
+                .contains("controller.axes.x: gains must be finite and ≥ 0"),
+            "{e}"
+        );
+        let (_dir, path, _) = scenario(|t| t.to_string());
+        let pid = [
+            Override::parse("controller=pid").unwrap(),
+            Override::parse("controller.damping_ratio=0").unwrap(),
+        ];
+        let e = Scenario::load_with_overrides(&path, &pid, "--a").unwrap_err();
+        assert_eq!(
+            e.message,
+            "--a controller.damping_ratio=0: damping_ratio = 0: expected a number > 0"
+        );
+        // Chosen PID: no inverse-dynamics settings, the file's gains.
+        let s = Scenario::load_with_overrides(&path, &pid[..1], "--a").unwrap();
+        assert!(s.inverse_dynamics.is_none() && s.gains["c"].gains.kp == 196.5);
+    }
+}
