@@ -28,6 +28,8 @@ pub struct ComputedTorque {
     previous_position: Option<Vec<f64>>,
     velocity: Vec<f64>,
     nu: Vec<f64>,
+    /// The joint-space law's ν, kept for the task-space law's null space.
+    joint_nu: Vec<f64>,
     tau: Vec<f64>,
 }
 
@@ -55,6 +57,7 @@ impl ComputedTorque {
             previous_position: None,
             velocity: vec![0.0; n],
             nu: vec![0.0; n],
+            joint_nu: vec![0.0; n],
             tau: vec![0.0; n],
         }
     }
@@ -91,7 +94,7 @@ impl Controller for ComputedTorque {
                 + self.kp * (input.setpoint_position[i] - q[i]);
         }
         if let Some(task) = &self.task {
-            let joint_nu = self.nu.clone();
+            self.joint_nu.copy_from_slice(&self.nu);
             task.acceleration(
                 q,
                 &self.velocity,
@@ -100,7 +103,7 @@ impl Controller for ComputedTorque {
                 input.setpoint_acceleration,
                 self.kp,
                 self.kd,
-                &joint_nu,
+                &self.joint_nu,
                 &mut self.nu,
             );
         }
