@@ -83,15 +83,27 @@ fn benches(c: &mut Criterion) {
 
 /// One servo period of the A-C mill (5 axes, 4 physics steps of 0.25 ms) with each controller,
 /// on the first 1000 ticks of the study's program: per-axis PID against computed torque (RNEA
-/// on the URDF model every period).
+/// on the URDF model every period), in joint space and resolved at the tool tip.
 fn mill(c: &mut Criterion) {
     let root = Path::new(env!("CARGO_MANIFEST_DIR"));
     let mut group = c.benchmark_group("servo period, A-C mill");
     group.throughput(criterion::Throughput::Elements(1000));
-    for name in ["mill_table2_pid", "mill_table2_id"] {
-        let scenario =
-            cncsim::scenario::Scenario::load(&root.join(format!("scenarios/{name}.toml"))).unwrap();
-        group.bench_function(format!("{name}, per 1000 ticks"), |b| {
+    for (name, overrides) in [
+        ("mill_table2_pid", ""),
+        ("mill_table2_id", ""),
+        ("mill_table2_id", "controller.space=task"),
+    ] {
+        let overrides: Vec<_> = overrides
+            .split_whitespace()
+            .map(|o| cncsim::scenario::Override::parse(o).unwrap())
+            .collect();
+        let scenario = cncsim::scenario::Scenario::load_with_overrides(
+            &root.join(format!("scenarios/{name}.toml")),
+            &overrides,
+            "--a",
+        )
+        .unwrap();
+        group.bench_function(format!("{}, per 1000 ticks", scenario.name), |b| {
             b.iter_batched(
                 || {
                     let prepared = cncsim::scenario::prepare(&scenario).unwrap();

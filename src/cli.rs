@@ -19,13 +19,27 @@ pub enum Command {
         #[arg(long)]
         out: Option<PathBuf>,
     },
-    /// A/B: run two scenarios that share program, planner and servo period (e.g. PID against
-    /// inverse dynamics) and compare contour error, following error, torque and time side by
-    /// side; writes OUT/ab.md, OUT/ab.json and each variant's outputs.
+    /// A/B: run two variants on the same setpoints (e.g. PID against inverse dynamics) and
+    /// compare contour error, following error, torque and time side by side; writes OUT/ab.md,
+    /// OUT/ab.json, OUT/contour_error.png and each variant's outputs. The variants are two
+    /// scenario files, or one file run twice with overrides:
+    /// `cncsim ab S.toml --a controller=pid --b controller=inverse-dynamics`.
     Ab {
-        a: PathBuf,
-        b: PathBuf,
-        /// Output folder (default: out/ab_<a>_vs_<b>).
+        /// Scenario of variant A (and of B when no second file is given).
+        #[arg(value_name = "A.toml")]
+        scenario: PathBuf,
+        /// Scenario of variant B (default: the same file as A).
+        #[arg(value_name = "B.toml")]
+        other: Option<PathBuf>,
+        /// Overrides for variant A: dotted scenario keys and TOML values, e.g.
+        /// `controller=pid` (short for controller.type), `controller.natural_frequency_hz=30`,
+        /// `timing.physics_step_ms=0.125`; bare words are strings.
+        #[arg(long = "a", value_name = "KEY=VALUE", num_args = 1.., action = clap::ArgAction::Append)]
+        a_overrides: Vec<String>,
+        /// Overrides for variant B, as for --a.
+        #[arg(long = "b", value_name = "KEY=VALUE", num_args = 1.., action = clap::ArgAction::Append)]
+        b_overrides: Vec<String>,
+        /// Output folder (default: out/ab_<A>_vs_<B>).
         #[arg(long)]
         out: Option<PathBuf>,
     },

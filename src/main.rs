@@ -3,8 +3,8 @@ use cncsim::machine::Machine;
 use cncsim::program::{inspect, FeedRule, InspectOptions, ReadOptions};
 use cncsim::report::metrics_table;
 use cncsim::scenario::{
-    check, outcome_text, run_scenario, tune_scenario, RunOutput, Scenario, TuneError, TuneOptions,
-    TunePlant,
+    check, folder_name, outcome_text, run_scenario, tune_scenario, Override, RunOutput, Scenario,
+    TuneError, TuneOptions, TunePlant,
 };
 use indicatif::{ProgressBar, ProgressStyle};
 use std::path::{Path, PathBuf};
@@ -57,7 +57,13 @@ fn main() -> ExitCode {
             gravity,
             json,
         }) => dynamics(&urdf, &q, &qd, &qdd, &gravity, json),
-        Some(Command::Ab { a, b, out }) => ab(&a, &b, out),
+        Some(Command::Ab {
+            scenario,
+            other,
+            a_overrides,
+            b_overrides,
+            out,
+        }) => ab(&scenario, other.as_deref(), &a_overrides, &b_overrides, out),
         Some(Command::Tune {
             scenario,
             axis,
@@ -228,8 +234,30 @@ fn dynamics(
     }
 }
 
-fn ab(a: &Path, b: &Path, out: Option<PathBuf>) -> ExitCode {
-    let (sa, sb) = match (Scenario::load(a), Scenario::load(b)) {
+fn ab(
+    a: &Path,
+    b: Option<&Path>,
+    a_overrides: &[String],
+    b_overrides: &[String],
+    out: Option<PathBuf>,
+) -> ExitCode {
+    let parse = |flag: &str, texts: &[String]| -> Result<Vec<Override>, String> {
+        texts
+            .iter()
+            .map(|t| Override::parse(t).map_err(|e| format!("{flag} {e}")))
+            .collect()
+    };
+    let (oa, ob) = match (parse("--a", a_overrides), parse("--b", b_overrides)) {
+        (Ok(oa), Ok(ob)) => (oa, ob),
+        (Err(e), _) | (_, Err(e)) => return fail_input(&e),
+    };
+    if b.is_none() && oa.is_empty() && ob.is_empty() {
+        return fail_input(&"ab with one scenario needs overrides to tell the variants apart: --a KEY=VALUE… and/or --b KEY=VALUE… (or give a second scenario file)");
+    }
+    let (sa, sb) = match (
+        Scenario::load_with_overrides(a, &oa, "--a"),
+        Scenario::load_with_overrides(b.unwrap_or(a), &ob, "--b"),
+    ) {
         (Ok(sa), Ok(sb)) => (sa, sb),
         (Err(e), _) | (_, Err(e)) => return fail_input(&e),
     };
@@ -251,6 +279,18 @@ fn ab(a: &Path, b: &Path, out: Option<PathBuf>) -> ExitCode {
         }
         println!("  wrote {}", path.display());
     }
+    let plot = out.join("contour_error.png");
+    let labels = [format!("A: {}", sa.name), format!("B: {}", sb.name)];
+    let series =
+        [(&labels[0], &ra), (&labels[1], &rb)].map(|(label, r)| cncsim::report::ContourSeries {
+            label,
+            time: &r.trace.time,
+            contour_error: &r.derived.contour_error,
+        });
+    if let Err(e) = cncsim::report::write_contour_error_plot(&plot, &series) {
+        return fail_input(&e);
+    }
+    println!("  wrote {}", plot.display());
     for (s, r) in [(&sa, &ra), (&sb, &rb)] {
         if let Some(stop) = &r.stop {
             eprintln!("error: {}: {stop}", s.path.display());
@@ -419,25 +459,6 @@ fn execute(scenario: &Scenario, out: &Path) -> Result<RunOutput, cncsim::scenari
     let result = run_scenario(scenario, out, &mut progress);
     bar.finish_and_clear();
     result
-}
-
-/// A scenario name as a single folder name (no separators, no `..`).
-fn folder_name(name: &str) -> String {
-    let cleaned: String = name
-        .chars()
-        .map(|c| {
-            if c.is_alphanumeric() || "-_.".contains(c) {
-                c
-            } else {
-                '_'
-            }
-        })
-        .collect();
-    if cleaned.trim_matches('.').is_empty() {
-        "scenario".into()
-    } else {
-        cleaned
-    }
 }
 
 fn fail_input(e: &dyn std::fmt::Display) -> ExitCode {

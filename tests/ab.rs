@@ -1,10 +1,17 @@
-//! `cncsim ab`: PID against inverse dynamics on the A-C mill, same setpoints.
+//! `cncsim ab`: PID against inverse dynamics on the A-C mill, same setpoints; two files, or
+//! one file with overrides.
 
 use std::process::Command;
 
 fn ab(a: &str, b: &str, out: &std::path::Path) -> (std::process::Output, serde_json::Value) {
+    ab_args(&[a, b], out)
+}
+
+fn ab_args(args: &[&str], out: &std::path::Path) -> (std::process::Output, serde_json::Value) {
     let output = Command::new(env!("CARGO_BIN_EXE_cncsim"))
-        .args(["ab", a, b, "--out", out.to_str().unwrap()])
+        .arg("ab")
+        .args(args)
+        .args(["--out", out.to_str().unwrap()])
         .current_dir(env!("CARGO_MANIFEST_DIR"))
         .output()
         .unwrap();
@@ -76,4 +83,167 @@ fn variants_with_different_setpoints_are_refused() {
     );
     assert_eq!(out.status.code(), Some(2));
     assert!(String::from_utf8_lossy(&out.stderr).contains("do not run the same setpoints"));
+}
+
+const FAST: &str = "scenarios/mill_table2_fast.toml";
+
+#[test]
+fn one_scenario_with_overrides_compares_pid_and_inverse_dynamics() {
+    let dir = tempfile::tempdir().unwrap();
+    let out = dir.path().join("ab");
+    let (run, json) = ab_args(
+        &[
+            FAST,
+            "--a",
+            "controller=pid",
+            "--b",
+            "controller=inverse-dynamics",
+        ],
+        &out,
+    );
+    assert!(
+        run.status.success(),
+        "{}",
+        String::from_utf8_lossy(&run.stderr)
+    );
+    assert_eq!(json["a"], "mill_table2_fast controller=pid");
+    assert_eq!(json["b"], "mill_table2_fast controller=inverse-dynamics");
+    let (pid, id) = row(&json, "max contour error");
+    assert!(id * 10.0 < pid, "contour error: PID {pid} µm, ID {id} µm");
+    // The PID variant really is the file's PID gains (its measured figure), not ID twice.
+    assert!((150.0..200.0).contains(&pid), "PID contour error {pid} µm");
+    assert!(out
+        .join("a_mill_table2_fast_controller=pid/run.rrd")
+        .is_file());
+    assert!(out
+        .join("b_mill_table2_fast_controller=inverse-dynamics/metrics.json")
+        .is_file());
+    // The plot decodes as a PNG of the documented size with something drawn in it.
+    let decoder = png::Decoder::new(std::io::BufReader::new(
+        std::fs::File::open(out.join("contour_error.png")).unwrap(),
+    ));
+    let mut reader = decoder.read_info().unwrap();
+    let mut pixels = vec![0; reader.output_buffer_size().unwrap()];
+    let frame = reader.next_frame(&mut pixels).unwrap();
+    assert_eq!((frame.width, frame.height), cncsim::report::PLOT_SIZE);
+    let coloured = pixels
+        .chunks(3)
+        .filter(|p| p[0].abs_diff(p[1]) > 60 || p[1].abs_diff(p[2]) > 60)
+        .count();
+    assert!(
+        coloured > 1000,
+        "only {coloured} coloured pixels: no curves drawn?"
+    );
+    let table = std::fs::read_to_string(out.join("ab.md")).unwrap();
+    assert!(
+        table.contains("A: mill_table2_fast controller=pid"),
+        "{table}"
+    );
+
+    // A generic dotted override changes the loop: a slower inverse-dynamics loop tracks worse.
+    let (run, json) = ab_args(
+        &[
+            FAST,
+            "--a",
+            "controller.natural_frequency_hz=20",
+            "--b",
+            "controller.natural_frequency_hz=10",
+        ],
+        &dir.path().join("slow"),
+    );
+    assert!(run.status.success());
+    let (fast, slow) = row(&json, "max contour error");
+    assert!(slow > 1.5 * fast, "20 Hz {fast} µm, 10 Hz {slow} µm");
+}
+
+#[test]
+fn bad_overrides_name_the_override_and_exit_2() {
+    let dir = tempfile::tempdir().unwrap();
+    for (args, expected) in [
+        (
+            vec!["--a", "controller.natrual_frequency_hz=30"],
+            "--a controller.natrual_frequency_hz=30: unknown key `natrual_frequency_hz`",
+        ),
+        (
+            vec!["--b", "controller.natural_frequency_hz=fast"],
+            "--b controller.natural_frequency_hz=fast: invalid type: string \"fast\", expected f64",
+        ),
+        (
+            vec!["--a", "controller.natural_frequency_hz=-3"],
+            "--a controller.natural_frequency_hz=-3: natural_frequency_hz = -3: expected a number > 0",
+        ),
+        (
+            vec!["--a", "controller=stepper"],
+            "--a controller=stepper: unknown variant `stepper`",
+        ),
+        (
+            vec!["--b", "timing=1"],
+            "--b timing=1: `timing` is a table",
+        ),
+        (vec!["--a", "controller"], "--a controller: expected KEY=VALUE"),
+        (vec![], "needs overrides to tell the variants apart"),
+    ] {
+        let mut all = vec![FAST];
+        all.extend(args.iter().copied());
+        let (run, _) = ab_args(&all, dir.path());
+        let stderr = String::from_utf8_lossy(&run.stderr);
+        assert_eq!(run.status.code(), Some(2), "{args:?}: {stderr}");
+        assert!(stderr.contains(expected), "{args:?}: {stderr}");
+        assert!(!stderr.contains("panicked"), "{stderr}");
+    }
+    assert!(!dir.path().join("ab.json").exists());
+}
+
+#[test]
+fn overrides_that_change_the_setpoints_are_refused() {
+    let dir = tempfile::tempdir().unwrap();
+    let (run, _) = ab_args(
+        &[
+            FAST,
+            "--a",
+            "controller=pid",
+            "--b",
+            "timing.servo_period_ms=0.5",
+        ],
+        dir.path(),
+    );
+    assert_eq!(run.status.code(), Some(2));
+    assert!(String::from_utf8_lossy(&run.stderr).contains("do not run the same setpoints"));
+}
+
+#[test]
+fn task_space_inverse_dynamics_tracks_the_study_program_through_a_zero() {
+    // The program starts at A = 0, where C cannot move the tool axis and the task Jacobian
+    // loses rank, and its first move turns C while A is still near zero.
+    let dir = tempfile::tempdir().unwrap();
+    let (run, json) = ab_args(
+        &[
+            FAST,
+            "--a",
+            "controller.space=joint",
+            "--b",
+            "controller.space=task",
+        ],
+        dir.path(),
+    );
+    assert!(
+        run.status.success(),
+        "{}",
+        String::from_utf8_lossy(&run.stderr)
+    );
+    let (joint, task) = row(&json, "max contour error");
+    assert!(
+        task < 1.2 * joint && task < 4.0,
+        "contour error: joint {joint} µm, task {task} µm"
+    );
+    let (joint, task) = row(&json, "c: max following error");
+    assert!(
+        task < 1.2 * joint,
+        "C: joint {joint} mdeg, task {task} mdeg"
+    );
+    let (joint, task) = row(&json, "c: peak torque");
+    assert!(
+        task < 1.1 * joint,
+        "C torque: joint {joint}, task {task} N·m"
+    );
 }

@@ -8,8 +8,11 @@
 //! controller is given (it may be perturbed to study robustness); q̇ is estimated from the
 //! sampled encoder positions, as a drive would, corrected for the half-period lag of the
 //! difference by the acceleration last commanded.
+//!
+//! With a [`TaskSpace`] the acceleration ν is instead resolved at the tool tip (see
+//! `task_space.rs`); the conversion to torque and to the actuator is the same.
 
-use super::{ActuatorKind, Controller, ControllerInput};
+use super::{ActuatorKind, Controller, ControllerInput, TaskSpace};
 use crate::dynamics::{DynamicsModel, DynamicsWorkspace};
 use crate::machine::Drive;
 
@@ -21,9 +24,12 @@ pub struct ComputedTorque {
     period: f64,
     actuator: ActuatorKind,
     drives: Vec<Drive>,
+    task: Option<TaskSpace>,
     previous_position: Option<Vec<f64>>,
     velocity: Vec<f64>,
     nu: Vec<f64>,
+    /// The joint-space law's ν, kept for the task-space law's null space.
+    joint_nu: Vec<f64>,
     tau: Vec<f64>,
 }
 
@@ -47,11 +53,21 @@ impl ComputedTorque {
             period,
             actuator,
             drives: drives.to_vec(),
+            task: None,
             previous_position: None,
             velocity: vec![0.0; n],
             nu: vec![0.0; n],
+            joint_nu: vec![0.0; n],
             tau: vec![0.0; n],
         }
+    }
+}
+
+impl ComputedTorque {
+    /// Imposes the error dynamics on the tool tip and tool axis instead of on every joint.
+    pub fn in_task_space(mut self, task: TaskSpace) -> Self {
+        self.task = Some(task);
+        self
     }
 }
 
@@ -76,6 +92,20 @@ impl Controller for ComputedTorque {
             self.nu[i] = input.setpoint_acceleration[i]
                 + self.kd * (input.setpoint_velocity[i] - self.velocity[i])
                 + self.kp * (input.setpoint_position[i] - q[i]);
+        }
+        if let Some(task) = &self.task {
+            self.joint_nu.copy_from_slice(&self.nu);
+            task.acceleration(
+                q,
+                &self.velocity,
+                input.setpoint_position,
+                input.setpoint_velocity,
+                input.setpoint_acceleration,
+                self.kp,
+                self.kd,
+                &self.joint_nu,
+                &mut self.nu,
+            );
         }
         self.model.inverse_dynamics(
             &mut self.workspace,

@@ -5,10 +5,12 @@
 mod actuator;
 mod computed_torque;
 mod pid;
+mod task_space;
 
 pub use actuator::{Actuator, ActuatorKind, ActuatorOutput};
 pub use computed_torque::ComputedTorque;
 pub use pid::{Pid, PidForm, PidGains};
+pub use task_space::TaskSpace;
 
 /// What a controller sees at a servo tick, per axis (joint units: m or rad).
 #[derive(Debug, Clone, Copy)]

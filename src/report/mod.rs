@@ -3,11 +3,13 @@
 
 mod csv;
 mod metrics;
+mod plot;
 mod recording;
 mod table;
 
 pub use csv::write_trace_csv;
 pub use metrics::{AxisMetrics, Derived, Metrics};
+pub use plot::{write_contour_error_plot, ContourSeries, PLOT_SIZE};
 pub use recording::{write_recording, write_setpoints_recording, RecordingContent};
 pub use table::metrics_table;
 

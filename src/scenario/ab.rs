@@ -1,7 +1,7 @@
 //! Controller A/B comparisons: two scenarios that differ only in the loop (controller, gains,
 //! actuator, timing of the physics) run on the same setpoints, compared side by side.
 
-use super::{run_scenario, RunError, RunOutput, Scenario};
+use super::{folder_name, run_scenario, RunError, RunOutput, Scenario};
 use serde::Serialize;
 use std::path::Path;
 
@@ -32,8 +32,16 @@ pub fn run_ab(
     out: &Path,
     progress: &mut dyn FnMut(usize, usize) -> bool,
 ) -> Result<(AbReport, RunOutput, RunOutput), RunError> {
-    let ra = run_scenario(a, &out.join(format!("a_{}", a.name)), progress)?;
-    let rb = run_scenario(b, &out.join(format!("b_{}", b.name)), progress)?;
+    let ra = run_scenario(
+        a,
+        &out.join(format!("a_{}", folder_name(&a.name))),
+        progress,
+    )?;
+    let rb = run_scenario(
+        b,
+        &out.join(format!("b_{}", folder_name(&b.name))),
+        progress,
+    )?;
     if ra.trace.commanded != rb.trace.commanded && ra.stop.is_none() && rb.stop.is_none() {
         let message = "the two variants do not run the same setpoints (program, planner and servo period must match for an A/B comparison)";
         return Err(crate::diagnostics::FileError::new(&b.path, None, message).into());

@@ -219,7 +219,17 @@ struct RawController {
     /// Inverse dynamics: scale on every link mass and inertia of the controller's model (1 =
     /// the true machine), to study robustness to model error.
     model_mass_scale: Option<Num>,
+    /// Inverse dynamics: where the error dynamics are imposed, joint space or at the tool tip.
+    #[serde(default)]
+    space: ControlSpace,
+    /// Task space: damping λ of the least-squares inverse of the task Jacobian near its
+    /// singularity (units of its singular values).
+    task_damping: Option<Num>,
 }
+
+/// Default least-squares damping of the task-space controller: about the smallest singular
+/// value of the mill's task Jacobian a few degrees from A = 0.
+pub const DEFAULT_TASK_DAMPING: f64 = 0.05;
 
 /// The computed-torque controller's settings.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -228,6 +238,20 @@ pub struct InverseDynamicsSettings {
     pub omega_n: f64,
     pub damping_ratio: f64,
     pub model_mass_scale: f64,
+    pub space: ControlSpace,
+    /// Task space: the least-squares damping λ (0 in joint space).
+    pub task_damping: f64,
+}
+
+/// Where the inverse-dynamics controller imposes ë + K_D·ė + K_P·e = 0.
+#[derive(Deserialize, Debug, Clone, Copy, PartialEq, Eq, Default)]
+#[serde(rename_all = "kebab-case")]
+pub enum ControlSpace {
+    /// On every joint (machine axis).
+    #[default]
+    Joint,
+    /// On the tool tip and tool axis in workpiece coordinates (resolved acceleration).
+    Task,
 }
 
 #[derive(Deserialize, Clone, Copy)]
@@ -597,25 +621,16 @@ impl Scenario {
             ));
         }
 
+        // The `[controller]` table may carry PID gains and inverse-dynamics parameters side by
+        // side (so `ab --a controller=pid --b controller=inverse-dynamics` compares them on one
+        // file); `type` chooses, and whatever is given is checked either way.
         let controller_table = LineColumn::of_first(text, "[controller]");
         let inverse_dynamics = match &raw.controller {
-            Some(c) if matches!(c.kind, ControllerType::InverseDynamics) => {
-                if let Some(axes) = &c.axes {
-                    return Err(err(
-                        axes.span(),
-                        "controller.axes (PID gains) do not apply to type = \"inverse-dynamics\""
-                            .into(),
-                    ));
-                }
+            Some(c) => {
+                let is_id = matches!(c.kind, ControllerType::InverseDynamics);
                 let omega_n = match &c.natural_frequency_hz {
-                    Some(f) => positive(f, "natural_frequency_hz")? * std::f64::consts::TAU,
-                    None => {
-                        return Err(FileError::new(
-                            path,
-                            controller_table,
-                            "type = \"inverse-dynamics\" needs natural_frequency_hz",
-                        ))
-                    }
+                    Some(f) => Some(positive(f, "natural_frequency_hz")? * std::f64::consts::TAU),
+                    None => None,
                 };
                 let damping_ratio = match &c.damping_ratio {
                     Some(z) => positive(z, "damping_ratio")?,
@@ -625,31 +640,30 @@ impl Scenario {
                     Some(m) => positive(m, "model_mass_scale")?,
                     None => 1.0,
                 };
-                Some(InverseDynamicsSettings {
-                    omega_n,
-                    damping_ratio,
-                    model_mass_scale,
-                })
-            }
-            Some(c) => {
-                let extra = [
-                    (&c.natural_frequency_hz, "natural_frequency_hz"),
-                    (&c.damping_ratio, "damping_ratio"),
-                    (&c.model_mass_scale, "model_mass_scale"),
-                ];
-                if let Some((v, name)) = extra
-                    .iter()
-                    .find_map(|(v, name)| v.as_ref().map(|v| (v, name)))
-                {
-                    return Err(err(
-                        v.span(),
-                        format!("{name} applies to type = \"inverse-dynamics\", not to PID"),
-                    ));
+                let task_damping = match &c.task_damping {
+                    Some(l) => positive(l, "task_damping")?,
+                    None => DEFAULT_TASK_DAMPING,
+                };
+                match (is_id, omega_n) {
+                    (true, Some(omega_n)) => Some(InverseDynamicsSettings {
+                        omega_n,
+                        damping_ratio,
+                        model_mass_scale,
+                        space: c.space,
+                        task_damping,
+                    }),
+                    (true, None) => {
+                        return Err(FileError::new(
+                            path,
+                            controller_table,
+                            "type = \"inverse-dynamics\" needs natural_frequency_hz",
+                        ))
+                    }
+                    (false, _) if c.axes.is_none() => {
+                        return Err(FileError::new(path, controller_table, "type = \"pid\" needs gains per axis: axes.<name> = { kp = …, ki = …, kd = … }"));
+                    }
+                    (false, _) => None,
                 }
-                if c.axes.is_none() {
-                    return Err(FileError::new(path, controller_table, "type = \"pid\" needs gains per axis: axes.<name> = { kp = …, ki = …, kd = … }"));
-                }
-                None
             }
             None => None,
         };
@@ -819,6 +833,29 @@ impl Scenario {
             analytic_steps,
             expect,
         })
+    }
+}
+
+impl Scenario {
+    /// Moves every recorded file position through `f` (`None`: the place no longer exists in
+    /// the file, e.g. a line an override wrote).
+    pub(crate) fn map_positions(&mut self, f: &dyn Fn(LineColumn) -> Option<LineColumn>) {
+        let map = |at: &mut Option<LineColumn>| *at = at.and_then(f);
+        map(&mut self.machine_at);
+        map(&mut self.planner.at);
+        map(&mut self.controller_at);
+        for (_, at) in self.planner.limits.values_mut() {
+            map(at);
+        }
+        for g in self.gains.values_mut() {
+            map(&mut g.at);
+        }
+        for (_, at) in self.encoder_counts_per_rev.values_mut() {
+            map(at);
+        }
+        for e in &mut self.expect {
+            map(&mut e.at);
+        }
     }
 }
 

@@ -4,6 +4,7 @@
 mod ab;
 mod check;
 mod file;
+mod overrides;
 mod plan;
 mod run;
 mod tune;
@@ -11,9 +12,10 @@ mod tune;
 pub use ab::{run_ab, AbReport, AbRow};
 pub use check::{check, Breach, Verdict};
 pub use file::{
-    AxisGains, Expectation, InverseDynamicsSettings, PlannerSettings, ProfileName, ProgramSource,
-    Scenario,
+    AxisGains, ControlSpace, Expectation, InverseDynamicsSettings, PlannerSettings, ProfileName,
+    ProgramSource, Scenario,
 };
+pub use overrides::Override;
 pub use plan::{plan_scenario, PlanReport};
 pub use run::{
     load_checked_program, machine_for, plan_settings, prepare, prepare_with, run_scenario,
@@ -23,3 +25,22 @@ pub use tune::{
     outcome_text, tune_scenario, tune_scenario_with, LinearPrediction, TuneError, TuneOptions,
     TunePlant, TuneReport,
 };
+
+/// A scenario or variant name as a single folder name (no separators, no `..`).
+pub fn folder_name(name: &str) -> String {
+    let cleaned: String = name
+        .chars()
+        .map(|c| {
+            if c.is_alphanumeric() || "-_.=".contains(c) {
+                c
+            } else {
+                '_'
+            }
+        })
+        .collect();
+    if cleaned.trim_matches('.').is_empty() {
+        "scenario".into()
+    } else {
+        cleaned
+    }
+}

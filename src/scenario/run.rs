@@ -3,8 +3,8 @@
 //! computed and says where it stopped.
 
 use super::ProfileName;
-use super::{ProgramSource, Scenario};
-use crate::control::{Actuator, ActuatorKind, ComputedTorque, Controller, Pid, PidBank};
+use super::{ControlSpace, ProgramSource, Scenario};
+use crate::control::{Actuator, ActuatorKind, ComputedTorque, Controller, Pid, PidBank, TaskSpace};
 use crate::diagnostics::FileError;
 use crate::dynamics::DynamicsModel;
 use crate::kinematics::{self, AcAxes, AcTableKinematics, AxisMap};
@@ -38,6 +38,8 @@ pub struct RunOutput {
     pub metrics_json: serde_json::Value,
     pub stop: Option<Stop>,
     pub trace: Trace,
+    /// Per-sample figures derived from the trace (contour error, path speed).
+    pub derived: Derived,
     /// Files written, in the order written.
     pub files: Vec<PathBuf>,
 }
@@ -286,6 +288,7 @@ pub fn run_scenario_with(
         metrics_json,
         stop: outcome.stop,
         trace: outcome.trace,
+        derived,
         files,
     })
 }
@@ -361,14 +364,27 @@ pub(crate) fn controller_for(
             )
         })?;
     let drives: Vec<_> = machine.axes.iter().map(|a| a.drive.clone()).collect();
-    Ok(Box::new(ComputedTorque::new(
+    let controller = ComputedTorque::new(
         model,
         &drives,
         actuator,
         s.servo_period,
         id.omega_n,
         id.damping_ratio,
-    )))
+    );
+    Ok(match id.space {
+        ControlSpace::Joint => Box::new(controller),
+        ControlSpace::Task => {
+            let kinematics = AcTableKinematics::new(machine).map_err(|e| {
+                FileError::new(
+                    &s.path,
+                    s.controller_at,
+                    format!("controller.space = \"task\" resolves the tool tip on a table-tilting A-C machine: {e}"),
+                )
+            })?;
+            Box::new(controller.in_task_space(TaskSpace::new(kinematics, id.task_damping)))
+        }
+    })
 }
 
 /// One PID loop per machine axis, with the scenario's gains.
