@@ -1,5 +1,6 @@
 //! Cost of one servo period of the XYZ table: PID + DC-motor actuators + 4 physics steps of
-//! 0.25 ms (T = 1 ms), and of one bare physics step.
+//! 0.25 ms (T = 1 ms), and of one bare physics step; each with rigid joints and with the
+//! table's guide contacts (friction) and backlash joints.
 
 use cncsim::control::{Actuator, ActuatorKind, Pid, PidBank, PidForm, PidGains};
 use cncsim::machine::Machine;
@@ -24,15 +25,32 @@ fn plant(machine: &Machine, step: f64) -> Plant {
     Plant::new(machine, &options).unwrap()
 }
 
+/// The table as modelled (guide contacts, backlash) and with both taken out.
+fn variants() -> [(&'static str, Machine); 2] {
+    let mut rigid = table();
+    for axis in &mut rigid.axes {
+        axis.drive.guide = None;
+        axis.drive.backlash = 0.0;
+    }
+    [
+        ("rigid joints", rigid),
+        ("guide contacts + backlash", table()),
+    ]
+}
+
 fn benches(c: &mut Criterion) {
-    let machine = table();
-    let mut p = plant(&machine, 2.5e-4);
-    c.bench_function("physics step (0.25 ms), XYZ table", |b| {
-        b.iter(|| {
-            p.set_joint_forces(&[1.0, -1.0, 5.0]);
-            p.step();
-        })
-    });
+    for (label, machine) in variants() {
+        let mut p = plant(&machine, 2.5e-4);
+        c.bench_function(
+            &format!("physics step (0.25 ms), XYZ table, {label}"),
+            |b| {
+                b.iter(|| {
+                    p.set_joint_forces(&[1.0, -1.0, 5.0]);
+                    p.step();
+                })
+            },
+        );
+    }
 
     // One servo period through the full loop: 1000 ticks per iteration, reported per tick.
     let ticks = 1000;
@@ -43,41 +61,43 @@ fn benches(c: &mut Criterion) {
     }
     let mut group = c.benchmark_group("servo period (1 ms = PID + DC motor + 4 physics steps)");
     group.throughput(criterion::Throughput::Elements(ticks as u64));
-    group.bench_function("xyz table, per 1000 ticks", |b| {
-        b.iter_batched(
-            || {
-                let gains = PidGains {
-                    kp: 19800.0,
-                    ki: 6.1e5,
-                    kd: 146.0,
-                };
-                CoSimulation {
-                    plant: plant(&machine, 2.5e-4),
-                    controller: Box::new(PidBank::new(
-                        (0..3)
-                            .map(|_| Pid::new(gains, PidForm::Positional, 1e-3, 6.0))
+    for (label, machine) in variants() {
+        group.bench_function(format!("xyz table, {label}, per 1000 ticks"), |b| {
+            b.iter_batched(
+                || {
+                    let gains = PidGains {
+                        kp: 19800.0,
+                        ki: 6.1e5,
+                        kd: 146.0,
+                    };
+                    CoSimulation {
+                        plant: plant(&machine, 2.5e-4),
+                        controller: Box::new(PidBank::new(
+                            (0..3)
+                                .map(|_| Pid::new(gains, PidForm::Positional, 1e-3, 6.0))
+                                .collect(),
+                        )),
+                        actuators: machine
+                            .axes
+                            .iter()
+                            .map(|a| Actuator::new(ActuatorKind::DcMotor, &a.drive))
                             .collect(),
-                    )),
-                    actuators: machine
-                        .axes
-                        .iter()
-                        .map(|a| Actuator::new(ActuatorKind::DcMotor, &a.drive))
-                        .collect(),
-                    settings: LoopSettings {
-                        servo_period: 1e-3,
-                        substeps: 4,
-                        settle_time: 0.0,
-                        ratios: machine.axes.iter().map(|a| a.drive.ratio()).collect(),
-                        encoder_resolution: vec![None; 3],
-                        following_error_limit: vec![1.0; 3],
-                        axis_names: vec!["x".into(), "y".into(), "z".into()],
-                    },
-                }
-            },
-            |sim| sim.run(&setpoints, &mut |_, _| true),
-            BatchSize::LargeInput,
-        )
-    });
+                        settings: LoopSettings {
+                            servo_period: 1e-3,
+                            substeps: 4,
+                            settle_time: 0.0,
+                            ratios: machine.axes.iter().map(|a| a.drive.ratio()).collect(),
+                            encoder_resolution: vec![None; 3],
+                            following_error_limit: vec![1.0; 3],
+                            axis_names: vec!["x".into(), "y".into(), "z".into()],
+                        },
+                    }
+                },
+                |sim| sim.run(&setpoints, &mut |_, _| true),
+                BatchSize::LargeInput,
+            )
+        });
+    }
     group.finish();
 }
 

@@ -164,6 +164,21 @@ impl LinearAxis {
     /// joint-side terms. `None` for the ideal torque actuator (a double integrator with damping
     /// is stable at any continuous gain).
     pub fn continuous_ultimate_gain(&self) -> Option<f64> {
+        let m = self.motor_side()?;
+        Some(
+            (m.l * m.c + m.r * m.j) * (m.r * m.c + m.kb * m.km)
+                / (m.l * m.j * m.ka * m.km / self.ratio),
+        )
+    }
+
+    /// Period of the continuous-time ultimate cycle: 2π/ω with ω² = (R·C + K_b·K_m)/(L·J).
+    pub fn continuous_ultimate_period(&self) -> Option<f64> {
+        let m = self.motor_side()?;
+        Some(std::f64::consts::TAU / ((m.r * m.c + m.kb * m.km) / (m.l * m.j)).sqrt())
+    }
+
+    /// The DC-motor constants with J and C moved to the motor side; `None` for ideal torque.
+    fn motor_side(&self) -> Option<MotorSide> {
         let LinearActuator::DcMotor {
             amplifier_gain: ka,
             torque_constant: km,
@@ -174,27 +189,45 @@ impl LinearAxis {
         else {
             return None;
         };
-        // Motor-side J and C from the joint-side values.
         let k2 = self.ratio * self.ratio;
-        let (j, c) = (self.mass / k2, self.damping / k2);
-        Some((l * c + r * j) * (r * c + kb * km) / (l * j * ka * km / self.ratio))
+        Some(MotorSide {
+            ka,
+            km,
+            kb,
+            r,
+            l,
+            j: self.mass / k2,
+            c: self.damping / k2,
+        })
     }
+}
 
-    /// Period of the continuous-time ultimate cycle: 2π/ω with ω² = (R·C + K_b·K_m)/(L·J).
-    pub fn continuous_ultimate_period(&self) -> Option<f64> {
-        let LinearActuator::DcMotor {
-            torque_constant: km,
-            back_emf_constant: kb,
-            resistance: r,
-            inductance: l,
-            ..
-        } = self.actuator
-        else {
-            return None;
-        };
-        let k2 = self.ratio * self.ratio;
-        let (j, c) = (self.mass / k2, self.damping / k2);
-        Some(std::f64::consts::TAU / ((r * c + kb * km) / (l * j)).sqrt())
+/// Motor-side constants of a DC-motor axis (SI).
+struct MotorSide {
+    ka: f64,
+    km: f64,
+    kb: f64,
+    r: f64,
+    l: f64,
+    j: f64,
+    c: f64,
+}
+
+/// The X axis of the XYZ table (seed digest §2.1), 20 kg moved: the tests' fixture.
+#[cfg(test)]
+pub(crate) fn xyz_table_x_axis() -> LinearAxis {
+    let k = 100.0 / 0.025;
+    LinearAxis {
+        mass: 3.89e-5 * k * k + 20.0,
+        damping: 6.7446e-6 * k * k,
+        ratio: k,
+        actuator: LinearActuator::DcMotor {
+            amplifier_gain: 4.0,
+            torque_constant: 0.055,
+            back_emf_constant: 0.0554,
+            resistance: 1.1,
+            inductance: 2.3e-3,
+        },
     }
 }
 
@@ -202,21 +235,8 @@ impl LinearAxis {
 mod tests {
     use super::*;
 
-    /// The X axis of the XYZ table (seed digest §2.1), 20 kg moved.
     fn x_axis() -> LinearAxis {
-        let k = 100.0 / 0.025;
-        LinearAxis {
-            mass: 3.89e-5 * k * k + 20.0,
-            damping: 6.7446e-6 * k * k,
-            ratio: k,
-            actuator: LinearActuator::DcMotor {
-                amplifier_gain: 4.0,
-                torque_constant: 0.055,
-                back_emf_constant: 0.0554,
-                resistance: 1.1,
-                inductance: 2.3e-3,
-            },
-        }
+        xyz_table_x_axis()
     }
 
     #[test]

@@ -276,19 +276,7 @@ mod tests {
     use super::*;
 
     fn x_axis() -> LinearAxis {
-        let k = 100.0 / 0.025;
-        LinearAxis {
-            mass: 3.89e-5 * k * k + 20.0,
-            damping: 6.7446e-6 * k * k,
-            ratio: k,
-            actuator: LinearActuator::DcMotor {
-                amplifier_gain: 4.0,
-                torque_constant: 0.055,
-                back_emf_constant: 0.0554,
-                resistance: 1.1,
-                inductance: 2.3e-3,
-            },
-        }
+        super::super::linear::xyz_table_x_axis()
     }
 
     fn settings() -> SearchSettings {
