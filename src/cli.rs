@@ -23,7 +23,8 @@ pub enum Command {
     /// compare contour error, following error, torque and time side by side; writes OUT/ab.md,
     /// OUT/ab.json, OUT/contour_error.png and each variant's outputs. The variants are two
     /// scenario files, or one file run twice with overrides:
-    /// `cncsim ab S.toml --a controller=pid --b controller=inverse-dynamics`.
+    /// `cncsim ab S.toml --a controller=pid --b controller=inverse-dynamics`; without --a/--b
+    /// one file runs the variants its `[ab]` table declares.
     Ab {
         /// Scenario of variant A (and of B when no second file is given).
         #[arg(value_name = "A.toml")]

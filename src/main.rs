@@ -247,16 +247,31 @@ fn ab(
             .map(|t| Override::parse(t).map_err(|e| format!("{flag} {e}")))
             .collect()
     };
-    let (oa, ob) = match (parse("--a", a_overrides), parse("--b", b_overrides)) {
+    let (mut oa, mut ob) = match (parse("--a", a_overrides), parse("--b", b_overrides)) {
         (Ok(oa), Ok(ob)) => (oa, ob),
         (Err(e), _) | (_, Err(e)) => return fail_input(&e),
     };
+    let (mut flag_a, mut flag_b) = ("--a", "--b");
     if b.is_none() && oa.is_empty() && ob.is_empty() {
-        return fail_input(&"ab with one scenario needs overrides to tell the variants apart: --a KEY=VALUE… and/or --b KEY=VALUE… (or give a second scenario file)");
+        // One file and no overrides: the variants the file declares in [ab].
+        let declared = match Scenario::load(a) {
+            Ok(s) => s.ab,
+            Err(e) => return fail_input(&e),
+        };
+        let Some(declared) = declared else {
+            return fail_input(&format!("{}: ab with one scenario needs overrides to tell the variants apart: --a KEY=VALUE… and/or --b KEY=VALUE…, an [ab] table in the file, or a second scenario file", a.display()));
+        };
+        let parsed = |list: &[String]| -> Vec<Override> {
+            list.iter()
+                .map(|o| Override::parse(o).expect("checked when the scenario was read"))
+                .collect()
+        };
+        (oa, ob) = (parsed(&declared.a), parsed(&declared.b));
+        (flag_a, flag_b) = ("[ab] a:", "[ab] b:");
     }
     let (sa, sb) = match (
-        Scenario::load_with_overrides(a, &oa, "--a"),
-        Scenario::load_with_overrides(b.unwrap_or(a), &ob, "--b"),
+        Scenario::load_with_overrides(a, &oa, flag_a),
+        Scenario::load_with_overrides(b.unwrap_or(a), &ob, flag_b),
     ) {
         (Ok(sa), Ok(sb)) => (sa, sb),
         (Err(e), _) | (_, Err(e)) => return fail_input(&e),

@@ -181,7 +181,6 @@ fn bad_overrides_name_the_override_and_exit_2() {
             "--b timing=1: `timing` is a table",
         ),
         (vec!["--a", "controller"], "--a controller: expected KEY=VALUE"),
-        (vec![], "needs overrides to tell the variants apart"),
     ] {
         let mut all = vec![FAST];
         all.extend(args.iter().copied());
@@ -191,7 +190,53 @@ fn bad_overrides_name_the_override_and_exit_2() {
         assert!(stderr.contains(expected), "{args:?}: {stderr}");
         assert!(!stderr.contains("panicked"), "{stderr}");
     }
+    // A file without [ab] and no overrides: nothing tells the variants apart.
+    let (run, _) = ab_args(&["scenarios/mill_table2_id.toml"], dir.path());
+    let stderr = String::from_utf8_lossy(&run.stderr);
+    assert_eq!(run.status.code(), Some(2), "{stderr}");
+    assert!(
+        stderr.contains("needs overrides to tell the variants apart"),
+        "{stderr}"
+    );
+    // A malformed declared variant is reported where it is written.
+    let text = std::fs::read_to_string(FAST)
+        .unwrap()
+        .replace(
+            "../models/",
+            concat!(env!("CARGO_MANIFEST_DIR"), "/models/"),
+        )
+        .replace(
+            "programs/",
+            concat!(env!("CARGO_MANIFEST_DIR"), "/scenarios/programs/"),
+        )
+        .replace("a = [\"controller=pid\"]", "a = [\"controller\"]");
+    let bad = dir.path().join("bad_ab.toml");
+    std::fs::write(&bad, &text).unwrap();
+    let line = text.lines().position(|l| l == "[ab]").unwrap() + 2;
+    let (run, _) = ab_args(&[bad.to_str().unwrap()], dir.path());
+    let stderr = String::from_utf8_lossy(&run.stderr);
+    assert_eq!(run.status.code(), Some(2), "{stderr}");
+    assert!(
+        stderr.contains(&format!("bad_ab.toml:{line}:"))
+            && stderr.contains("ab.a: controller: expected KEY=VALUE"),
+        "{stderr}"
+    );
     assert!(!dir.path().join("ab.json").exists());
+}
+
+#[test]
+fn variants_declared_in_the_scenario_run_without_flags() {
+    let dir = tempfile::tempdir().unwrap();
+    let (run, json) = ab_args(&[FAST], dir.path());
+    assert!(
+        run.status.success(),
+        "{}",
+        String::from_utf8_lossy(&run.stderr)
+    );
+    assert_eq!(json["a"], "mill_table2_fast controller=pid");
+    assert_eq!(json["b"], "mill_table2_fast controller=inverse-dynamics");
+    let (pid, id) = row(&json, "max contour error");
+    assert!(id * 10.0 < pid, "contour error: PID {pid} µm, ID {id} µm");
 }
 
 #[test]

@@ -37,6 +37,25 @@ struct RawScenario {
     analytic: Option<RawAnalytic>,
     #[serde(default)]
     expect: BTreeMap<String, Spanned<toml::Value>>,
+    /// The variants `cncsim ab FILE` runs when no --a/--b overrides are given.
+    ab: Option<Spanned<RawAb>>,
+}
+
+#[derive(Deserialize)]
+#[serde(deny_unknown_fields)]
+struct RawAb {
+    #[serde(default)]
+    a: Vec<Spanned<String>>,
+    #[serde(default)]
+    b: Vec<Spanned<String>>,
+}
+
+/// Variants declared in a scenario's `[ab]` table: the overrides of A and of B, as written.
+#[derive(Debug, Clone, PartialEq)]
+pub struct DeclaredVariants {
+    pub a: Vec<String>,
+    pub b: Vec<String>,
+    pub at: Option<LineColumn>,
 }
 
 #[derive(Deserialize)]
@@ -419,6 +438,8 @@ pub struct Scenario {
     /// RK4 steps per servo period of the analytic reference model; `None` = not run.
     pub analytic_steps: Option<usize>,
     pub expect: Vec<Expectation>,
+    /// `[ab]`: the variants `cncsim ab` runs on this file alone.
+    pub ab: Option<DeclaredVariants>,
 }
 
 impl Scenario {
@@ -777,6 +798,33 @@ impl Scenario {
             _ => None,
         };
 
+        let ab = match &raw.ab {
+            Some(table) => {
+                let v = table.get_ref();
+                for (side, list) in [("a", &v.a), ("b", &v.b)] {
+                    for o in list {
+                        if let Err(e) = super::Override::parse(o.get_ref()) {
+                            return Err(err(o.span(), format!("ab.{side}: {e}")));
+                        }
+                    }
+                }
+                if v.a.is_empty() && v.b.is_empty() {
+                    return Err(err(
+                        table.span(),
+                        "[ab] declares no overrides: expected a = [\"KEY=VALUE\", …] and/or b = […]".into(),
+                    ));
+                }
+                let texts =
+                    |list: &[Spanned<String>]| list.iter().map(|o| o.get_ref().clone()).collect();
+                Some(DeclaredVariants {
+                    a: texts(&v.a),
+                    b: texts(&v.b),
+                    at: at(table.span().start),
+                })
+            }
+            None => None,
+        };
+
         let mut expect = Vec::new();
         for (key, value) in &raw.expect {
             flatten_expectations(
@@ -832,6 +880,7 @@ impl Scenario {
             decimation: decimation as usize,
             analytic_steps,
             expect,
+            ab,
         })
     }
 }
@@ -855,6 +904,9 @@ impl Scenario {
         }
         for e in &mut self.expect {
             map(&mut e.at);
+        }
+        if let Some(ab) = &mut self.ab {
+            map(&mut ab.at);
         }
     }
 }

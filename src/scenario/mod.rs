@@ -12,8 +12,8 @@ mod tune;
 pub use ab::{run_ab, AbReport, AbRow};
 pub use check::{check, Breach, Verdict};
 pub use file::{
-    AxisGains, ControlSpace, Expectation, InverseDynamicsSettings, PlannerSettings, ProfileName,
-    ProgramSource, Scenario,
+    AxisGains, ControlSpace, DeclaredVariants, Expectation, InverseDynamicsSettings,
+    PlannerSettings, ProfileName, ProgramSource, Scenario,
 };
 pub use overrides::Override;
 pub use plan::{plan_scenario, PlanReport};

@@ -166,12 +166,10 @@ impl Scenario {
                 Ok(s)
             }
             Err(mut e) => {
-                match e
-                    .at
-                    .map(|at| (at, lines.get(at.line - 1).copied().flatten()))
-                {
+                let with = format!("(with {flag} {})", all.join(" "));
+                match e.at.map(|at| (at, lines.get(at.line - 1).copied())) {
                     // On an edited line: the override is to blame.
-                    Some((at, None)) => {
+                    Some((at, Some(None))) => {
                         let line = edited.lines().nth(at.line - 1).unwrap_or("");
                         let culprit = overrides
                             .iter()
@@ -184,14 +182,15 @@ impl Scenario {
                             e.message.replace("unknown field", "unknown key")
                         );
                     }
-                    Some((at, Some(line))) => {
+                    Some((at, Some(Some(line)))) => {
                         e.at = Some(LineColumn {
                             line: line + 1,
                             column: at.column,
                         });
-                        e.message = format!("{} (with {flag} {})", e.message, all.join(" "));
+                        e.message = format!("{} {with}", e.message);
                     }
-                    None => e.message = format!("{} (with {flag} {})", e.message, all.join(" ")),
+                    // No place, or past the last line (the end of the file): keep it.
+                    _ => e.message = format!("{} {with}", e.message),
                 }
                 Err(e)
             }
