@@ -247,6 +247,8 @@ impl Plant {
                 drive_body.push(child);
             }
             if let (Some(a), Some(g)) = (axis, guide) {
+                // Each guide touches only its own runner: one collision group per axis.
+                let group = Group::from_bits_truncate(1 << (a % 32));
                 guides[a] = Some(insert_guide(
                     &mut world,
                     (parent, child),
@@ -254,6 +256,7 @@ impl Plant {
                     &frame,
                     g,
                     &home[joint.parent],
+                    InteractionGroups::new(group, group, InteractionTestMode::And),
                 ));
             }
         }
@@ -591,8 +594,10 @@ fn insert_guide(
     frame: &Isometry3<f64>,
     guide: Guide,
     parent_home: &Isometry3<f64>,
+    groups: InteractionGroups,
 ) -> GuidePair {
-    let [lo, hi] = joint.limits.unwrap_or([-0.5, 0.5]);
+    // URDF prismatic joints carry limits; a limitless one gets a metre of rail each way.
+    let [lo, hi] = joint.limits.unwrap_or([-1.0, 1.0]);
     let [ha, hb, ht] = RUNNER_HALF;
     // In the joint frame `frame`: x along the travel, z along the guide normal.
     let runner_shape = ColliderBuilder::cuboid(ha, hb, ht);
@@ -605,6 +610,7 @@ fn insert_guide(
             .friction(mu)
             .friction_combine_rule(CoefficientCombineRule::Min)
             .restitution(0.0)
+            .collision_groups(groups)
             .build()
     };
     let runner_pose = frame * Translation3::new(0.0, 0.0, ht);
