@@ -25,6 +25,13 @@ static INTERRUPTED: AtomicBool = AtomicBool::new(false);
 /// Exit codes: 0 success, 1 a check failed, a run stopped early or a tune found no boundary,
 /// 2 bad input.
 fn main() -> ExitCode {
+    // Rust ignores SIGPIPE, so printing into a closed pipe (`cncsim inspect … | head`) would
+    // panic; the default action ends the process quietly, as other command-line tools do.
+    #[cfg(unix)]
+    // SAFETY: setting a signal's disposition to SIG_DFL at start-up, before any thread exists.
+    unsafe {
+        libc::signal(libc::SIGPIPE, libc::SIG_DFL);
+    }
     let cli = Cli::parse();
     // A second Ctrl-C while the first is being handled ends the process the usual way.
     let _ = ctrlc::set_handler(|| {

@@ -300,3 +300,33 @@ fn bad_program_files_are_reported_against_the_program() {
         "{err}"
     );
 }
+
+/// A reader that stops early (`cncsim inspect … | head`) ends the run quietly: no panic about
+/// a broken pipe.
+#[cfg(unix)]
+#[test]
+fn a_closed_output_pipe_is_not_a_crash() {
+    use std::io::{BufRead, BufReader};
+    use std::process::Stdio;
+    let dir = tempfile::tempdir().unwrap();
+    let mut program = String::from("G21 G90 G17\nG0 X0 Y0 Z0\n");
+    for i in 0..20_000 {
+        program.push_str(&format!("G1 X{} Y{} F100\n", i % 50, (i * 7) % 50));
+    }
+    let path = write(dir.path(), "long.ngc", &program);
+    let mut child = Command::new(env!("CARGO_BIN_EXE_cncsim"))
+        .args(["inspect", "--all", path.to_str().unwrap()])
+        .stdout(Stdio::piped())
+        .stderr(Stdio::piped())
+        .spawn()
+        .unwrap();
+    let mut first = String::new();
+    BufReader::new(child.stdout.take().unwrap())
+        .read_line(&mut first)
+        .unwrap();
+    assert!(first.starts_with("program:"), "{first}");
+    // stdout is dropped here: the pipe is closed with most of the listing unwritten.
+    let out = child.wait_with_output().unwrap();
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    assert!(!stderr.contains("panicked"), "{stderr}");
+}
