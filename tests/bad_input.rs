@@ -262,6 +262,79 @@ fn bad_machine_files_name_the_element() {
     );
 }
 
+/// The guide and feedback entries of a drive file: each mistake names the file, the axis and
+/// what was expected.
+#[test]
+fn bad_guides_and_feedback_name_the_axis() {
+    let dir = tempfile::tempdir().unwrap();
+    let src = std::fs::read_to_string(model()).unwrap();
+    let drives =
+        std::fs::read_to_string(Path::new(&model()).with_extension("drives.toml")).unwrap();
+    let x_guide = "guide = { friction_coefficient = 0.1 }";
+    assert!(drives.contains(x_guide));
+    let cases = [
+        (
+            drives.replacen(x_guide, "guide = { friction_coefficient = -0.1 }", 1),
+            "axis 'x': guide.friction_coefficient = -0.1: expected a finite value ≥ 0",
+        ),
+        (
+            drives.replacen(
+                x_guide,
+                "guide = { friction_coefficient = 0.1, normal = [1.0, 0.0, 0.0] }",
+                1,
+            ),
+            "axis 'x': guide.normal = [1.0, 0.0, 0.0] is not perpendicular to the axis of joint 'x'",
+        ),
+        (
+            drives.replacen(
+                x_guide,
+                "guide = { friction_coefficient = 0.1, normal = [0.0, 0.0, 0.0] }",
+                1,
+            ),
+            "expected a finite, non-zero vector",
+        ),
+        (
+            drives.replacen(x_guide, "guide = { friction_coeficient = 0.1 }", 1),
+            "unknown field `friction_coeficient`",
+        ),
+        (
+            drives.replacen("feedback = \"carriage\"", "feedback = \"scale\"", 1),
+            "unknown variant `scale`",
+        ),
+    ];
+    let urdf = write(dir.path(), "m.urdf", &src);
+    for (text, words) in cases {
+        write(dir.path(), "m.drives.toml", &text);
+        let err = cncsim::machine::Machine::load(&urdf)
+            .expect_err(words)
+            .to_string();
+        assert!(
+            err.contains("m.drives.toml:") && err.contains(words),
+            "{words}: {err}"
+        );
+    }
+    // A scenario's [feedback] position and [mechanics] switches are checked like the rest.
+    for (edit, words) in [
+        (
+            "[feedback]\nposition = \"encoder\"\n",
+            "unknown variant `encoder`",
+        ),
+        (
+            "[mechanics]\nfriction = 1\n",
+            "invalid type: integer `1`, expected a boolean",
+        ),
+        ("[mechanics]\nbacklsh = false\n", "unknown field `backlsh`"),
+    ] {
+        let text = scenario_text(|s| s.replace("[timing]\n", &format!("{edit}\n[timing]\n")));
+        let p = write(dir.path(), "s.toml", &text);
+        let err = Scenario::load(&p).expect_err(words).to_string();
+        assert!(
+            err.contains("s.toml:") && err.contains(words),
+            "{words}: {err}"
+        );
+    }
+}
+
 /// A scenario whose program file is damaged, or drives an axis the machine lacks, fails with
 /// the program's file, line and column.
 #[test]
