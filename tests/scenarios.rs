@@ -104,6 +104,8 @@ fn circle_scenario_meets_its_bounds_and_writes_a_readable_recording() {
     ] {
         assert!(rows.contains_key(path), "{path} missing: {rows:?}");
     }
+    // No backlash in this scenario: no drive-side series.
+    assert!(!rows.keys().any(|p| p.ends_with("/drive")), "{rows:?}");
 
     // The CSV has the same ticks.
     let csv = std::fs::read_to_string(out.path().join("trace.csv")).unwrap();
@@ -345,4 +347,38 @@ fn an_interrupted_run_keeps_what_it_computed() {
             .copied(),
         Some(1025usize.div_ceil(scenario.decimation))
     );
+}
+
+/// With backlash the recording shows the drive side beside the carriage, from the physics and
+/// from the analytic model, and the drive leads the carriage by at most half the gap.
+#[test]
+fn backlash_shows_the_drive_side_in_the_recording() {
+    let mut scenario = bundled("paper_corner_90.toml");
+    // Out and back on both axes: each reverses once.
+    scenario.program = cncsim::scenario::ProgramSource::Polyline(cncsim::program::PolylineSpec {
+        points: vec![[0.1, 0.1, 0.0], [0.102, 0.101, 0.0], [0.1, 0.1, 0.0]],
+        speed: 0.005,
+    });
+    scenario.record_csv = false;
+    let out = tempfile::tempdir().unwrap();
+    let run = run_scenario(&scenario, out.path(), &mut |_, _| true).unwrap();
+    let rows = rrd_rows(&out.path().join("run.rrd"));
+    let recorded = run.trace.len().div_ceil(scenario.decimation);
+    for path in [
+        "/axes/x/drive",
+        "/axes/y/drive",
+        "/analytic/axes/x/drive",
+        "/analytic/axes/y/drive",
+    ] {
+        assert_eq!(rows.get(path).copied(), Some(recorded), "{path}: {rows:?}");
+    }
+    assert!(!rows.contains_key("/axes/z/drive"), "Z has no backlash");
+    let t = &run.trace;
+    for k in 0..t.len() {
+        for (i, b) in [(0, 0.32e-3), (1, 0.45e-3)] {
+            let slack = (t.drive[k * t.axes + i] - t.actual[k * t.axes + i]).abs();
+            // Rapier's joint limits give way by nanometres under load (measured 1.8 nm).
+            assert!(slack <= b / 2.0 + 1e-8, "tick {k}, axis {i}: slack {slack}");
+        }
+    }
 }

@@ -5,7 +5,8 @@
 //! - `world/machine/<link>`: link pose per recorded tick; `…/<link>/visual_<i>` its boxes
 //! - `world/path/programmed`, `world/path/actual`: tool paths (m), `world/tool`: tool point
 //! - `axes/<axis>/{commanded,actual}` (mm or deg), `axes/<axis>/following_error` (µm or deg),
-//!   `axes/<axis>/torque` (N·m), `axes/<axis>/voltage` (V, DC-motor model only)
+//!   `axes/<axis>/torque` (N·m), `axes/<axis>/voltage` (V, DC-motor model only),
+//!   `axes/<axis>/drive` (mm or deg: the drive side of the backlash, for axes that have one)
 //! - `path/contour_error` (µm), `path/speed/{commanded,actual}` (mm/s)
 
 use super::{AxisLabel, Derived, ReportError};
@@ -27,7 +28,7 @@ pub struct RecordingContent<'a> {
     pub dc_motor: bool,
     pub decimation: usize,
     /// Positions of the analytic reference model in the trace's layout, when it was run.
-    pub analytic_actual: Option<&'a [f64]>,
+    pub analytic: Option<&'a Trace>,
 }
 
 pub fn write_recording(
@@ -152,6 +153,12 @@ fn log_all(
                 .map(|&k| (at(&trace.commanded, k) - at(&trace.actual, k)) * err_scale)
                 .collect(),
         )?;
+        if has_slack(trace, i) {
+            series(
+                format!("{base}/drive"),
+                ticks.iter().map(|&k| at(&trace.drive, k) * s).collect(),
+            )?;
+        }
         series(
             format!("{base}/torque"),
             ticks.iter().map(|&k| at(&trace.torque, k)).collect(),
@@ -163,12 +170,21 @@ fn log_all(
             )?;
         }
     }
-    if let Some(analytic) = c.analytic_actual {
+    if let Some(analytic) = c.analytic {
         // The reference model under its own entity paths, beside the physics in the viewer.
         for (i, l) in c.labels.iter().enumerate() {
             let s = l.scale();
             let err_scale = if l.rotary { s } else { 1e6 };
-            let at = |k: usize| analytic[k * n + i];
+            let at = |k: usize| analytic.actual[k * n + i];
+            if has_slack(analytic, i) {
+                series(
+                    format!("analytic/axes/{}/drive", l.name),
+                    ticks
+                        .iter()
+                        .map(|&k| Trace::at(&analytic.drive, n, k, i) * s)
+                        .collect(),
+                )?;
+            }
             let base = format!("analytic/axes/{}", l.name);
             series(
                 format!("{base}/actual"),
@@ -274,4 +290,13 @@ pub fn write_setpoints_recording(
     log().map_err(|e| fail(&e))?;
     rec.flush_blocking().map_err(|e| fail(&e))?;
     Ok(())
+}
+
+/// Whether axis `i` ever had its drive side apart from its carriage (backlash): only then is
+/// the drive position worth a series of its own.
+fn has_slack(trace: &Trace, i: usize) -> bool {
+    let n = trace.axes;
+    trace.drive.len() == trace.actual.len()
+        && (0..trace.len())
+            .any(|k| Trace::at(&trace.drive, n, k, i) != Trace::at(&trace.actual, n, k, i))
 }

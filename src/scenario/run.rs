@@ -278,7 +278,7 @@ pub fn run_scenario_with(
             programmed_path,
             dc_motor,
             decimation: s.decimation,
-            analytic_actual: analytic.as_ref().map(|r| r.actual.as_slice()),
+            analytic: analytic.as_ref(),
         };
         report::write_recording(&p, trace, &derived, &content)?;
         files.push(p);

@@ -757,8 +757,6 @@ pub struct ReferenceRun {
     /// The same record as the physics run's (without the tool point, which needs the
     /// kinematics): carriage positions and velocities, commands, torque, voltage.
     pub trace: super::Trace,
-    /// Drive-side position (motor angle / ratio) at the start of each tick, per axis.
-    pub drive_position: Vec<f64>,
     /// Armature current at the start of each tick, per axis (A).
     pub current: Vec<f64>,
     pub diverged: Option<Diverged>,
@@ -787,7 +785,7 @@ pub fn run_reference(
         "steps_per_period must be ≥ 1"
     );
     let t = settings.servo_period;
-    let (mut drive_position, mut current) = (Vec::new(), Vec::new());
+    let mut current = Vec::new();
     let mut trace = super::Trace {
         period: t,
         axes: n,
@@ -796,7 +794,6 @@ pub fn run_reference(
     if setpoints.is_empty() {
         return ReferenceRun {
             trace,
-            drive_position,
             current,
             diverged: None,
         };
@@ -818,7 +815,6 @@ pub fn run_reference(
         if let Err(d) = servo_tick(models, controller, settings, input, time, &mut tick) {
             return ReferenceRun {
                 trace,
-                drive_position,
                 current,
                 diverged: Some(d),
             };
@@ -840,7 +836,7 @@ pub fn run_reference(
             .extend_from_slice(input.setpoint_velocity);
         trace.actual.extend_from_slice(&tick.position);
         trace.actual_velocity.extend_from_slice(&tick.velocity);
-        drive_position.extend_from_slice(&tick.drive_position);
+        trace.drive.extend_from_slice(&tick.drive_position);
         trace.command.extend_from_slice(&tick.command);
         trace.torque.extend_from_slice(&tick.torque);
         trace.voltage.extend_from_slice(&tick.voltage);
@@ -849,7 +845,6 @@ pub fn run_reference(
         if let Err(d) = result {
             return ReferenceRun {
                 trace,
-                drive_position,
                 current,
                 diverged: Some(d),
             };
@@ -857,7 +852,6 @@ pub fn run_reference(
     }
     ReferenceRun {
         trace,
-        drive_position,
         current,
         diverged: None,
     }

@@ -43,6 +43,8 @@ pub struct Trace {
     pub commanded_velocity: Vec<f64>,
     pub actual: Vec<f64>,
     pub actual_velocity: Vec<f64>,
+    /// Drive-side position (motor angle over the ratio); equals `actual` without backlash.
+    pub drive: Vec<f64>,
     /// Controller output (N·m or V).
     pub command: Vec<f64>,
     /// Mean motor torque over the hold interval that follows the sample (N·m).
@@ -181,6 +183,7 @@ impl CoSimulation<'_> {
         let s = &self.settings;
         self.plant.positions(&mut b.q);
         self.plant.velocities(&mut b.qd);
+        self.plant.drive_positions(&mut b.drive);
         self.plant.feedback_positions(&mut b.measured);
         b.tool = self.plant.tool_point().into();
         b.tool_velocity = self.plant.tool_velocity().into();
@@ -241,6 +244,7 @@ struct Tick<'a> {
 struct Buffers {
     /// Position and velocity sampled at the start of the tick.
     q: Vec<f64>,
+    drive: Vec<f64>,
     qd: Vec<f64>,
     tool: [f64; 3],
     tool_velocity: [f64; 3],
@@ -258,6 +262,7 @@ impl Buffers {
         let z = || vec![0.0; n];
         Buffers {
             q: z(),
+            drive: z(),
             qd: z(),
             tool: [0.0; 3],
             tool_velocity: [0.0; 3],
@@ -278,6 +283,7 @@ fn record(trace: &mut Trace, tick: &Tick<'_>, b: &Buffers, segment: u32) {
     trace.commanded_velocity.extend_from_slice(tick.velocity);
     trace.actual.extend_from_slice(&b.q);
     trace.actual_velocity.extend_from_slice(&b.qd);
+    trace.drive.extend_from_slice(&b.drive);
     trace.command.extend_from_slice(&b.command);
     trace.torque.extend_from_slice(&b.torque);
     trace.voltage.extend_from_slice(&b.voltage);

@@ -292,7 +292,7 @@ fn backlash_is_lost_motion_at_a_reversal() {
     // The drive turns at the top; the carriage, pushed no more, coasts a few nm and stops,
     // held by friction with the gap open, until the drive has crossed the gap and picks it up from the other side.
     let top = (0..trace.len())
-        .max_by(|&a, &b| r.drive_position[a].total_cmp(&r.drive_position[b]))
+        .max_by(|&a, &b| r.trace.drive[a].total_cmp(&r.trace.drive[b]))
         .unwrap();
     let standstill: Vec<usize> = (top..trace.len())
         .skip_while(|&k| trace.actual_velocity[k] != 0.0)
@@ -302,7 +302,7 @@ fn backlash_is_lost_motion_at_a_reversal() {
     let carriage_moved = trace.actual[last] - trace.actual[first];
     assert_eq!(carriage_moved, 0.0);
     // Ticks sample the drive every 1 ms; at ≤ 2 mm/s that is ≤ 2 µm of 320 µm.
-    let lost = r.drive_position[first] - r.drive_position[last + 1];
+    let lost = r.trace.drive[first] - r.trace.drive[last + 1];
     assert!(
         relative(lost, backlash) < 0.02,
         "lost motion {lost:e} vs backlash {backlash:e}"
@@ -333,7 +333,7 @@ fn without_backlash_there_is_no_dead_band() {
     });
     let r = run(axis, &out_and_back(2e-3, 1.0), 10);
     let trace = &r.trace;
-    assert_eq!(r.drive_position, trace.actual);
+    assert_eq!(r.trace.drive, trace.actual);
     let error_at = |t: f64| {
         let k = (t / 1e-3).round() as usize;
         trace.commanded[k] - trace.actual[k]
@@ -388,12 +388,14 @@ fn closed_loop_with_friction_and_backlash_converges_at_fourth_order() {
     // The run does switch: the carriage sticks and the gap opens at the reversal.
     assert!(trace.actual_velocity.contains(&0.0));
     assert!(r
-        .drive_position
+        .trace
+        .drive
         .iter()
         .zip(&trace.actual)
         .any(|(d, c)| (d - c).abs() < 1e-5));
     assert!(r
-        .drive_position
+        .trace
+        .drive
         .iter()
         .zip(&trace.actual)
         .any(|(d, c)| (d - c).abs() > 1e-4));
