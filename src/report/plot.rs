@@ -92,11 +92,6 @@ fn draw(pixels: &mut [u8], series: &[ContourSeries<'_>]) -> DrawResult<()> {
     } else {
         "contour error (µm)"
     };
-    let colors = [
-        RGBColor(31, 119, 180),
-        RGBColor(214, 39, 40),
-        RGBColor(44, 160, 44),
-    ];
     let mut builder = ChartBuilder::on(&root);
     builder
         .caption(caption, (FAMILY, 28))
@@ -107,62 +102,51 @@ fn draw(pixels: &mut [u8], series: &[ContourSeries<'_>]) -> DrawResult<()> {
         // Floor three decades below the better variant's peak: exact zeros stay on the chart.
         let floor = bottom * 1e-3;
         let mut chart = builder.build_cartesian_2d(t_range, (floor..top * 1.5).log_scale())?;
-        chart
-            .configure_mesh()
-            .x_desc("time (s)")
-            .y_desc(y_label)
-            .label_style((FAMILY, 18))
-            .draw()?;
-        for (i, s) in series.iter().enumerate() {
-            let color = colors[i % colors.len()];
-            let points = s
-                .time
-                .iter()
-                .zip(s.contour_error)
-                .map(|(&t, &e)| (t, um(e).max(floor)));
-            chart
-                .draw_series(LineSeries::new(points, color.stroke_width(2)))?
-                .label(s.label)
-                .legend(move |(x, y)| {
-                    PathElement::new([(x, y), (x + 24, y)], color.stroke_width(3))
-                });
-        }
-        legend(&mut chart)?;
+        curves(&mut chart, series, y_label, floor)?;
     } else {
         let top = if top > 0.0 { top * 1.05 } else { 1.0 };
         let mut chart = builder.build_cartesian_2d(t_range, 0.0..top)?;
-        chart
-            .configure_mesh()
-            .x_desc("time (s)")
-            .y_desc(y_label)
-            .label_style((FAMILY, 18))
-            .draw()?;
-        for (i, s) in series.iter().enumerate() {
-            let color = colors[i % colors.len()];
-            let points = s
-                .time
-                .iter()
-                .zip(s.contour_error)
-                .map(|(&t, &e)| (t, um(e)));
-            chart
-                .draw_series(LineSeries::new(points, color.stroke_width(2)))?
-                .label(s.label)
-                .legend(move |(x, y)| {
-                    PathElement::new([(x, y), (x + 24, y)], color.stroke_width(3))
-                });
-        }
-        legend(&mut chart)?;
+        curves(&mut chart, series, y_label, 0.0)?;
     }
     root.present()?;
     Ok(())
 }
 
-fn legend<'a, DB: DrawingBackend + 'a, CT: CoordTranslate>(
-    chart: &mut ChartContext<'a, DB, CT>,
+/// Mesh, one line per series (µm, clamped up to `floor`) and the legend, on either y scale.
+fn curves<'a, DB, Y>(
+    chart: &mut ChartContext<'a, DB, Cartesian2d<plotters::coord::types::RangedCoordf64, Y>>,
+    series: &[ContourSeries<'_>],
+    y_label: &str,
+    floor: f64,
 ) -> DrawResult<()>
 where
+    DB: DrawingBackend + 'a,
     DB::ErrorType: 'static,
+    Y: Ranged<ValueType = f64> + plotters::coord::ranged1d::ValueFormatter<f64>,
 {
+    let colors = [
+        RGBColor(31, 119, 180),
+        RGBColor(214, 39, 40),
+        RGBColor(44, 160, 44),
+    ];
+    chart
+        .configure_mesh()
+        .x_desc("time (s)")
+        .y_desc(y_label)
+        .label_style((FAMILY, 18))
+        .draw()?;
+    for (i, s) in series.iter().enumerate() {
+        let color = colors[i % colors.len()];
+        let points = s
+            .time
+            .iter()
+            .zip(s.contour_error)
+            .map(|(&t, &e)| (t, (e * 1e6).max(floor)));
+        chart
+            .draw_series(LineSeries::new(points, color.stroke_width(2)))?
+            .label(s.label)
+            .legend(move |(x, y)| PathElement::new([(x, y), (x + 24, y)], color.stroke_width(3)));
+    }
     chart
         .configure_series_labels()
         .position(SeriesLabelPosition::UpperRight)
