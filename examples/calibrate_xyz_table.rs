@@ -37,12 +37,21 @@ const Z_ASSEMBLY_KG: [f64; 2] = [2.0, 8.0];
 const SERVO_PERIOD_MS: [f64; 2] = [4.0, 8.0];
 const TUNE_STEP_MM: [f64; 4] = [0.02, 0.05, 0.1, 0.2];
 
+/// The Ziegler–Nichols result of one axis: its TOML line (to print) and the gains (to write).
+struct AxisGains {
+    axis: &'static str,
+    line: String,
+    kp: f64,
+    ki: f64,
+    kd: f64,
+}
+
 struct Candidate {
     period_ms: f64,
     step_mm: f64,
     mu: f64,
     z_mass: f64,
-    gains: Vec<(String, String)>,
+    gains: Vec<AxisGains>,
     figures: [f64; 3],
     score: f64,
 }
@@ -99,7 +108,13 @@ fn evaluate(
         g.gains.kp = report.gains.kp;
         g.gains.ki = report.gains.ki;
         g.gains.kd = report.gains.kd;
-        gains.push((axis.to_string(), report.toml.clone()));
+        gains.push(AxisGains {
+            axis,
+            line: report.toml.clone(),
+            kp: report.gains.kp,
+            ki: report.gains.ki,
+            kd: report.gains.kd,
+        });
     }
     let out = std::env::temp_dir().join("cncsim_calibration");
     s.record_rrd = false;
@@ -192,43 +207,51 @@ fn main() {
         best.figures[2],
         best.score * 100.0
     );
-    for (_, line) in &best.gains {
-        println!("  {line}");
+    for g in &best.gains {
+        println!("  {}", g.line);
     }
     if write {
         write_back(&best);
     }
 }
 
-/// Replaces the first line starting with `key` (after indentation) in `file`.
-fn replace_line(file: &Path, key: &str, line: &str, all: bool) {
+/// Sets a TOML value, keeping the comment and spacing around the old one.
+fn set(item: &mut toml_edit::Item, value: f64) {
+    let decor = item.as_value().map(|v| v.decor().clone());
+    *item = toml_edit::value(value);
+    if let (Some(decor), Some(v)) = (decor, item.as_value_mut()) {
+        *v.decor_mut() = decor;
+    }
+}
+
+/// Four significant digits, as `cncsim tune` prints gains.
+fn four_digits(x: f64) -> f64 {
+    format!("{x:.3e}")
+        .parse()
+        .expect("a formatted float parses")
+}
+
+/// Edits a TOML file in place, keeping its comments and layout.
+fn edit_toml(file: &Path, edit: impl FnOnce(&mut toml_edit::DocumentMut)) {
     let text = std::fs::read_to_string(file).unwrap();
-    let mut done = false;
-    let out: Vec<String> = text
-        .lines()
-        .map(|l| {
-            if l.trim_start().starts_with(key) && (all || !done) {
-                done = true;
-                let indent = &l[..l.len() - l.trim_start().len()];
-                format!("{indent}{line}")
-            } else {
-                l.to_string()
-            }
-        })
-        .collect();
-    assert!(done, "{}: no line starts with {key}", file.display());
-    std::fs::write(file, out.join("\n") + "\n").unwrap();
+    let mut doc: toml_edit::DocumentMut = text
+        .parse()
+        .unwrap_or_else(|e| panic!("{}: {e}", file.display()));
+    edit(&mut doc);
+    std::fs::write(file, doc.to_string()).unwrap();
 }
 
 fn write_back(best: &Candidate) {
-    let drives = root().join("models/xyz_table.drives.toml");
-    replace_line(
-        &drives,
-        "guide = ",
-        &format!("guide = {{ friction_coefficient = {} }}", best.mu),
-        true,
-    );
-    // The z_column's <mass> and <inertia> lines follow its <link name="z_column"> line.
+    edit_toml(&root().join("models/xyz_table.drives.toml"), |doc| {
+        let axes = doc["axes"].as_table_like_mut().expect("[axes]");
+        for (_, drive) in axes.iter_mut() {
+            if drive.get("guide").is_some() {
+                set(&mut drive["guide"]["friction_coefficient"], best.mu);
+            }
+        }
+    });
+    // The z_column's <mass> and <inertia> in the URDF, scaled as `with_parameters` scales
+    // them (same box, other mass).
     let urdf = root().join("models/xyz_table.urdf");
     let text = std::fs::read_to_string(&urdf).unwrap();
     let start = text
@@ -236,29 +259,39 @@ fn write_back(best: &Candidate) {
         .expect("z_column link");
     let end = start + text[start..].find("</link>").unwrap();
     let mut link = text[start..end].to_string();
-    let (a, b, c) = (0.08f64, 0.08f64, 0.26f64);
-    let m = best.z_mass;
-    let ixx = m / 12.0 * (b * b + c * c);
-    let izz = m / 12.0 * (a * a + b * b);
-    let mass_at = link.find("<mass value=\"").unwrap();
-    let mass_end = mass_at + link[mass_at..].find("/>").unwrap() + 2;
-    link.replace_range(mass_at..mass_end, &format!("<mass value=\"{m}\"/>"));
-    let inertia_at = link.find("<inertia ").unwrap();
-    let inertia_end = inertia_at + link[inertia_at..].find("/>").unwrap() + 2;
-    link.replace_range(
-        inertia_at..inertia_end,
-        &format!("<inertia ixx=\"{ixx:.6}\" ixy=\"0\" ixz=\"0\" iyy=\"{ixx:.6}\" iyz=\"0\" izz=\"{izz:.6}\"/>"),
-    );
+    let attribute = |link: &str, element: &str, name: &str| -> (usize, usize, f64) {
+        let at = link.find(element).unwrap();
+        let key = format!("{name}=\"");
+        let from = at + link[at..].find(&key).unwrap() + key.len();
+        let to = from + link[from..].find('"').unwrap();
+        (from, to, link[from..to].parse().unwrap())
+    };
+    let (_, _, old_mass) = attribute(&link, "<mass ", "value");
+    let scale = best.z_mass / old_mass;
+    // Right to left, so earlier offsets stay valid.
+    for (element, name) in [
+        ("<inertia ", "izz"),
+        ("<inertia ", "iyy"),
+        ("<inertia ", "ixx"),
+        ("<mass ", "value"),
+    ] {
+        let (from, to, v) = attribute(&link, element, name);
+        link.replace_range(from..to, &format!("{}", v * scale));
+    }
     std::fs::write(&urdf, format!("{}{}{}", &text[..start], link, &text[end..])).unwrap();
     for entry in std::fs::read_dir(root().join("scenarios")).unwrap() {
         let path = entry.unwrap().path();
         let name = path.file_name().unwrap().to_string_lossy().to_string();
         if name.starts_with("paper_") && name.ends_with(".toml") {
-            for (axis, line) in &best.gains {
-                replace_line(&path, &format!("axes.{axis} = "), line, false);
-            }
-            let period = format!("servo_period_ms = {:.1}", best.period_ms);
-            replace_line(&path, "servo_period_ms = ", &period, false);
+            edit_toml(&path, |doc| {
+                set(&mut doc["timing"]["servo_period_ms"], best.period_ms);
+                for g in &best.gains {
+                    let axis = &mut doc["controller"]["axes"][g.axis];
+                    set(&mut axis["kp"], four_digits(g.kp));
+                    set(&mut axis["ki"], four_digits(g.ki));
+                    set(&mut axis["kd"], four_digits(g.kd));
+                }
+            });
         }
     }
     println!("wrote μ, m_z and the gains into the model and scenarios/paper_*.toml");
