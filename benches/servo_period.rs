@@ -10,8 +10,14 @@ use cncsim::sim::{CoSimulation, LoopSettings};
 use criterion::{criterion_group, criterion_main, BatchSize, Criterion};
 use std::path::Path;
 
+/// The XYZ table with voltage-mode amplifiers, which the bench's stiff gains are for.
 fn table() -> Machine {
-    Machine::load(&Path::new(env!("CARGO_MANIFEST_DIR")).join("models/xyz_table.urdf")).unwrap()
+    let mut m = Machine::load(&Path::new(env!("CARGO_MANIFEST_DIR")).join("models/xyz_table.urdf"))
+        .unwrap();
+    for a in &mut m.axes {
+        a.drive.amplifier_mode = cncsim::machine::AmplifierMode::Voltage;
+    }
+    m
 }
 
 fn plant(machine: &Machine, step: f64) -> Plant {

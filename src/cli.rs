@@ -134,7 +134,8 @@ pub enum Command {
         /// Relative width of the final gain bracket, K_hi/K_lo − 1.
         #[arg(long, default_value_t = 0.005)]
         tolerance: f64,
-        /// Simulated time per trial (s); several ultimate periods.
+        /// Simulated time per trial (s) to start from; doubled (up to 60 s) until the
+        /// oscillating bound shows four periods.
         #[arg(long, default_value_t = 1.0)]
         trial_s: f64,
         /// First gain tried (default: the scenario's kp for the axis).
@@ -146,6 +147,10 @@ pub enum Command {
         /// Run the trials on the analytic reference model instead of the physics.
         #[arg(long)]
         analytic: bool,
+        /// Tune the linear part of the axis: the scenario with friction and backlash off
+        /// (as a gain design on a linear model does).
+        #[arg(long)]
+        linear: bool,
         /// Print the report as JSON (progress still goes to stderr).
         #[arg(long)]
         json: bool,

@@ -81,6 +81,7 @@ fn main() -> ExitCode {
             start_gain,
             max_simulations,
             analytic,
+            linear,
             json,
         }) => {
             let mut options = TuneOptions::new(&axis, step_mm * 1e-3);
@@ -88,7 +89,14 @@ fn main() -> ExitCode {
             options.trial_time = trial_s;
             options.start_gain = start_gain;
             options.max_simulations = max_simulations;
-            tune(&scenario, options, step_deg.to_radians(), analytic, json)
+            tune(
+                &scenario,
+                options,
+                step_deg.to_radians(),
+                analytic,
+                linear,
+                json,
+            )
         }
         Some(Command::Inspect {
             program,
@@ -327,12 +335,17 @@ fn tune(
     mut options: TuneOptions,
     rotary_step: f64,
     analytic: bool,
+    linear: bool,
     json: bool,
 ) -> ExitCode {
-    let scenario = match Scenario::load(path) {
+    let mut scenario = match Scenario::load(path) {
         Ok(s) => s,
         Err(e) => return fail_input(&e),
     };
+    if linear {
+        scenario.friction = false;
+        scenario.backlash = false;
+    }
     // The step is given per axis kind; the tuner learns the kind from the machine.
     let rotary = Machine::load(&scenario.machine)
         .ok()

@@ -270,7 +270,7 @@ fn bad_guides_and_feedback_name_the_axis() {
     let src = std::fs::read_to_string(model()).unwrap();
     let drives =
         std::fs::read_to_string(Path::new(&model()).with_extension("drives.toml")).unwrap();
-    let x_guide = "guide = { friction_coefficient = 0.1 }";
+    let x_guide = "guide = { friction_coefficient = 0.02 }";
     assert!(drives.contains(x_guide));
     let cases = [
         (
@@ -300,6 +300,14 @@ fn bad_guides_and_feedback_name_the_axis() {
         (
             drives.replacen("feedback = \"carriage\"", "feedback = \"scale\"", 1),
             "unknown variant `scale`",
+        ),
+        (
+            drives.replacen(
+                "amplifier_mode = \"current\"",
+                "amplifier_mode = \"torque\"",
+                1,
+            ),
+            "unknown variant `torque`, expected `voltage` or `current`",
         ),
     ];
     let urdf = write(dir.path(), "m.urdf", &src);
@@ -333,6 +341,44 @@ fn bad_guides_and_feedback_name_the_axis() {
             "{words}: {err}"
         );
     }
+}
+
+/// A scenario's amplifier mode: a known mode, and only where there is an amplifier.
+#[test]
+fn bad_amplifier_modes_are_reported_against_the_scenario() {
+    let dir = tempfile::tempdir().unwrap();
+    for (edit, line, words) in [
+        (
+            "model = \"dc-motor\"\namplifier_mode = \"pwm\"",
+            11,
+            "unknown variant `pwm`, expected `voltage` or `current`",
+        ),
+        (
+            "model = \"ideal-torque\"\namplifier_mode = \"current\"",
+            11,
+            "amplifier_mode applies to model = \"dc-motor\"; the ideal-torque actuator has no amplifier",
+        ),
+    ] {
+        let text = scenario_text(|s| s.replace("model = \"dc-motor\"", edit));
+        let p = write(dir.path(), "s.toml", &text);
+        let err = Scenario::load(&p).expect_err(words).to_string();
+        assert!(
+            err.contains(&format!("s.toml:{line}:")) && err.contains(words),
+            "{words}: {err}"
+        );
+    }
+    let text = scenario_text(|s| {
+        s.replace(
+            "model = \"dc-motor\"",
+            "model = \"dc-motor\"\namplifier_mode = \"current\"",
+        )
+    });
+    let p = write(dir.path(), "s.toml", &text);
+    let s = Scenario::load(&p).unwrap();
+    assert_eq!(
+        s.amplifier_mode,
+        Some(cncsim::machine::AmplifierMode::Current)
+    );
 }
 
 /// A scenario whose program file is damaged, or drives an axis the machine lacks, fails with

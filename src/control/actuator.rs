@@ -7,8 +7,9 @@ use crate::machine::Drive;
 pub enum ActuatorKind {
     /// The command is the motor torque (N·m), clamped to the drive's peak torque.
     IdealTorque,
-    /// The command is the amplifier input (V): armature voltage = K_a·u, clamped to the supply;
-    /// L·di/dt + R·i + K_b·ω = V, T = K_m·i.
+    /// The command is the amplifier input (V): the drive's amplifier (voltage or current
+    /// mode) sets the armature voltage V within the supply; L·di/dt + R·i + K_b·ω = V,
+    /// T = K_m·i.
     #[default]
     DcMotor,
 }
@@ -56,8 +57,7 @@ impl Actuator {
             }
             ActuatorKind::DcMotor => {
                 let m = &self.drive.motor;
-                let supply = self.drive.supply_voltage_v;
-                let voltage = (self.drive.amplifier_gain * u).clamp(-supply, supply);
+                let voltage = self.drive.armature_voltage(u, omega);
                 // Exact solution of the armature equation over the step with V and ω held:
                 // i(t) = i∞ + (i0 − i∞)·e^(−t/τ), τ = L/R. The torque is the step's mean current.
                 let tau = m.inductance_h / m.resistance_ohm;
@@ -98,6 +98,7 @@ mod tests {
                 inductance_h: 2.3e-3,
             },
             amplifier_gain: 4.0,
+            amplifier_mode: Default::default(),
             supply_voltage_v: 24.0,
             peak_torque_nm: 1.2,
             backlash: 0.0,
@@ -137,6 +138,29 @@ mod tests {
             b.step(100.0, omega, 1e-3);
         }
         assert!(b.current.abs() < 1e-9);
+    }
+
+    #[test]
+    fn current_mode_cancels_back_emf_within_the_supply() {
+        let mut d = drive();
+        d.amplifier_mode = crate::machine::AmplifierMode::Current;
+        // Running at 300 rad/s (K_b·ω = 16.6 V): the current still settles at K_a·u/R.
+        let mut a = Actuator::new(ActuatorKind::DcMotor, &d);
+        let omega = 300.0;
+        let mut out = ActuatorOutput::default();
+        for _ in 0..1000 {
+            out = a.step(1.0, omega, 1e-3);
+        }
+        assert!((a.current - 4.0 / 1.1).abs() < 1e-9, "{}", a.current);
+        assert!((out.voltage - (4.0 + 0.0554 * omega)).abs() < 1e-12);
+        // Beyond the supply the back-EMF wins again: at 24 V and 400 rad/s (22.16 V of
+        // back-EMF) only (24 − 22.16)/R flows.
+        let mut b = Actuator::new(ActuatorKind::DcMotor, &d);
+        for _ in 0..1000 {
+            out = b.step(5.0, 400.0, 1e-3);
+        }
+        assert_eq!(out.voltage, 24.0);
+        assert!((b.current - (24.0 - 0.0554 * 400.0) / 1.1).abs() < 1e-9);
     }
 
     #[test]

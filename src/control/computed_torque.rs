@@ -125,7 +125,7 @@ impl Controller for ComputedTorque {
                 ActuatorKind::DcMotor => {
                     let m = &drive.motor;
                     let current = motor_torque / m.torque_constant_nm_per_a;
-                    (m.resistance_ohm * current + m.back_emf_v_s_per_rad * k * self.velocity[i])
+                    (m.resistance_ohm * current + drive.effective_back_emf() * k * self.velocity[i])
                         / drive.amplifier_gain
                 }
             };

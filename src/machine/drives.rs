@@ -93,6 +93,22 @@ pub enum Feedback {
     Carriage,
 }
 
+/// How the servo amplifier drives the armature. Both take the controller output u (V at the
+/// amplifier input) and are limited by the supply voltage.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Deserialize)]
+#[serde(rename_all = "kebab-case")]
+pub enum AmplifierMode {
+    /// Armature voltage = K_a·u: the back-EMF K_b·ω opposes it, so the motor runs at a speed
+    /// roughly proportional to u (a velocity-like plant, heavily damped).
+    #[default]
+    Voltage,
+    /// Current (torque) mode: the amplifier adds the back-EMF to its output, so the current
+    /// obeys L·di/dt + R·i = K_a·u (demand K_a/R amperes per volt, the armature's own time
+    /// constant L/R) for as long as K_a·u + K_b·ω stays within the supply. The plant is then
+    /// a double integrator with only the motor's viscous damping.
+    Current,
+}
+
 /// The guide a linear carriage slides on. The carriage gets a free degree of freedom along
 /// the guide normal and rests on the guide under its own weight and everything it carries, so
 /// the contact (not the joint) carries the load and Coulomb friction μ·N emerges from it.
@@ -125,8 +141,10 @@ pub struct Drive {
     /// Motor-side viscous damping (N·m·s/rad).
     pub viscous_damping_nm_s_per_rad: f64,
     pub motor: DcMotor,
-    /// Amplifier: armature voltage = gain · controller output, clamped to ± supply voltage.
+    /// Amplifier gain K_a (V per volt of controller output), see [`AmplifierMode`].
     pub amplifier_gain: f64,
+    #[serde(default)]
+    pub amplifier_mode: AmplifierMode,
     pub supply_voltage_v: f64,
     /// Torque limit of the ideal torque actuator (N·m at the motor).
     pub peak_torque_nm: f64,
@@ -149,6 +167,26 @@ impl Drive {
     /// Motor radians per joint unit.
     pub fn ratio(&self) -> f64 {
         self.transmission.motor_per_joint()
+    }
+
+    /// Armature voltage the amplifier applies for controller output `u` (V) at motor speed
+    /// `omega` (rad/s), clamped to the supply.
+    pub fn armature_voltage(&self, u: f64, omega: f64) -> f64 {
+        let compensation = match self.amplifier_mode {
+            AmplifierMode::Voltage => 0.0,
+            AmplifierMode::Current => self.motor.back_emf_v_s_per_rad * omega,
+        };
+        (self.amplifier_gain * u + compensation)
+            .clamp(-self.supply_voltage_v, self.supply_voltage_v)
+    }
+
+    /// The back-EMF constant the controller-to-current path sees (V·s/rad): zero in current
+    /// mode, where the amplifier cancels it.
+    pub fn effective_back_emf(&self) -> f64 {
+        match self.amplifier_mode {
+            AmplifierMode::Voltage => self.motor.back_emf_v_s_per_rad,
+            AmplifierMode::Current => 0.0,
+        }
     }
 
     /// Motor-side inertia of rotor and transmission (kg·m²).

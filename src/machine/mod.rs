@@ -6,7 +6,9 @@
 mod drives;
 mod urdf;
 
-pub use drives::{DcMotor, Drive, DrivesFile, Feedback, Guide, Tool, Transmission, Workpiece};
+pub use drives::{
+    AmplifierMode, DcMotor, Drive, DrivesFile, Feedback, Guide, Tool, Transmission, Workpiece,
+};
 pub use urdf::load_urdf;
 
 use crate::diagnostics::FileError;

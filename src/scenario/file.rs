@@ -3,7 +3,7 @@
 
 use crate::control::{ActuatorKind, PidForm, PidGains};
 use crate::diagnostics::{read_text, toml_error, FileError, LineColumn};
-use crate::machine::Feedback;
+use crate::machine::{AmplifierMode, Feedback};
 use crate::plan::BlendChoice;
 use crate::program::{CircleSpec, FeedRule, PolylineSpec, ReadOptions};
 use serde::Deserialize;
@@ -214,6 +214,8 @@ fn default_settle() -> Num {
 #[serde(deny_unknown_fields)]
 struct RawActuator {
     model: ActuatorModel,
+    /// Every drive's amplifier mode, overriding the drive file.
+    amplifier_mode: Option<AmplifierMode>,
 }
 
 #[derive(Deserialize, Clone, Copy)]
@@ -426,6 +428,8 @@ pub struct Scenario {
     pub encoder_counts_per_rev: BTreeMap<String, (u32, Option<LineColumn>)>,
     /// Feedback position for every axis, overriding the drive file; `None` = the drive's.
     pub feedback_position: Option<Feedback>,
+    /// Amplifier mode of every drive, overriding the drive file; `None` = the drive's.
+    pub amplifier_mode: Option<AmplifierMode>,
     /// Keep the guides' contact friction / the transmissions' backlash of the machine.
     pub friction: bool,
     pub backlash: bool,
@@ -494,6 +498,16 @@ impl Scenario {
                     machine.display()
                 ),
             ));
+        }
+
+        if let Some(a) = &raw.actuator {
+            if let (ActuatorModel::IdealTorque, Some(_)) = (a.model, a.amplifier_mode) {
+                return Err(FileError::new(
+                    path,
+                    LineColumn::of_first(text, "amplifier_mode"),
+                    "[actuator] amplifier_mode applies to model = \"dc-motor\"; the ideal-torque actuator has no amplifier",
+                ));
+            }
         }
 
         // Program: exactly one source.
@@ -853,7 +867,7 @@ impl Scenario {
             substeps: substeps as usize,
             solver_iterations: solver_iterations as usize,
             settle_time,
-            actuator: raw.actuator.map(|a| match a.model {
+            actuator: raw.actuator.as_ref().map(|a| match a.model {
                 ActuatorModel::IdealTorque => ActuatorKind::IdealTorque,
                 ActuatorModel::DcMotor => ActuatorKind::DcMotor,
             }),
@@ -871,6 +885,7 @@ impl Scenario {
             inverse_dynamics,
             encoder_counts_per_rev,
             feedback_position: raw.feedback.position,
+            amplifier_mode: raw.actuator.as_ref().and_then(|a| a.amplifier_mode),
             friction: raw.mechanics.friction,
             backlash: raw.mechanics.backlash,
             following_error_limit_linear,

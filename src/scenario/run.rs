@@ -60,7 +60,8 @@ pub struct Prepared {
     pub cosim: CoSimulation<'static>,
 }
 
-/// The scenario's machine with its `[mechanics]` and `[feedback]` choices applied.
+/// The scenario's machine with its `[mechanics]`, `[feedback]` and `[actuator]` choices
+/// applied.
 pub fn machine_for(s: &Scenario) -> Result<Machine, RunError> {
     let mut machine = Machine::load(&s.machine)?;
     for axis in &mut machine.axes {
@@ -72,6 +73,9 @@ pub fn machine_for(s: &Scenario) -> Result<Machine, RunError> {
         }
         if let Some(feedback) = s.feedback_position {
             axis.drive.feedback = feedback;
+        }
+        if let Some(mode) = s.amplifier_mode {
+            axis.drive.amplifier_mode = mode;
         }
     }
     Ok(machine)

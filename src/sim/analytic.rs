@@ -82,7 +82,8 @@ pub enum AxisModelError {
 /// What the actuator does over one hold interval.
 #[derive(Debug, Clone, Copy, PartialEq)]
 enum ActuatorInput {
-    /// Armature voltage (V), already clamped to the supply.
+    /// The amplifier's own output K_a·u (V); the armature voltage adds the back-EMF
+    /// compensation of a current-mode amplifier and is clamped to the supply.
     Voltage(f64),
     /// Motor torque (N·m), already clamped to the peak torque.
     Torque(f64),
@@ -97,6 +98,8 @@ enum Actuator {
         inductance: f64,
         amplifier_gain: f64,
         supply_voltage: f64,
+        /// K_b in current mode (the amplifier adds K_b·ω), 0 in voltage mode.
+        back_emf_compensation: f64,
     },
     IdealTorque {
         peak_torque: f64,
@@ -275,6 +278,7 @@ impl AxisModel {
                 inductance: m.inductance_h,
                 amplifier_gain: drive.amplifier_gain,
                 supply_voltage: drive.supply_voltage_v,
+                back_emf_compensation: m.back_emf_v_s_per_rad - drive.effective_back_emf(),
             }
         };
         let mut model = AxisModel {
@@ -435,6 +439,10 @@ impl AxisModel {
         );
         let input = self.input(command);
         let mut state = self.state;
+        let start_voltage = match input {
+            ActuatorInput::Voltage(v) => self.armature_voltage(&state, v),
+            ActuatorInput::Torque(_) => 0.0,
+        };
         if let (
             ActuatorInput::Torque(torque),
             Actuator::IdealTorque {
@@ -458,10 +466,10 @@ impl AxisModel {
                 Actuator::DcMotor {
                     torque_constant, ..
                 },
-                ActuatorInput::Voltage(voltage),
+                ActuatorInput::Voltage(_),
             ) => HoldInterval {
                 mean_torque: torque_constant * state.charge / duration,
-                voltage,
+                voltage: start_voltage,
             },
             (Actuator::IdealTorque { .. }, ActuatorInput::Torque(torque)) => HoldInterval {
                 mean_torque: torque,
@@ -473,16 +481,27 @@ impl AxisModel {
 
     fn input(&self, command: f64) -> ActuatorInput {
         match self.actuator {
-            Actuator::DcMotor {
-                amplifier_gain,
-                supply_voltage,
-                ..
-            } => ActuatorInput::Voltage(
-                (amplifier_gain * command).clamp(-supply_voltage, supply_voltage),
-            ),
+            Actuator::DcMotor { amplifier_gain, .. } => {
+                ActuatorInput::Voltage(amplifier_gain * command)
+            }
             Actuator::IdealTorque { peak_torque, .. } => {
                 ActuatorInput::Torque(command.clamp(-peak_torque, peak_torque))
             }
+        }
+    }
+
+    /// Armature voltage (V) in state `y` for amplifier output `amplifier` (K_a·u).
+    fn armature_voltage(&self, y: &AxisState, amplifier: f64) -> f64 {
+        match self.actuator {
+            Actuator::DcMotor {
+                supply_voltage,
+                back_emf_compensation,
+                ..
+            } => {
+                let omega = self.ratio * y.drive_velocity;
+                (amplifier + back_emf_compensation * omega).clamp(-supply_voltage, supply_voltage)
+            }
+            Actuator::IdealTorque { .. } => 0.0,
         }
     }
 
@@ -497,9 +516,10 @@ impl AxisModel {
                     inductance,
                     ..
                 },
-                ActuatorInput::Voltage(v),
+                ActuatorInput::Voltage(amplifier),
             ) => {
                 let omega = self.ratio * y.drive_velocity;
+                let v = self.armature_voltage(y, amplifier);
                 let di = (v - resistance * y.current - back_emf_constant * omega) / inductance;
                 (self.ratio * torque_constant * y.current, di)
             }
