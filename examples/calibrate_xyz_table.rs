@@ -29,7 +29,8 @@
 
 use cncsim::machine::{AmplifierMode, Machine};
 use cncsim::scenario::{
-    machine_for, run_scenario_with, tune_scenario_with, Scenario, TuneOptions, TunePlant,
+    keep_mechanics, machine_for, run_scenario_with, tune_scenario_with, Scenario, TuneOptions,
+    TunePlant,
 };
 use std::path::{Path, PathBuf};
 
@@ -72,13 +73,6 @@ fn root() -> PathBuf {
     PathBuf::from(env!("CARGO_MANIFEST_DIR"))
 }
 
-fn mode_name(mode: AmplifierMode) -> &'static str {
-    match mode {
-        AmplifierMode::Voltage => "voltage",
-        AmplifierMode::Current => "current",
-    }
-}
-
 fn with_parameters(base: &Machine, mode: AmplifierMode, mu: f64, z_mass: f64) -> Machine {
     let mut m = base.clone();
     for axis in &mut m.axes {
@@ -109,20 +103,14 @@ fn at_period(s: &Scenario, period_ms: f64) -> Scenario {
 /// Ziegler–Nichols on the linear part of every axis (friction and backlash removed), as
 /// `cncsim tune --linear` does.
 fn tune(s: &Scenario, machine: &Machine) -> Result<Vec<AxisGains>, String> {
-    let mut linear = s.clone();
-    linear.friction = false;
-    linear.backlash = false;
     let mut machine = machine.clone();
-    for axis in &mut machine.axes {
-        axis.drive.guide = None;
-        axis.drive.backlash = 0.0;
-    }
+    keep_mechanics(&mut machine, false, false);
     let mut gains = Vec::new();
     for axis in ["x", "y", "z"] {
         let mut options = TuneOptions::new(axis, TUNE_STEP_M);
         options.trial_time = TRIAL_S;
         let report = tune_scenario_with(
-            &linear,
+            s,
             machine.clone(),
             &options,
             TunePlant::Physics,
@@ -228,7 +216,7 @@ fn main() {
                     Err(e) => {
                         println!(
                             "{:>9} {period_ms:5.1} {z_mass:16.1}  tune failed: {e}",
-                            mode_name(mode)
+                            mode.name()
                         );
                         continue;
                     }
@@ -240,7 +228,7 @@ fn main() {
                         Err(e) => {
                             println!(
                                 "{:>9} {period_ms:5.1} {mu:7.4} {z_mass:8.1}  failed: {e}",
-                                mode_name(mode)
+                                mode.name()
                             );
                             continue;
                         }
@@ -263,7 +251,7 @@ fn main() {
                     };
                     println!(
                         "{:>9} {:5.1} {:7.4} {:8.1} {:8.4} {:8.4} {:8.3} {:10.1} % {:8.1} %",
-                        mode_name(c.mode),
+                        c.mode.name(),
                         c.period_ms,
                         c.mu,
                         c.z_mass,
@@ -294,7 +282,7 @@ fn main() {
     };
     println!(
         "best: {} amplifiers, servo period {} ms, μ = {}, m_z = {} kg: X {:.4} mm, Y {:.4} mm, path speed {:.3} mm/s (worst miss {:.1} %, RSS {:.1} %)",
-        mode_name(best.mode),
+        best.mode.name(),
         best.period_ms,
         best.mu,
         best.z_mass,
@@ -352,7 +340,7 @@ fn write_back(best: &Candidate, gains: &[AxisGains]) {
             if drive.get("guide").is_some() {
                 set(&mut drive["guide"]["friction_coefficient"], best.mu);
             }
-            drive["amplifier_mode"] = toml_edit::value(mode_name(best.mode));
+            drive["amplifier_mode"] = toml_edit::value(best.mode.name());
         }
     });
     // The z_column's <mass> and <inertia> in the URDF, scaled as `with_parameters` scales

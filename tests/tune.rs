@@ -132,7 +132,6 @@ fn current_mode_reproduces_the_papers_plant_and_gain_table() {
     assert!(report.ultimate.gain < 0.6 * k);
     assert!(report.trial_time_s > 3.0 * report.ultimate.period);
     // Voltage mode: the back-EMF term K_b·K_m dominates R·C four-hundredfold.
-    s.amplifier_mode = Some(cncsim::machine::AmplifierMode::Voltage);
     for a in &mut machine.axes {
         a.drive.amplifier_mode = cncsim::machine::AmplifierMode::Voltage;
     }

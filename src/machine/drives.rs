@@ -109,6 +109,26 @@ pub enum AmplifierMode {
     Current,
 }
 
+impl AmplifierMode {
+    /// Armature voltage for amplifier output `ka_u` = K_a·u (V) against back-EMF
+    /// `back_emf` = K_b·ω (V), clamped to the supply.
+    pub fn armature_voltage(self, ka_u: f64, back_emf: f64, supply: f64) -> f64 {
+        let compensation = match self {
+            AmplifierMode::Voltage => 0.0,
+            AmplifierMode::Current => back_emf,
+        };
+        (ka_u + compensation).clamp(-supply, supply)
+    }
+
+    /// The name used in drives and scenario files.
+    pub fn name(self) -> &'static str {
+        match self {
+            AmplifierMode::Voltage => "voltage",
+            AmplifierMode::Current => "current",
+        }
+    }
+}
+
 /// The guide a linear carriage slides on. The carriage gets a free degree of freedom along
 /// the guide normal and rests on the guide under its own weight and everything it carries, so
 /// the contact (not the joint) carries the load and Coulomb friction μ·N emerges from it.
@@ -172,12 +192,11 @@ impl Drive {
     /// Armature voltage the amplifier applies for controller output `u` (V) at motor speed
     /// `omega` (rad/s), clamped to the supply.
     pub fn armature_voltage(&self, u: f64, omega: f64) -> f64 {
-        let compensation = match self.amplifier_mode {
-            AmplifierMode::Voltage => 0.0,
-            AmplifierMode::Current => self.motor.back_emf_v_s_per_rad * omega,
-        };
-        (self.amplifier_gain * u + compensation)
-            .clamp(-self.supply_voltage_v, self.supply_voltage_v)
+        self.amplifier_mode.armature_voltage(
+            self.amplifier_gain * u,
+            self.motor.back_emf_v_s_per_rad * omega,
+            self.supply_voltage_v,
+        )
     }
 
     /// The back-EMF constant the controller-to-current path sees (V·s/rad): zero in current

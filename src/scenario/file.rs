@@ -215,7 +215,7 @@ fn default_settle() -> Num {
 struct RawActuator {
     model: ActuatorModel,
     /// Every drive's amplifier mode, overriding the drive file.
-    amplifier_mode: Option<AmplifierMode>,
+    amplifier_mode: Option<Spanned<AmplifierMode>>,
 }
 
 #[derive(Deserialize, Clone, Copy)]
@@ -501,11 +501,10 @@ impl Scenario {
         }
 
         if let Some(a) = &raw.actuator {
-            if let (ActuatorModel::IdealTorque, Some(_)) = (a.model, a.amplifier_mode) {
-                return Err(FileError::new(
-                    path,
-                    LineColumn::of_first(text, "amplifier_mode"),
-                    "[actuator] amplifier_mode applies to model = \"dc-motor\"; the ideal-torque actuator has no amplifier",
+            if let (ActuatorModel::IdealTorque, Some(mode)) = (a.model, &a.amplifier_mode) {
+                return Err(err(
+                    mode.span(),
+                    "[actuator] amplifier_mode applies to model = \"dc-motor\"; the ideal-torque actuator has no amplifier".into(),
                 ));
             }
         }
@@ -885,7 +884,10 @@ impl Scenario {
             inverse_dynamics,
             encoder_counts_per_rev,
             feedback_position: raw.feedback.position,
-            amplifier_mode: raw.actuator.as_ref().and_then(|a| a.amplifier_mode),
+            amplifier_mode: raw
+                .actuator
+                .as_ref()
+                .and_then(|a| a.amplifier_mode.as_ref().map(|m| *m.get_ref())),
             friction: raw.mechanics.friction,
             backlash: raw.mechanics.backlash,
             following_error_limit_linear,

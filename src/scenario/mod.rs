@@ -18,8 +18,8 @@ pub use file::{
 pub use overrides::Override;
 pub use plan::{plan_scenario, PlanReport};
 pub use run::{
-    load_checked_program, machine_for, plan_settings, prepare, prepare_with, run_scenario,
-    run_scenario_with, Prepared, RunError, RunOutput,
+    keep_mechanics, load_checked_program, machine_for, plan_settings, prepare, prepare_with,
+    run_scenario, run_scenario_with, Prepared, RunError, RunOutput,
 };
 pub use tune::{
     outcome_text, tune_scenario, tune_scenario_with, LinearPrediction, TuneError, TuneOptions,

@@ -64,13 +64,8 @@ pub struct Prepared {
 /// applied.
 pub fn machine_for(s: &Scenario) -> Result<Machine, RunError> {
     let mut machine = Machine::load(&s.machine)?;
+    keep_mechanics(&mut machine, s.friction, s.backlash);
     for axis in &mut machine.axes {
-        if !s.friction {
-            axis.drive.guide = None;
-        }
-        if !s.backlash {
-            axis.drive.backlash = 0.0;
-        }
         if let Some(feedback) = s.feedback_position {
             axis.drive.feedback = feedback;
         }
@@ -79,6 +74,19 @@ pub fn machine_for(s: &Scenario) -> Result<Machine, RunError> {
         }
     }
     Ok(machine)
+}
+
+/// Removes the guides' friction (`friction = false`) and the transmissions' backlash
+/// (`backlash = false`) from every axis of `machine`; with both false, its linear part.
+pub fn keep_mechanics(machine: &mut Machine, friction: bool, backlash: bool) {
+    for axis in &mut machine.axes {
+        if !friction {
+            axis.drive.guide = None;
+        }
+        if !backlash {
+            axis.drive.backlash = 0.0;
+        }
+    }
 }
 
 /// Loads, checks, plans and wires a scenario without running it.

@@ -8,12 +8,13 @@
 //! axis starts at rest at the program's first point and its setpoint steps by `step` at t = 0.
 
 use super::run::{
-    controller_for, machine_for, new_plant, prepare_with, Prepared, RunError, GRAVITY,
+    controller_for, keep_mechanics, machine_for, new_plant, prepare_with, Prepared, RunError,
+    GRAVITY,
 };
 use super::Scenario;
 use crate::control::{Actuator, ActuatorKind, Controller, ControllerInput, Pid, PidForm, PidGains};
 use crate::diagnostics::FileError;
-use crate::machine::{AmplifierMode, Machine};
+use crate::machine::Machine;
 use crate::plan::Setpoints;
 use crate::sim::analytic::{run_reference, AxisModel, ReferenceSettings};
 use crate::sim::{CoSimulation, LoopSettings, Trace};
@@ -298,10 +299,7 @@ pub fn tune_scenario_with(
         },
         actuator: actuator_name,
         amplifier_mode: match actuator {
-            ActuatorKind::DcMotor => Some(match machine.axes[axis].drive.amplifier_mode {
-                AmplifierMode::Voltage => "voltage",
-                AmplifierMode::Current => "current",
-            }),
+            ActuatorKind::DcMotor => Some(machine.axes[axis].drive.amplifier_mode.name()),
             ActuatorKind::IdealTorque => None,
         },
         friction: machine.axes[axis].drive.guide.is_some(),
@@ -391,10 +389,7 @@ fn check_options(s: &Scenario, o: &TuneOptions, rotary: bool) -> Result<(), Stri
 fn linear_model(machine: &Machine, axis: usize, actuator: ActuatorKind) -> Option<LinearAxis> {
     // The linear part only: friction and backlash have no place in a linear model.
     let mut linear = machine.clone();
-    for a in &mut linear.axes {
-        a.drive.guide = None;
-        a.drive.backlash = 0.0;
-    }
+    keep_mechanics(&mut linear, false, false);
     let models = AxisModel::for_machine(&linear, GRAVITY, false).ok()?;
     let m = &models[axis];
     let drive = &machine.axes[axis].drive;

@@ -48,7 +48,7 @@
 //! start of each tick, the same encoder rounding, the controller once per tick, its output held.
 
 use crate::control::{Controller, ControllerInput};
-use crate::machine::{Drive, Feedback, JointKind, Machine};
+use crate::machine::{AmplifierMode, Drive, Feedback, JointKind, Machine};
 use crate::plan::Setpoints;
 use nalgebra::{UnitQuaternion, Vector3};
 
@@ -98,8 +98,7 @@ enum Actuator {
         inductance: f64,
         amplifier_gain: f64,
         supply_voltage: f64,
-        /// K_b in current mode (the amplifier adds K_b·ω), 0 in voltage mode.
-        back_emf_compensation: f64,
+        amplifier_mode: AmplifierMode,
     },
     IdealTorque {
         peak_torque: f64,
@@ -278,7 +277,7 @@ impl AxisModel {
                 inductance: m.inductance_h,
                 amplifier_gain: drive.amplifier_gain,
                 supply_voltage: drive.supply_voltage_v,
-                back_emf_compensation: m.back_emf_v_s_per_rad - drive.effective_back_emf(),
+                amplifier_mode: drive.amplifier_mode,
             }
         };
         let mut model = AxisModel {
@@ -494,12 +493,17 @@ impl AxisModel {
     fn armature_voltage(&self, y: &AxisState, amplifier: f64) -> f64 {
         match self.actuator {
             Actuator::DcMotor {
+                back_emf_constant,
                 supply_voltage,
-                back_emf_compensation,
+                amplifier_mode,
                 ..
             } => {
                 let omega = self.ratio * y.drive_velocity;
-                (amplifier + back_emf_compensation * omega).clamp(-supply_voltage, supply_voltage)
+                amplifier_mode.armature_voltage(
+                    amplifier,
+                    back_emf_constant * omega,
+                    supply_voltage,
+                )
             }
             Actuator::IdealTorque { .. } => 0.0,
         }
