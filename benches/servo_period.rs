@@ -1,6 +1,6 @@
 //! Cost of one servo period of the XYZ table: PID + DC-motor actuators + 4 physics steps of
-//! 0.25 ms (T = 1 ms), and of one bare physics step; each with rigid joints and with the
-//! table's guide contacts (friction) and backlash joints.
+//! 0.25 ms (T = 1 ms), and of one bare physics step; each with rigid joints, with the table's
+//! guide contacts (friction) and backlash joints, and with stiction on the guides.
 
 use cncsim::control::{Actuator, ActuatorKind, Pid, PidBank, PidForm, PidGains};
 use cncsim::machine::Machine;
@@ -31,16 +31,29 @@ fn plant(machine: &Machine, step: f64) -> Plant {
     Plant::new(machine, &options).unwrap()
 }
 
-/// The table as modelled (guide contacts, backlash) and with both taken out.
-fn variants() -> [(&'static str, Machine); 2] {
+/// The table with both taken out, with plain Coulomb guides and backlash, and with stiction
+/// (μ_s = 2·μ over v_s = 1 mm/s: its contact pairs are rebuilt every step, not recycled).
+fn variants() -> [(&'static str, Machine); 3] {
     let mut rigid = table();
     for axis in &mut rigid.axes {
         axis.drive.guide = None;
         axis.drive.backlash = 0.0;
     }
+    let with_guides = |stiction: bool| {
+        let mut m = table();
+        for g in m.axes.iter_mut().filter_map(|a| a.drive.guide.as_mut()) {
+            (g.static_friction_coefficient, g.stribeck_velocity_m_s) = if stiction {
+                (Some(2.0 * g.friction_coefficient), Some(1e-3))
+            } else {
+                (None, None)
+            };
+        }
+        m
+    };
     [
         ("rigid joints", rigid),
-        ("guide contacts + backlash", table()),
+        ("guide contacts + backlash", with_guides(false)),
+        ("guide contacts with stiction + backlash", with_guides(true)),
     ]
 }
 

@@ -270,9 +270,36 @@ fn bad_guides_and_feedback_name_the_axis() {
     let src = std::fs::read_to_string(model()).unwrap();
     let drives =
         std::fs::read_to_string(Path::new(&model()).with_extension("drives.toml")).unwrap();
-    let x_guide = "guide = { friction_coefficient = 0.02 }";
-    assert!(drives.contains(x_guide));
+    // X's guide line, whatever the calibration wrote into it.
+    let x_guide = drives
+        .lines()
+        .find(|l| l.starts_with("guide = {"))
+        .expect("the X axis has a guide");
     let cases = [
+        (
+            drives.replacen(
+                x_guide,
+                "guide = { friction_coefficient = 0.1, static_friction_coefficient = 0.05, stribeck_velocity_m_s = 1e-3 }",
+                1,
+            ),
+            "axis 'x': guide.static_friction_coefficient = 0.05: expected a finite value ≥ the kinetic friction_coefficient (0.1)",
+        ),
+        (
+            drives.replacen(
+                x_guide,
+                "guide = { friction_coefficient = 0.1, static_friction_coefficient = 0.2 }",
+                1,
+            ),
+            "axis 'x': guide.static_friction_coefficient = 0.2 exceeds the kinetic 0.1: expected stribeck_velocity_m_s",
+        ),
+        (
+            drives.replacen(
+                x_guide,
+                "guide = { friction_coefficient = 0.1, static_friction_coefficient = 0.2, stribeck_velocity_m_s = 0.0 }",
+                1,
+            ),
+            "axis 'x': guide.stribeck_velocity_m_s = 0: expected a finite value > 0",
+        ),
         (
             drives.replacen(x_guide, "guide = { friction_coefficient = -0.1 }", 1),
             "axis 'x': guide.friction_coefficient = -0.1: expected a finite value ≥ 0",

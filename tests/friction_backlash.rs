@@ -11,15 +11,25 @@ const DT: f64 = 2.5e-4;
 
 /// The bundled table with guide friction μ on X and Y and the given backlash (X, Y).
 fn table(mu: f64, backlash: [f64; 2]) -> Machine {
+    table_with(Guide::coulomb(mu), backlash)
+}
+
+/// μ_k 0.05, μ_s 0.1, falling over v_s = 2 mm/s.
+fn sticky_guide() -> Guide {
+    Guide {
+        static_friction_coefficient: Some(0.1),
+        stribeck_velocity_m_s: Some(2e-3),
+        ..Guide::coulomb(0.05)
+    }
+}
+
+fn table_with(guide: Guide, backlash: [f64; 2]) -> Machine {
     let mut machine =
         Machine::load(&Path::new(env!("CARGO_MANIFEST_DIR")).join("models/xyz_table.urdf"))
             .expect("bundled model loads");
     for (i, axis) in machine.axes.iter_mut().enumerate() {
         if i < 2 {
-            axis.drive.guide = Some(Guide {
-                friction_coefficient: mu,
-                normal: [0.0, 0.0, 1.0],
-            });
+            axis.drive.guide = Some(guide);
             axis.drive.backlash = backlash[i];
             axis.drive.feedback = Feedback::Motor;
         }
@@ -98,7 +108,12 @@ fn guides_carry_the_weight_above_them() {
 /// A velocity loop (PI on the drive force) holds the carriage at constant speed; the mean
 /// drive force over the last half second is the friction the engine produces.
 fn force_at_constant_speed(mu: f64, axis: usize, speed: f64) -> (f64, f64) {
-    let machine = table(mu, [0.0, 0.0]);
+    force_at_constant_speed_on(Guide::coulomb(mu), axis, speed)
+}
+
+/// As [`force_at_constant_speed`], on any guide; the expected force is N·μ(|v|).
+fn force_at_constant_speed_on(guide: Guide, axis: usize, speed: f64) -> (f64, f64) {
+    let machine = table_with(guide, [0.0, 0.0]);
     let mut plant = plant(&machine, false);
     let hold = z_hold(&machine);
     let mut v = [0.0; 3];
@@ -127,6 +142,7 @@ fn force_at_constant_speed(mu: f64, axis: usize, speed: f64) -> (f64, f64) {
         "axis {axis} did not settle at {speed} m/s: {}",
         v[axis]
     );
+    let mu = guide.coefficient().sliding(speed);
     (sum / samples as f64, mu * carried_mass(&machine, axis) * G)
 }
 
@@ -156,16 +172,8 @@ fn no_creep_below_breakaway() {
     for axis in 0..2 {
         let mut plant = plant(&machine, true);
         let hold = z_hold(&machine);
-        run(&mut plant, 0.2, |_| [0.0, 0.0, hold]);
-        let mut start = [0.0; 3];
-        plant.positions(&mut start);
         let push = 0.9 * mu * carried_mass(&machine, axis) * G;
-        let mut forces = [0.0, 0.0, hold];
-        forces[axis] = push;
-        run(&mut plant, 1.0, |_| forces);
-        let mut end = [0.0; 3];
-        plant.positions(&mut end);
-        let creep = (end[axis] - start[axis]).abs();
+        let creep = creep_in_one_second(&mut plant, hold, axis, push);
         eprintln!("axis {axis}: creep {creep:e} m in 1 s");
         assert!(
             creep < 1e-6,
@@ -173,12 +181,88 @@ fn no_creep_below_breakaway() {
             creep * 1e6
         );
         // And just above breakaway it does move.
+        let mut start = [0.0; 3];
+        plant.positions(&mut start);
+        let mut forces = [0.0, 0.0, hold];
         forces[axis] = 1.1 * mu * carried_mass(&machine, axis) * G;
         run(&mut plant, 0.2, |_| forces);
+        let mut end = [0.0; 3];
         plant.positions(&mut end);
         assert!(
             end[axis] - start[axis] > 1e-5,
             "axis {axis} should slide at 110 % of breakaway"
+        );
+    }
+}
+
+/// Lets the plant settle for 0.2 s, then pushes axis `axis` with `push` (N) for 1 s and
+/// returns how far it moved (m).
+fn creep_in_one_second(plant: &mut Plant, hold: f64, axis: usize, push: f64) -> f64 {
+    run(plant, 0.2, |_| [0.0, 0.0, hold]);
+    let mut start = [0.0; 3];
+    plant.positions(&mut start);
+    let mut forces = [0.0, 0.0, hold];
+    forces[axis] = push;
+    run(plant, 1.0, |_| forces);
+    let mut end = [0.0; 3];
+    plant.positions(&mut end);
+    (end[axis] - start[axis]).abs()
+}
+
+#[test]
+fn sliding_friction_follows_the_stribeck_curve() {
+    // From near breakaway (0.5 mm/s: μ 0.097) through v_s to nearly kinetic (8 mm/s: μ 0.05).
+    for (axis, speed) in [(0, 0.5e-3), (0, -1e-3), (1, 2e-3), (0, 4e-3), (1, -8e-3)] {
+        let (force, expected) = force_at_constant_speed_on(sticky_guide(), axis, speed);
+        let error = (force.abs() - expected).abs() / expected;
+        eprintln!("axis {axis} at {speed} m/s: force {force:.6} N vs μ(v)·N {expected:.6} N");
+        assert!(
+            error < 0.02,
+            "axis {axis} at {speed} m/s: drive force {force:.4} N, μ(v)·N = {expected:.4} N ({:.3} %)",
+            error * 100.0
+        );
+    }
+}
+
+#[test]
+fn stiction_holds_up_to_the_static_coefficient() {
+    let guide = sticky_guide();
+    let machine = table_with(guide, [0.0, 0.0]);
+    let mu_s = guide.static_friction_coefficient.unwrap();
+    for axis in 0..2 {
+        // Without drive inertia, so that the carriage's acceleration is the net force over its
+        // own mass.
+        let mut plant = plant(&machine, false);
+        let hold = z_hold(&machine);
+        // Twice the kinetic friction, 90 % of breakaway: held.
+        let breakaway = mu_s * carried_mass(&machine, axis) * G;
+        let creep = creep_in_one_second(&mut plant, hold, axis, 0.9 * breakaway);
+        eprintln!("axis {axis}: creep {creep:e} m in 1 s at 90 % of μ_s·N");
+        assert!(
+            creep < 1e-6,
+            "axis {axis}: pushed at 90 % of static breakaway, crept {:.3} µm in 1 s",
+            creep * 1e6
+        );
+        // Above breakaway it slides, and once moving the friction falls towards μ_k·N: the
+        // push accelerates it at (1.1·μ_s − μ(v))·N / m, between 0.1·μ_s·g (friction stuck at
+        // μ_s) and (1.1·μ_s − μ_k)·g, the rate it approaches once the speed passes v_s. More
+        // than half the upper bound (three times the lower) after 0.2 s shows that it fell.
+        let mut forces = [0.0, 0.0, hold];
+        forces[axis] = 1.1 * breakaway;
+        run(&mut plant, 0.2, |_| forces);
+        let mut v = [0.0; 3];
+        plant.velocities(&mut v);
+        let n = carried_mass(&machine, axis) * G;
+        let m = carried_mass(&machine, axis);
+        let upper = (1.1 * mu_s - guide.friction_coefficient) * n / m * 0.2;
+        eprintln!(
+            "axis {axis}: {:.4} m/s after 0.2 s above breakaway (≤ {upper:.4})",
+            v[axis]
+        );
+        assert!(
+            v[axis] > 0.5 * upper && v[axis] <= upper,
+            "axis {axis}: {} m/s",
+            v[axis]
         );
     }
 }

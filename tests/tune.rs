@@ -172,10 +172,7 @@ fn friction_and_backlash_end_the_search_with_a_result_or_a_reason() {
             .map(|l| machine.links[machine.link_index(l).unwrap()].mass)
             .sum();
         let drive = &mut machine.axes[x].drive;
-        drive.guide = Some(Guide {
-            friction_coefficient: friction / (carried * 9.81),
-            normal: [0.0, 0.0, 1.0],
-        });
+        drive.guide = Some(Guide::coulomb(friction / (carried * 9.81)));
         drive.backlash = backlash;
         drive.feedback = feedback;
         let mut o = TuneOptions::new("x", 5e-5);

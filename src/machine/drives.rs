@@ -132,15 +132,134 @@ impl AmplifierMode {
 /// The guide a linear carriage slides on. The carriage gets a free degree of freedom along
 /// the guide normal and rests on the guide under its own weight and everything it carries, so
 /// the contact (not the joint) carries the load and Coulomb friction μ·N emerges from it.
+///
+/// With a static coefficient above the kinetic one the guide has stiction: the carriage breaks
+/// away at μ_s·N and the coefficient falls to μ_k along the Stribeck curve
+/// μ(v) = μ_k + (μ_s − μ_k)·exp(−(v/v_s)²) as it speeds up ([`StribeckCurve`]).
 #[derive(Debug, Clone, Copy, PartialEq, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct Guide {
-    /// Coulomb friction coefficient of the guide contact (static = kinetic).
+    /// Kinetic (sliding) Coulomb coefficient μ_k of the guide contact.
     pub friction_coefficient: f64,
+    /// Static coefficient μ_s ≥ μ_k; absent = μ_k (no stiction).
+    #[serde(default)]
+    pub static_friction_coefficient: Option<f64>,
+    /// Stribeck velocity v_s (m/s): the sliding speed over which μ falls from μ_s towards
+    /// μ_k. Required when μ_s > μ_k.
+    #[serde(default)]
+    pub stribeck_velocity_m_s: Option<f64>,
     /// Outward normal of the guide surface (the direction the carriage is lifted off), in the
     /// joint frame; must be perpendicular to the joint axis.
     #[serde(default = "up")]
     pub normal: [f64; 3],
+}
+
+impl Guide {
+    /// A guide with plain Coulomb friction (static = kinetic) and an upward normal.
+    pub fn coulomb(friction_coefficient: f64) -> Guide {
+        Guide {
+            friction_coefficient,
+            static_friction_coefficient: None,
+            stribeck_velocity_m_s: None,
+            normal: up(),
+        }
+    }
+
+    /// The friction coefficient as a function of sliding speed.
+    pub fn coefficient(&self) -> StribeckCurve {
+        let kinetic = self.friction_coefficient;
+        StribeckCurve {
+            kinetic,
+            breakaway: self.static_friction_coefficient.unwrap_or(kinetic),
+            stribeck_velocity: self.stribeck_velocity_m_s.unwrap_or(0.0),
+        }
+    }
+
+    fn validate(&self) -> Result<(), String> {
+        let mu = self.friction_coefficient;
+        if !(mu.is_finite() && mu >= 0.0) {
+            return Err(format!(
+                "guide.friction_coefficient = {mu}: expected a finite value ≥ 0"
+            ));
+        }
+        if let Some(mu_s) = self.static_friction_coefficient {
+            if !(mu_s.is_finite() && mu_s >= mu) {
+                return Err(format!(
+                    "guide.static_friction_coefficient = {mu_s}: expected a finite value ≥ \
+                     the kinetic friction_coefficient ({mu})"
+                ));
+            }
+        }
+        let curve = self.coefficient();
+        match self.stribeck_velocity_m_s {
+            Some(v) if !(v.is_finite() && v > 0.0) => {
+                return Err(format!(
+                    "guide.stribeck_velocity_m_s = {v}: expected a finite value > 0"
+                ));
+            }
+            None if curve.has_stiction() => {
+                return Err(format!(
+                    "guide.static_friction_coefficient = {} exceeds the kinetic {}: expected \
+                     stribeck_velocity_m_s, the speed over which the coefficient falls",
+                    curve.breakaway, curve.kinetic
+                ));
+            }
+            _ => {}
+        }
+        let n = self.normal;
+        if !(n.iter().all(|v| v.is_finite()) && n.iter().any(|v| *v != 0.0)) {
+            return Err(format!(
+                "guide.normal = {n:?}: expected a finite, non-zero vector"
+            ));
+        }
+        Ok(())
+    }
+}
+
+/// Coulomb friction with a Stribeck drop: `breakaway` holds a body at rest, and a sliding
+/// body feels kinetic + (breakaway − kinetic)·exp(−(v/v_s)²) against its motion. The same
+/// curve serves as coefficients (a [`Guide`]) or as forces (scaled by the normal load).
+#[derive(Debug, Clone, Copy, PartialEq, Default)]
+pub struct StribeckCurve {
+    pub kinetic: f64,
+    /// Largest force (or coefficient) that holds a body at rest; ≥ `kinetic`.
+    pub breakaway: f64,
+    /// Speed scale of the drop (m/s or rad/s); irrelevant when breakaway = kinetic.
+    pub stribeck_velocity: f64,
+}
+
+impl StribeckCurve {
+    /// Plain Coulomb friction: static = kinetic = `level`.
+    pub fn coulomb(level: f64) -> StribeckCurve {
+        StribeckCurve {
+            kinetic: level,
+            breakaway: level,
+            stribeck_velocity: 0.0,
+        }
+    }
+
+    /// Magnitude while sliding at `speed` (either sign).
+    pub fn sliding(&self, speed: f64) -> f64 {
+        let excess = self.breakaway - self.kinetic;
+        if excess == 0.0 {
+            return self.kinetic;
+        }
+        let ratio = speed / self.stribeck_velocity;
+        self.kinetic + excess * (-ratio * ratio).exp()
+    }
+
+    pub fn has_stiction(&self) -> bool {
+        self.breakaway > self.kinetic
+    }
+
+    /// The same curve with both levels multiplied by `factor` (coefficients to forces).
+    pub fn scaled(&self, factor: f64) -> StribeckCurve {
+        StribeckCurve {
+            kinetic: self.kinetic * factor,
+            breakaway: self.breakaway * factor,
+            stribeck_velocity: self.stribeck_velocity,
+        }
+    }
 }
 
 fn up() -> [f64; 3] {
@@ -268,18 +387,7 @@ impl Drive {
             }
         }
         if let Some(guide) = &self.guide {
-            let mu = guide.friction_coefficient;
-            if !(mu.is_finite() && mu >= 0.0) {
-                return Err(format!(
-                    "guide.friction_coefficient = {mu}: expected a finite value ≥ 0"
-                ));
-            }
-            let n = guide.normal;
-            if !(n.iter().all(|v| v.is_finite()) && n.iter().any(|v| *v != 0.0)) {
-                return Err(format!(
-                    "guide.normal = {n:?}: expected a finite, non-zero vector"
-                ));
-            }
+            guide.validate()?;
             if self.transmission.joint_kind() != JointKind::Prismatic {
                 return Err("a guide (friction contact) needs a linear axis".into());
             }

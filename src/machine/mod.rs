@@ -7,7 +7,8 @@ mod drives;
 mod urdf;
 
 pub use drives::{
-    AmplifierMode, DcMotor, Drive, DrivesFile, Feedback, Guide, Tool, Transmission, Workpiece,
+    AmplifierMode, DcMotor, Drive, DrivesFile, Feedback, Guide, StribeckCurve, Tool, Transmission,
+    Workpiece,
 };
 pub use urdf::load_urdf;
 

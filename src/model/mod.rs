@@ -9,7 +9,7 @@
 
 mod convert;
 
-use crate::machine::{Feedback, Guide, JointKind, Machine};
+use crate::machine::{Feedback, Guide, JointKind, Machine, StribeckCurve};
 use convert::{from_pose, from_vec, to_pose, to_vec};
 use nalgebra::{Isometry3, Point3, Translation3, UnitQuaternion, Vector3};
 use rapier3d_f64::prelude::*;
@@ -88,6 +88,9 @@ struct GuidePair {
     runner: ColliderHandle,
     /// Guide normal in the world frame (constant: guides sit on linear chains).
     normal: Vector3<f64>,
+    /// Friction coefficient against sliding speed; with stiction it is set on the colliders
+    /// before every step from the carriage's speed at the start of the step.
+    coefficient: StribeckCurve,
 }
 
 /// The simulated machine.
@@ -150,6 +153,15 @@ impl Plant {
         parameters.contact_softness = stiff;
         parameters.static_contact_softness = stiff;
         world.gravity = to_vec(&Vector3::from(options.gravity));
+        // A recycled contact pair (one that moved less than a few centimetres since its last
+        // full update) keeps the friction coefficient it was built with; stiction changes the
+        // coefficient every step, so its pairs must be rebuilt every step.
+        let stiction = machine.axes.iter().any(|a| {
+            a.drive
+                .guide
+                .is_some_and(|g| g.coefficient().has_stiction())
+        });
+        world.integration_parameters.contact_recycling = !stiction;
 
         // Bodies at their home poses (all joints at zero); the multibody places them.
         let home = home_poses(machine);
@@ -461,8 +473,33 @@ impl Plant {
 
     /// Advances the physics by one step.
     pub fn step(&mut self) {
+        self.update_guide_friction();
         self.world.step();
         self.steps += 1;
+    }
+
+    /// Rapier's contacts know one coefficient (static = kinetic). Stiction is the coefficient
+    /// following the Stribeck curve of the carriage's sliding speed, one step behind; a
+    /// carriage at rest creeps at most micrometres per second, so it is held at μ_s.
+    fn update_guide_friction(&mut self) {
+        for a in 0..self.axes.len() {
+            let Some(guide) = &self.guides[a] else {
+                continue;
+            };
+            if !guide.coefficient.has_stiction() {
+                continue;
+            }
+            let Some(mb) = self.multibody() else { return };
+            let mu = guide
+                .coefficient
+                .sliding(Self::carriage_velocity(mb, &self.axes[a]));
+            let (runner, guide) = (guide.runner, guide.guide);
+            for collider in [runner, guide] {
+                if let Some(c) = self.world.colliders.get_mut(collider) {
+                    c.set_friction(mu);
+                }
+            }
+        }
     }
 
     /// The machine's multibody (none for a machine without joints).
@@ -513,10 +550,15 @@ impl Plant {
     /// Carriage velocity of each axis (m/s or rad/s).
     pub fn velocities(&self, out: &mut [f64]) {
         let Some(mb) = self.multibody() else { return };
-        let v = mb.generalized_velocity();
         for (o, b) in out.iter_mut().zip(&self.axes) {
-            *o = v[b.drive_dof] + b.slack.map_or(0.0, |(_, dof)| v[dof]);
+            *o = Self::carriage_velocity(mb, b);
         }
+    }
+
+    /// The drive's velocity plus the carriage's within the dead band.
+    fn carriage_velocity(mb: &Multibody, b: &AxisBinding) -> f64 {
+        let v = mb.generalized_velocity();
+        v[b.drive_dof] + b.slack.map_or(0.0, |(_, dof)| v[dof])
     }
 
     /// Drive-side velocity of each axis (m/s or rad/s): the motor speed over the ratio.
@@ -603,7 +645,9 @@ fn insert_guide(
     let runner_shape = ColliderBuilder::cuboid(ha, hb, ht);
     let guide_half_length = (hi - lo) / 2.0 + ha;
     let guide_shape = ColliderBuilder::cuboid(guide_half_length, hb, ht);
-    let mu = guide.friction_coefficient;
+    let coefficient = guide.coefficient();
+    // At rest: a carriage starts stuck, held by the static coefficient.
+    let mu = coefficient.breakaway;
     let finish = |b: ColliderBuilder, pose: Isometry3<f64>| {
         b.position(to_pose(&pose))
             .density(0.0)
@@ -622,6 +666,7 @@ fn insert_guide(
         guide: guide_collider,
         runner,
         normal,
+        coefficient,
     }
 }
 

@@ -18,14 +18,15 @@
 //!
 //! # Coulomb friction: a switching (Karnopp-type) stick/slip model with event location
 //!
-//! Friction acts on the carriage's guides. While sliding it is −F_c·sign(v) with the sign
-//! frozen for the mode, so each mode is a smooth ODE that RK4 integrates at full order. The body
-//! sticks when its velocity reaches zero and the applied force (everything but friction) is
-//! within ±F_c; it then has exactly zero velocity until the applied force leaves that band.
+//! Friction acts on the carriage's guides. While sliding it is −F(|v|)·sign(v) with the sign
+//! frozen for the mode, F the guide's [`StribeckCurve`] (F_c when static = kinetic), so each
+//! mode is a smooth ODE that RK4 integrates at full order. The body sticks when its velocity
+//! reaches zero and the applied force (everything but friction) is within ±F_s (breakaway); it
+//! then has exactly zero velocity until the applied force leaves that band.
 //! Both switching instants are located inside the step by bisection, so there is no chatter
 //! (no sign flipping from step to step around v = 0) and no creep below breakaway, which a
 //! regularised (tanh or linear-zone) model would show and which would hide exactly the
-//! stick-slip effects the reference is meant to show. Static and kinetic friction are equal.
+//! stick-slip effects the reference is meant to show.
 //!
 //! # Backlash: a dead zone of width b between drive and carriage, with rigid inelastic ends
 //!
@@ -48,15 +49,16 @@
 //! start of each tick, the same encoder rounding, the controller once per tick, its output held.
 
 use crate::control::{Controller, ControllerInput};
-use crate::machine::{AmplifierMode, Drive, Feedback, JointKind, Machine};
+use crate::machine::{AmplifierMode, Drive, Feedback, JointKind, Machine, StribeckCurve};
 use crate::plan::Setpoints;
 use nalgebra::{UnitQuaternion, Vector3};
 
 /// Per-axis effects and actuator choice; all off by default.
 #[derive(Debug, Clone, Copy, PartialEq, Default)]
 pub struct AxisModelOptions {
-    /// Coulomb (and breakaway) friction force on the carriage guides, ≥ 0 (N or N·m).
-    pub coulomb_friction: f64,
+    /// Friction force on the carriage guides (N or N·m): Coulomb, with stiction when its
+    /// breakaway exceeds its kinetic level.
+    pub friction: StribeckCurve,
     /// Lost motion between drive and carriage, ≥ 0 (m or rad, at the joint).
     pub backlash: f64,
     /// Command is motor torque clamped to `Drive::peak_torque_nm`, instead of amplifier input.
@@ -71,6 +73,8 @@ pub enum AxisModelError {
     Negative { name: &'static str, value: f64 },
     #[error("{name} = {value}: expected a finite value > 0")]
     NotPositive { name: &'static str, value: f64 },
+    #[error("friction.breakaway = {breakaway}: expected a finite value ≥ the kinetic {kinetic}")]
+    Breakaway { breakaway: f64, kinetic: f64 },
     #[error("backlash needs a carriage with mass (moved mass is 0)")]
     MasslessCarriage,
     #[error("axis '{axis}': gravity pulls the carriage off its guide (check guide.normal)")]
@@ -195,7 +199,7 @@ pub struct AxisModel {
     carriage_damping: f64,
     /// Gravity force on the carriage along the joint axis (N).
     gravity_force: f64,
-    coulomb_friction: f64,
+    friction: StribeckCurve,
     backlash: f64,
     feedback: Feedback,
     state: AxisState,
@@ -228,7 +232,7 @@ impl AxisModel {
         let at_least_zero = [
             ("moved_mass", moved_mass),
             ("joint_damping", joint_damping),
-            ("coulomb_friction", options.coulomb_friction),
+            ("friction.kinetic", options.friction.kinetic),
             ("backlash", options.backlash),
             (
                 "viscous_damping_nm_s_per_rad",
@@ -240,6 +244,19 @@ impl AxisModel {
             if !(value.is_finite() && value >= 0.0) {
                 return Err(AxisModelError::Negative { name, value });
             }
+        }
+        let f = options.friction;
+        if !(f.breakaway.is_finite() && f.breakaway >= f.kinetic) {
+            return Err(AxisModelError::Breakaway {
+                breakaway: f.breakaway,
+                kinetic: f.kinetic,
+            });
+        }
+        if f.has_stiction() && !(f.stribeck_velocity.is_finite() && f.stribeck_velocity > 0.0) {
+            return Err(AxisModelError::NotPositive {
+                name: "friction.stribeck_velocity",
+                value: f.stribeck_velocity,
+            });
         }
         let m = &drive.motor;
         let positive = [
@@ -288,7 +305,7 @@ impl AxisModel {
             carriage_mass: moved_mass,
             carriage_damping: joint_damping,
             gravity_force: moved_mass * gravity_along_axis,
-            coulomb_friction: options.coulomb_friction,
+            friction: options.friction,
             backlash: options.backlash,
             feedback: options.feedback,
             state: AxisState::default(),
@@ -347,8 +364,8 @@ impl AxisModel {
                     .filter(|(_, &m)| m)
                     .map(|(l, _)| l.mass)
                     .sum();
-                let coulomb_friction = match &axis.drive.guide {
-                    None => 0.0,
+                let friction = match &axis.drive.guide {
+                    None => StribeckCurve::default(),
                     Some(guide) => {
                         let normal = Vector3::from(guide.normal).normalize();
                         let load = -mass * gravity_component(&rotation, &normal, gravity);
@@ -357,11 +374,11 @@ impl AxisModel {
                                 axis: axis.name.clone(),
                             });
                         }
-                        guide.friction_coefficient * load
+                        guide.coefficient().scaled(load)
                     }
                 };
                 let options = AxisModelOptions {
-                    coulomb_friction,
+                    friction,
                     backlash: axis.drive.backlash,
                     ideal_actuator,
                     feedback: axis.drive.feedback,
@@ -536,7 +553,7 @@ impl AxisModel {
     fn combined_acceleration(&self, y: &AxisState, motor_force: f64, direction: f64) -> f64 {
         let v = y.carriage_velocity;
         (motor_force - self.effective_damping() * v + self.gravity_force
-            - self.coulomb_friction * direction)
+            - self.friction.sliding(v) * direction)
             / self.effective_mass()
     }
 
@@ -591,7 +608,7 @@ impl AxisModel {
                     Guide::Sliding { direction } => {
                         (self.gravity_force
                             - self.carriage_damping * y.carriage_velocity
-                            - self.coulomb_friction * direction)
+                            - self.friction.sliding(y.carriage_velocity) * direction)
                             / self.carriage_mass
                     }
                 };
@@ -619,7 +636,7 @@ impl AxisModel {
         let guide_holds = match mode.guide {
             Guide::Sliding { direction } => direction * y.carriage_velocity >= 0.0,
             Guide::Stuck => {
-                self.applied_force_at_rest(y, mode.contact, input).abs() <= self.coulomb_friction
+                self.applied_force_at_rest(y, mode.contact, input).abs() <= self.friction.breakaway
             }
         };
         contact_holds && guide_holds
@@ -674,7 +691,7 @@ impl AxisModel {
     }
 
     fn resolve_guide(&self, y: &mut AxisState, contact: Contact, input: ActuatorInput) -> Guide {
-        if self.coulomb_friction == 0.0 {
+        if self.friction.breakaway == 0.0 {
             return Guide::Sliding { direction: 0.0 };
         }
         let v = y.carriage_velocity;
@@ -688,7 +705,7 @@ impl AxisModel {
             y.drive_velocity = 0.0;
         }
         let applied = self.applied_force_at_rest(y, contact, input);
-        if applied.abs() <= self.coulomb_friction {
+        if applied.abs() <= self.friction.breakaway {
             Guide::Stuck
         } else {
             Guide::Sliding {

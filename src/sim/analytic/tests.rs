@@ -3,7 +3,7 @@
 
 use super::*;
 use crate::control::{Pid, PidBank, PidForm, PidGains};
-use crate::machine::{AmplifierMode, Machine};
+use crate::machine::{AmplifierMode, Machine, StribeckCurve};
 use nalgebra::{SMatrix, SVector};
 use std::path::Path;
 
@@ -173,7 +173,7 @@ fn coulomb_friction_holds_an_axis_below_breakaway() {
     let friction = 50.0;
     for ideal_actuator in [true, false] {
         let mut axis = x_axis(AxisModelOptions {
-            coulomb_friction: friction,
+            friction: StribeckCurve::coulomb(friction),
             ideal_actuator,
             ..Default::default()
         });
@@ -197,7 +197,7 @@ fn coulomb_friction_holds_an_axis_below_breakaway() {
 fn coulomb_friction_above_breakaway_subtracts_from_the_drive_force() {
     let friction = 50.0;
     let mut axis = x_axis(AxisModelOptions {
-        coulomb_friction: friction,
+        friction: StribeckCurve::coulomb(friction),
         ideal_actuator: true,
         ..Default::default()
     });
@@ -217,7 +217,7 @@ fn breakaway_happens_when_the_rising_current_reaches_the_friction_force() {
     // the instant k·K_m·i = F_c, located inside the step, not at the next step boundary.
     let friction = 100.0;
     let mut axis = x_axis(AxisModelOptions {
-        coulomb_friction: friction,
+        friction: StribeckCurve::coulomb(friction),
         ..Default::default()
     });
     let (command, k, km, r, l) = (0.5, axis.ratio(), 0.055, 1.1, 2.3e-3);
@@ -241,7 +241,7 @@ fn at_constant_speed_the_drive_force_is_damping_plus_friction() {
     let friction = 50.0;
     let drive = x_drive();
     let mut axis = x_axis(AxisModelOptions {
-        coulomb_friction: friction,
+        friction: StribeckCurve::coulomb(friction),
         ..Default::default()
     });
     let command = 2.0;
@@ -257,6 +257,69 @@ fn at_constant_speed_the_drive_force_is_damping_plus_friction() {
     let speed = (k * km * voltage / r - friction) / (c + k * k * km * kb / r);
     assert!(relative(v, speed) < 1e-9, "{v} vs {speed}");
     assert!(relative(k * hold.mean_torque, c * v + friction) < 1e-9);
+}
+
+/// Kinetic 50 N, breakaway 100 N, falling over 1 mm/s.
+fn sticky() -> StribeckCurve {
+    StribeckCurve {
+        kinetic: 50.0,
+        breakaway: 100.0,
+        stribeck_velocity: 1e-3,
+    }
+}
+
+#[test]
+fn stiction_holds_between_kinetic_and_breakaway_force() {
+    let mut axis = x_axis(AxisModelOptions {
+        friction: sticky(),
+        ideal_actuator: true,
+        ..Default::default()
+    });
+    // 95 N: almost twice the kinetic friction, still below breakaway.
+    for _ in 0..1000 {
+        axis.advance(95.0 / axis.ratio(), 1e-3, 10);
+    }
+    assert_eq!(axis.position(), 0.0);
+    assert_eq!(axis.velocity(), 0.0);
+    // 105 N breaks it away, and the falling friction lets it run away from the 5 N that a
+    // constant breakaway friction would leave: past v_s the net force nears 55 N.
+    for _ in 0..200 {
+        axis.advance(105.0 / axis.ratio(), 1e-3, 10);
+    }
+    let (m, c) = (axis.effective_mass(), axis.effective_damping());
+    let (_, v_stuck_friction) = damped_mass_under_force(5.0, m, c, 0.2);
+    let (_, v_kinetic) = damped_mass_under_force(55.0, m, c, 0.2);
+    let v = axis.velocity();
+    assert!(v > 5.0 * v_stuck_friction && v < v_kinetic, "{v} m/s");
+}
+
+#[test]
+fn at_constant_speed_the_drive_force_is_damping_plus_stribeck_friction() {
+    let drive = x_drive();
+    let friction = sticky();
+    let mut axis = x_axis(AxisModelOptions {
+        friction,
+        ..Default::default()
+    });
+    // A slow steady speed, around v_s, where the curve is steep.
+    let command = 0.3;
+    let mut hold = axis.advance(command, 1e-3, 10);
+    for _ in 0..3000 {
+        hold = axis.advance(command, 1e-3, 10);
+    }
+    let (k, km, kb, r) = (axis.ratio(), 0.055, 0.0554, 1.1);
+    let voltage = drive.amplifier_gain * command;
+    let c = axis.effective_damping();
+    let v = axis.velocity();
+    assert!(v > 0.2e-3 && v < 5e-3, "{v} m/s");
+    // Steady state: k·K_m·(V − K_b·k·v)/R = c·v + F(v), and the torque carries it.
+    let drive_force = k * km * (voltage - kb * k * v) / r;
+    let resisting = c * v + friction.sliding(v);
+    assert!(
+        relative(drive_force, resisting) < 1e-9,
+        "{drive_force} vs {resisting}"
+    );
+    assert!(relative(k * hold.mean_torque, resisting) < 1e-9);
 }
 
 /// The scenario's X loop: positional PID, 1 ms servo period, ±6 V.
@@ -319,7 +382,7 @@ fn backlash_is_lost_motion_at_a_reversal() {
     let backlash = 0.32e-3;
     let speed = 2e-3;
     let axis = x_axis(AxisModelOptions {
-        coulomb_friction: 20.0,
+        friction: StribeckCurve::coulomb(20.0),
         backlash,
         ..Default::default()
     });
@@ -364,7 +427,7 @@ fn backlash_is_lost_motion_at_a_reversal() {
 #[test]
 fn without_backlash_there_is_no_dead_band() {
     let axis = x_axis(AxisModelOptions {
-        coulomb_friction: 20.0,
+        friction: StribeckCurve::coulomb(20.0),
         ..Default::default()
     });
     let r = run(axis, &out_and_back(2e-3, 1.0), 10);
@@ -415,7 +478,7 @@ fn closed_loop_with_friction_and_backlash_converges_at_fourth_order() {
     // over 1, 2, 4, 8, 16 steps per period: 13.6, 17.4, 16.4, 14.8.
     let s = out_and_back(10e-3, 0.3);
     let options = AxisModelOptions {
-        coulomb_friction: 20.0,
+        friction: StribeckCurve::coulomb(20.0),
         backlash: 0.32e-3,
         ..Default::default()
     };
@@ -440,13 +503,33 @@ fn closed_loop_with_friction_and_backlash_converges_at_fourth_order() {
 }
 
 #[test]
+fn closed_loop_with_stiction_converges_at_fourth_order() {
+    // The Stribeck drop is smooth within a sliding mode, so it keeps the order; breakaway now
+    // waits for twice the kinetic force.
+    let s = out_and_back(10e-3, 0.3);
+    let options = AxisModelOptions {
+        friction: StribeckCurve {
+            kinetic: 20.0,
+            breakaway: 40.0,
+            stribeck_velocity: 1e-3,
+        },
+        backlash: 0.32e-3,
+        ..Default::default()
+    };
+    let (ratio, finest, r) = convergence_ratio(options, &s);
+    assert!(r.trace.actual_velocity.contains(&0.0));
+    println!("stiction + backlash: ratio {ratio:.2}, finest difference {finest:.2e} m");
+    assert!(ratio > 12.0, "ratio {ratio}");
+}
+
+#[test]
 fn located_events_keep_fourth_order_within_one_long_hold() {
     // One hold of 50 ms, so every switch falls inside a step: stalled, the current rises until
     // breakaway (no backlash), or the drive crosses the gap and strikes the stuck carriage
     // (backlash). Switching at step ends instead would leave an O(h) error: ratio ≈ 2.
     for backlash in [0.0, 0.32e-3] {
         let options = AxisModelOptions {
-            coulomb_friction: 100.0,
+            friction: StribeckCurve::coulomb(100.0),
             backlash,
             ..Default::default()
         };
@@ -481,7 +564,7 @@ fn type_two_loop_tracks_a_ramp_without_error() {
     // (the integral supplies damping + friction force).
     let (speed, friction) = (5e-3, 30.0);
     let options = AxisModelOptions {
-        coulomb_friction: friction,
+        friction: StribeckCurve::coulomb(friction),
         ..Default::default()
     };
     let s = setpoints(1e-3, 2.0, |t| (0.01 + speed * t, speed, 0.0));
