@@ -74,6 +74,14 @@ struct Friction {
     stribeck_mm_s: f64,
 }
 
+impl Friction {
+    /// μ_s and v_s (m/s) of a guide with stiction; `None` for plain Coulomb (ratio 1).
+    fn stiction(&self) -> Option<(f64, f64)> {
+        (self.static_ratio > 1.0)
+            .then_some((self.mu * self.static_ratio, self.stribeck_mm_s * 1e-3))
+    }
+}
+
 struct Candidate {
     mode: AmplifierMode,
     period_ms: f64,
@@ -101,15 +109,9 @@ fn with_parameters(
         axis.drive.amplifier_mode = mode;
         if let Some(g) = &mut axis.drive.guide {
             g.friction_coefficient = friction.mu;
-            (g.static_friction_coefficient, g.stribeck_velocity_m_s) =
-                if friction.static_ratio > 1.0 {
-                    (
-                        Some(friction.mu * friction.static_ratio),
-                        Some(friction.stribeck_mm_s * 1e-3),
-                    )
-                } else {
-                    (None, None)
-                };
+            let stiction = friction.stiction();
+            g.static_friction_coefficient = stiction.map(|(mu_s, _)| mu_s);
+            g.stribeck_velocity_m_s = stiction.map(|(_, v_s)| v_s);
         }
     }
     let z = m
@@ -401,11 +403,9 @@ fn write_back(best: &Candidate, gains: &[AxisGains]) {
                     best.friction.mu,
                 );
                 let guide = drive["guide"].as_table_like_mut().expect("guide table");
-                let f = best.friction;
-                if f.static_ratio > 1.0 {
-                    let mu_s = four_digits(f.mu * f.static_ratio);
+                if let Some((mu_s, v_s)) = best.friction.stiction() {
+                    let mu_s = four_digits(mu_s);
                     guide.insert("static_friction_coefficient", toml_edit::value(mu_s));
-                    let v_s = f.stribeck_mm_s * 1e-3;
                     guide.insert("stribeck_velocity_m_s", toml_edit::value(v_s));
                 } else {
                     guide.remove("static_friction_coefficient");

@@ -87,6 +87,21 @@ fn variants_with_different_setpoints_are_refused() {
 
 const FAST: &str = "scenarios/mill_table2_fast.toml";
 
+/// The run succeeded, its variants are FAST's PID and inverse dynamics, and ID's contour error
+/// is under a tenth of PID's; returns both (µm).
+fn assert_id_beats_pid_tenfold(run: &std::process::Output, json: &serde_json::Value) -> (f64, f64) {
+    assert!(
+        run.status.success(),
+        "{}",
+        String::from_utf8_lossy(&run.stderr)
+    );
+    assert_eq!(json["a"], "mill_table2_fast controller=pid");
+    assert_eq!(json["b"], "mill_table2_fast controller=inverse-dynamics");
+    let (pid, id) = row(json, "max contour error");
+    assert!(id * 10.0 < pid, "contour error: PID {pid} µm, ID {id} µm");
+    (pid, id)
+}
+
 #[test]
 fn one_scenario_with_overrides_compares_pid_and_inverse_dynamics() {
     let dir = tempfile::tempdir().unwrap();
@@ -101,15 +116,7 @@ fn one_scenario_with_overrides_compares_pid_and_inverse_dynamics() {
         ],
         &out,
     );
-    assert!(
-        run.status.success(),
-        "{}",
-        String::from_utf8_lossy(&run.stderr)
-    );
-    assert_eq!(json["a"], "mill_table2_fast controller=pid");
-    assert_eq!(json["b"], "mill_table2_fast controller=inverse-dynamics");
-    let (pid, id) = row(&json, "max contour error");
-    assert!(id * 10.0 < pid, "contour error: PID {pid} µm, ID {id} µm");
+    let (pid, _) = assert_id_beats_pid_tenfold(&run, &json);
     // The PID variant really is the file's PID gains (its measured figure), not ID twice.
     assert!((150.0..200.0).contains(&pid), "PID contour error {pid} µm");
     assert!(out
@@ -228,15 +235,7 @@ fn bad_overrides_name_the_override_and_exit_2() {
 fn variants_declared_in_the_scenario_run_without_flags() {
     let dir = tempfile::tempdir().unwrap();
     let (run, json) = ab_args(&[FAST], dir.path());
-    assert!(
-        run.status.success(),
-        "{}",
-        String::from_utf8_lossy(&run.stderr)
-    );
-    assert_eq!(json["a"], "mill_table2_fast controller=pid");
-    assert_eq!(json["b"], "mill_table2_fast controller=inverse-dynamics");
-    let (pid, id) = row(&json, "max contour error");
-    assert!(id * 10.0 < pid, "contour error: PID {pid} µm, ID {id} µm");
+    assert_id_beats_pid_tenfold(&run, &json);
 }
 
 #[test]
