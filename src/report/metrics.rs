@@ -76,6 +76,44 @@ pub struct AxisMetrics {
     pub rms_torque_nm: f64,
     #[serde(skip_serializing_if = "Option::is_none")]
     pub peak_voltage_v: Option<f64>,
+    /// Stick-slip: how often the axis stalled again after it had got going, while its setpoint
+    /// kept moving (see `stick_slip_stalls`).
+    pub stick_slip_stalls: usize,
+}
+
+/// Below this fraction of the axis's peak commanded speed the setpoint is slowing through a
+/// reversal (or starting, or stopping): whatever the axis does there is not stick-slip.
+const STALL_COMMAND_FLOOR: f64 = 0.2;
+/// The axis is moving above this fraction of its peak commanded speed ...
+const STALL_MOVING: f64 = 0.2;
+/// ... and has stalled below this one.
+const STALL_STOPPED: f64 = 0.02;
+
+/// How often axis `axis` stalled (speed below 2 % of its peak commanded speed) after it had got
+/// going (above 20 %), while its commanded speed stayed above 20 % of that peak: stick-slip
+/// hunting. An axis that stands at a reversal while the drive takes up the backlash, or at the
+/// start while friction holds it, is not counted: there the command itself is slow.
+pub fn stick_slip_stalls(trace: &Trace, axis: usize) -> usize {
+    let at = |v: &[f64], k: usize| Trace::at(v, trace.axes, k, axis).abs();
+    let peak = (0..trace.len())
+        .map(|k| at(&trace.commanded_velocity, k))
+        .fold(0.0, f64::max);
+    if peak <= 0.0 || trace.actual_velocity.len() < trace.commanded_velocity.len() {
+        return 0;
+    }
+    let (mut moving, mut stalls) = (false, 0);
+    for k in 0..trace.len() {
+        let actual = at(&trace.actual_velocity, k);
+        if at(&trace.commanded_velocity, k) <= STALL_COMMAND_FLOOR * peak {
+            moving = false;
+        } else if actual > STALL_MOVING * peak {
+            moving = true;
+        } else if moving && actual < STALL_STOPPED * peak {
+            stalls += 1;
+            moving = false;
+        }
+    }
+    stalls
 }
 
 #[derive(Debug, Clone, PartialEq, Serialize)]
@@ -156,6 +194,7 @@ impl Metrics {
                     peak_voltage_v: dc_motor.then(|| {
                         max(&mut (0..n).map(|k| Trace::at(&trace.voltage, trace.axes, k, i).abs()))
                     }),
+                    stick_slip_stalls: stick_slip_stalls(trace, i),
                 },
             );
         }
@@ -221,5 +260,55 @@ impl Metrics {
         path.split('.')
             .try_fold(json, |v, key| v.get(key))?
             .as_f64()
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// A one-axis trace at 10 ms with the given commanded and actual velocities (m/s).
+    fn trace(commanded: &[f64], actual: &[f64]) -> Trace {
+        Trace {
+            period: 0.01,
+            axes: 1,
+            time: (0..commanded.len()).map(|k| k as f64 * 0.01).collect(),
+            commanded_velocity: commanded.to_vec(),
+            actual_velocity: actual.to_vec(),
+            ..Default::default()
+        }
+    }
+
+    #[test]
+    fn stalls_while_the_command_moves_are_counted() {
+        let commanded = vec![5e-3; 60];
+        let mut actual = vec![5e-3; 60];
+        // Held at the start (not counted: it never got going), then stuck twice on the way.
+        for k in (0..10).chain(20..25).chain(40..42) {
+            actual[k] = 0.0;
+        }
+        assert_eq!(stick_slip_stalls(&trace(&commanded, &actual), 0), 2);
+    }
+
+    #[test]
+    fn standing_at_a_reversal_is_not_a_stall() {
+        // Command through zero as on a circle; the axis stands still on both sides of the
+        // reversal while the backlash is taken up, until the command is back above 25 % speed.
+        let commanded: Vec<f64> = (0..200)
+            .map(|k| 5e-3 * (std::f64::consts::PI * k as f64 / 100.0).cos())
+            .collect();
+        let actual: Vec<f64> = commanded
+            .iter()
+            .enumerate()
+            .map(|(k, &v)| if (45..60).contains(&k) { 0.0 } else { v })
+            .collect();
+        assert!(commanded[59].abs() > 0.25 * 5e-3);
+        assert_eq!(stick_slip_stalls(&trace(&commanded, &actual), 0), 0);
+    }
+
+    #[test]
+    fn an_axis_that_never_moves_has_no_stalls() {
+        assert_eq!(stick_slip_stalls(&trace(&[0.0; 10], &[0.0; 10]), 0), 0);
+        assert_eq!(stick_slip_stalls(&trace(&[], &[]), 0), 0);
     }
 }
