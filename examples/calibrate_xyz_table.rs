@@ -278,28 +278,40 @@ fn grid_arg<T: std::str::FromStr + Clone>(name: &str, default: &[T]) -> Vec<T> {
     }
 }
 
+/// `--NAME a,b` from the command line, or `default`, each a name in `choices`.
+fn grid_choice<T: Copy>(name: &str, default: &[&str], choices: &[(&str, T)]) -> Vec<T> {
+    let default: Vec<String> = default.iter().map(|d| d.to_string()).collect();
+    grid_arg::<String>(name, &default)
+        .iter()
+        .map(|v| match choices.iter().find(|(n, _)| n == v) {
+            Some(&(_, choice)) => choice,
+            None => {
+                let names: Vec<&str> = choices.iter().map(|(n, _)| *n).collect();
+                panic!("{name}: expected one of {}, found {v}", names.join(", "))
+            }
+        })
+        .collect()
+}
+
 fn main() {
     let write = std::env::args().any(|a| a == "--write");
-    let modes: Vec<AmplifierMode> = grid_arg::<String>("--amplifier", &["current".to_string()])
-        .iter()
-        .map(|m| match m.as_str() {
-            "voltage" => AmplifierMode::Voltage,
-            "current" => AmplifierMode::Current,
-            other => panic!("--amplifier: expected voltage or current, found {other}"),
-        })
-        .collect();
+    let modes = grid_choice(
+        "--amplifier",
+        &["current"],
+        &[
+            ("voltage", AmplifierMode::Voltage),
+            ("current", AmplifierMode::Current),
+        ],
+    );
     let periods = grid_arg("--period-ms", &SERVO_PERIOD_MS);
-    let designs: Vec<Design> = grid_arg::<String>(
+    let designs = grid_choice(
         "--design",
-        &["sampled".to_string(), "continuous".to_string()],
-    )
-    .iter()
-    .map(|d| match d.as_str() {
-        "sampled" => Design::Sampled,
-        "continuous" => Design::Continuous,
-        other => panic!("--design: expected sampled or continuous, found {other}"),
-    })
-    .collect();
+        &["sampled", "continuous"],
+        &[
+            ("sampled", Design::Sampled),
+            ("continuous", Design::Continuous),
+        ],
+    );
     let static_ratios = grid_arg("--static-ratio", &STATIC_RATIO);
     let stribeck = grid_arg("--stribeck-mm-s", &STRIBECK_MM_S);
     let mut frictions = Vec::new();
