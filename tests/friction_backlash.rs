@@ -106,13 +106,9 @@ fn guides_carry_the_weight_above_them() {
 }
 
 /// A velocity loop (PI on the drive force) holds the carriage at constant speed; the mean
-/// drive force over the last half second is the friction the engine produces.
-fn force_at_constant_speed(mu: f64, axis: usize, speed: f64) -> (f64, f64) {
-    force_at_constant_speed_on(Guide::coulomb(mu), axis, speed)
-}
-
-/// As [`force_at_constant_speed`], on any guide; the expected force is N·μ(|v|).
-fn force_at_constant_speed_on(guide: Guide, axis: usize, speed: f64) -> (f64, f64) {
+/// drive force over the last half second is the friction the engine produces. Returns it and
+/// the expected N·μ(|v|).
+fn force_at_constant_speed(guide: Guide, axis: usize, speed: f64) -> (f64, f64) {
     let machine = table_with(guide, [0.0, 0.0]);
     let mut plant = plant(&machine, false);
     let hold = z_hold(&machine);
@@ -146,15 +142,15 @@ fn force_at_constant_speed_on(guide: Guide, axis: usize, speed: f64) -> (f64, f6
     (sum / samples as f64, mu * carried_mass(&machine, axis) * G)
 }
 
-#[test]
-fn sliding_friction_is_mu_times_the_load() {
-    for (axis, speed) in [(0, 0.005), (0, -0.02), (1, 0.005), (1, -0.01)] {
-        let (force, expected) = force_at_constant_speed(0.1, axis, speed);
+/// At each (axis, speed) the drive force equals N·μ(|v|) within 2 % and opposes the motion.
+fn assert_sliding_friction(guide: Guide, cases: &[(usize, f64)]) {
+    for &(axis, speed) in cases {
+        let (force, expected) = force_at_constant_speed(guide, axis, speed);
         let error = (force.abs() - expected).abs() / expected;
-        eprintln!("axis {axis} at {speed} m/s: force {force:.6} N vs μN {expected:.6} N");
+        eprintln!("axis {axis} at {speed} m/s: force {force:.6} N vs μ(v)·N {expected:.6} N");
         assert!(
             error < 0.02,
-            "axis {axis} at {speed} m/s: drive force {force:.4} N, μ·N = {expected:.4} N ({:.3} %)",
+            "axis {axis} at {speed} m/s: drive force {force:.4} N, μ(v)·N = {expected:.4} N ({:.3} %)",
             error * 100.0
         );
         assert_eq!(
@@ -163,6 +159,14 @@ fn sliding_friction_is_mu_times_the_load() {
             "friction opposes the motion"
         );
     }
+}
+
+#[test]
+fn sliding_friction_is_mu_times_the_load() {
+    assert_sliding_friction(
+        Guide::coulomb(0.1),
+        &[(0, 0.005), (0, -0.02), (1, 0.005), (1, -0.01)],
+    );
 }
 
 #[test]
@@ -212,16 +216,10 @@ fn creep_in_one_second(plant: &mut Plant, hold: f64, axis: usize, push: f64) -> 
 #[test]
 fn sliding_friction_follows_the_stribeck_curve() {
     // From near breakaway (0.5 mm/s: μ 0.097) through v_s to nearly kinetic (8 mm/s: μ 0.05).
-    for (axis, speed) in [(0, 0.5e-3), (0, -1e-3), (1, 2e-3), (0, 4e-3), (1, -8e-3)] {
-        let (force, expected) = force_at_constant_speed_on(sticky_guide(), axis, speed);
-        let error = (force.abs() - expected).abs() / expected;
-        eprintln!("axis {axis} at {speed} m/s: force {force:.6} N vs μ(v)·N {expected:.6} N");
-        assert!(
-            error < 0.02,
-            "axis {axis} at {speed} m/s: drive force {force:.4} N, μ(v)·N = {expected:.4} N ({:.3} %)",
-            error * 100.0
-        );
-    }
+    assert_sliding_friction(
+        sticky_guide(),
+        &[(0, 0.5e-3), (0, -1e-3), (1, 2e-3), (0, 4e-3), (1, -8e-3)],
+    );
 }
 
 #[test]
