@@ -67,6 +67,7 @@ fn program(blocks: usize, blend: Blend) -> AxisPath {
         axes,
         start: vec![0.0; 5],
         segments,
+        tool_lever_arms: Vec::new(),
     }
 }
 

@@ -15,6 +15,7 @@ fn empty_path_holds_the_start() {
         axes: axes(),
         start: vec![0.01, 0.02],
         segments: vec![],
+        tool_lever_arms: Vec::new(),
     };
     let plan = plan(&path).unwrap();
     assert_eq!(plan.duration(), 0.0);
@@ -36,6 +37,7 @@ fn repeated_points_take_no_time_and_break_nothing() {
             line(&[0.01, 0.0], None, blend, 1),
             line(&[0.01, 0.01], None, blend, 2),
         ],
+        tool_lever_arms: Vec::new(),
     };
     let plan = plan(&path).unwrap();
     let timings = plan.segment_timings();
@@ -55,6 +57,7 @@ fn invalid_input_is_reported() {
         axes: bad_limits,
         start: vec![0.0; 2],
         segments: vec![],
+        tool_lever_arms: Vec::new(),
     };
     assert_eq!(
         plan(&path).unwrap_err(),
@@ -65,6 +68,7 @@ fn invalid_input_is_reported() {
         axes: axes(),
         start: vec![0.0; 2],
         segments: vec![line(&[0.01, 0.0, 0.0], None, Blend::ExactStop, 0)],
+        tool_lever_arms: Vec::new(),
     };
     assert!(matches!(
         plan(&path),
@@ -78,6 +82,7 @@ fn invalid_input_is_reported() {
         axes: axes(),
         start: vec![0.0; 2],
         segments: vec![line(&[f64::NAN, 0.0], None, Blend::ExactStop, 0)],
+        tool_lever_arms: Vec::new(),
     };
     assert!(matches!(plan(&path), Err(PathError::InvalidValue { .. })));
 
@@ -98,6 +103,7 @@ fn invalid_input_is_reported() {
             blend: Blend::ExactStop,
             source_index: 0,
         }],
+        tool_lever_arms: Vec::new(),
     };
     assert!(matches!(
         plan(&arc(vec![0.0, 0.02], [0, 1])),

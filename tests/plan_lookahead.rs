@@ -31,6 +31,7 @@ fn zigzag(blend: Blend) -> (AxisPath, Vec<Vec<f64>>) {
             axes,
             start: points[0].clone(),
             segments,
+            tool_lever_arms: Vec::new(),
         },
         points,
     )
@@ -102,12 +103,17 @@ fn continuous_corners_stay_within_tolerance_and_limits_without_stopping() {
     // is faster than any blend; every other corner is passed moving.
     let stops = count_stops(&sp, 1e-4);
     assert_eq!(stops, 1, "{speeds:?}");
-    // Legs: points 5–6–7 are collinear, so 8 legs; only the reversal (junction 6) stops.
-    assert_eq!(speeds.len(), 9);
-    assert!(speeds
-        .iter()
-        .enumerate()
-        .all(|(k, &v)| (v == 0.0) == (k == 0 || k == 6 || k == 8)));
+    // Path speed at every programmed point (the start, then each segment's end): zero at the
+    // start, at the reversal (point 7) and at the end only; the collinear point 6 is passed at
+    // speed like the corners.
+    assert_eq!(speeds.len(), 10);
+    assert!(
+        speeds
+            .iter()
+            .enumerate()
+            .all(|(k, &v)| (v == 0.0) == (k == 0 || k == 7 || k == 9)),
+        "{speeds:?}"
+    );
     // Exactly on the last point at the end, and faster than exact stop.
     assert_eq!(sp.position(sp.len() - 1), points.last().unwrap().as_slice());
     let exact = cncsim::plan::plan(&zigzag(Blend::ExactStop).0).unwrap();
@@ -151,6 +157,7 @@ fn collinear_blocks_are_passed_at_speed() {
         axes: axes.clone(),
         start: vec![0.0, 0.0],
         segments,
+        tool_lever_arms: Vec::new(),
     };
     let plan = plan(&path).unwrap();
     let sp = fine(&plan);
@@ -192,6 +199,7 @@ fn collinear_blocks_are_passed_at_speed() {
         axes,
         start: vec![0.0, 0.0],
         segments: stops,
+        tool_lever_arms: Vec::new(),
     });
     let each = closed_form_duration(0.01_f64.hypot(0.005), l.velocity, l.acceleration, l.jerk);
     assert!((exact.unwrap().duration() - 20.0 * each).abs() < 1e-9);
@@ -233,6 +241,7 @@ fn circle_path(feed: f64, turns: u32, helix_end: f64) -> AxisPath {
             },
             line(&[0.06, 0.0, helix_end], Some(feed), Blend::ExactStop, 1),
         ],
+        tool_lever_arms: Vec::new(),
     }
 }
 
@@ -293,6 +302,7 @@ fn clockwise_quarter_arc_lands_on_its_end() {
             blend: Blend::ExactStop,
             source_index: 0,
         }],
+        tool_lever_arms: Vec::new(),
     };
     let plan = plan(&path).unwrap();
     assert_within_limits(&fine(&plan), &axes, 1e-9);

@@ -19,6 +19,7 @@ fn straight_move_stays_on_the_line_and_axes_finish_together() {
         axes: axes.clone(),
         start: start.clone(),
         segments: vec![line(&end, None, Blend::ExactStop, 4)],
+        tool_lever_arms: Vec::new(),
     };
     let plan = plan(&path).unwrap();
     let sp = fine(&plan);
@@ -59,6 +60,7 @@ fn duration_is_the_closed_form_of_the_path_limits_and_no_axis_could_be_faster() 
         axes: axes.clone(),
         start: start.to_vec(),
         segments: vec![line(&end, None, Blend::ExactStop, 0)],
+        tool_lever_arms: Vec::new(),
     };
     let plan = plan(&path).unwrap();
     // Path limits along the unit direction u: min over axes of limit_i / |u_i|.
@@ -89,6 +91,7 @@ fn feed_limits_the_path_speed_in_its_metric() {
         axes: axes.clone(),
         start: vec![0.0; 3],
         segments: vec![segment],
+        tool_lever_arms: Vec::new(),
     };
     let plan = plan(&path).unwrap();
     let sp = plan.sample(1e-3);
@@ -115,6 +118,7 @@ fn rotary_only_move_under_a_linear_feed_metric_is_not_limited_by_the_feed() {
         axes: axes.clone(),
         start: vec![0.0; 3],
         segments: vec![segment],
+        tool_lever_arms: Vec::new(),
     };
     let plan = plan(&path).unwrap();
     let l = axes[2].limits;

@@ -110,7 +110,7 @@ proptest! {
             .enumerate()
             .map(|(k, p)| line(p, feed, blends[k], k as u32))
             .collect();
-        let path = AxisPath { axes: axes.clone(), start: points[0].clone(), segments };
+        let path = AxisPath { axes: axes.clone(), start: points[0].clone(), segments, tool_lever_arms: Vec::new() };
         let planned = plan(&path).unwrap();
         let t = planned.duration();
         prop_assert!(t.is_finite());
@@ -176,7 +176,7 @@ proptest! {
                 feed_metric: vec![1.0; 3],
                 blend: Blend::ExactStop,
                 source_index: 0,
-            }],
+            }], tool_lever_arms: Vec::new(),
         };
         let planned = plan(&path).unwrap();
         prop_assert!(planned.duration().is_finite() && planned.duration() > 0.0);

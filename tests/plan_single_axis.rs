@@ -118,6 +118,7 @@ fn sampled_single_axis_moves_respect_limits_and_land_on_target() {
             axes: axes.clone(),
             start: vec![0.25],
             segments: vec![line(&[0.25 + distance], None, Blend::ExactStop, 0)],
+            tool_lever_arms: Vec::new(),
         };
         let plan = plan(&path).unwrap();
         assert!((plan.duration() - expected).abs() < 1e-12 * expected);

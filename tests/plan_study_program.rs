@@ -70,6 +70,7 @@ fn study_path(blend: Blend) -> AxisPath {
                 source_index: k as u32 + 1,
             })
             .collect(),
+        tool_lever_arms: Vec::new(),
     }
 }
 

@@ -4,47 +4,19 @@
 //! repeated addition, so there is no drift, and every move ends exactly on its target with a
 //! shorter last step. Velocity is a step function; acceleration is zero between samples.
 
-use super::Setpoints;
+use super::from_program::SampleBudget;
+use super::setpoints::{SetpointSample, SetpointStream, Setpoints};
+use super::stream::collect;
+use super::PlanError;
 use crate::kinematics::AxisMap;
 use crate::program::{
     arc_segment, move_duration, move_length, rotary_travel_degrees, Feed, Motion, Position,
     Program, Segment,
 };
-use nalgebra::Point3;
+use nalgebra::{Point3, Vector3};
 
-#[derive(Debug, Clone, thiserror::Error, PartialEq)]
-pub enum PlanError {
-    #[error("move {index} (line {line}): feed {feed} gives no positive finite duration")]
-    BadFeed { index: usize, line: u32, feed: f64 },
-    #[error("move {index} (line {line}): arc radius {radius} m is degenerate")]
-    BadArc {
-        index: usize,
-        line: u32,
-        radius: f64,
-    },
-    #[error("the servo period must be a positive finite number of seconds, got {0}")]
-    BadPeriod(f64),
-    #[error("move {index} (line {line}): {what} is not supported")]
-    Unsupported {
-        index: usize,
-        line: u32,
-        what: &'static str,
-    },
-    #[error(
-        "the stretch of moves from move {first_move} (line {line}) cannot be planned: {message}"
-    )]
-    Path {
-        first_move: usize,
-        line: u32,
-        message: String,
-    },
-}
-
-/// A sample of a move: position, and velocity per second (both as program positions).
-type Sample = (Position, Position);
-
-/// Samples `program` at period `period` with the constant-velocity interpolators.
-/// `rapid_speed` (m/s) is used for rapid moves.
+/// Samples `program` at period `period` with the constant-velocity interpolators, all in
+/// memory. `rapid_speed` (m/s) is used for rapid moves.
 pub fn constant_velocity(
     program: &Program,
     axes: &AxisMap,
@@ -54,129 +26,280 @@ pub fn constant_velocity(
     if !(period.is_finite() && period > 0.0) {
         return Err(PlanError::BadPeriod(period));
     }
-    let n = axes.axes();
-    let mut out = Setpoints::new(period, n);
-    let mut q = vec![0.0; n];
-    let mut qd = vec![0.0; n];
-    let zeros = vec![0.0; n];
-    let mut at = program.start;
-    axes.machine_axes(&at, &mut q);
-    // Sample 0 is the start; its velocity is that of the first move.
-    let mut pending_start = true;
+    let mut stream = ConstantVelocityStream::new(program, axes, period, rapid_speed)?;
+    Ok(collect(&mut stream))
+}
 
-    for (index, m) in program.moves.iter().enumerate() {
-        let seg = index as u32;
-        let line = m.span.line;
-        // Duration at programmed feed under the move's feed rule; rapids at `rapid_speed`.
-        let duration = match m.feed {
-            Feed::Rapid if !matches!(m.motion, Motion::Dwell { .. }) => {
-                let linear = move_length(&at, m);
-                // As the feed rules do: 1 mm of travel ≙ 1° for a purely rotary move.
-                let rotary = rotary_travel_degrees(&at, m) * 1e-3;
-                Some(if linear > 0.0 { linear } else { rotary } / rapid_speed)
-            }
-            _ => move_duration(&at, m),
-        };
-        let duration = match duration {
-            Some(d) if d.is_finite() && d >= 0.0 => d,
-            _ => {
-                let feed = match m.feed {
-                    Feed::PathSpeed(v) | Feed::InverseTime(v) => v,
-                    Feed::Rapid => rapid_speed,
-                };
-                return Err(PlanError::BadFeed { index, line, feed });
-            }
-        };
-        let samples: Vec<Sample> = match m.motion {
-            Motion::Linear => line_samples(&at, &m.end, duration, period),
-            Motion::Arc {
-                center,
-                plane,
-                clockwise,
-                turns,
+/// How one move is sampled: samples `1..=count` after the move's start.
+#[derive(Debug, Clone, Copy)]
+enum Steps {
+    /// Equal steps along a straight move: `steps = duration/T` (fractional), constant velocity.
+    Line {
+        from: Position,
+        to: Position,
+        steps: f64,
+        velocity: Position,
+    },
+    /// Equal chords of angle `theta` about `center` in the plane spanned by `u`, `v`.
+    Arc {
+        from: Position,
+        to: Position,
+        center: Point3<f64>,
+        u: Vector3<f64>,
+        v: Vector3<f64>,
+        normal: Vector3<f64>,
+        radius: f64,
+        theta: f64,
+        steps: f64,
+        sweep: f64,
+        rise: f64,
+        period: f64,
+    },
+    /// Holding still (a dwell).
+    Hold { at: Position },
+}
+
+#[derive(Debug, Clone, Copy)]
+struct SampledMove {
+    index: u32,
+    count: usize,
+    steps: Steps,
+}
+
+impl SampledMove {
+    /// Sample `k` (1-based) of the move: position and velocity per second, as program
+    /// positions; the last one lands exactly on the target.
+    fn sample(&self, k: usize) -> (Position, Position) {
+        match self.steps {
+            Steps::Line {
+                from,
+                to,
+                steps,
+                velocity,
             } => {
-                let geometry = arc_segment(
-                    Point3::from(at.linear),
-                    Point3::from(m.end.linear),
-                    Point3::from(center),
+                let p = if (k as f64) < steps {
+                    lerp(&from, &to, k as f64 / steps)
+                } else {
+                    to
+                };
+                (p, velocity)
+            }
+            Steps::Arc {
+                from,
+                to,
+                center,
+                u,
+                v,
+                normal,
+                radius,
+                theta,
+                steps,
+                sweep,
+                rise,
+                period,
+            } => {
+                let dir = sweep.signum();
+                let rate = theta / period; // rad/s along the arc
+                let tangent = |a: f64| {
+                    (v * a.cos() - u * a.sin()) * (dir * radius * rate)
+                        + normal * (rise / (steps * period))
+                };
+                let as_position = |t: Vector3<f64>| Position {
+                    linear: t.into(),
+                    rotary: [0.0; 3],
+                };
+                if (k as f64) < steps {
+                    let a = dir * theta * k as f64;
+                    let fraction = k as f64 / steps;
+                    let p =
+                        center + (u * a.cos() + v * a.sin()) * radius + normal * (rise * fraction);
+                    let mut pos = lerp(&from, &to, fraction);
+                    pos.linear = p.into();
+                    (pos, as_position(tangent(a)))
+                } else {
+                    (to, as_position(tangent(sweep)))
+                }
+            }
+            Steps::Hold { at } => (at, Position::default()),
+        }
+    }
+}
+
+/// The constant-velocity interpolators as a stream: sample 0 is the start (with the velocity
+/// of the first move), then each move's samples; the last sample is at rest.
+pub(super) struct ConstantVelocityStream<'a> {
+    axes: &'a AxisMap,
+    period: f64,
+    start: Position,
+    moves: Vec<SampledMove>,
+    len: usize,
+    /// Samples written so far; the move being sampled and its next sample.
+    emitted: usize,
+    current: usize,
+    k: usize,
+}
+
+impl<'a> ConstantVelocityStream<'a> {
+    /// Times every move of `program` (refusing one whose feed gives no duration, a degenerate
+    /// arc, or more samples than allowed).
+    pub fn new(
+        program: &Program,
+        axes: &'a AxisMap,
+        period: f64,
+        rapid_speed: f64,
+    ) -> Result<Self, PlanError> {
+        let mut budget = SampleBudget::new(period);
+        let mut moves = Vec::with_capacity(program.moves.len());
+        let mut at = program.start;
+        for (index, m) in program.moves.iter().enumerate() {
+            let line = m.span.line;
+            // Duration at programmed feed under the move's feed rule; rapids at `rapid_speed`.
+            let duration = match m.feed {
+                Feed::Rapid if !matches!(m.motion, Motion::Dwell { .. }) => {
+                    let linear = move_length(&at, m);
+                    // As the feed rules do: 1 mm of travel ≙ 1° for a purely rotary move.
+                    let rotary = rotary_travel_degrees(&at, m) * 1e-3;
+                    Some(if linear > 0.0 { linear } else { rotary } / rapid_speed)
+                }
+                _ => move_duration(&at, m),
+            };
+            let duration = match duration {
+                Some(d) if d.is_finite() && d >= 0.0 => d,
+                _ => {
+                    let feed = match m.feed {
+                        Feed::PathSpeed(v) | Feed::InverseTime(v) => v,
+                        Feed::Rapid => rapid_speed,
+                    };
+                    return Err(PlanError::BadFeed { index, line, feed });
+                }
+            };
+            let steps = match m.motion {
+                Motion::Linear => {
+                    if duration == 0.0 || at == m.end {
+                        continue;
+                    }
+                    let mut velocity = Position::default();
+                    for i in 0..3 {
+                        velocity.linear[i] = (m.end.linear[i] - at.linear[i]) / duration;
+                        velocity.rotary[i] = (m.end.rotary[i] - at.rotary[i]) / duration;
+                    }
+                    Steps::Line {
+                        from: at,
+                        to: m.end,
+                        steps: duration / period,
+                        velocity,
+                    }
+                }
+                Motion::Arc {
+                    center,
                     plane,
                     clockwise,
                     turns,
-                );
-                let bad_arc = PlanError::BadArc {
-                    index,
-                    line,
-                    radius: (Point3::from(at.linear) - Point3::from(center)).norm(),
-                };
-                if duration == 0.0 {
-                    return Err(bad_arc);
+                } => {
+                    let geometry = arc_segment(
+                        Point3::from(at.linear),
+                        Point3::from(m.end.linear),
+                        Point3::from(center),
+                        plane,
+                        clockwise,
+                        turns,
+                    );
+                    let bad_arc = PlanError::BadArc {
+                        index,
+                        line,
+                        radius: (Point3::from(at.linear) - Point3::from(center)).norm(),
+                    };
+                    if duration == 0.0 {
+                        return Err(bad_arc);
+                    }
+                    let speed = move_length(&at, m) / duration;
+                    arc_steps(&at, &m.end, &geometry, speed, period).ok_or(bad_arc)?
                 }
-                let speed = move_length(&at, m) / duration;
-                arc_samples(&at, &m.end, &geometry, speed, period).ok_or(bad_arc)?
-            }
-            Motion::Dwell { .. } => {
-                let ticks = (duration / period).ceil() as usize;
-                vec![(at, Position::default()); ticks]
-            }
-        };
-        if samples.is_empty() {
-            continue;
-        }
-        if pending_start {
-            axes.machine_axes(&samples[0].1, &mut qd);
-            out.push(&q, &qd, &zeros, seg);
-            pending_start = false;
-        }
-        for (p, v) in &samples {
-            axes.machine_axes(p, &mut q);
-            axes.machine_axes(v, &mut qd);
-            out.push(&q, &qd, &zeros, seg);
-        }
-        at = m.end;
-    }
-    if pending_start {
-        out.push(&q, &zeros, &zeros, 0);
-    } else {
-        // Program end: the last setpoint is at rest.
-        let k = out.len() - 1;
-        out.velocity[k * n..].iter_mut().for_each(|v| *v = 0.0);
-    }
-    Ok(out)
-}
-
-/// Samples 1..=⌈N⌉ of a straight move of the given duration, N = duration/T (= L/(V·T) at
-/// path speed V); the last lands exactly on the target. Rotary axes move in proportion.
-fn line_samples(from: &Position, to: &Position, duration: f64, period: f64) -> Vec<Sample> {
-    if duration == 0.0 || from == to {
-        return Vec::new();
-    }
-    let steps = duration / period;
-    let count = steps.ceil() as usize;
-    let mut velocity = Position::default();
-    for i in 0..3 {
-        velocity.linear[i] = (to.linear[i] - from.linear[i]) / duration;
-        velocity.rotary[i] = (to.rotary[i] - from.rotary[i]) / duration;
-    }
-    (1..=count)
-        .map(|k| {
-            let p = if (k as f64) < steps {
-                lerp(from, to, k as f64 / steps)
-            } else {
-                *to
+                Motion::Dwell { .. } => Steps::Hold { at },
             };
-            (p, velocity)
+            let count = match steps {
+                Steps::Line { steps, .. } | Steps::Arc { steps, .. } => steps.ceil(),
+                Steps::Hold { .. } => (duration / period).ceil(),
+            };
+            if count == 0.0 {
+                continue;
+            }
+            let count = budget.add(count, duration, index, line)?;
+            moves.push(SampledMove {
+                index: index as u32,
+                count,
+                steps,
+            });
+            at = m.end;
+        }
+        let len = 1 + moves.iter().map(|m| m.count).sum::<usize>();
+        Ok(ConstantVelocityStream {
+            axes,
+            period,
+            start: program.start,
+            moves,
+            len,
+            emitted: 0,
+            current: 0,
+            k: 1,
         })
-        .collect()
+    }
 }
 
-/// Samples of an arc by equal chords ΔS = V·T; the last lands exactly on the target.
-fn arc_samples(
+impl SetpointStream for ConstantVelocityStream<'_> {
+    fn axes(&self) -> usize {
+        self.axes.axes()
+    }
+
+    fn period(&self) -> f64 {
+        self.period
+    }
+
+    fn len(&self) -> usize {
+        self.len
+    }
+
+    fn next_sample(&mut self, out: &mut SetpointSample) -> bool {
+        if self.emitted >= self.len {
+            return false;
+        }
+        out.acceleration.fill(0.0);
+        let (position, velocity, segment) = if self.emitted == 0 {
+            // The start; its velocity is that of the first move.
+            match self.moves.first() {
+                Some(first) => (self.start, first.sample(1).1, first.index),
+                None => (self.start, Position::default(), 0),
+            }
+        } else {
+            while self.k > self.moves[self.current].count {
+                self.current += 1;
+                self.k = 1;
+            }
+            let m = &self.moves[self.current];
+            let (p, v) = m.sample(self.k);
+            self.k += 1;
+            (p, v, m.index)
+        };
+        self.axes.machine_axes(&position, &mut out.position);
+        self.axes.machine_axes(&velocity, &mut out.velocity);
+        self.emitted += 1;
+        if self.emitted == self.len {
+            // Program end: the last setpoint is at rest.
+            out.velocity.fill(0.0);
+        }
+        out.segment = segment;
+        true
+    }
+}
+
+/// Equal chords ΔS = V·T of an arc; `None` for a degenerate one.
+fn arc_steps(
     from: &Position,
     to: &Position,
     seg: &Segment,
     speed: f64,
     period: f64,
-) -> Option<Vec<Sample>> {
+) -> Option<Steps> {
     let Segment::Arc {
         center,
         normal,
@@ -197,36 +320,21 @@ fn arc_samples(
     let theta = ((2.0 * radius * radius - chord * chord) / (2.0 * radius * radius))
         .clamp(-1.0, 1.0)
         .acos();
-    let steps = sweep.abs() / theta;
-    let count = steps.ceil() as usize;
     let u = r0 / radius;
-    let v = normal.cross(&u);
-    let dir = sweep.signum();
-    let rate = theta / period; // rad/s along the arc
-    let tangent = |a: f64| {
-        (v * a.cos() - u * a.sin()) * (dir * radius * rate) + normal * (rise / (steps * period))
-    };
-    let as_position = |t: nalgebra::Vector3<f64>| Position {
-        linear: t.into(),
-        rotary: [0.0; 3],
-    };
-    Some(
-        (1..=count)
-            .map(|k| {
-                if (k as f64) < steps {
-                    let a = dir * theta * k as f64;
-                    let fraction = k as f64 / steps;
-                    let p =
-                        center + (u * a.cos() + v * a.sin()) * radius + normal * (rise * fraction);
-                    let mut pos = lerp(from, to, fraction);
-                    pos.linear = p.into();
-                    (pos, as_position(tangent(a)))
-                } else {
-                    (*to, as_position(tangent(sweep)))
-                }
-            })
-            .collect(),
-    )
+    Some(Steps::Arc {
+        from: *from,
+        to: *to,
+        center,
+        u,
+        v: normal.cross(&u),
+        normal,
+        radius,
+        theta,
+        steps: sweep.abs() / theta,
+        sweep,
+        rise,
+        period,
+    })
 }
 
 fn lerp(a: &Position, b: &Position, s: f64) -> Position {

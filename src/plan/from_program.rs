@@ -1,10 +1,16 @@
-//! Turning a decoded program into setpoints with any of the planners: the seed
+//! Turning a decoded program into a setpoint stream with any of the planners: the seed
 //! constant-velocity and trapezoid interpolators, or the jerk-limited look-ahead planner on
-//! the machine axes.
+//! the machine axes. Every planner times all moves first (counting the samples, refused beyond
+//! [`MAX_SETPOINT_SAMPLES`]) and samples them as the stream is read.
 
+use super::constant_velocity::ConstantVelocityStream;
 use super::path::{AxisLimits, AxisPath, AxisSpec, Blend, Geometry, PathError, PathSegment};
-use super::{constant_velocity, plan, trapezoid_line, PlanError, Setpoints};
-use crate::kinematics::AxisMap;
+use super::setpoints::{sample_count, SetpointStream, Setpoints, MAX_SETPOINT_SAMPLES};
+use super::stream::{collect, Stretch, StretchStream};
+use super::trapezoid::TrapezoidProfile;
+use super::{plan, PlanError};
+use crate::kinematics::{self, AxisMap};
+use crate::machine::Machine;
 use crate::program::{self, move_duration, plane_axes, Feed, FeedRule, Motion, Program};
 
 /// Which planner, with its parameters (SI).
@@ -38,40 +44,148 @@ pub struct PlanSettings {
     pub blend: BlendChoice,
     /// Machine axis names (for reports and errors).
     pub axis_names: Vec<String>,
+    /// Naive-CAM collinearity tolerance (LinuxCNC's G64 Q, m): in continuous mode, a run of
+    /// straight feed moves whose points all lie within it of one straight line is joined into
+    /// that line (at most 100 points, rotary axes unchanged, one feed), as LinuxCNC joins them.
+    /// `None`: moves are planned as programmed.
+    pub naive_cam_tolerance: Option<f64>,
+    /// Distance (m) of the tool tip from each rotary machine axis at the program's points
+    /// ([`tool_lever_arms`]), so that corner tolerances are measured at the tool tip on the
+    /// workpiece. Empty: in machine-axis space (1 rad counts as 1 m).
+    pub tool_lever_arms: Vec<f64>,
 }
 
 /// (m per rad): the 5-axis study's feed rule counts 1 degree like 1 mm.
 const DEGREE_AS_METRE: f64 = 1e-3 * 180.0 / std::f64::consts::PI;
 
-/// Plans `program` on the machine axes given by `axes`.
+/// Most points LinuxCNC's naive-CAM detector joins into one line.
+const NAIVE_CAM_POINTS: usize = 100;
+
+/// Plans `program` on the machine axes given by `axes`, all samples in memory.
 pub fn plan_program(
     program: &Program,
     axes: &AxisMap,
     settings: &PlanSettings,
 ) -> Result<Setpoints, PlanError> {
-    match &settings.planner {
+    let mut stream = plan_program_stream(program, axes, settings)?;
+    Ok(collect(stream.as_mut()))
+}
+
+/// Plans `program` on the machine axes given by `axes` as a stream: every move is timed here
+/// (so the stream's length is known), each sample is computed when it is read.
+pub fn plan_program_stream<'a>(
+    program: &'a Program,
+    axes: &'a AxisMap,
+    settings: &PlanSettings,
+) -> Result<Box<dyn SetpointStream + Send + 'a>, PlanError> {
+    let period = settings.period;
+    if !(period.is_finite() && period > 0.0) {
+        return Err(PlanError::BadPeriod(period));
+    }
+    let n = axes.axes();
+    let stretches = match &settings.planner {
         Planner::ConstantVelocity => {
-            constant_velocity(program, axes, settings.period, settings.rapid_speed)
+            return Ok(Box::new(ConstantVelocityStream::new(
+                program,
+                axes,
+                period,
+                settings.rapid_speed,
+            )?))
         }
         Planner::Trapezoid { acceleration } => {
-            trapezoid_program(program, axes, settings, *acceleration)
+            trapezoid_stretches(program, axes, settings, *acceleration)?
         }
-        Planner::JerkLimited { limits } => jerk_limited_program(program, axes, settings, limits),
+        Planner::JerkLimited { limits } => jerk_limited_stretches(program, axes, settings, limits)?,
+    };
+    Ok(Box::new(StretchStream::new(n, period, stretches)))
+}
+
+/// Running count of the samples a program needs, refused beyond [`MAX_SETPOINT_SAMPLES`].
+pub(super) struct SampleBudget {
+    period: f64,
+    /// Samples so far (the start sample included) and the time they cover.
+    samples: usize,
+    duration: f64,
+}
+
+impl SampleBudget {
+    pub fn new(period: f64) -> Self {
+        SampleBudget {
+            period,
+            samples: 1,
+            duration: 0.0,
+        }
+    }
+
+    /// Adds a stretch of `duration` with `ticks` samples after its start (as a float: it may
+    /// exceed any integer), for move `index` on `line`; the ticks as an integer.
+    pub fn add(
+        &mut self,
+        ticks: f64,
+        duration: f64,
+        index: usize,
+        line: u32,
+    ) -> Result<usize, PlanError> {
+        self.duration += duration;
+        let needed = self.samples as f64 + ticks;
+        if !(needed <= MAX_SETPOINT_SAMPLES as f64) {
+            return Err(PlanError::TooManySamples {
+                index,
+                line,
+                duration: self.duration,
+                needed,
+                period: self.period,
+            });
+        }
+        self.samples = needed as usize;
+        Ok(ticks as usize)
+    }
+
+    /// Adds a motion of `duration` sampled on its own grid ([`sample_count`]).
+    pub fn add_motion(
+        &mut self,
+        duration: f64,
+        index: usize,
+        line: u32,
+    ) -> Result<usize, PlanError> {
+        let ticks = match sample_count(duration, self.period) {
+            Ok(count) => (count - 1) as f64,
+            Err(needed) => needed,
+        };
+        self.add(ticks, duration, index, line)
+    }
+
+    /// Adds a dwell of `seconds` (whole periods, rounded up).
+    pub fn add_dwell(&mut self, seconds: f64, index: usize, line: u32) -> Result<usize, PlanError> {
+        let ticks = (seconds / self.period).ceil();
+        self.add(
+            if ticks.is_nan() {
+                f64::INFINITY
+            } else {
+                ticks.max(0.0)
+            },
+            seconds,
+            index,
+            line,
+        )
     }
 }
 
-fn trapezoid_program(
+fn trapezoid_stretches(
     program: &Program,
     axes: &AxisMap,
     settings: &PlanSettings,
     acceleration: f64,
-) -> Result<Setpoints, PlanError> {
+) -> Result<Vec<Stretch>, PlanError> {
     let n = axes.axes();
-    let mut out = Setpoints::new(settings.period, n);
+    let mut budget = SampleBudget::new(settings.period);
     let (mut from, mut to) = (vec![0.0; n], vec![0.0; n]);
     let mut at = program.start;
     axes.machine_axes(&at, &mut from);
-    out.push(&from, &vec![0.0; n], &vec![0.0; n], 0);
+    let mut stretches = vec![Stretch::Start {
+        at: from.clone(),
+        segment: 0,
+    }];
     for (index, m) in program.moves.iter().enumerate() {
         let line = m.span.line;
         axes.machine_axes(&m.end, &mut to);
@@ -87,7 +201,10 @@ fn trapezoid_program(
                     if !(speed.is_finite() && speed > 0.0) {
                         return Err(PlanError::BadFeed { index, line, feed: speed });
                     }
-                    out.append_continuing(&trapezoid_line(&from, &to, speed, acceleration, settings.period, index as u32));
+                    let distance = from.iter().zip(&to).map(|(a, b)| (b - a) * (b - a)).sum::<f64>().sqrt();
+                    let profile = TrapezoidProfile::new(distance, speed, acceleration);
+                    let ticks = budget.add_motion(profile.duration(), index, line)?;
+                    stretches.push(Stretch::Trapezoid { from: from.clone(), to: to.clone(), profile, segment: index as u32, ticks });
                 } else if from != to {
                     return Err(PlanError::Unsupported { index, line, what: "a purely rotary move with the trapezoid profile (it is defined on path length)" });
                 }
@@ -95,20 +212,145 @@ fn trapezoid_program(
             Motion::Arc { .. } => {
                 return Err(PlanError::Unsupported { index, line, what: "an arc with the trapezoid profile (seed digest §1.5 defines it for straight moves; use constant-velocity or jerk-limited)" })
             }
-            Motion::Dwell { seconds } => out.hold((seconds / settings.period).ceil() as usize, index as u32),
+            Motion::Dwell { seconds } => {
+                let ticks = budget.add_dwell(seconds, index, line)?;
+                stretches.push(Stretch::Hold { at: from.clone(), segment: index as u32, ticks });
+            }
         }
         from.clone_from(&to);
         at = m.end;
     }
-    Ok(out)
+    Ok(stretches)
 }
 
-fn jerk_limited_program(
+/// Collects program moves into machine-axis paths for the jerk-limited planner, one per stretch
+/// between dwells, joining naive-CAM runs on the way.
+struct PathCollector<'a> {
+    program: &'a Program,
+    settings: &'a PlanSettings,
+    axes: &'a AxisMap,
+    path: AxisPath,
+    /// First program move of the path being collected, for error messages.
+    first_move: usize,
+    /// The naive-CAM run the last segment is: where it starts and the programmed points it
+    /// has absorbed.
+    run_start: Vec<f64>,
+    run_points: Vec<Vec<f64>>,
+}
+
+impl PathCollector<'_> {
+    /// Where the path being collected currently ends.
+    fn end(&self) -> &[f64] {
+        self.path
+            .segments
+            .last()
+            .map_or(&self.path.start, |s| s.geometry.end())
+    }
+
+    /// Appends a segment, joining it to the previous straight segment when both belong to one
+    /// naive-CAM run.
+    fn push(&mut self, segment: PathSegment) {
+        if self.joins_run(&segment) {
+            let last = self.path.segments.last_mut().expect("a run has a segment");
+            self.run_points.push(last.geometry.end().to_vec());
+            *last = segment;
+            return;
+        }
+        self.run_start = self.end().to_vec();
+        self.run_points.clear();
+        self.path.segments.push(segment);
+    }
+
+    fn joins_run(&self, next: &PathSegment) -> bool {
+        let Some(q) = self.settings.naive_cam_tolerance.filter(|q| *q > 0.0) else {
+            return false;
+        };
+        let Some(last) = self.path.segments.last() else {
+            return false;
+        };
+        let continuous = |s: &PathSegment| matches!(s.blend, Blend::Continuous { .. });
+        let (Geometry::Line { end: a }, Geometry::Line { end: b }) =
+            (&last.geometry, &next.geometry)
+        else {
+            return false;
+        };
+        if !(continuous(last) && continuous(next))
+            || last.feed != next.feed
+            || last.feed_metric != next.feed_metric
+            || self.run_points.len() >= NAIVE_CAM_POINTS
+        {
+            return false;
+        }
+        let n = a.len();
+        let rotary_fixed = (0..n)
+            .filter(|&i| self.axes.is_rotary(i))
+            .all(|i| a[i] == b[i] && self.run_start[i] == a[i]);
+        if !rotary_fixed || b.as_slice() == self.run_start.as_slice() {
+            return false;
+        }
+        // Every point of the run, the last end included, within Q of the straight line from
+        // the run's start to the new end (measured on the linear axes).
+        let linear: Vec<usize> = (0..n).filter(|&i| !self.axes.is_rotary(i)).collect();
+        let start = &self.run_start;
+        let within = |p: &[f64]| {
+            let m: Vec<f64> = linear.iter().map(|&i| b[i] - start[i]).collect();
+            let d: Vec<f64> = linear.iter().map(|&i| p[i] - start[i]).collect();
+            let mm: f64 = m.iter().map(|x| x * x).sum();
+            let t = if mm > 0.0 {
+                (m.iter().zip(&d).map(|(x, y)| x * y).sum::<f64>() / mm).clamp(0.0, 1.0)
+            } else {
+                0.0
+            };
+            m.iter()
+                .zip(&d)
+                .map(|(x, y)| (y - t * x).powi(2))
+                .sum::<f64>()
+                .sqrt()
+                <= q
+        };
+        self.run_points.iter().all(|p| within(p)) && within(a)
+    }
+
+    /// Plans the collected path (if any) and starts a new one where it ended.
+    fn flush(
+        &mut self,
+        stretches: &mut Vec<Stretch>,
+        budget: &mut SampleBudget,
+    ) -> Result<(), PlanError> {
+        if self.path.segments.is_empty() {
+            return Ok(());
+        }
+        let planned =
+            plan(&self.path).map_err(|source| path_error(self.program, self.first_move, source))?;
+        let last = self
+            .path
+            .segments
+            .last()
+            .map_or(0, |s| s.source_index as usize);
+        let line = self.program.moves.get(last).map_or(0, |m| m.span.line);
+        if std::env::var_os("CNCSIM_PLAN_DEBUG").is_some() {
+            eprintln!("{}", planned.debug_dump());
+        }
+        let ticks = budget.add_motion(planned.duration(), last, line)?;
+        let cursor = super::planner::Cursor::new(&planned);
+        stretches.push(Stretch::Plan {
+            plan: Box::new(planned),
+            cursor: Box::new(cursor),
+            ticks,
+        });
+        self.path.start = self.end().to_vec();
+        self.path.segments.clear();
+        self.run_points.clear();
+        Ok(())
+    }
+}
+
+fn jerk_limited_stretches(
     program: &Program,
     axes: &AxisMap,
     settings: &PlanSettings,
     limits: &[AxisLimits],
-) -> Result<Setpoints, PlanError> {
+) -> Result<Vec<Stretch>, PlanError> {
     let n = axes.axes();
     let specs: Vec<AxisSpec> = (0..n)
         .map(|i| AxisSpec {
@@ -121,41 +363,32 @@ fn jerk_limited_program(
             limits: limits[i],
         })
         .collect();
-    let mut out = Setpoints::new(settings.period, n);
     let mut start = vec![0.0; n];
     axes.machine_axes(&program.start, &mut start);
-    let mut path = AxisPath {
-        axes: specs.clone(),
-        start: start.clone(),
-        segments: Vec::new(),
+    let mut budget = SampleBudget::new(settings.period);
+    let mut stretches = vec![Stretch::Start {
+        at: start.clone(),
+        segment: 0,
+    }];
+    let mut collector = PathCollector {
+        program,
+        settings,
+        axes,
+        path: AxisPath {
+            axes: specs,
+            start,
+            segments: Vec::new(),
+            tool_lever_arms: settings.tool_lever_arms.clone(),
+        },
+        first_move: 0,
+        run_start: Vec::new(),
+        run_points: Vec::new(),
     };
     let mut at = program.start;
-    // First program move of the path being collected, for error messages.
-    let mut first_move = 0;
-
-    let flush =
-        |path: &mut AxisPath, out: &mut Setpoints, first_move: usize| -> Result<(), PlanError> {
-            if path.segments.is_empty() {
-                if out.is_empty() {
-                    out.push(&path.start, &vec![0.0; n], &vec![0.0; n], 0);
-                }
-                return Ok(());
-            }
-            let planned = plan(path).map_err(|source| path_error(program, first_move, source))?;
-            out.append_continuing(&planned.sample(settings.period));
-            let end = path
-                .segments
-                .last()
-                .map(|s| s.geometry.end().to_vec())
-                .unwrap_or_default();
-            path.start = end;
-            path.segments.clear();
-            Ok(())
-        };
 
     for (index, m) in program.moves.iter().enumerate() {
-        if path.segments.is_empty() {
-            first_move = index;
+        if collector.path.segments.is_empty() {
+            collector.first_move = index;
         }
         let mut end = vec![0.0; n];
         axes.machine_axes(&m.end, &mut end);
@@ -201,8 +434,13 @@ fn jerk_limited_program(
                 }
             }
             Motion::Dwell { seconds } => {
-                flush(&mut path, &mut out, first_move)?;
-                out.hold((seconds / settings.period).ceil() as usize, index as u32);
+                collector.flush(&mut stretches, &mut budget)?;
+                let ticks = budget.add_dwell(seconds, index, m.span.line)?;
+                stretches.push(Stretch::Hold {
+                    at: collector.end().to_vec(),
+                    segment: index as u32,
+                    ticks,
+                });
                 continue;
             }
         };
@@ -211,14 +449,14 @@ fn jerk_limited_program(
             Feed::PathSpeed(v) => Some(v),
             Feed::InverseTime(seconds) => {
                 // Inverse time: the path speed that makes the move take `seconds`.
-                let length: f64 = (0..n)
-                    .map(|i| (weights[i] * (geometry.end()[i] - path_end(&path)[i])).powi(2))
-                    .sum::<f64>()
-                    .sqrt();
+                let from = collector.end();
                 let length = if matches!(m.motion, Motion::Arc { .. }) {
                     program::move_length(&at, m)
                 } else {
-                    length
+                    (0..n)
+                        .map(|i| (weights[i] * (geometry.end()[i] - from[i])).powi(2))
+                        .sum::<f64>()
+                        .sqrt()
                 };
                 Some(length / seconds)
             }
@@ -232,7 +470,7 @@ fn jerk_limited_program(
                 Blend::Continuous { tolerance }
             }
         };
-        path.segments.push(PathSegment {
+        collector.push(PathSegment {
             geometry,
             feed,
             feed_metric: weights,
@@ -241,15 +479,8 @@ fn jerk_limited_program(
         });
         at = m.end;
     }
-    flush(&mut path, &mut out, first_move)?;
-    Ok(out)
-}
-
-/// Where the path being collected currently ends.
-fn path_end(path: &AxisPath) -> &[f64] {
-    path.segments
-        .last()
-        .map_or(&path.start, |s| s.geometry.end())
+    collector.flush(&mut stretches, &mut budget)?;
+    Ok(stretches)
 }
 
 fn path_error(program: &Program, first_move: usize, source: PathError) -> PlanError {
@@ -260,4 +491,34 @@ fn path_error(program: &Program, first_move: usize, source: PathError) -> PlanEr
         line,
         message: source.to_string(),
     }
+}
+
+/// The distance (m) of the tool tip from each rotary machine axis, the largest over the
+/// program's start and move end points (zero for linear axes): a corner blend that moves
+/// rotary axis `i` by δ moves the tool tip on the workpiece by at most that distance times δ.
+pub fn tool_lever_arms(machine: &Machine, program: &Program, axes: &AxisMap) -> Vec<f64> {
+    let n = axes.axes();
+    let mut arms = vec![0.0; n];
+    let rotary: Vec<usize> = (0..n).filter(|&i| axes.is_rotary(i)).collect();
+    if rotary.is_empty() {
+        return arms;
+    }
+    let mut q = vec![0.0; n];
+    let points = std::iter::once(&program.start).chain(program.moves.iter().map(|m| &m.end));
+    for p in points {
+        axes.machine_axes(p, &mut q);
+        let poses = kinematics::link_poses(machine, &q);
+        let tool = poses[machine.tool_link] * nalgebra::Point3::from(machine.tool.offset_m);
+        for &i in &rotary {
+            let joint = &machine.joints[machine.axes[i].joint];
+            let frame = poses[joint.parent] * joint.origin;
+            let axis = frame.rotation * joint.axis;
+            let offset = tool - nalgebra::Point3::from(frame.translation.vector);
+            let distance = offset.cross(&axis).norm() / axis.norm();
+            if distance.is_finite() {
+                arms[i] = arms[i].max(distance);
+            }
+        }
+    }
+    arms
 }

@@ -1,5 +1,6 @@
-//! Segment geometry parameterised by a path coordinate `s`, and the limits on `s` that keep
-//! every axis within its own limits.
+//! Segment geometry parameterised by a path coordinate `s`: positions, derivatives with respect
+//! to `s` (also beyond the segment's ends, where a tangent blend needs them), and per-axis
+//! bounds on those derivatives.
 //!
 //! For a curve `q(s)` the axis derivatives follow from the path derivatives (ṡ, s̈, s⃛):
 //!
@@ -9,94 +10,122 @@
 //!   q⃛ = q'''·ṡ³ + 3·q''·ṡ·s̈ + q'·s⃛
 //! ```
 //!
-//! On a line `q'` is constant and `q'' = q''' = 0`, so the path limits are exactly
-//! `limit_i / |q'_i|` (minimised over axes): planning along `s` is time-optimal and keeps the tool
-//! on the line. On an arc the curvature terms use part of each axis's budget; see
-//! [`SegmentShape::path_limits`].
+//! On a line `q'` is constant and `q'' = q''' = 0`. An arc (radius `r(θ) = r0 + dr·θ`, the
+//! `dr` only absorbing rounding between the programmed radii) has `|d^m z/dθ^m| = hypot(m·dr, r)`
+//! in its plane, divided by `(ds/dθ)^m` per derivative along `s`.
 
 use std::f64::consts::TAU;
 
 use super::path::{AxisKind, AxisSpec, Geometry, PathError, PathSegment, ARC_RADIUS_MISMATCH};
-use super::profile::{Limits, Profile};
 
-/// Shares of an arc's axis acceleration and jerk budgets that may go to the centripetal terms
-/// (the rest is for speeding up and slowing down along the arc); see
-/// [`SegmentShape::path_limits`].
-const ARC_CENTRIPETAL_SHARES: [f64; 9] = [0.1, 0.2, 0.3, 0.4, 0.5, 0.6, 0.7, 0.8, 0.9];
+/// The geometry of every segment of a path, in flat storage (no allocation per segment).
+#[derive(Debug, Clone, Default)]
+pub(super) struct Shapes {
+    /// Axes per point.
+    pub n: usize,
+    /// Vertex `k` is where segment `k` starts; vertex `k + 1` where it ends.
+    points: Vec<f64>,
+    /// Per segment, dq/ds of the axes that move linearly in `s`: all axes of a line, the
+    /// non-plane axes of a helix (zero on its plane axes).
+    rates: Vec<f64>,
+    pub shapes: Vec<Shape>,
+}
 
-/// A segment's geometry with its path parameterisation.
-#[derive(Debug, Clone, PartialEq)]
-pub(super) struct SegmentShape {
-    pub start: Vec<f64>,
-    pub end: Vec<f64>,
+/// One segment.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub(super) struct Shape {
     /// Length in the path coordinate `s` (the feed metric, or plain SI length when the feed
     /// metric gives zero).
     pub length: f64,
     /// Whether `ṡ` is the programmed path speed (the feed metric measured the segment).
     pub feed_applies: bool,
-    pub curve: Curve,
+    /// `None` for a line.
+    pub arc: Option<ArcShape>,
 }
 
-#[derive(Debug, Clone, PartialEq)]
-pub(super) enum Curve {
-    /// q(s) = start + (end − start)·s/length.
-    Line {
-        /// dq/ds.
-        direction: Vec<f64>,
-    },
-    /// Plane axes: q = centre + r(θ)·(cos φ, sin φ), φ = φ0 + turn·θ, r = r0 + dr·θ, θ = s/scale;
-    /// the other axes move linearly with θ.
-    Arc {
-        plane: [usize; 2],
-        center: [f64; 2],
-        start_radius: f64,
-        /// dr/dθ (non-zero only to absorb rounding between the programmed radii).
-        radius_rate: f64,
-        start_angle: f64,
-        /// +1 counter-clockwise, −1 clockwise.
-        turn: f64,
-        /// Unsigned angle swept (rad).
-        sweep: f64,
-        /// ds/dθ.
-        scale: f64,
-        /// dq/dθ of the non-plane axes (zero on the plane axes).
-        helix: Vec<f64>,
-    },
+/// A circular (or helical) arc: in the plane axes `q = centre + r(θ)·(cos φ, sin φ)` with
+/// `φ = φ0 + turn·θ`, `r = r0 + dr·θ`, `θ = s/scale`; the other axes move linearly in `s`.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub(super) struct ArcShape {
+    pub plane: [usize; 2],
+    pub center: [f64; 2],
+    pub start_radius: f64,
+    /// dr/dθ.
+    pub radius_rate: f64,
+    pub start_angle: f64,
+    /// +1 counter-clockwise, −1 clockwise.
+    pub turn: f64,
+    /// Unsigned angle swept (rad).
+    pub sweep: f64,
+    /// ds/dθ.
+    pub scale: f64,
 }
 
-impl SegmentShape {
-    /// Builds segment `index` starting at `start`.
+impl ArcShape {
+    /// Largest radius over the arc extended by half its sweep at both ends (the furthest a
+    /// tangent blend evaluates it).
+    fn radius_bound(&self) -> f64 {
+        let r0 = self.start_radius;
+        let r1 = r0 + self.radius_rate * self.sweep;
+        r0.max(r1) + 0.5 * self.radius_rate.abs() * self.sweep
+    }
+
+    /// Bound on `|d^m q/ds^m|` of each plane axis (m ≥ 1), over the arc and its extensions.
+    pub fn plane_bound(&self, m: i32) -> f64 {
+        (f64::from(m) * self.radius_rate).hypot(self.radius_bound()) / self.scale.powi(m)
+    }
+}
+
+impl Shapes {
+    /// Builds the shapes of every segment of `segments`, starting at `start`.
     pub fn new(
-        index: usize,
         start: &[f64],
+        segments: &[PathSegment],
+        axes: &[AxisSpec],
+    ) -> Result<Shapes, PathError> {
+        let n = axes.len();
+        let mut shapes = Shapes {
+            n,
+            points: Vec::with_capacity((segments.len() + 1) * n),
+            rates: Vec::with_capacity(segments.len() * n),
+            shapes: Vec::with_capacity(segments.len()),
+        };
+        shapes.points.extend_from_slice(start);
+        for (index, segment) in segments.iter().enumerate() {
+            shapes.push(index, segment, axes)?;
+        }
+        Ok(shapes)
+    }
+
+    fn push(
+        &mut self,
+        index: usize,
         segment: &PathSegment,
         axes: &[AxisSpec],
-    ) -> Result<Self, PathError> {
-        let n = axes.len();
-        let end = segment.geometry.end().to_vec();
+    ) -> Result<(), PathError> {
+        let n = self.n;
+        let from = self.points.len() - n;
+        self.points.extend_from_slice(segment.geometry.end());
+        let (start, end) = self.points[from..].split_at(n);
         let weights = &segment.feed_metric;
-        let delta: Vec<f64> = start.iter().zip(&end).map(|(s, e)| e - s).collect();
-        let norm = |v: &mut dyn Iterator<Item = f64>| v.map(|x| x * x).sum::<f64>().sqrt();
-        match &segment.geometry {
+        let shape = match &segment.geometry {
             Geometry::Line { .. } => {
-                let weighted = norm(&mut delta.iter().zip(weights).map(|(d, w)| d * w));
+                let weighted = norm((0..n).map(|i| (end[i] - start[i]) * weights[i]));
                 let (length, feed_applies) = if weighted > 0.0 {
                     (weighted, true)
                 } else {
-                    (norm(&mut delta.iter().copied()), false)
+                    (norm((0..n).map(|i| end[i] - start[i])), false)
                 };
-                let direction = if length > 0.0 {
-                    delta.iter().map(|d| d / length).collect()
-                } else {
-                    vec![0.0; n]
-                };
-                Ok(SegmentShape {
-                    start: start.to_vec(),
-                    end,
+                let scale = if length > 0.0 { 1.0 / length } else { 0.0 };
+                for i in 0..n {
+                    let rate = (end[i] - start[i]) * scale;
+                    self.rates.push(rate);
+                }
+                Shape {
                     length,
                     feed_applies,
-                    curve: Curve::Line { direction },
-                })
+                    arc: None,
+                }
             }
             Geometry::Arc {
                 plane,
@@ -119,8 +148,10 @@ impl SegmentShape {
                     (x.hypot(y), y.atan2(x))
                 };
                 let (r0, phi0) = polar(start);
-                let (r1, phi1) = polar(&end);
-                if !(r0 > 0.0 && r1 > 0.0) || (r1 - r0).abs() > ARC_RADIUS_MISMATCH * r0.max(r1) {
+                let (r1, phi1) = polar(end);
+                if !(r0 > 0.0 && r1 > 0.0 && r0.is_finite() && r1.is_finite())
+                    || (r1 - r0).abs() > ARC_RADIUS_MISMATCH * r0.max(r1)
+                {
                     return Err(PathError::InvalidArcRadius {
                         segment: index,
                         start_radius: r0,
@@ -135,31 +166,30 @@ impl SegmentShape {
                 }
                 sweep += TAU * f64::from(*turns);
                 let radius_rate = (r1 - r0) / sweep;
-                let helix: Vec<f64> = (0..n)
-                    .map(|k| {
-                        if k == i || k == j {
-                            0.0
-                        } else {
-                            delta[k] / sweep
-                        }
-                    })
-                    .collect();
                 // Plane speed per radian is sqrt(dr² + r²) ≤ plane_rate.
                 let plane_rate = radius_rate.hypot(r0.max(r1));
+                let helix = |k: usize| {
+                    if k == i || k == j {
+                        0.0
+                    } else {
+                        (end[k] - start[k]) / sweep
+                    }
+                };
                 let w_plane = weights[i].abs().max(weights[j].abs());
-                let weighted = (w_plane * plane_rate)
-                    .hypot(norm(&mut helix.iter().zip(weights).map(|(h, w)| h * w)));
+                let weighted =
+                    (w_plane * plane_rate).hypot(norm((0..n).map(|k| helix(k) * weights[k])));
                 let (scale, feed_applies) = if weighted > 0.0 {
                     (weighted, true)
                 } else {
-                    (plane_rate.hypot(norm(&mut helix.iter().copied())), false)
+                    (plane_rate.hypot(norm((0..n).map(helix))), false)
                 };
-                Ok(SegmentShape {
-                    start: start.to_vec(),
-                    end,
+                for k in 0..n {
+                    self.rates.push(helix(k) / scale);
+                }
+                Shape {
                     length: scale * sweep,
                     feed_applies,
-                    curve: Curve::Arc {
+                    arc: Some(ArcShape {
                         plane: *plane,
                         center: *center,
                         start_radius: r0,
@@ -168,25 +198,51 @@ impl SegmentShape {
                         turn,
                         sweep,
                         scale,
-                        helix,
-                    },
-                })
+                    }),
+                }
             }
+        };
+        if !shape.length.is_finite() {
+            return Err(PathError::InvalidValue {
+                segment: Some(index),
+                what: "segment length (not finite)",
+            });
         }
+        self.shapes.push(shape);
+        Ok(())
+    }
+
+    pub fn len(&self) -> usize {
+        self.shapes.len()
+    }
+
+    pub fn start(&self, k: usize) -> &[f64] {
+        &self.points[k * self.n..(k + 1) * self.n]
+    }
+
+    pub fn end(&self, k: usize) -> &[f64] {
+        &self.points[(k + 1) * self.n..(k + 2) * self.n]
+    }
+
+    /// dq/ds of the axes moving linearly in `s` (the whole direction of a line).
+    pub fn rates(&self, k: usize) -> &[f64] {
+        &self.rates[k * self.n..(k + 1) * self.n]
     }
 
     /// dq/ds of a line (None for an arc).
-    pub fn line_direction(&self) -> Option<&[f64]> {
-        match &self.curve {
-            Curve::Line { direction } => Some(direction),
-            Curve::Arc { .. } => None,
+    pub fn line_direction(&self, k: usize) -> Option<&[f64]> {
+        match self.shapes[k].arc {
+            None => Some(self.rates(k)),
+            Some(_) => None,
         }
     }
 
-    /// Axis positions, velocities and accelerations at path coordinate `s` moving with `ṡ`,
-    /// `s̈`. At `s ≥ length` the position is the programmed end point itself.
+    /// Axis positions, velocities and accelerations at path coordinate `s ∈ [0, length]` moving
+    /// with `ṡ`, `s̈`. At `s ≥ length` the position is the programmed end point itself.
+    #[allow(clippy::too_many_arguments)]
     pub fn eval(
         &self,
+        k: usize,
         s: f64,
         s_dot: f64,
         s_ddot: f64,
@@ -194,161 +250,246 @@ impl SegmentShape {
         velocity: &mut [f64],
         acceleration: &mut [f64],
     ) {
-        let at_end = s >= self.length;
-        match &self.curve {
-            Curve::Line { direction } => {
-                let fraction = if self.length > 0.0 {
-                    s / self.length
+        let shape = &self.shapes[k];
+        let (start, end, rates) = (self.start(k), self.end(k), self.rates(k));
+        let at_end = s >= shape.length;
+        match &shape.arc {
+            None => {
+                let fraction = if shape.length > 0.0 {
+                    s / shape.length
                 } else {
                     1.0
                 };
-                for k in 0..self.start.len() {
-                    position[k] = if at_end {
-                        self.end[k]
+                for i in 0..self.n {
+                    position[i] = if at_end {
+                        end[i]
                     } else {
-                        self.start[k] + (self.end[k] - self.start[k]) * fraction
+                        start[i] + (end[i] - start[i]) * fraction
                     };
-                    velocity[k] = direction[k] * s_dot;
-                    acceleration[k] = direction[k] * s_ddot;
+                    velocity[i] = rates[i] * s_dot;
+                    acceleration[i] = rates[i] * s_ddot;
                 }
             }
-            Curve::Arc {
-                plane: [i, j],
-                center,
-                start_radius,
-                radius_rate,
-                start_angle,
-                turn,
-                sweep,
-                scale,
-                helix,
-            } => {
-                let theta = (s / scale).clamp(0.0, *sweep);
-                let (theta_dot, theta_ddot) = (s_dot / scale, s_ddot / scale);
-                for k in 0..self.start.len() {
-                    position[k] = if at_end {
-                        self.end[k]
+            Some(arc) => {
+                let s = s.clamp(0.0, shape.length);
+                for i in 0..self.n {
+                    position[i] = if at_end {
+                        end[i]
                     } else {
-                        self.start[k] + helix[k] * theta
+                        start[i] + rates[i] * s
                     };
-                    velocity[k] = helix[k] * theta_dot;
-                    acceleration[k] = helix[k] * theta_ddot;
+                    velocity[i] = rates[i] * s_dot;
+                    acceleration[i] = rates[i] * s_ddot;
                 }
-                let phi = start_angle + turn * theta;
-                let r = start_radius + radius_rate * theta;
-                let (sin, cos) = phi.sin_cos();
-                // First and second derivatives of the plane coordinates with respect to θ.
-                let d1 = [
-                    radius_rate * cos - turn * r * sin,
-                    radius_rate * sin + turn * r * cos,
-                ];
-                let d2 = [
-                    -2.0 * turn * radius_rate * sin - r * cos,
-                    2.0 * turn * radius_rate * cos - r * sin,
-                ];
+                let mut d = [[0.0; 2]; 3];
+                arc_plane_jet(arc, s, &mut d);
+                let [i, j] = arc.plane;
                 if !at_end {
-                    position[*i] = center[0] + r * cos;
-                    position[*j] = center[1] + r * sin;
+                    position[i] = d[0][0];
+                    position[j] = d[0][1];
                 }
-                for (axis, c) in [(*i, 0), (*j, 1)] {
-                    velocity[axis] = d1[c] * theta_dot;
-                    acceleration[axis] = d2[c] * theta_dot * theta_dot + d1[c] * theta_ddot;
+                for (axis, c) in [(i, 0), (j, 1)] {
+                    velocity[axis] = d[1][c] * s_dot;
+                    acceleration[axis] = d[2][c] * s_dot * s_dot + d[1][c] * s_ddot;
                 }
             }
         }
     }
 
-    /// Position at path coordinate `s`.
-    pub fn position(&self, s: f64, out: &mut [f64]) {
-        let n = out.len();
-        let (mut v, mut a) = (vec![0.0; n], vec![0.0; n]);
-        self.eval(s, 0.0, 0.0, out, &mut v, &mut a);
-    }
-
-    /// Limits on the path coordinate (ṡ, s̈, s⃛) under which every axis stays within its limits,
-    /// with the programmed feed as a further bound on ṡ when it applies.
-    ///
-    /// Line: exact, `limit_i / |q'_i|`. Arc: with bounds K1 ≥ |q'|, K2 ≥ |q''|, K3 ≥ |q'''| on
-    /// the plane axes, the centripetal terms get a share ρ of each budget,
-    /// `K2·ṡ² ≤ ρ·a_i` and `K3·ṡ³ ≤ ρ·j_i` (this caps ṡ); the tangential terms get the rest,
-    /// `K1·s̈ ≤ (1−ρ)·a_i`, `3·K2·ṡ·s̈ ≤ (1−ρ)·j_i/2` and `K1·s⃛ ≤ (1−ρ)·j_i/2`, so the sum in
-    /// the jerk equation above stays within `j_i` wherever the profile stays within the caps.
-    /// Any ρ in (0, 1) is safe; arcs are passed rest to rest, so ρ is chosen from a grid to give
-    /// the shortest rest-to-rest profile over the arc (a long arc wants speed, a short one
-    /// acceleration).
-    pub fn path_limits(&self, axes: &[AxisSpec], feed: Option<f64>) -> Limits {
-        let mut v = f64::INFINITY;
-        let mut a = f64::INFINITY;
-        let mut j = f64::INFINITY;
-        if self.feed_applies {
-            if let Some(feed) = feed {
-                v = v.min(feed);
+    /// Position and derivatives along `s` up to order `out.len() − 1` at any `s`, also outside
+    /// `[0, length]` (the segment extended: a line straight on, an arc round its circle).
+    /// `out[m]` receives `d^m q/ds^m` (one entry per axis).
+    pub fn jet(&self, k: usize, s: f64, out: &mut [&mut [f64]]) {
+        let shape = &self.shapes[k];
+        let (start, rates) = (self.start(k), self.rates(k));
+        for (m, row) in out.iter_mut().enumerate() {
+            for i in 0..self.n {
+                row[i] = match m {
+                    0 => start[i] + rates[i] * s,
+                    1 => rates[i],
+                    _ => 0.0,
+                };
             }
         }
-        // Axes that move linearly in s: the line, or the non-plane axes of a helix.
-        let linear_rates: Vec<f64> = match &self.curve {
-            Curve::Line { direction } => direction.clone(),
-            Curve::Arc { helix, scale, .. } => helix.iter().map(|h| h / scale).collect(),
-        };
-        for (rate, axis) in linear_rates.iter().zip(axes) {
-            let rate = rate.abs();
-            if rate > 0.0 {
-                v = v.min(axis.limits.velocity / rate);
-                a = a.min(axis.limits.acceleration / rate);
-                j = j.min(axis.limits.jerk / rate);
+        if let Some(arc) = &shape.arc {
+            let mut d = [[0.0; 2]; 5];
+            let orders = out.len().min(5);
+            arc_plane_jet(arc, s, &mut d[..orders]);
+            let [i, j] = arc.plane;
+            for (m, row) in out.iter_mut().enumerate().take(orders) {
+                row[i] = d[m][0];
+                row[j] = d[m][1];
             }
         }
-        if let Curve::Arc { .. } = &self.curve {
-            let straight = Limits::new(v, a, j);
-            let duration = |l: &Limits| Profile::rest_to_rest(self.length, l).duration();
-            let best = ARC_CENTRIPETAL_SHARES
-                .iter()
-                .map(|&share| self.arc_limits(axes, straight, share))
-                .min_by(|x, y| duration(x).total_cmp(&duration(y)));
-            return best.unwrap_or(straight);
-        }
-        if !v.is_finite() {
-            // A segment that moves no axis: any positive limits do.
-            return Limits::new(1.0, 1.0, 1.0);
-        }
-        Limits::new(v, a, j)
     }
 
-    /// An arc's path limits with centripetal share `share`, on top of the limits `other` from
-    /// the feed and the helix axes.
-    fn arc_limits(&self, axes: &[AxisSpec], other: Limits, share: f64) -> Limits {
-        let Curve::Arc {
-            plane,
-            start_radius,
-            radius_rate,
-            sweep,
-            scale,
-            ..
-        } = &self.curve
-        else {
-            return other;
+    /// Per-axis bound on `|d^m q/ds^m|` over segment `k` and its extensions by half its length
+    /// (m ≥ 1).
+    pub fn bound(&self, k: usize, axis: usize, m: i32) -> f64 {
+        let shape = &self.shapes[k];
+        match &shape.arc {
+            Some(arc) if arc.plane.contains(&axis) => arc.plane_bound(m),
+            _ if m == 1 => self.rates(k)[axis].abs(),
+            _ => 0.0,
+        }
+    }
+}
+
+/// Plane coordinates of an arc and their derivatives along `s` (`d[m]` = m-th derivative) at
+/// path coordinate `s` (unclamped). With `C_m = r·(i·t)^m + m·dr·(i·t)^(m−1)`,
+/// `d^m z/dθ^m = C_m·e^{iφ}`.
+fn arc_plane_jet(arc: &ArcShape, s: f64, d: &mut [[f64; 2]]) {
+    let theta = s / arc.scale;
+    let phi = arc.start_angle + arc.turn * theta;
+    let r = arc.start_radius + arc.radius_rate * theta;
+    let (sin, cos) = phi.sin_cos();
+    let (t, dr) = (arc.turn, arc.radius_rate);
+    let mut per_theta = 1.0;
+    for (m, out) in d.iter_mut().enumerate() {
+        let (re, im) = match m {
+            0 => (r, 0.0),
+            1 => (dr, t * r),
+            2 => (-r, 2.0 * t * dr),
+            3 => (-3.0 * dr, -t * r),
+            _ => (r, -4.0 * t * dr),
         };
-        let r = start_radius.max(start_radius + radius_rate * sweep);
-        let dr = radius_rate.abs();
-        let k1 = dr.hypot(r) / scale;
-        let k2 = (2.0 * dr).hypot(r) / (scale * scale);
-        let k3 = (3.0 * dr).hypot(r) / (scale * scale * scale);
-        let (mut v, mut a, mut j) = (other.velocity, other.acceleration, other.jerk);
-        for &axis in plane {
-            let l = axes[axis].limits;
-            v = v
-                .min(l.velocity / k1)
-                .min((share * l.acceleration / k2).sqrt())
-                .min((share * l.jerk / k3).cbrt());
+        let (x, y) = (re * cos - im * sin, re * sin + im * cos);
+        if m == 0 {
+            *out = [arc.center[0] + x, arc.center[1] + y];
+        } else {
+            per_theta /= arc.scale;
+            *out = [x * per_theta, y * per_theta];
         }
-        for &axis in plane {
-            let l = axes[axis].limits;
-            let tangential_jerk = (1.0 - share) * l.jerk / 2.0;
-            a = a
-                .min((1.0 - share) * l.acceleration / k1)
-                .min(tangential_jerk / (3.0 * k2 * v));
-            j = j.min(tangential_jerk / k1);
+    }
+}
+
+/// How far apart two axis positions are for the corner tolerance: the Euclidean norm over the
+/// linear axes plus, for each rotary axis with a lever arm `r` (the tool tip's distance from
+/// it), `r·|δ|`, which bounds how far that axis moves the tool tip. Without lever arms every
+/// axis counts in the Euclidean norm in SI units (1 rad as 1 m).
+#[derive(Debug, Clone, Default)]
+pub(super) struct Metric {
+    /// Per axis: `None` in the Euclidean part, `Some(r)` weighted by its lever arm.
+    lever: Vec<Option<f64>>,
+}
+
+impl Metric {
+    pub fn new(axes: &[AxisSpec], lever_arms: &[f64]) -> Metric {
+        let lever = axes
+            .iter()
+            .enumerate()
+            .map(|(i, axis)| match (axis.kind, lever_arms.get(i)) {
+                (AxisKind::Rotary, Some(&r)) => Some(r),
+                _ => None,
+            })
+            .collect();
+        Metric { lever }
+    }
+
+    pub fn norm(&self, v: &[f64]) -> f64 {
+        self.norm_of(v.len(), |i| v[i])
+    }
+
+    /// The norm of the vector whose entry `i` is `value(i)`, `n` entries.
+    pub fn norm_of(&self, n: usize, value: impl Fn(usize) -> f64) -> f64 {
+        let (mut squares, mut weighted) = (0.0, 0.0);
+        for i in 0..n {
+            let x = value(i);
+            match self.lever.get(i).copied().flatten() {
+                Some(r) => weighted += r * x.abs(),
+                None => squares += x * x,
+            }
         }
-        Limits::new(v, a, j)
+        squares.sqrt() + weighted
+    }
+}
+
+pub(super) fn norm(values: impl Iterator<Item = f64>) -> f64 {
+    values.map(|x| x * x).sum::<f64>().sqrt()
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::plan::path::{AxisLimits, Blend};
+
+    fn axes(n: usize) -> Vec<AxisSpec> {
+        (0..n)
+            .map(|i| AxisSpec {
+                name: format!("q{i}"),
+                kind: AxisKind::Linear,
+                limits: AxisLimits {
+                    velocity: 1.0,
+                    acceleration: 1.0,
+                    jerk: 1.0,
+                },
+            })
+            .collect()
+    }
+
+    fn helix() -> Shapes {
+        let segment = PathSegment {
+            geometry: Geometry::Arc {
+                plane: [0, 1],
+                center: [0.01, 0.0],
+                clockwise: true,
+                turns: 0,
+                end: vec![0.01, -0.020015, 0.003],
+            },
+            feed: None,
+            feed_metric: vec![1.0; 3],
+            blend: Blend::ExactStop,
+            source_index: 0,
+        };
+        Shapes::new(&[0.01, 0.02, 0.0], &[segment], &axes(3)).unwrap()
+    }
+
+    #[test]
+    fn jet_derivatives_match_finite_differences_and_bounds() {
+        let shapes = helix();
+        let n = 3;
+        let length = shapes.shapes[0].length;
+        let mut rows = vec![vec![0.0; n]; 5];
+        let jet = |s: f64, rows: &mut Vec<Vec<f64>>| {
+            let mut refs: Vec<&mut [f64]> = rows.iter_mut().map(|r| r.as_mut_slice()).collect();
+            shapes.jet(0, s, &mut refs);
+        };
+        let h = 1e-5 * length;
+        for s in [-0.3 * length, 0.0, 0.4 * length, length, 1.4 * length] {
+            jet(s, &mut rows);
+            let here = rows.clone();
+            jet(s + h, &mut rows);
+            let ahead = rows.clone();
+            jet(s - h, &mut rows);
+            let behind = rows.clone();
+            for m in 0..4 {
+                for i in 0..n {
+                    let fd = (ahead[m][i] - behind[m][i]) / (2.0 * h);
+                    let scale = here[m + 1][i].abs().max(shapes.bound(0, i, m as i32 + 1));
+                    assert!(
+                        (fd - here[m + 1][i]).abs() <= 1e-5 * scale + 1e-9,
+                        "s {s} order {m} axis {i}: {fd} vs {}",
+                        here[m + 1][i]
+                    );
+                    if m + 1 <= 4 {
+                        assert!(
+                            here[m + 1][i].abs()
+                                <= shapes.bound(0, i, m as i32 + 1) * (1.0 + 1e-12)
+                        );
+                    }
+                }
+            }
+        }
+        // Within the segment the jet agrees with eval, and eval ends on the programmed point.
+        let (mut p, mut v, mut a) = (vec![0.0; n], vec![0.0; n], vec![0.0; n]);
+        shapes.eval(0, 0.3 * length, 2.0, 3.0, &mut p, &mut v, &mut a);
+        jet(0.3 * length, &mut rows);
+        for i in 0..n {
+            assert!((p[i] - rows[0][i]).abs() < 1e-15);
+            assert!((v[i] - 2.0 * rows[1][i]).abs() < 1e-12);
+            assert!((a[i] - (4.0 * rows[2][i] + 3.0 * rows[1][i])).abs() < 1e-9);
+        }
+        shapes.eval(0, length, 0.0, 0.0, &mut p, &mut v, &mut a);
+        assert_eq!(p, [0.01, -0.020015, 0.003]);
     }
 }

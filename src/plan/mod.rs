@@ -5,26 +5,41 @@
 //! - [`trapezoid`]: the source documents' trapezoidal profile (seed digest §1.5).
 //! - [`profile`]: one-dimensional seven-phase jerk-limited profiles and their closed forms.
 //! - [`path`]: the jerk-limited planner's input, a path on the machine axes (SI units).
-//! - [`planner`]: look-ahead over the path, synchronised multi-axis motion, corner blends.
+//! - `geometry`, `blend`, `tangent`, `pieces`: the path's segments, corner blends between
+//!   lines, tangent blends between curves, and the chains of pieces they form with their
+//!   limits on the path coordinate.
+//! - [`planner`]: look-ahead over the chains, time-optimal profiles per span.
+//! - [`setpoints`] and `stream`: the output, a stream at the servo period computed as it is
+//!   read (every move timed first).
 //! - [`metrics`]: finite-difference extremes of a setpoint stream and its CSV recording.
-//! - [`setpoints`]: the output stream at the servo period.
 
-pub mod blend;
+mod blend;
 mod constant_velocity;
+mod error;
 mod from_program;
 mod geometry;
 pub mod metrics;
 pub mod path;
+mod pieces;
 pub mod planner;
 pub mod profile;
 pub mod setpoints;
+mod stream;
+mod tangent;
 pub mod trapezoid;
 
-pub use constant_velocity::{constant_velocity, PlanError};
-pub use from_program::{plan_program, BlendChoice, PlanSettings, Planner};
+pub use constant_velocity::constant_velocity;
+pub use error::PlanError;
+pub use from_program::{
+    plan_program, plan_program_stream, tool_lever_arms, BlendChoice, PlanSettings, Planner,
+};
 pub use metrics::{finite_difference_extremes, write_setpoints_csv, AxisExtremes};
 pub use path::{AxisKind, AxisLimits, AxisPath, AxisSpec, Blend, Geometry, PathError, PathSegment};
-pub use planner::{plan, Plan, SegmentTiming};
-pub use profile::{Limits, Profile, Regime, VelocityChange};
-pub use setpoints::{SetpointCursor, SetpointSample, SetpointStream, Setpoints};
+pub use pieces::TANGENT_ANGLE;
+pub use planner::{plan, Plan, SegmentTiming, SPAN_SPREAD};
+pub use profile::{Limits, Profile, Recipe, Regime, VelocityChange};
+pub use setpoints::{
+    sample_count, SetpointCursor, SetpointSample, SetpointStream, Setpoints, MAX_SETPOINT_SAMPLES,
+};
+pub use stream::collect;
 pub use trapezoid::{trapezoid_line, TrapezoidProfile};

@@ -86,10 +86,9 @@ pub enum Blend {
     /// Stop exactly at the programmed point.
     #[default]
     ExactStop,
-    /// Pass the corner without stopping, staying within `tolerance` of the programmed point.
-    /// The distance is the Euclidean norm of the axis-space deviation in SI units (m and rad
-    /// alike: 0.05 mm of tolerance allows 5e-5 rad on a rotary axis). `None`: no tolerance
-    /// given, the corner is rounded as far as the adjacent segments allow.
+    /// Pass the corner without stopping, staying within `tolerance` of the programmed path
+    /// (measured as [`AxisPath::tool_lever_arms`] says). `None`: no tolerance given, the
+    /// corner is rounded as far as the adjacent segments allow.
     Continuous { tolerance: Option<f64> },
 }
 
@@ -117,6 +116,12 @@ pub struct AxisPath {
     pub axes: Vec<AxisSpec>,
     pub start: Vec<f64>,
     pub segments: Vec<PathSegment>,
+    /// Per axis, the distance (m) of the tool tip from each rotary axis, so that corner
+    /// tolerances are measured at the tool tip: a deviation δ (rad) on rotary axis i moves the
+    /// tip by at most `tool_lever_arms[i]·δ`, and the tolerance norm is the Euclidean norm over
+    /// the linear axes plus these terms. Empty: the Euclidean norm over all axes in SI units
+    /// (1 rad counts as 1 m). Entries of linear axes are ignored.
+    pub tool_lever_arms: Vec<f64>,
 }
 
 /// Why a path cannot be planned.

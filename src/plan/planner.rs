@@ -1,329 +1,248 @@
 //! The jerk-limited look-ahead planner: a machine-axis path in, a timed trajectory out.
 //!
-//! 1. Each segment is parameterised by a path coordinate `s` (`geometry::SegmentShape`) and
-//!    gets limits on ṡ, s̈, s⃛ under which every axis keeps its own limits (and ṡ the feed).
-//! 2. Each junction gets a speed cap: zero for exact stop, at the path start and end, and next
-//!    to arcs; for a continuous corner between two lines, the highest speed whose corner blend
-//!    ([`super::blend`]) stays within the tolerance and uses at most a quarter of either line,
-//!    lowered to the speed that loses least time ([`super::blend::best_corner_speed`]: with a
-//!    jerk limit, a corner that only allows a crawl is faster taken as a stop).
-//! 3. Look-ahead: a backward pass (every junction slow enough to stop in time for the ones after
-//!    it) and a forward pass (fast enough only as far as reachable from the ones before), both
-//!    with the jerk-limited transfer distance between two speeds at zero acceleration
-//!    ([`super::profile::transfer_distance`]). The segment length used here excludes the blend
-//!    cuts at their capped speeds; the final cuts are shorter, so every transfer stays feasible.
-//! 4. Each leg between its blends is a time-optimal seven-phase profile ([`Profile::plan`])
-//!    from its entry to its exit junction speed. A leg is usually one segment; collinear lines
-//!    joined in continuous mode with the same limits form one leg, so that a straight line cut
-//!    into many blocks accelerates across the block boundaries.
+//! 1. Geometry ([`super::pieces`]): the path becomes chains of pieces between stops: segment
+//!    middles, corner blends between lines within the tolerance, tangent blends where a line or
+//!    an arc continues another. Each piece has limits on the path coordinate `s` (ṡ, s̈, s⃛)
+//!    under which every axis keeps its own limits, and the geometry is curvature-continuous
+//!    along a chain, so the speed may change anywhere along it.
+//! 2. Spans: consecutive pieces of a chain whose limits lie within [`SPAN_SPREAD`] of each
+//!    other are timed as one stretch with the lowest of their limits: a run of short blocks on
+//!    a smooth curve accelerates across the block boundaries as one motion.
+//! 3. Look-ahead over the spans of a chain: a backward pass (every span boundary slow enough to
+//!    slow down in time for the ones after it) and a forward pass (fast enough only as far as
+//!    reachable from the ones before), with the jerk-limited transfer distance between two speeds
+//!    at zero acceleration ([`super::profile::transfer_distance`]); each span boundary is also
+//!    capped by both spans' speed limits.
+//! 4. Each span is a time-optimal seven-phase profile ([`Recipe::plan`]) from its entry to its
+//!    exit speed. Span boundaries are passed at zero path acceleration, so the axis
+//!    acceleration is continuous everywhere and the jerk bounded.
 //!
-//! Junctions are passed at zero acceleration, so the axis acceleration is continuous everywhere
-//! and the jerk bounded: each piece stays within every axis limit on its own.
+//! Every chain ends exactly on its programmed end point; the programmed points inside a chain
+//! are passed within the corner tolerance (through them, on a tangent blend).
 
-use super::blend::{best_corner_speed, max_corner_speed, CornerBlend, CornerSide, CornerTurn};
-use super::geometry::SegmentShape;
+use super::geometry::{Metric, Shapes};
 use super::path::{AxisPath, Blend, Geometry, PathError};
-use super::profile::{reachable_velocity, Limits, Profile};
-use super::setpoints::Setpoints;
-use super::trapezoid::sample_times;
+use super::pieces::{assign_limits, Builder, Chain, Piece, PieceKind, Pieces, SHARE_CAPS};
+use super::profile::{reachable_velocity, Limits, Profile, Recipe};
+use super::setpoints::{sample_times, Setpoints};
+use super::tangent::JetScratch;
 
-/// Largest share of a line that one corner blend may use (so at least half of every line is
-/// left for speed changes).
-const MAX_BLEND_SHARE: f64 = 0.25;
+/// Pieces whose speed, acceleration and jerk limits each lie within this fraction of one
+/// another are timed as one span (with the lowest of them).
+pub const SPAN_SPREAD: f64 = 0.15;
+
+/// A piece shorter than this fraction of a neighbour does not split a span by itself.
+const SHORT_PIECE: f64 = 0.25;
 
 /// A timed trajectory over a whole path.
 #[derive(Debug, Clone)]
 pub struct Plan {
     axes: usize,
-    shapes: Vec<SegmentShape>,
-    limits: Vec<Limits>,
+    shapes: Shapes,
+    pieces: Pieces,
+    spans: Vec<Span>,
     source_index: Vec<u32>,
-    legs: Vec<Leg>,
-    pieces: Vec<Piece>,
     start: Vec<f64>,
     duration: f64,
 }
 
-/// Consecutive segments planned as one profile: collinear lines joined in continuous mode with
-/// the same path limits (a straight line cut into blocks is one motion, accelerating across the
-/// block boundaries). Most legs are a single segment.
-#[derive(Debug, Clone)]
-struct Leg {
-    /// Segments `first..=last`.
+/// A stretch of a chain timed by one profile.
+#[derive(Debug, Clone, Copy)]
+struct Span {
+    /// Pieces `first..end`.
     first: usize,
-    last: usize,
-    /// Path coordinate at the start of each segment of the leg, and the leg length at the end.
-    starts: Vec<f64>,
-    limits: Limits,
-}
-
-impl Leg {
-    fn length(&self) -> f64 {
-        *self.starts.last().unwrap_or(&0.0)
-    }
-
-    /// The segment holding leg coordinate `s`, and `s` on that segment.
-    fn locate(&self, s: f64) -> (usize, f64) {
-        let segments = self.last - self.first + 1;
-        let i = self.starts[1..segments].partition_point(|&start| start <= s);
-        (self.first + i, s - self.starts[i])
-    }
-}
-
-/// One piece of the timeline.
-#[derive(Debug, Clone)]
-struct Piece {
+    end: usize,
+    chain: usize,
+    /// Where the span starts in its chain's path coordinate.
+    start: f64,
     start_time: f64,
-    leg: usize,
-    kind: PieceKind,
-}
-
-// Pieces live once in a Vec; boxing the profile would cost an allocation per leg for nothing.
-#[allow(clippy::large_enum_variant)]
-#[derive(Debug, Clone)]
-enum PieceKind {
-    /// Travel along a leg: s = offset + profile position. `to_end`: no blend follows, the
-    /// travel ends on the programmed end point.
-    Travel {
-        offset: f64,
-        profile: Profile,
-        to_end: bool,
-    },
-    /// A corner blend from `leg` into `leg + 1`.
-    Corner(CornerBlend),
-}
-
-impl Piece {
-    fn duration(&self) -> f64 {
-        match &self.kind {
-            PieceKind::Travel { profile, .. } => profile.duration(),
-            PieceKind::Corner(blend) => blend.duration(),
-        }
-    }
+    recipe: Recipe,
 }
 
 /// Timing of one segment in a plan.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct SegmentTiming {
     pub source_index: u32,
-    /// When the segment starts (s); in continuous mode, halfway through the corner blend.
+    /// When the motion is at the segment's start (s): its programmed start point, or the
+    /// middle of the blend into it.
     pub start_time: f64,
     pub duration: f64,
-    /// Path limits the segment was planned with.
+    /// Path limits of the segment on its own (its line or arc limits).
     pub limits: Limits,
 }
 
 /// Plans a path. See the module documentation for the method.
 pub fn plan(path: &AxisPath) -> Result<Plan, PathError> {
     validate(path)?;
-    let n_axes = path.axes.len();
-    let mut shapes = Vec::with_capacity(path.segments.len());
-    let mut limits = Vec::with_capacity(path.segments.len());
-    let mut from = path.start.clone();
-    for (index, segment) in path.segments.iter().enumerate() {
-        let shape = SegmentShape::new(index, &from, segment, &path.axes)?;
-        limits.push(shape.path_limits(&path.axes, segment.feed));
-        from.clone_from(&shape.end);
-        shapes.push(shape);
-    }
-    let legs = group_into_legs(path, &shapes, &limits);
-    let m = legs.len();
-
-    // Speed caps and blend geometry at the junctions between legs (junction i + 1 joins legs i
-    // and i + 1; junctions 0 and m are the path's start and end).
-    let mut caps = vec![0.0; m + 1];
-    let mut turns: Vec<Option<CornerTurn>> = vec![None; m + 1];
-    for i in 0..m.saturating_sub(1) {
-        let (a, b) = (&legs[i], &legs[i + 1]);
-        let Blend::Continuous { tolerance } = path.segments[a.last].blend else {
-            continue;
-        };
-        let (Some(u1), Some(u2)) = (
-            shapes[a.last].line_direction(),
-            shapes[b.first].line_direction(),
-        ) else {
-            continue;
-        };
-        if a.length() == 0.0 || b.length() == 0.0 {
-            continue;
-        }
-        let turn = CornerTurn::new(u2.iter().zip(u1).map(|(x, y)| x - y).collect(), &path.axes);
-        let speed_cap = a.limits.velocity.min(b.limits.velocity);
-        let max_cut = MAX_BLEND_SHARE * a.length().min(b.length());
-        let within_tolerance = max_corner_speed(
-            &turn,
-            tolerance.unwrap_or(f64::INFINITY),
-            max_cut,
-            speed_cap,
-        );
-        // Each side would cruise at most at what it reaches from rest in half its length.
-        let side = |leg: &Leg| CornerSide {
-            limits: leg.limits,
-            cruise: reachable_velocity(0.0, 0.5 * leg.length(), &leg.limits),
-        };
-        caps[i + 1] = best_corner_speed(&turn, within_tolerance, &[side(a), side(b)]);
-        if caps[i + 1] > 0.0 {
-            turns[i + 1] = Some(turn);
-        }
-    }
-    let cut_at = |turns: &[Option<CornerTurn>], junction: usize, speed: f64| -> f64 {
-        match &turns[junction] {
-            Some(turn) if speed > 0.0 => turn.timing(speed).cut_length(speed),
-            _ => 0.0,
-        }
-    };
-
-    // Look-ahead over the length left between the blends at their capped speeds.
-    let spare: Vec<f64> = (0..m)
-        .map(|i| {
-            (legs[i].length() - cut_at(&turns, i, caps[i]) - cut_at(&turns, i + 1, caps[i + 1]))
-                .max(0.0)
-        })
-        .collect();
-    let mut speeds = caps.clone();
-    for i in (0..m).rev() {
-        if speeds[i] > 0.0 {
-            speeds[i] = speeds[i].min(reachable_velocity(speeds[i + 1], spare[i], &legs[i].limits));
-        }
-    }
-    for i in 0..m {
-        if speeds[i + 1] > 0.0 {
-            let reachable = reachable_velocity(speeds[i], spare[i], &legs[i].limits);
-            speeds[i + 1] = speeds[i + 1].min(reachable);
-        }
-    }
-
-    // The corner speeds came from a local estimate made before the look-ahead; now that the
-    // neighbouring speeds are known, stop instead wherever that is faster for the two legs
-    // around the corner (and feasible: the legs can slow down to and start from rest).
-    let leg_time = |i: usize, v0: f64, v1: f64, cuts: f64| {
-        Profile::plan((legs[i].length() - cuts).max(0.0), v0, v1, &legs[i].limits)
-            .map_or(f64::INFINITY, |p| p.duration())
-    };
-    for j in 1..m {
-        let v = speeds[j];
-        let Some(turn) = turns[j].as_ref().filter(|_| v > 0.0) else {
-            continue;
-        };
-        let (before, after) = (
-            cut_at(&turns, j - 1, speeds[j - 1]),
-            cut_at(&turns, j + 1, speeds[j + 1]),
-        );
-        let timing = turn.timing(v);
-        let cut = timing.cut_length(v);
-        let blended = leg_time(j - 1, speeds[j - 1], v, before + cut)
-            + timing.duration
-            + leg_time(j, v, speeds[j + 1], cut + after);
-        let stopped =
-            leg_time(j - 1, speeds[j - 1], 0.0, before) + leg_time(j, 0.0, speeds[j + 1], after);
-        if stopped < blended {
-            speeds[j] = 0.0;
-            turns[j] = None;
-        }
-    }
-
-    // Timeline: travel, corner, travel, corner, …
-    let mut pieces = Vec::with_capacity(2 * m);
+    let shapes = Shapes::new(&path.start, &path.segments, &path.axes)?;
+    let metric = Metric::new(&path.axes, &path.tool_lever_arms);
+    let mut pieces = Builder::new(&path.axes, &path.segments, &shapes, &metric).build();
+    let mut spans = Vec::with_capacity(pieces.pieces.len());
     let mut time = 0.0;
-    let mut entry_cut = 0.0;
-    let zero = vec![0.0; n_axes];
-    for (i, leg) in legs.iter().enumerate() {
-        let exit_cut = cut_at(&turns, i + 1, speeds[i + 1]);
-        let length = (leg.length() - entry_cut - exit_cut).max(0.0);
-        let profile = Profile::plan(length, speeds[i], speeds[i + 1], &leg.limits)
-            .ok_or(PathError::Infeasible { segment: leg.first })?;
-        pieces.push(Piece {
-            start_time: time,
-            leg: i,
-            kind: PieceKind::Travel {
-                offset: entry_cut,
-                profile,
-                to_end: exit_cut == 0.0,
-            },
-        });
-        time += profile.duration();
-        if let (Some(turn), true) = (&turns[i + 1], exit_cut > 0.0) {
-            let speed = speeds[i + 1];
-            let timing = turn.timing(speed);
-            let mut start = zero.clone();
-            let (segment, s) = leg.locate(leg.length() - exit_cut);
-            shapes[segment].position(s, &mut start);
-            let u1 = shapes[leg.last].line_direction().unwrap_or(&zero);
-            let blend = CornerBlend {
-                start,
-                entry_velocity: u1.iter().map(|u| u * speed).collect(),
-                velocity_change: turn.turn.iter().map(|d| d * speed).collect(),
-                timing,
-            };
-            pieces.push(Piece {
-                start_time: time,
-                leg: i,
-                kind: PieceKind::Corner(blend),
-            });
-            time += timing.duration;
+    let mut drafts = Vec::new();
+    let mut best = Vec::new();
+    for c in 0..pieces.chains.len() {
+        let chain = pieces.chains[c];
+        let range = chain.first..chain.end;
+        let curved = pieces.budgets[range.clone()].iter().any(|b| b.is_curved());
+        let caps: &[f64] = if curved {
+            &SHARE_CAPS
+        } else {
+            &SHARE_CAPS[..1]
+        };
+        // The fastest of the share caps: (cap, duration).
+        let mut fastest: Option<(f64, f64)> = None;
+        for &cap in caps {
+            assign_limits(
+                &mut pieces.pieces[range.clone()],
+                &pieces.budgets[range.clone()],
+                cap,
+            );
+            let duration = time_chain(&pieces, c, &mut drafts, time, &mut best)?;
+            if fastest.map_or(true, |(_, d)| duration < d) {
+                fastest = Some((cap, duration));
+            }
         }
-        entry_cut = exit_cut;
+        let (cap, _) = fastest.expect("at least one share cap");
+        assign_limits(
+            &mut pieces.pieces[range.clone()],
+            &pieces.budgets[range],
+            cap,
+        );
+        time += time_chain(&pieces, c, &mut drafts, time, &mut best)?;
+        spans.append(&mut best);
     }
-
     Ok(Plan {
-        axes: n_axes,
+        axes: path.axes.len(),
         source_index: path.segments.iter().map(|s| s.source_index).collect(),
         shapes,
-        limits,
-        legs,
         pieces,
+        spans,
         start: path.start.clone(),
         duration: time,
     })
 }
 
-/// Groups segments into legs: a segment joins the previous leg when the junction is continuous,
-/// both are lines with the same direction (dq/ds, so also the same path metric) and the same
-/// path limits (the same feed). A feed change starts a new leg (the corner between the legs is
-/// then straight and passed at the lower cap, with zero acceleration).
-fn group_into_legs(path: &AxisPath, shapes: &[SegmentShape], limits: &[Limits]) -> Vec<Leg> {
-    let mut legs: Vec<Leg> = Vec::new();
-    for (k, shape) in shapes.iter().enumerate() {
-        let joins = k > 0 && {
-            let previous = &shapes[k - 1];
-            let continuous = matches!(path.segments[k - 1].blend, Blend::Continuous { .. });
-            let same_direction = match (previous.line_direction(), shape.line_direction()) {
-                (Some(u1), Some(u2)) => {
-                    previous.length > 0.0
-                        && shape.length > 0.0
-                        && u1.iter().zip(u2).all(|(a, b)| (a - b).abs() <= 1e-12)
-                }
-                _ => false,
-            };
-            // Equal up to rounding (the limits come from the direction); the leg takes the lower.
-            let close = |a: f64, b: f64| (a - b).abs() <= 1e-9 * a.max(b);
-            let (a, b) = (limits[k - 1], limits[k]);
-            let same_limits = close(a.velocity, b.velocity)
-                && close(a.acceleration, b.acceleration)
-                && close(a.jerk, b.jerk);
-            continuous && same_direction && same_limits
-        };
-        match legs.last_mut() {
-            Some(leg) if joins => {
-                leg.last = k;
-                let end = leg.length() + shape.length;
-                leg.starts.push(end);
-                let (a, b) = (leg.limits, limits[k]);
-                leg.limits = Limits::new(
-                    a.velocity.min(b.velocity),
-                    a.acceleration.min(b.acceleration),
-                    a.jerk.min(b.jerk),
-                );
-            }
-            _ => legs.push(Leg {
-                first: k,
-                last: k,
-                starts: vec![0.0, shape.length],
-                limits: limits[k],
-            }),
-        }
+/// Times chain `c` from `start_time` into `spans` (cleared first); returns its duration.
+fn time_chain(
+    pieces: &Pieces,
+    c: usize,
+    drafts: &mut Vec<Draft>,
+    start_time: f64,
+    spans: &mut Vec<Span>,
+) -> Result<f64, PathError> {
+    spans.clear();
+    group_into_spans(&pieces.pieces, &pieces.chains[c], drafts);
+    let speeds = look_ahead(drafts);
+    let mut time = start_time;
+    for (i, d) in drafts.iter().enumerate() {
+        let recipe = Recipe::plan(d.length, speeds[i], speeds[i + 1], &d.limits).ok_or(
+            PathError::Infeasible {
+                segment: pieces.pieces[d.first].kind.segment_at(0.0, 0.0),
+            },
+        )?;
+        spans.push(Span {
+            first: d.first,
+            end: d.end,
+            chain: c,
+            start: d.start,
+            start_time: time,
+            recipe,
+        });
+        time += recipe.duration();
     }
-    legs
+    Ok(time - start_time)
+}
+
+/// A span before its speeds are known.
+#[derive(Debug, Clone, Copy)]
+struct Draft {
+    first: usize,
+    end: usize,
+    start: f64,
+    length: f64,
+    limits: Limits,
+}
+
+/// Groups the pieces of a chain into spans of similar limits. A piece much shorter than a
+/// neighbour (the sliver of a segment left between two blends) is compared with the lower of
+/// its own and its neighbours' limits, so that it does not split a span.
+fn group_into_spans(pieces: &[Piece], chain: &Chain, drafts: &mut Vec<Draft>) {
+    drafts.clear();
+    let chain_pieces = &pieces[chain.first..chain.end];
+    let values = |l: Limits| [l.velocity, l.acceleration, l.jerk];
+    let effective = |i: usize| {
+        let mut v = values(chain_pieces[i].limits);
+        let length = chain_pieces[i].length;
+        for j in [i.wrapping_sub(1), i + 1] {
+            if let Some(n) = chain_pieces.get(j) {
+                if length < SHORT_PIECE * n.length {
+                    let w = values(n.limits);
+                    for k in 0..3 {
+                        v[k] = v[k].min(w[k]);
+                    }
+                }
+            }
+        }
+        v
+    };
+    // Running minimum and maximum of (v, a, j) over the current span.
+    let mut low = [0.0f64; 3];
+    let mut high = [0.0f64; 3];
+    for (i, piece) in chain_pieces.iter().enumerate() {
+        let index = chain.first + i;
+        let v = effective(i);
+        let joins = drafts.last().is_some()
+            && (0..3).all(|k| low[k].min(v[k]) >= (1.0 - SPAN_SPREAD) * high[k].max(v[k]));
+        match drafts.last_mut() {
+            Some(d) if joins => {
+                d.end = index + 1;
+                d.length += piece.length;
+                for k in 0..3 {
+                    low[k] = low[k].min(v[k]);
+                    high[k] = high[k].max(v[k]);
+                }
+            }
+            _ => {
+                low = v;
+                high = v;
+                drafts.push(Draft {
+                    first: index,
+                    end: index + 1,
+                    start: piece.start,
+                    length: piece.length,
+                    limits: piece.limits,
+                });
+            }
+        }
+        // The span keeps the lowest actual limits of its pieces.
+        let d = drafts.last_mut().expect("a span");
+        let l = piece.limits;
+        d.limits = Limits::new(
+            d.limits.velocity.min(l.velocity),
+            d.limits.acceleration.min(l.acceleration),
+            d.limits.jerk.min(l.jerk),
+        );
+    }
+}
+
+/// Speeds at the span boundaries of a chain: zero at both ends, capped by both neighbours'
+/// speed limits, and reachable from each other within the spans (backward, then forward).
+fn look_ahead(drafts: &[Draft]) -> Vec<f64> {
+    let m = drafts.len();
+    let mut speeds = vec![0.0; m + 1];
+    for i in 1..m {
+        speeds[i] = drafts[i - 1].limits.velocity.min(drafts[i].limits.velocity);
+    }
+    for i in (1..m).rev() {
+        let d = &drafts[i];
+        speeds[i] = speeds[i].min(reachable_velocity(speeds[i + 1], d.length, &d.limits));
+    }
+    for i in 0..m.saturating_sub(1) {
+        let d = &drafts[i];
+        speeds[i + 1] = speeds[i + 1].min(reachable_velocity(speeds[i], d.length, &d.limits));
+    }
+    speeds
 }
 
 fn validate(path: &AxisPath) -> Result<(), PathError> {
@@ -354,6 +273,19 @@ fn validate(path: &AxisPath) -> Result<(), PathError> {
     };
     check_len(None, path.start.len())?;
     finite(None, "start position", &path.start)?;
+    if !path.tool_lever_arms.is_empty() {
+        check_len(None, path.tool_lever_arms.len())?;
+        if !path
+            .tool_lever_arms
+            .iter()
+            .all(|x| x.is_finite() && *x >= 0.0)
+        {
+            return Err(PathError::InvalidValue {
+                segment: None,
+                what: "tool lever arm",
+            });
+        }
+    }
     for (k, segment) in path.segments.iter().enumerate() {
         let s = Some(k);
         check_len(s, segment.geometry.end().len())?;
@@ -380,6 +312,87 @@ fn validate(path: &AxisPath) -> Result<(), PathError> {
     Ok(())
 }
 
+/// A position in a plan for evaluating it at non-decreasing times: the current span with its
+/// profile, the current piece, and scratch space.
+#[derive(Debug, Clone)]
+pub(super) struct Cursor {
+    span: usize,
+    profile: Option<Profile>,
+    piece: usize,
+    scratch: JetScratch,
+}
+
+impl Cursor {
+    pub fn new(plan: &Plan) -> Self {
+        Cursor {
+            span: 0,
+            profile: None,
+            piece: 0,
+            scratch: JetScratch::new(plan.axes),
+        }
+    }
+
+    /// Axis positions, velocities and accelerations at time `t` (not before the previous
+    /// call's); returns the program move (`source_index`) the instant belongs to.
+    pub fn eval(
+        &mut self,
+        plan: &Plan,
+        t: f64,
+        position: &mut [f64],
+        velocity: &mut [f64],
+        acceleration: &mut [f64],
+    ) -> u32 {
+        let spans = &plan.spans;
+        if spans.is_empty() {
+            position.copy_from_slice(&plan.start);
+            velocity.fill(0.0);
+            acceleration.fill(0.0);
+            return plan.source_index.first().copied().unwrap_or(0);
+        }
+        // Times only grow: walk the spans instead of searching.
+        while self.span + 1 < spans.len() && spans[self.span + 1].start_time <= t {
+            self.span += 1;
+            self.profile = None;
+        }
+        let span = spans[self.span];
+        let end_time = spans
+            .get(self.span + 1)
+            .map_or(plan.duration, |next| next.start_time);
+        let chain = &plan.pieces.chains[span.chain];
+        // Past the end of a span only at the end of the plan (otherwise the walk moved on).
+        let done = t >= end_time;
+        let chain_end = self.span + 1 == spans.len() || spans[self.span + 1].chain != span.chain;
+        if done && chain_end {
+            // Exactly on the programmed end point, at rest.
+            position.copy_from_slice(plan.shapes.end(chain.last_segment));
+            velocity.fill(0.0);
+            acceleration.fill(0.0);
+            return plan.source_index[chain.last_segment];
+        }
+        let profile = self.profile.get_or_insert_with(|| span.recipe.build());
+        let state = profile.state(t - span.start_time);
+        let s = span.start + state.position;
+        self.piece = self.piece.max(span.first);
+        let pieces = &plan.pieces.pieces;
+        while self.piece + 1 < span.end && pieces[self.piece + 1].start <= s {
+            self.piece += 1;
+        }
+        let piece = &pieces[self.piece];
+        let u = (s - piece.start).clamp(0.0, piece.length);
+        plan.eval_piece(
+            piece,
+            u,
+            state.velocity,
+            state.acceleration,
+            &mut self.scratch,
+            position,
+            velocity,
+            acceleration,
+        );
+        plan.source_index[piece.kind.segment_at(u, piece.length)]
+    }
+}
+
 impl Plan {
     /// Number of machine axes.
     pub fn axes(&self) -> usize {
@@ -391,73 +404,149 @@ impl Plan {
         self.duration
     }
 
-    /// Path speed at the start and end of every leg of the plan (a leg is a run of collinear
-    /// blocks planned as one motion; usually one segment): zero at exact stops.
+    /// Where the path starts.
+    pub fn start(&self) -> &[f64] {
+        &self.start
+    }
+
+    #[allow(clippy::too_many_arguments)]
+    fn eval_piece(
+        &self,
+        piece: &Piece,
+        u: f64,
+        s_dot: f64,
+        s_ddot: f64,
+        scratch: &mut JetScratch,
+        position: &mut [f64],
+        velocity: &mut [f64],
+        acceleration: &mut [f64],
+    ) {
+        match piece.kind {
+            PieceKind::Segment { segment, from } => self.shapes.eval(
+                segment,
+                from + u,
+                s_dot,
+                s_ddot,
+                position,
+                velocity,
+                acceleration,
+            ),
+            PieceKind::Corner { blend, data, .. } => blend.eval(
+                &self.pieces.arena[data..data + 3 * self.axes],
+                u,
+                s_dot,
+                s_ddot,
+                position,
+                velocity,
+                acceleration,
+            ),
+            PieceKind::Tangent(tangent) => tangent.eval(
+                &self.shapes,
+                scratch,
+                u,
+                s_dot,
+                s_ddot,
+                position,
+                velocity,
+                acceleration,
+            ),
+        }
+    }
+
+    /// The limits each segment is planned with: those of its first piece (zero-length
+    /// segments: none, given as 1, 1, 1).
+    fn segment_limits(&self) -> Vec<Limits> {
+        let mut limits = vec![None; self.shapes.len()];
+        for piece in &self.pieces.pieces {
+            if let PieceKind::Segment { segment, .. } = piece.kind {
+                limits[segment].get_or_insert(piece.limits);
+            }
+        }
+        limits
+            .into_iter()
+            .map(|l| l.unwrap_or(Limits::new(1.0, 1.0, 1.0)))
+            .collect()
+    }
+
+    /// Where each segment ends: its chain and the chain's path coordinate there (its
+    /// programmed end point, or the middle of the blend out of it), `None` at the chain's end;
+    /// `None` altogether for segments that do not move.
+    fn segment_ends(&self) -> Vec<Option<(usize, Option<f64>)>> {
+        let mut ends = vec![None; self.shapes.len()];
+        for (c, chain) in self.pieces.chains.iter().enumerate() {
+            for piece in &self.pieces.pieces[chain.first..chain.end] {
+                let (segment, at) = match piece.kind {
+                    PieceKind::Segment { segment, .. } => (segment, piece.start + piece.length),
+                    PieceKind::Corner { incoming, .. } => {
+                        (incoming, piece.start + 0.5 * piece.length)
+                    }
+                    PieceKind::Tangent(t) => (t.incoming, piece.start + 0.5 * piece.length),
+                };
+                ends[segment] = Some((c, Some(at)));
+            }
+            ends[chain.last_segment] = Some((c, None));
+        }
+        ends
+    }
+
+    /// Time and path speed ṡ at chain coordinate `s` of chain `chain` (`None`: its end).
+    fn crossing(&self, chain: usize, s: Option<f64>) -> (f64, f64) {
+        let first = self.spans.partition_point(|sp| sp.chain < chain);
+        let end = self.spans.partition_point(|sp| sp.chain <= chain);
+        let spans = &self.spans[first..end];
+        let Some(s) = s else {
+            let last = &spans[spans.len() - 1];
+            return (last.start_time + last.recipe.duration(), 0.0);
+        };
+        let i = spans
+            .partition_point(|sp| sp.start + sp.recipe.length <= s)
+            .min(spans.len() - 1);
+        let span = &spans[i];
+        let profile = span.recipe.build();
+        let local = profile.time_at((s - span.start).max(0.0));
+        (span.start_time + local, profile.state(local).velocity)
+    }
+
+    /// Path speed ṡ at every programmed point: the path start, then the end of every segment
+    /// (zero at stops; on a blend, the speed of the path coordinate where the blend passes the
+    /// corner).
     pub fn junction_speeds(&self) -> Vec<f64> {
         let mut speeds = vec![0.0];
-        for piece in &self.pieces {
-            if let PieceKind::Travel { profile, .. } = &piece.kind {
-                speeds.push(profile.boundary_velocities().1);
-            }
+        let mut previous = 0.0;
+        for end in self.segment_ends() {
+            let v = match end {
+                Some((chain, s)) => self.crossing(chain, s).1,
+                None => previous,
+            };
+            speeds.push(v);
+            previous = v;
         }
         speeds
     }
 
-    /// Timing of every segment. A corner blend counts half to each of its two segments; inside
-    /// a leg, a segment ends when the motion crosses its end point.
+    /// Timing of every segment: from the moment the motion passes its start (its programmed
+    /// start point, or the middle of the blend into it) to the moment it passes its end.
     pub fn segment_timings(&self) -> Vec<SegmentTiming> {
-        let n = self.shapes.len();
-        let mut durations = vec![0.0; n];
-        for piece in &self.pieces {
-            let leg = &self.legs[piece.leg];
-            match &piece.kind {
-                PieceKind::Travel {
-                    offset, profile, ..
-                } => {
-                    // Time at which the travel crosses each segment boundary of the leg.
-                    let mut previous = 0.0;
-                    let segments = &mut durations[leg.first..=leg.last];
-                    let count = segments.len();
-                    for (i, duration) in segments.iter_mut().enumerate() {
-                        let t = if i + 1 == count {
-                            profile.duration()
-                        } else {
-                            profile.time_at((leg.starts[i + 1] - offset).max(0.0))
-                        };
-                        *duration += t - previous;
-                        previous = t;
-                    }
-                }
-                PieceKind::Corner(blend) => {
-                    durations[leg.last] += 0.5 * blend.duration();
-                    durations[self.legs[piece.leg + 1].first] += 0.5 * blend.duration();
-                }
-            }
-        }
-        let mut start_time = 0.0;
-        (0..n)
-            .map(|k| {
+        let limits = self.segment_limits();
+        let mut previous = 0.0;
+        self.segment_ends()
+            .into_iter()
+            .enumerate()
+            .map(|(k, end)| {
+                let t = match end {
+                    Some((chain, s)) => self.crossing(chain, s).0,
+                    None => previous,
+                };
                 let timing = SegmentTiming {
                     source_index: self.source_index[k],
-                    start_time,
-                    duration: durations[k],
-                    limits: self.limits[k],
+                    start_time: previous,
+                    duration: (t - previous).max(0.0),
+                    limits: limits[k],
                 };
-                start_time += durations[k];
+                previous = t;
                 timing
             })
             .collect()
-    }
-
-    /// Index of the piece active at time `t` (the first that ends after `t`, else the last).
-    fn piece_at(&self, t: f64) -> Option<usize> {
-        if self.pieces.is_empty() {
-            return None;
-        }
-        let i = self
-            .pieces
-            .partition_point(|p| p.start_time + p.duration() <= t);
-        Some(i.min(self.pieces.len() - 1))
     }
 
     /// Axis positions, velocities and accelerations at time `t` (clamped to the plan); returns
@@ -469,66 +558,13 @@ impl Plan {
         velocity: &mut [f64],
         acceleration: &mut [f64],
     ) -> u32 {
-        match self.piece_at(t) {
-            Some(i) => self.eval_piece(i, t, position, velocity, acceleration),
-            None => {
-                position.copy_from_slice(&self.start);
-                velocity.fill(0.0);
-                acceleration.fill(0.0);
-                0
-            }
-        }
-    }
-
-    fn eval_piece(
-        &self,
-        i: usize,
-        t: f64,
-        position: &mut [f64],
-        velocity: &mut [f64],
-        acceleration: &mut [f64],
-    ) -> u32 {
-        let piece = &self.pieces[i];
-        let leg = &self.legs[piece.leg];
-        let local = t - piece.start_time;
-        match &piece.kind {
-            PieceKind::Travel {
-                offset,
-                profile,
-                to_end,
-            } => {
-                let state = profile.state(local);
-                // Compared as the timeline was summed (t − start can round below the duration).
-                let done =
-                    t >= piece.start_time + profile.duration() || local >= profile.duration();
-                let (segment, s) = if done && *to_end {
-                    // Exactly on the programmed end point.
-                    (leg.last, self.shapes[leg.last].length)
-                } else if done {
-                    leg.locate(offset + profile.distance())
-                } else {
-                    leg.locate(offset + state.position)
-                };
-                self.shapes[segment].eval(
-                    s,
-                    state.velocity,
-                    state.acceleration,
-                    position,
-                    velocity,
-                    acceleration,
-                );
-                self.source_index[segment]
-            }
-            PieceKind::Corner(blend) => {
-                blend.eval(local, position, velocity, acceleration);
-                let segment = if local < 0.5 * blend.duration() {
-                    leg.last
-                } else {
-                    self.legs[piece.leg + 1].first
-                };
-                self.source_index[segment]
-            }
-        }
+        let mut cursor = Cursor::new(self);
+        cursor.span = self
+            .spans
+            .partition_point(|s| s.start_time <= t)
+            .saturating_sub(1);
+        cursor.piece = self.spans.get(cursor.span).map_or(0, |s| s.first);
+        cursor.eval(self, t, position, velocity, acceleration)
     }
 
     /// The trajectory sampled every `period` from t = 0 up to the first tick at or after the
@@ -537,23 +573,71 @@ impl Plan {
         let n = self.axes;
         let mut out = Setpoints::new(period, n);
         let (mut p, mut v, mut a) = (vec![0.0; n], vec![0.0; n], vec![0.0; n]);
-        let mut piece = 0;
+        let mut cursor = Cursor::new(self);
         for t in sample_times(self.duration, period) {
-            // Times only grow: walk the pieces instead of searching.
-            while piece + 1 < self.pieces.len()
-                && self.pieces[piece].start_time + self.pieces[piece].duration() <= t
-            {
-                piece += 1;
-            }
-            let segment = if self.pieces.is_empty() {
-                p.copy_from_slice(&self.start);
-                v.fill(0.0);
-                a.fill(0.0);
-                0
-            } else {
-                self.eval_piece(piece, t, &mut p, &mut v, &mut a)
-            };
+            let segment = cursor.eval(self, t, &mut p, &mut v, &mut a);
             out.push(&p, &v, &a, segment);
+        }
+        out
+    }
+
+    /// The planned path (blends included) as points along each chain, at most `max_step` apart
+    /// in the path coordinate and at least four per piece: the geometry a time-optimal
+    /// parameterisation of the same path would follow.
+    pub fn chain_geometry(&self, max_step: f64) -> Vec<Vec<Vec<f64>>> {
+        let n = self.axes;
+        let (mut v, mut a) = (vec![0.0; n], vec![0.0; n]);
+        let mut scratch = JetScratch::new(n);
+        self.pieces
+            .chains
+            .iter()
+            .map(|chain| {
+                let mut points = Vec::new();
+                for (i, piece) in self.pieces.pieces[chain.first..chain.end]
+                    .iter()
+                    .enumerate()
+                {
+                    let steps = ((piece.length / max_step).ceil() as usize).clamp(4, 1 << 24);
+                    for k in usize::from(i > 0)..=steps {
+                        let mut p = vec![0.0; n];
+                        let u = piece.length * k as f64 / steps as f64;
+                        self.eval_piece(piece, u, 0.0, 0.0, &mut scratch, &mut p, &mut v, &mut a);
+                        points.push(p);
+                    }
+                }
+                points
+            })
+            .collect()
+    }
+}
+
+impl Plan {
+    #[doc(hidden)]
+    pub fn debug_dump(&self) -> String {
+        let mut out = String::new();
+        for (c, chain) in self.pieces.chains.iter().enumerate() {
+            out.push_str(&format!(
+                "chain {c}: pieces {}..{} last seg {}\n",
+                chain.first, chain.end, chain.last_segment
+            ));
+        }
+        for p in &self.pieces.pieces {
+            out.push_str(&format!(
+                "  piece {:?} start {:.6} len {:.6} lim v {:.4} a {:.3} j {:.1}\n",
+                match p.kind {
+                    PieceKind::Segment { segment, .. } => format!("S{segment}"),
+                    PieceKind::Corner { incoming, .. } => format!("C{incoming}"),
+                    PieceKind::Tangent(t) => format!("T{}", t.incoming),
+                },
+                p.start,
+                p.length,
+                p.limits.velocity,
+                p.limits.acceleration,
+                p.limits.jerk
+            ));
+        }
+        for s in &self.spans {
+            out.push_str(&format!("span chain {} pieces {}..{} start {:.6} t {:.4} len {:.6} v0 {:.4} peak {:.4} v1 {:.4} dur {:.4}\n", s.chain, s.first, s.end, s.start, s.start_time, s.recipe.length, s.recipe.v_start, s.recipe.peak, s.recipe.v_end, s.recipe.duration()));
         }
         out
     }

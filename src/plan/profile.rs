@@ -199,12 +199,27 @@ pub enum Regime {
     JerkLimited,
 }
 
-impl Profile {
-    /// Time-optimal rest-to-rest profile over a signed `distance`, in closed form.
-    pub fn rest_to_rest(distance: f64, limits: &Limits) -> Profile {
+/// What determines a profile: the boundary and peak velocities, the cruise and the limits.
+/// Small (a plan keeps one per stretch); [`Recipe::build`] expands it into the phases.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Recipe {
+    /// +1 or −1: the direction of a single-axis move.
+    pub sign: f64,
+    pub length: f64,
+    pub v_start: f64,
+    pub peak: f64,
+    pub v_end: f64,
+    /// Cruise duration at the peak (s).
+    pub cruise: f64,
+    pub limits: Limits,
+}
+
+impl Recipe {
+    /// Time-optimal rest-to-rest motion over a signed `distance`, in closed form.
+    pub fn rest_to_rest(distance: f64, limits: &Limits) -> Recipe {
         let (v, a, j) = (limits.velocity, limits.acceleration, limits.jerk);
         let length = distance.abs();
-        let (peak, cruise) = match Self::rest_to_rest_regime(length, limits) {
+        let (peak, cruise) = match Profile::rest_to_rest_regime(length, limits) {
             Regime::Stationary => (0.0, 0.0),
             Regime::VelocityLimited => {
                 let full = 2.0 * VelocityChange::new(v, a, j).distance(0.0, v);
@@ -218,32 +233,21 @@ impl Profile {
             // Two jerk triangles: L = 2·vp·sqrt(vp/J).
             Regime::JerkLimited => ((0.5 * length * j.sqrt()).powf(2.0 / 3.0), 0.0),
         };
-        Self::from_peak(distance.signum(), length, 0.0, peak, 0.0, cruise, limits)
-    }
-
-    /// The regime of the time-optimal rest-to-rest profile over `length ≥ 0`.
-    pub fn rest_to_rest_regime(length: f64, limits: &Limits) -> Regime {
-        let (v, a, j) = (limits.velocity, limits.acceleration, limits.jerk);
-        if length <= 0.0 {
-            return Regime::Stationary;
-        }
-        // Distance to reach V and stop again.
-        let full = 2.0 * VelocityChange::new(v, a, j).distance(0.0, v);
-        if length >= full {
-            Regime::VelocityLimited
-        } else if length >= 2.0 * a * a * a / (j * j) {
-            // At vp = A²/J the speed changes just touch A; they cover 2·(A²/J)·(A/J). If V < A²/J
-            // then `full` is below this threshold, so this branch implies vp ≤ V.
-            Regime::AccelerationLimited
-        } else {
-            Regime::JerkLimited
+        Recipe {
+            sign: if distance < 0.0 { -1.0 } else { 1.0 },
+            length,
+            v_start: 0.0,
+            peak,
+            v_end: 0.0,
+            cruise,
+            limits: *limits,
         }
     }
 
-    /// Time-optimal profile over `length ≥ 0` from `v_start` to `v_end` (zero acceleration at
+    /// Time-optimal motion over `length ≥ 0` from `v_start` to `v_end` (zero acceleration at
     /// both ends). `None` when the velocities exceed the limit or `length` is too short to
     /// change from one to the other (see [`transfer_distance`]).
-    pub fn plan(length: f64, v_start: f64, v_end: f64, limits: &Limits) -> Option<Profile> {
+    pub fn plan(length: f64, v_start: f64, v_end: f64, limits: &Limits) -> Option<Recipe> {
         let (v, a, j) = (limits.velocity, limits.acceleration, limits.jerk);
         let slack = 1e-12 * v;
         if length.is_nan()
@@ -279,9 +283,84 @@ impl Profile {
         } else {
             0.0
         };
-        Some(Self::from_peak(
-            1.0, length, v_start, peak, v_end, cruise, limits,
-        ))
+        Some(Recipe {
+            sign: 1.0,
+            length,
+            v_start,
+            peak,
+            v_end,
+            cruise,
+            limits: *limits,
+        })
+    }
+
+    /// Total duration (s), without building the phases (summed phase by phase, as the built
+    /// profile sums it, so the two agree exactly).
+    pub fn duration(&self) -> f64 {
+        let (a, j) = (self.limits.acceleration, self.limits.jerk);
+        let up = VelocityChange::new(self.peak - self.v_start, a, j);
+        let down = VelocityChange::new(self.peak - self.v_end, a, j);
+        [
+            up.ramp,
+            up.hold,
+            up.ramp,
+            self.cruise,
+            down.ramp,
+            down.hold,
+            down.ramp,
+        ]
+        .iter()
+        .fold(0.0, |t, d| t + d)
+    }
+
+    /// The profile's phases.
+    pub fn build(&self) -> Profile {
+        Profile::from_peak(
+            self.sign,
+            self.length,
+            self.v_start,
+            self.peak,
+            self.v_end,
+            self.cruise,
+            &self.limits,
+        )
+    }
+}
+
+/// Duration of the time-optimal rest-to-rest motion over `length` (closed form).
+pub fn rest_to_rest_duration(length: f64, limits: &Limits) -> f64 {
+    Recipe::rest_to_rest(length, limits).duration()
+}
+
+impl Profile {
+    /// Time-optimal rest-to-rest profile over a signed `distance`, in closed form.
+    pub fn rest_to_rest(distance: f64, limits: &Limits) -> Profile {
+        Recipe::rest_to_rest(distance, limits).build()
+    }
+
+    /// The regime of the time-optimal rest-to-rest profile over `length ≥ 0`.
+    pub fn rest_to_rest_regime(length: f64, limits: &Limits) -> Regime {
+        let (v, a, j) = (limits.velocity, limits.acceleration, limits.jerk);
+        if length <= 0.0 {
+            return Regime::Stationary;
+        }
+        // Distance to reach V and stop again.
+        let full = 2.0 * VelocityChange::new(v, a, j).distance(0.0, v);
+        if length >= full {
+            Regime::VelocityLimited
+        } else if length >= 2.0 * a * a * a / (j * j) {
+            // At vp = A²/J the speed changes just touch A; they cover 2·(A²/J)·(A/J). If V < A²/J
+            // then `full` is below this threshold, so this branch implies vp ≤ V.
+            Regime::AccelerationLimited
+        } else {
+            Regime::JerkLimited
+        }
+    }
+
+    /// Time-optimal profile over `length ≥ 0` from `v_start` to `v_end` (zero acceleration at
+    /// both ends); see [`Recipe::plan`].
+    pub fn plan(length: f64, v_start: f64, v_end: f64, limits: &Limits) -> Option<Profile> {
+        Recipe::plan(length, v_start, v_end, limits).map(|r| r.build())
     }
 
     /// Builds the phases from the boundary and peak velocities and the cruise duration.

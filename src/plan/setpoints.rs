@@ -1,5 +1,51 @@
 //! The planner's output: a setpoint stream at the servo period, per machine axis.
 
+/// Most setpoint samples one plan may have: 10⁸, a program of 27.8 hours at a 1 ms servo
+/// period. Every planner counts the samples a plan needs from the move timings before it
+/// samples anything, and refuses a longer plan ([`super::PlanError::TooManySamples`]), so that
+/// a tiny feed or limit cannot make a run take forever or exhaust memory.
+pub const MAX_SETPOINT_SAMPLES: usize = 100_000_000;
+
+/// Number of samples of a motion lasting `duration` at `period` ([`sample_times`]), or `Err`
+/// with the number it would need (as a float: it may exceed any integer) when that is more
+/// than [`MAX_SETPOINT_SAMPLES`].
+pub fn sample_count(duration: f64, period: f64) -> Result<usize, f64> {
+    let needed = ticks(duration, period) + 1.0;
+    if needed <= MAX_SETPOINT_SAMPLES as f64 {
+        Ok(needed as usize)
+    } else {
+        Err(needed)
+    }
+}
+
+/// Whole periods up to the first tick at or after `duration` (a tick within rounding of the end
+/// counts as the end: 2.5 s at 4 ms is 625 ticks, not 626). Not finite for a non-finite ratio.
+fn ticks(duration: f64, period: f64) -> f64 {
+    let ticks = (duration / period * (1.0 - 1e-12)).ceil().max(0.0);
+    if ticks.is_nan() {
+        f64::INFINITY
+    } else {
+        ticks
+    }
+}
+
+/// Sample times 0, T, 2T, … up to the first tick at or after `duration` (at least one sample),
+/// the last one at the end or later, so that the last sample is exactly on the target. Only
+/// for motions whose [`sample_count`] is within the limit.
+pub(super) fn sample_times(duration: f64, period: f64) -> impl Iterator<Item = f64> {
+    let ticks = ticks(duration, period).min(MAX_SETPOINT_SAMPLES as f64) as usize;
+    (0..=ticks).map(move |k| sample_time(k, ticks, duration, period))
+}
+
+/// Time of sample `k` of `ticks + 1` ([`sample_times`]).
+pub(super) fn sample_time(k: usize, ticks: usize, duration: f64, period: f64) -> f64 {
+    if k == ticks {
+        (k as f64 * period).max(duration)
+    } else {
+        k as f64 * period
+    }
+}
+
 /// Setpoints sampled at a fixed period, row-major: sample `k` of axis `i` is at `k * axes + i`.
 /// Units are SI per axis (m for linear axes, rad for rotary ones).
 #[derive(Debug, Clone, PartialEq, Default)]

@@ -4,7 +4,8 @@
 //! The acceleration jumps at the phase boundaries (unlimited jerk): that is the seed's
 //! behaviour, which the jerk-limited planner ([`super::planner`]) improves on.
 
-use super::setpoints::Setpoints;
+use super::setpoints::{sample_times, Setpoints};
+use super::stream::{collect, Stretch, StretchStream};
 
 /// A trapezoidal (or triangular) rest-to-rest profile over a signed distance.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -99,20 +100,6 @@ impl TrapezoidProfile {
     }
 }
 
-/// Sample times 0, T, 2T, … up to the first tick at or after `duration` (at least one sample).
-/// A tick within rounding of the end counts as the end (2.5 s at 4 ms is 625 ticks, not 626),
-/// and the last sample is taken at the end or later, so that it is exactly on the target.
-pub(super) fn sample_times(duration: f64, period: f64) -> impl Iterator<Item = f64> {
-    let ticks = (duration / period * (1.0 - 1e-12)).ceil().max(0.0) as usize;
-    (0..=ticks).map(move |k| {
-        if k == ticks {
-            (k as f64 * period).max(duration)
-        } else {
-            k as f64 * period
-        }
-    })
-}
-
 /// A multi-axis straight move with the trapezoidal profile along the line: path speed `speed`
 /// and path acceleration `acceleration` measured as the Euclidean norm over all axes (SI), every
 /// axis scaled by its share of the move so that all start and finish together.
@@ -125,29 +112,28 @@ pub fn trapezoid_line(
     segment: u32,
 ) -> Setpoints {
     assert_eq!(start.len(), end.len(), "start and end need the same axes");
-    let delta: Vec<f64> = start.iter().zip(end).map(|(s, e)| e - s).collect();
-    let length = delta.iter().map(|d| d * d).sum::<f64>().sqrt();
+    let length = start
+        .iter()
+        .zip(end)
+        .map(|(s, e)| (e - s) * (e - s))
+        .sum::<f64>()
+        .sqrt();
     let profile = TrapezoidProfile::new(length, speed, acceleration);
-    let mut out = Setpoints::new(period, start.len());
-    let (mut p, mut v, mut a) = (
-        vec![0.0; start.len()],
-        vec![0.0; start.len()],
-        vec![0.0; start.len()],
-    );
-    for t in sample_times(profile.duration(), period) {
-        let (s, sd, sdd) = profile.state(t);
-        let done = t >= profile.duration();
-        for i in 0..start.len() {
-            let share = if length > 0.0 { delta[i] / length } else { 0.0 };
-            // Interpolate from the start (no accumulated increments); the last sample is the
-            // programmed end itself.
-            p[i] = if done { end[i] } else { start[i] + share * s };
-            v[i] = share * sd;
-            a[i] = share * sdd;
-        }
-        out.push(&p, &v, &a, segment);
-    }
-    out
+    let ticks = sample_times(profile.duration(), period).count() - 1;
+    let stretches = vec![
+        Stretch::Start {
+            at: start.to_vec(),
+            segment,
+        },
+        Stretch::Trapezoid {
+            from: start.to_vec(),
+            to: end.to_vec(),
+            profile,
+            segment,
+            ticks,
+        },
+    ];
+    collect(&mut StretchStream::new(start.len(), period, stretches))
 }
 
 #[cfg(test)]

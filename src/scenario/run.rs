@@ -465,6 +465,8 @@ pub fn plan_settings(
         rapid_speed: s.rapid_speed,
         blend: s.blend,
         axis_names: machine.axes.iter().map(|a| a.name.clone()).collect(),
+        naive_cam_tolerance: None,
+        tool_lever_arms: Vec::new(),
     })
 }
 
