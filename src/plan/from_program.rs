@@ -100,6 +100,28 @@ pub fn plan_program_stream<'a>(
     Ok(Box::new(StretchStream::new(n, period, stretches)))
 }
 
+/// The jerk-limited plans of a program's motions (one per stretch between dwells), for
+/// inspecting the planned geometry and timing; `None` for another planner.
+pub fn jerk_limited_plans(
+    program: &Program,
+    axes: &AxisMap,
+    settings: &PlanSettings,
+) -> Result<Option<Vec<super::Plan>>, PlanError> {
+    let Planner::JerkLimited { limits } = &settings.planner else {
+        return Ok(None);
+    };
+    let stretches = jerk_limited_stretches(program, axes, settings, limits)?;
+    Ok(Some(
+        stretches
+            .into_iter()
+            .filter_map(|s| match s {
+                Stretch::Plan { plan, .. } => Some(*plan),
+                _ => None,
+            })
+            .collect(),
+    ))
+}
+
 /// Running count of the samples a program needs, refused beyond [`MAX_SETPOINT_SAMPLES`].
 pub(super) struct SampleBudget {
     period: f64,

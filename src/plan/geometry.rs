@@ -14,7 +14,7 @@
 //! `dr` only absorbing rounding between the programmed radii) has `|d^m z/dθ^m| = hypot(m·dr, r)`
 //! in its plane, divided by `(ds/dθ)^m` per derivative along `s`.
 
-use std::f64::consts::TAU;
+use std::f64::consts::{FRAC_PI_2, PI, TAU};
 
 use super::path::{AxisKind, AxisSpec, Geometry, PathError, PathSegment, ARC_RADIUS_MISMATCH};
 
@@ -62,17 +62,40 @@ pub(super) struct ArcShape {
 }
 
 impl ArcShape {
-    /// Largest radius over the arc extended by half its sweep at both ends (the furthest a
-    /// tangent blend evaluates it).
-    fn radius_bound(&self) -> f64 {
-        let r0 = self.start_radius;
-        let r1 = r0 + self.radius_rate * self.sweep;
-        r0.max(r1) + 0.5 * self.radius_rate.abs() * self.sweep
+    /// Bound on `|d^m q/ds^m|` (m ≥ 1) of plane axis `c` (0 or 1) over `s ∈ [lo, hi]` (which
+    /// may extend past the arc's ends). The m-th derivative is `C_m·e^{iφ}/scale^m` with
+    /// `|C_m| = hypot(m·dr, r)` and `arg C_m = m·turn·π/2` up to `atan(m·|dr|/r)`; its
+    /// component on the axis is `|C_m|·cos(φ + arg C_m − c·π/2)`, bounded by the largest
+    /// |cos| over the angles the stretch turns through.
+    pub fn plane_bound_over(&self, c: usize, m: i32, lo: f64, hi: f64) -> f64 {
+        let (t0, t1) = (lo / self.scale, hi / self.scale);
+        let r0 = self.start_radius + self.radius_rate * t0;
+        let r1 = self.start_radius + self.radius_rate * t1;
+        let (r_min, r_max) = (r0.min(r1).max(0.0), r0.max(r1));
+        let m_dr = f64::from(m) * self.radius_rate.abs();
+        let magnitude = m_dr.hypot(r_max) / self.scale.powi(m);
+        let slack = if r_min > 0.0 {
+            (m_dr / r_min).atan()
+        } else {
+            std::f64::consts::PI
+        };
+        let shift = f64::from(m) * self.turn * FRAC_PI_2 - c as f64 * FRAC_PI_2;
+        let a = self.start_angle + self.turn * t0 + shift;
+        let b = self.start_angle + self.turn * t1 + shift;
+        magnitude * max_abs_cos(a.min(b) - slack, a.max(b) + slack)
     }
+}
 
-    /// Bound on `|d^m q/ds^m|` of each plane axis (m ≥ 1), over the arc and its extensions.
-    pub fn plane_bound(&self, m: i32) -> f64 {
-        (f64::from(m) * self.radius_rate).hypot(self.radius_bound()) / self.scale.powi(m)
+/// Largest |cos x| for x in [lo, hi].
+fn max_abs_cos(lo: f64, hi: f64) -> f64 {
+    if !(hi - lo < PI) {
+        return 1.0;
+    }
+    // A multiple of π inside the interval reaches 1; otherwise |cos| is largest at an end.
+    if (lo / PI).ceil() <= hi / PI {
+        1.0
+    } else {
+        lo.cos().abs().max(hi.cos().abs())
     }
 }
 
@@ -326,9 +349,16 @@ impl Shapes {
     /// Per-axis bound on `|d^m q/ds^m|` over segment `k` and its extensions by half its length
     /// (m ≥ 1).
     pub fn bound(&self, k: usize, axis: usize, m: i32) -> f64 {
-        let shape = &self.shapes[k];
-        match &shape.arc {
-            Some(arc) if arc.plane.contains(&axis) => arc.plane_bound(m),
+        let length = self.shapes[k].length;
+        self.bound_over(k, axis, m, -0.5 * length, 1.5 * length)
+    }
+
+    /// Per-axis bound on `|d^m q/ds^m|` over `s ∈ [lo, hi]` of segment `k` (extended past its
+    /// ends where the range reaches beyond them; m ≥ 1).
+    pub fn bound_over(&self, k: usize, axis: usize, m: i32, lo: f64, hi: f64) -> f64 {
+        match &self.shapes[k].arc {
+            Some(arc) if arc.plane[0] == axis => arc.plane_bound_over(0, m, lo, hi),
+            Some(arc) if arc.plane[1] == axis => arc.plane_bound_over(1, m, lo, hi),
             _ if m == 1 => self.rates(k)[axis].abs(),
             _ => 0.0,
         }

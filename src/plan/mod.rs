@@ -23,6 +23,7 @@ pub mod path;
 mod pieces;
 pub mod planner;
 pub mod profile;
+mod quintic;
 pub mod setpoints;
 mod stream;
 mod tangent;
@@ -31,11 +32,12 @@ pub mod trapezoid;
 pub use constant_velocity::constant_velocity;
 pub use error::PlanError;
 pub use from_program::{
-    plan_program, plan_program_stream, tool_lever_arms, BlendChoice, PlanSettings, Planner,
+    jerk_limited_plans, plan_program, plan_program_stream, tool_lever_arms, BlendChoice,
+    PlanSettings, Planner,
 };
 pub use metrics::{finite_difference_extremes, write_setpoints_csv, AxisExtremes};
 pub use path::{AxisKind, AxisLimits, AxisPath, AxisSpec, Blend, Geometry, PathError, PathSegment};
-pub use pieces::TANGENT_ANGLE;
+pub use pieces::{SMOOTH_ANGLE, TANGENT_ANGLE};
 pub use planner::{plan, Plan, SegmentTiming, SPAN_SPREAD};
 pub use profile::{Limits, Profile, Recipe, Regime, VelocityChange};
 pub use setpoints::{

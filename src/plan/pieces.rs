@@ -16,15 +16,16 @@
 //! On a line (`K2 = K3 = 0`) the limits are exactly `limit/|q'|`.
 
 use super::blend::{CornerBlend, TurnShape};
-use super::geometry::{Metric, Shapes};
+use super::geometry::{norm, Metric, Shapes};
 use super::path::{AxisSpec, Blend, PathSegment};
 use super::profile::{reachable_velocity, Limits, VelocityChange};
+use super::quintic;
 use super::tangent::{JetScratch, TangentBlend, TangentJunction};
 
 /// Centripetal shares tried per curved piece.
 const SHARES: [f64; 9] = [0.1, 0.2, 0.3, 0.4, 0.5, 0.6, 0.7, 0.8, 0.9];
 /// Largest centripetal shares tried per chain (the planner keeps the fastest).
-pub(super) const SHARE_CAPS: [f64; 3] = [0.9, 0.6, 0.3];
+pub(super) const SHARE_CAPS: [f64; 3] = [0.95, 0.6, 0.3];
 /// Share assumed when sizing a blend for the speed it should allow.
 const SIZING_SHARE: f64 = 0.8;
 /// Ramp fractions tried per corner blend.
@@ -32,6 +33,10 @@ const RAMPS: [f64; 5] = [0.1, 0.2, 0.3, 0.4, 0.5];
 /// Largest angle between the tangents of a line and an arc (or two arcs) that still counts as a
 /// tangent junction (rad): about 3°. Larger corners involving an arc are stops.
 pub const TANGENT_ANGLE: f64 = 0.05;
+/// Most lines one smoothing curve runs through.
+const MAX_CURVE_LINES: usize = 8;
+/// Largest turn at either end of a line that is smoothed through its points (rad): 20°.
+pub const SMOOTH_ANGLE: f64 = 0.35;
 /// Largest angle an arc may turn through within a tangent blend (rad), so that the blend stays
 /// local and its bounds tight.
 const MAX_BLEND_TURN: f64 = 0.5;
@@ -61,13 +66,23 @@ pub(super) enum PieceKind {
         data: usize,
     },
     Tangent(TangentBlend),
+    /// A smoothed run of lines: the quintic whose coefficients are at `arena[data..]`, through
+    /// the segments `covered[first..first + count]` of [`Pieces::covered`] (their lengths add up
+    /// to the piece's).
+    Quintic {
+        data: usize,
+        first: usize,
+        count: usize,
+    },
 }
 
 impl PieceKind {
     /// The segment the piece belongs to at `u` into it (blends: half and half).
+    /// (Quintic pieces: see [`Pieces::segment_at`].)
     pub fn segment_at(&self, u: f64, length: f64) -> usize {
         match *self {
             PieceKind::Segment { segment, .. } => segment,
+            PieceKind::Quintic { .. } => usize::MAX,
             PieceKind::Corner {
                 incoming, outgoing, ..
             } => {
@@ -107,6 +122,46 @@ pub(super) struct Pieces {
     pub arena: Vec<f64>,
     /// Per piece, the budget its limits are chosen from ([`assign_limits`]).
     pub budgets: Vec<Budget>,
+    /// The segments the quintic pieces run through.
+    pub covered: Vec<usize>,
+    /// Segment lengths (for finding the segment at a point of a quintic piece).
+    pub lengths: Vec<f64>,
+}
+
+impl Pieces {
+    /// The segment `piece` is on at `u` into it.
+    pub fn segment_at(&self, piece: &Piece, u: f64) -> usize {
+        let PieceKind::Quintic { first, count, .. } = piece.kind else {
+            return piece.kind.segment_at(u, piece.length);
+        };
+        let covered = &self.covered[first..first + count];
+        let mut end = 0.0;
+        for &segment in covered {
+            end += self.lengths[segment];
+            if u < end {
+                return segment;
+            }
+        }
+        covered[count - 1]
+    }
+}
+
+/// The smoothed lines of a path, grouped into curves that each span one or more of them.
+struct Smoothing {
+    /// Per moving segment: the curve it belongs to.
+    curve_of: Vec<Option<usize>>,
+    curves: Vec<SmoothCurve>,
+    coefficients: Vec<f64>,
+}
+
+/// One quintic through a run of smoothed lines: moving segments `first..=last`.
+#[derive(Debug, Clone, Copy)]
+struct SmoothCurve {
+    first: usize,
+    last: usize,
+    /// Where its coefficients start, and its length (the lines' lengths summed).
+    offset: usize,
+    length: f64,
 }
 
 /// How one junction is passed.
@@ -205,19 +260,14 @@ impl Budget {
     }
 
     /// Limits with the smallest share whose speed ceiling reaches `speed` (the rest of the
-    /// budget is left for changing speed), or the largest share up to `largest` if none does.
+    /// budget is left for changing speed), at least [`SHARES`]' smallest and at most `largest`.
     fn limits_for(&self, speed: f64, largest: f64) -> Limits {
         if self.is_straight() {
             return self.straight();
         }
-        let mut chosen = self.limits(SHARES[0]);
-        for &rho in SHARES.iter().filter(|&&rho| rho <= largest) {
-            chosen = self.limits(rho);
-            if chosen.velocity >= speed {
-                break;
-            }
-        }
-        chosen
+        // The share each curvature term needs at `speed`: K2·v² ≤ ρ·a, K3·v³ ≤ ρ·j.
+        let needed = (speed * speed / self.curve_acceleration).max(speed.powi(3) / self.curve_jerk);
+        self.limits(needed.clamp(SHARES[0], largest))
     }
 
     /// Whether the stretch curves (its limits depend on the share).
@@ -291,10 +341,15 @@ impl<'a> Builder<'a> {
 
     /// The budget of segment `k` on its own.
     fn segment_budget(&mut self, k: usize) -> Budget {
+        self.range_budget(k, 0.0, self.shapes.shapes[k].length)
+    }
+
+    /// The budget of segment `k` over `s ∈ [lo, hi]`.
+    fn range_budget(&mut self, k: usize, lo: f64, hi: f64) -> Budget {
         for i in 0..self.axes.len() {
-            self.bounds.k1[i] = self.shapes.bound(k, i, 1);
-            self.bounds.k2[i] = self.shapes.bound(k, i, 2);
-            self.bounds.k3[i] = self.shapes.bound(k, i, 3);
+            self.bounds.k1[i] = self.shapes.bound_over(k, i, 1, lo, hi);
+            self.bounds.k2[i] = self.shapes.bound_over(k, i, 2, lo, hi);
+            self.bounds.k3[i] = self.shapes.bound_over(k, i, 3, lo, hi);
         }
         self.bounds.budget(self.axes, self.feed(k))
     }
@@ -311,6 +366,7 @@ impl<'a> Builder<'a> {
             .collect();
         // Junction after each moving segment (the last one ends at a stop).
         let mut junctions = Vec::with_capacity(moving.len());
+        let mut tolerances = Vec::with_capacity(moving.len());
         for w in moving.windows(2) {
             let (p, k) = (w[0], w[1]);
             // The most restrictive blend of p and of any zero-length segments before k.
@@ -328,38 +384,89 @@ impl<'a> Builder<'a> {
                 Some(tolerance) => self.junction(p, k, tolerance),
             };
             junctions.push(junction);
+            tolerances.push(tolerance.unwrap_or(0.0));
         }
         junctions.push(Junction::Stop);
+        tolerances.push(0.0);
+        let smooth = self.smooth_runs(&moving, &junctions, &tolerances);
 
         let mut out = Pieces {
             pieces: Vec::with_capacity(2 * moving.len()),
             chains: Vec::new(),
             arena: Vec::new(),
             budgets: Vec::with_capacity(2 * moving.len()),
+            covered: Vec::new(),
+            lengths: shapes.shapes.iter().map(|s| s.length).collect(),
         };
         // Each piece's budget; its limits follow once the chain's speeds are estimated.
-        let budgets = &mut out.budgets;
         let placeholder = Limits::new(1.0, 1.0, 1.0);
         let mut s = 0.0;
         let mut chain_first = 0;
         let mut entry = 0.0;
         for (m, &k) in moving.iter().enumerate() {
-            let junction = junctions[m];
+            // A junction next to a smoothed line is passed by the smoothing, not blended.
+            let smoothed_next = smooth.curve_of.get(m + 1).is_some_and(|c| c.is_some());
+            let junction = match junctions[m] {
+                Junction::Corner { .. } | Junction::Tangent { .. }
+                    if smooth.curve_of[m].is_some() || smoothed_next =>
+                {
+                    Junction::Smooth
+                }
+                other => other,
+            };
             let exit = 0.5 * junction.length();
             let length = shapes.shapes[k].length;
-            let middle = length - entry - exit;
-            if middle > 0.0 {
-                out.pieces.push(Piece {
-                    kind: PieceKind::Segment {
-                        segment: k,
-                        from: entry,
-                    },
-                    start: s,
-                    length: middle,
-                    limits: placeholder,
-                });
-                budgets.push(self.budgets[k]);
-                s += middle;
+            if let Some(c) = smooth.curve_of[m] {
+                let curve = smooth.curves[c];
+                if curve.first == m {
+                    let n = self.axes.len();
+                    let data = out.arena.len();
+                    let width = n * quintic::COEFFICIENTS;
+                    out.arena.extend_from_slice(
+                        &smooth.coefficients[curve.offset..curve.offset + width],
+                    );
+                    let first = out.covered.len();
+                    out.covered.extend(&moving[curve.first..=curve.last]);
+                    out.pieces.push(Piece {
+                        kind: PieceKind::Quintic {
+                            data,
+                            first,
+                            count: curve.last - curve.first + 1,
+                        },
+                        start: s,
+                        length: curve.length,
+                        limits: placeholder,
+                    });
+                    quintic::bounds(
+                        &out.arena[data..],
+                        curve.length,
+                        &mut self.bounds.k1,
+                        &mut self.bounds.k2,
+                        &mut self.bounds.k3,
+                    );
+                    let feed = moving[curve.first..=curve.last]
+                        .iter()
+                        .filter_map(|&q| self.feed(q))
+                        .reduce(f64::min);
+                    out.budgets.push(self.bounds.budget(self.axes, feed));
+                    s += curve.length;
+                }
+            } else {
+                let middle = length - entry - exit;
+                if middle > 0.0 {
+                    out.pieces.push(Piece {
+                        kind: PieceKind::Segment {
+                            segment: k,
+                            from: entry,
+                        },
+                        start: s,
+                        length: middle,
+                        limits: placeholder,
+                    });
+                    let budget = self.range_budget(k, entry, length - exit);
+                    out.budgets.push(budget);
+                    s += middle;
+                }
             }
             let next = moving.get(m + 1).copied().unwrap_or(k);
             match junction {
@@ -393,7 +500,7 @@ impl<'a> Builder<'a> {
                         length: blend.length,
                         limits: placeholder,
                     });
-                    budgets.push(budget);
+                    out.budgets.push(budget);
                     s += blend.length;
                 }
                 Junction::Tangent { length, budget } => {
@@ -407,13 +514,207 @@ impl<'a> Builder<'a> {
                         length,
                         limits: placeholder,
                     });
-                    budgets.push(budget);
+                    out.budgets.push(budget);
                     s += length;
                 }
             }
             entry = exit;
         }
         out
+    }
+
+    /// Chooses the lines to smooth ([`super::quintic`]) and their curves. A line is smoothed
+    /// when both its junctions are continuous with a tolerance and turn by at most
+    /// [`SMOOTH_ANGLE`] (or are tangent), and its curve stays within the tolerance of the
+    /// programmed line; a line whose curve does not is left straight, which changes the data
+    /// at the knots up to two lines away, so those are computed again (each line is dropped at
+    /// most once, so the work stays linear).
+    fn smooth_runs(
+        &mut self,
+        moving: &[usize],
+        junctions: &[Junction],
+        tolerances: &[f64],
+    ) -> Smoothing {
+        let shapes = self.shapes;
+        let count = moving.len();
+        let smoothable = |j: &Junction, p: usize, k: usize| match j {
+            Junction::Corner { .. } => {
+                let (Some(u1), Some(u2)) = (shapes.line_direction(p), shapes.line_direction(k))
+                else {
+                    return false;
+                };
+                let dot: f64 = u1.iter().zip(u2).map(|(a, b)| a * b).sum();
+                let norms = norm(u1.iter().copied()) * norm(u2.iter().copied());
+                dot >= norms * SMOOTH_ANGLE.cos()
+            }
+            Junction::Smooth | Junction::Tangent { .. } => true,
+            Junction::Stop => false,
+        };
+        let mut flags: Vec<bool> = (0..count)
+            .map(|m| {
+                m > 0
+                    && m + 1 < count
+                    && shapes.line_direction(moving[m]).is_some()
+                    && tolerances[m - 1] > 0.0
+                    && tolerances[m] > 0.0
+                    && tolerances[m - 1].is_finite()
+                    && tolerances[m].is_finite()
+                    && smoothable(&junctions[m - 1], moving[m - 1], moving[m])
+                    && smoothable(&junctions[m], moving[m], moving[m + 1])
+            })
+            .collect();
+        let mut out = Smoothing {
+            curve_of: vec![None; count],
+            curves: Vec::new(),
+            coefficients: Vec::new(),
+        };
+        if !flags.contains(&true) {
+            return out;
+        }
+        let mut work: Vec<usize> = (0..count).filter(|&m| flags[m]).rev().collect();
+        let mut curve = Vec::new();
+        // Stage 1: every line on its own must stay within its tolerance.
+        while let Some(m) = work.pop() {
+            if !flags[m] {
+                continue;
+            }
+            if !self.fits(moving, &flags, m, m, tolerances, &mut curve) {
+                // The data at the knots around depend on which lines are smoothed two
+                // lines either way: those lines are checked again.
+                flags[m] = false;
+                for neighbour in m.saturating_sub(2)..(m + 3).min(count) {
+                    if flags[neighbour] {
+                        work.push(neighbour);
+                    }
+                }
+            }
+        }
+        // Stage 2: along each run, one curve through as many lines as stay within the
+        // tolerance (a longer curve averages the points' rounding instead of turning with it).
+        let mut m = 0;
+        while m < count {
+            if !flags[m] {
+                m += 1;
+                continue;
+            }
+            let run_end = (m..count).find(|&q| !flags[q]).unwrap_or(count);
+            let mut last = (m + MAX_CURVE_LINES - 1).min(run_end - 1);
+            while last > m && !self.fits(moving, &flags, m, last, tolerances, &mut curve) {
+                last -= 1;
+            }
+            if last == m {
+                self.fits(moving, &flags, m, m, tolerances, &mut curve);
+            }
+            let c = out.curves.len();
+            out.curves.push(SmoothCurve {
+                first: m,
+                last,
+                offset: out.coefficients.len(),
+                length: moving[m..=last]
+                    .iter()
+                    .map(|&q| shapes.shapes[q].length)
+                    .sum(),
+            });
+            out.coefficients.extend_from_slice(&curve);
+            for slot in &mut out.curve_of[m..=last] {
+                *slot = Some(c);
+            }
+            m = last + 1;
+        }
+        out
+    }
+
+    /// Whether the curve through moving segments `first..=last` (into `curve`) stays within
+    /// the tolerance: every programmed point it passes near, and the programmed lines.
+    fn fits(
+        &mut self,
+        moving: &[usize],
+        flags: &[bool],
+        first: usize,
+        last: usize,
+        tolerances: &[f64],
+        curve: &mut Vec<f64>,
+    ) -> bool {
+        let shapes = self.shapes;
+        let start = self.knot(moving, flags, first - 1);
+        let end = self.knot(moving, flags, last);
+        let length: f64 = moving[first..=last]
+            .iter()
+            .map(|&q| shapes.shapes[q].length)
+            .sum();
+        curve.clear();
+        quintic::coefficients(&start, &end, length, curve);
+        quintic::bounds(
+            curve,
+            length,
+            &mut self.bounds.k1,
+            &mut self.bounds.k2,
+            &mut self.bounds.k3,
+        );
+        let mut points: Vec<&[f64]> = Vec::with_capacity(last - first + 2);
+        points.push(shapes.start(moving[first]));
+        points.extend(moving[first..=last].iter().map(|&q| shapes.end(q)));
+        let tolerance = tolerances[first - 1..=last]
+            .iter()
+            .copied()
+            .fold(f64::INFINITY, f64::min);
+        quintic::deviation(curve, length, &points, &self.bounds.k1, self.metric) <= tolerance
+    }
+
+    /// The data at the point after moving segment `m`, for a smoothed line on either side.
+    /// Between two smoothed lines: the least-squares parabola through the point and up to two
+    /// neighbours on each side along the run (see [`quintic::Knot::fit`]).
+    fn knot(&self, moving: &[usize], flags: &[bool], m: usize) -> quintic::Knot {
+        let shapes = self.shapes;
+        let (p, k) = (moving[m], moving[m + 1]);
+        match (flags[m], flags[m + 1]) {
+            (true, true) => {
+                let mut points: Vec<&[f64]> = vec![shapes.start(p), shapes.end(p)];
+                let mut s = vec![-shapes.shapes[p].length, 0.0];
+                if m > 0 && flags[m - 1] {
+                    let q = moving[m - 1];
+                    points.insert(0, shapes.start(q));
+                    s.insert(0, s[0] - shapes.shapes[q].length);
+                }
+                let at = points.len() - 1;
+                points.push(shapes.end(k));
+                s.push(shapes.shapes[k].length);
+                if flags.get(m + 2).is_some_and(|&f| f) {
+                    let q = moving[m + 2];
+                    points.push(shapes.end(q));
+                    s.push(s[s.len() - 1] + shapes.shapes[q].length);
+                }
+                quintic::Knot::fit(&points, &s, at)
+            }
+            // The other side continues as it is: a line, or an arc's own derivatives.
+            (true, false) => self.end_knot(k, 0.0),
+            _ => self.end_knot(p, shapes.shapes[p].length),
+        }
+    }
+
+    /// The data of segment `k` itself at path coordinate `s`.
+    fn end_knot(&self, k: usize, s: f64) -> quintic::Knot {
+        let n = self.axes.len();
+        let mut rows = vec![vec![0.0; n]; 3];
+        {
+            let mut refs: Vec<&mut [f64]> = rows.iter_mut().map(|r| r.as_mut_slice()).collect();
+            self.shapes.jet(k, s, &mut refs);
+        }
+        let curvature = rows.pop().unwrap_or_default();
+        let tangent = rows.pop().unwrap_or_default();
+        let mut position = rows.pop().unwrap_or_default();
+        // Exactly the programmed point (the jet of an arc rounds).
+        let at_end = s > 0.0;
+        position.copy_from_slice(if at_end {
+            self.shapes.end(k)
+        } else {
+            self.shapes.start(k)
+        });
+        quintic::Knot {
+            position,
+            tangent,
+            curvature,
+        }
     }
 
     /// How the junction from segment `p` into segment `k` is passed, with the corner
@@ -432,7 +733,7 @@ impl<'a> Builder<'a> {
             }
             _ => {
                 self.tangent
-                    .new(shapes, p, k, self.metric, &mut self.scratch);
+                    .measure(shapes, p, k, self.metric, &mut self.scratch);
                 if self.tangent.angle > TANGENT_ANGLE {
                     return Junction::Stop;
                 }
@@ -529,6 +830,8 @@ impl<'a> Builder<'a> {
             return Junction::Stop;
         }
         self.tangent.bounds(
+            shapes,
+            (p, k),
             length,
             &mut self.bounds.k1,
             &mut self.bounds.k2,
@@ -574,27 +877,36 @@ impl<'a> Builder<'a> {
 }
 
 /// Chooses the centripetal share of every piece of a chain from the speed it will be passed
-/// at. The estimate is the acceleration-limited envelope (no jerk limit, the straight
-/// acceleration, each piece's largest speed ceiling): zero at the chain's ends, capped at the
-/// piece boundaries by both neighbours, `v² ≤ v0² + 2·A·s` from either side. Each piece then
-/// gets the smallest share whose ceiling reaches the envelope's peak on it, leaving the rest of
-/// its budget for speeding up and slowing down; a piece passed at its largest ceiling gets the
-/// largest share.
+/// at, estimated by the acceleration-limited envelope of the chain (no jerk limit): zero at the
+/// chain's ends, capped at the piece boundaries by both neighbours' ceilings (each piece's
+/// largest with shares up to `largest_share`), and reachable from either side with the
+/// tangential acceleration the curvature leaves at each speed. With `A = min a_i/K1_i` and
+/// `W = min a_i/K2_i`, the tangential acceleration at speed v is `A·(1 − v²/W)`, so
+/// `d(v²)/ds = 2·A·(1 − v²/W)` and `v²(s) = W + (v0² − W)·e^(−2·A·s/W)` (on a straight piece
+/// `v0² + 2·A·s`). Each piece then gets the share its envelope peak needs, leaving the rest of
+/// its budget for speeding up and slowing down.
 pub(super) fn assign_limits(pieces: &mut [Piece], budgets: &[Budget], largest_share: f64) {
     let m = pieces.len();
-    let optimistic: Vec<Limits> = budgets
+    let ceiling: Vec<f64> = budgets
         .iter()
-        .map(|b| {
-            let top = b.limits(SHARES[SHARES.len() - 1]);
-            Limits::new(top.velocity, b.straight().acceleration, b.straight().jerk)
-        })
+        .map(|b| b.limits(largest_share).velocity)
         .collect();
+    // v² reached from v0² over `length` of piece `i`.
+    let reach = |w0: f64, i: usize| -> f64 {
+        let b = &budgets[i];
+        let (a, w) = (b.acceleration, b.curve_acceleration);
+        let length = pieces[i].length;
+        let reached = if w.is_finite() {
+            w + (w0 - w) * (-2.0 * a * length / w).exp()
+        } else {
+            w0 + 2.0 * a * length
+        };
+        reached.min(ceiling[i] * ceiling[i])
+    };
     let mut speeds = vec![0.0; m + 1];
     for i in 1..m {
-        speeds[i] = optimistic[i - 1].velocity.min(optimistic[i].velocity);
+        speeds[i] = (ceiling[i - 1] * ceiling[i - 1]).min(ceiling[i] * ceiling[i]);
     }
-    let reach =
-        |v: f64, i: usize| (v * v + 2.0 * optimistic[i].acceleration * pieces[i].length).sqrt();
     for i in (0..m).rev() {
         speeds[i] = speeds[i].min(reach(speeds[i + 1], i));
     }
@@ -602,10 +914,25 @@ pub(super) fn assign_limits(pieces: &mut [Piece], budgets: &[Budget], largest_sh
         speeds[i + 1] = speeds[i + 1].min(reach(speeds[i], i));
     }
     for i in 0..m {
-        let (v0, v1) = (speeds[i], speeds[i + 1]);
-        let peak = ((v0 * v0 + v1 * v1) / 2.0 + optimistic[i].acceleration * pieces[i].length)
-            .sqrt()
-            .min(optimistic[i].velocity);
+        let (w0, w1) = (speeds[i], speeds[i + 1]);
+        let b = &budgets[i];
+        let (a, w) = (b.acceleration, b.curve_acceleration);
+        let length = pieces[i].length;
+        // Where the rise from the entry meets the fall to the exit.
+        let peak = if w.is_finite() {
+            let rate = 2.0 * a / w;
+            let (d0, d1) = ((w - w0).max(0.0), (w - w1).max(0.0));
+            if d0 == 0.0 || d1 == 0.0 || rate * length == 0.0 {
+                w0.max(w1)
+            } else {
+                let s = ((d0 / d1).ln() + rate * length) / (2.0 * rate);
+                let s = s.clamp(0.0, length);
+                (w - d0 * (-rate * s).exp()).max(w1.min(w0))
+            }
+        } else {
+            (w0 + w1) / 2.0 + a * length
+        };
+        let peak = peak.min(ceiling[i] * ceiling[i]).sqrt();
         pieces[i].limits = budgets[i].limits_for(peak, largest_share);
     }
 }

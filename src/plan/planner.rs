@@ -24,12 +24,13 @@ use super::geometry::{Metric, Shapes};
 use super::path::{AxisPath, Blend, Geometry, PathError};
 use super::pieces::{assign_limits, Builder, Chain, Piece, PieceKind, Pieces, SHARE_CAPS};
 use super::profile::{reachable_velocity, Limits, Profile, Recipe};
+use super::quintic;
 use super::setpoints::{sample_times, Setpoints};
 use super::tangent::JetScratch;
 
 /// Pieces whose speed, acceleration and jerk limits each lie within this fraction of one
 /// another are timed as one span (with the lowest of them).
-pub const SPAN_SPREAD: f64 = 0.15;
+pub const SPAN_SPREAD: f64 = 0.05;
 
 /// A piece shorter than this fraction of a neighbour does not split a span by itself.
 const SHORT_PIECE: f64 = 0.25;
@@ -138,7 +139,7 @@ fn time_chain(
     for (i, d) in drafts.iter().enumerate() {
         let recipe = Recipe::plan(d.length, speeds[i], speeds[i + 1], &d.limits).ok_or(
             PathError::Infeasible {
-                segment: pieces.pieces[d.first].kind.segment_at(0.0, 0.0),
+                segment: pieces.segment_at(&pieces.pieces[d.first], 0.0),
             },
         )?;
         spans.push(Span {
@@ -389,7 +390,7 @@ impl Cursor {
             velocity,
             acceleration,
         );
-        plan.source_index[piece.kind.segment_at(u, piece.length)]
+        plan.source_index[plan.pieces.segment_at(piece, u)]
     }
 }
 
@@ -450,6 +451,15 @@ impl Plan {
                 velocity,
                 acceleration,
             ),
+            PieceKind::Quintic { data, .. } => quintic::eval(
+                &self.pieces.arena[data..data + quintic::COEFFICIENTS * self.axes],
+                u,
+                s_dot,
+                s_ddot,
+                position,
+                velocity,
+                acceleration,
+            ),
         }
     }
 
@@ -458,8 +468,16 @@ impl Plan {
     fn segment_limits(&self) -> Vec<Limits> {
         let mut limits = vec![None; self.shapes.len()];
         for piece in &self.pieces.pieces {
-            if let PieceKind::Segment { segment, .. } = piece.kind {
-                limits[segment].get_or_insert(piece.limits);
+            match piece.kind {
+                PieceKind::Segment { segment, .. } => {
+                    limits[segment].get_or_insert(piece.limits);
+                }
+                PieceKind::Quintic { first, count, .. } => {
+                    for &segment in &self.pieces.covered[first..first + count] {
+                        limits[segment].get_or_insert(piece.limits);
+                    }
+                }
+                _ => {}
             }
         }
         limits
@@ -477,6 +495,15 @@ impl Plan {
             for piece in &self.pieces.pieces[chain.first..chain.end] {
                 let (segment, at) = match piece.kind {
                     PieceKind::Segment { segment, .. } => (segment, piece.start + piece.length),
+                    PieceKind::Quintic { first, count, .. } => {
+                        // Every segment it runs through ends where the lengths add up to.
+                        let mut at = piece.start;
+                        for &segment in &self.pieces.covered[first..first + count] {
+                            at += self.shapes.shapes[segment].length;
+                            ends[segment] = Some((c, Some(at.min(piece.start + piece.length))));
+                        }
+                        continue;
+                    }
                     PieceKind::Corner { incoming, .. } => {
                         (incoming, piece.start + 0.5 * piece.length)
                     }
@@ -628,6 +655,7 @@ impl Plan {
                     PieceKind::Segment { segment, .. } => format!("S{segment}"),
                     PieceKind::Corner { incoming, .. } => format!("C{incoming}"),
                     PieceKind::Tangent(t) => format!("T{}", t.incoming),
+                    PieceKind::Quintic { first, .. } => format!("Q{}", self.pieces.covered[first]),
                 },
                 p.start,
                 p.length,

@@ -129,8 +129,6 @@ impl TangentBlend {
 pub(super) struct TangentJunction {
     /// |Δ^(m)(0)| per axis for m = 1, 2, 3, and the bound M4 on |Δ''''|.
     e: [Vec<f64>; 4],
-    /// max of the two segments' bounds on |q^(m)|, m = 1, 2, 3, per axis.
-    base: [Vec<f64>; 3],
     /// The same in the tolerance metric: ‖Δ^(m)(0)‖ (m = 1, 2, 3) and ‖M4‖.
     e_norm: [f64; 4],
     /// Unit tangents' angle (rad).
@@ -141,7 +139,7 @@ pub(super) struct TangentJunction {
 
 impl TangentJunction {
     /// The junction between segment `p` and segment `k` (which starts where `p` ends).
-    pub fn new(
+    pub fn measure(
         &mut self,
         shapes: &Shapes,
         p: usize,
@@ -150,7 +148,7 @@ impl TangentJunction {
         scratch: &mut JetScratch,
     ) {
         let n = shapes.n;
-        for v in self.e.iter_mut().chain(self.base.iter_mut()) {
+        for v in self.e.iter_mut() {
             v.clear();
             v.resize(n, 0.0);
         }
@@ -161,12 +159,12 @@ impl TangentJunction {
         for i in 0..n {
             for m in 1..4 {
                 self.e[m - 1][i] = (out[m * n + i] - inc[m * n + i]).abs();
-                self.base[m - 1][i] = shapes
-                    .bound(p, i, m as i32)
-                    .max(shapes.bound(k, i, m as i32));
             }
             self.e[3][i] = shapes.bound(p, i, 4) + shapes.bound(k, i, 4);
-            self.curvature = self.curvature.max(self.base[1][i]);
+            self.curvature = self
+                .curvature
+                .max(shapes.bound(p, i, 2))
+                .max(shapes.bound(k, i, 2));
         }
         for m in 0..4 {
             self.e_norm[m] = metric.norm(&self.e[m]);
@@ -207,8 +205,26 @@ impl TangentJunction {
         }
     }
 
-    /// Per-axis bounds on |g'|, |g''|, |g'''| of a blend of length `l`.
-    pub fn bounds(&self, l: f64, k1: &mut [f64], k2: &mut [f64], k3: &mut [f64]) {
+    /// Per-axis bounds on |g'|, |g''|, |g'''| of a blend of length `l` between segments `p` and
+    /// `k`.
+    #[allow(clippy::too_many_arguments)]
+    pub fn bounds(
+        &self,
+        shapes: &Shapes,
+        (p, k): (usize, usize),
+        l: f64,
+        k1: &mut [f64],
+        k2: &mut [f64],
+        k3: &mut [f64],
+    ) {
+        let end = shapes.shapes[p].length;
+        let h = 0.5 * l;
+        // Each segment over the part the blend mixes in (extended past the junction).
+        let base = |i: usize, m: i32| {
+            shapes
+                .bound_over(p, i, m, end - h, end + h)
+                .max(shapes.bound_over(k, i, m, -h, h))
+        };
         let lp = [1.0, l, l * l, l * l * l, l * l * l * l];
         // Σ_k c[k]·L^k·coefficient_k for the Taylor coefficients of |Δ^(m)| in |d|.
         let poly = |w: &[f64; 5], coef: &[f64]| -> f64 {
@@ -219,9 +235,9 @@ impl TangentJunction {
             let b0 = [0.0, e1, e2 / 2.0, e3 / 6.0, m4 / 24.0];
             let b1 = [e1, e2, e3 / 2.0, m4 / 6.0];
             let b2 = [e2, e3, m4 / 2.0];
-            k1[i] = self.base[0][i] + poly(&W1, &b0) / l;
-            k2[i] = self.base[1][i] + 2.0 * poly(&W1, &b1) / l + poly(&W2, &b0) / (l * l);
-            k3[i] = self.base[2][i]
+            k1[i] = base(i, 1) + poly(&W1, &b0) / l;
+            k2[i] = base(i, 2) + 2.0 * poly(&W1, &b1) / l + poly(&W2, &b0) / (l * l);
+            k3[i] = base(i, 3)
                 + 3.0 * poly(&W1, &b2) / l
                 + 3.0 * poly(&W2, &b1) / (l * l)
                 + poly(&W3, &b0) / (l * l * l);
