@@ -1,6 +1,6 @@
 //! Planning throughput on a 100k-block program, and the cost of one profile computation.
 //!
-//! Run: `CARGO_TARGET_DIR=/work/scratch/target-plan cargo bench --bench planner`
+//! Run: `cargo bench --bench planner`
 
 use std::hint::black_box;
 

@@ -17,7 +17,7 @@
 
 use super::blend::{CornerBlend, TurnShape};
 use super::geometry::{norm, Metric, Shapes};
-use super::path::{AxisSpec, Blend, PathSegment};
+use super::path::{AxisLimits, AxisSpec, Blend, PathSegment};
 use super::profile::{reachable_velocity, Limits, VelocityChange};
 use super::quintic;
 use super::tangent::{JetScratch, TangentBlend, TangentJunction};
@@ -25,7 +25,7 @@ use super::tangent::{JetScratch, TangentBlend, TangentJunction};
 /// Centripetal shares tried per curved piece.
 const SHARES: [f64; 9] = [0.1, 0.2, 0.3, 0.4, 0.5, 0.6, 0.7, 0.8, 0.9];
 /// Largest centripetal shares tried per chain (the planner keeps the fastest).
-pub(super) const SHARE_CAPS: [f64; 3] = [0.95, 0.6, 0.3];
+pub(super) const SHARE_CAPS: [f64; 2] = [0.95, 0.6];
 /// Share assumed when sizing a blend for the speed it should allow.
 const SIZING_SHARE: f64 = 0.8;
 /// Ramp fractions tried per corner blend.
@@ -120,8 +120,10 @@ pub(super) struct Pieces {
     pub chains: Vec<Chain>,
     /// Vectors of the corner blends.
     pub arena: Vec<f64>,
-    /// Per piece, the budget its limits are chosen from ([`assign_limits`]).
+    /// Per piece, the budget its limits are chosen from ([`assign_limits`]), and the table
+    /// of their per-axis bounds.
     pub budgets: Vec<Budget>,
+    pub table: Budgets,
     /// The segments the quintic pieces run through.
     pub covered: Vec<usize>,
     /// Segment lengths (for finding the segment at a point of a quintic piece).
@@ -190,32 +192,111 @@ impl Junction {
     }
 }
 
-/// The path budgets of a curved stretch, reduced over the axes so that every share costs O(1).
+/// The path budget of a stretch: its per-axis derivative bounds (kept in a shared table, see
+/// [`Budgets`]) and their minima over the axes, which fix the speed ceiling of every share.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub(super) struct Budget {
     /// min(feed, v_i/K1_i).
     velocity: f64,
-    /// min a_i/K1_i, min j_i/K1_i.
+    /// min a_i/K1_i, min j_i/K1_i: the limits of a straight stretch.
     acceleration: f64,
     jerk: f64,
-    /// min a_i/K2_i, min j_i/K3_i, min j_i/K2_i (infinite on a straight stretch).
+    /// min a_i/K2_i, min j_i/K3_i (infinite on a straight stretch).
     curve_acceleration: f64,
     curve_jerk: f64,
-    cross_jerk: f64,
+    /// Where K1, K2, K3 (one entry per axis each) start in the table.
+    bounds: usize,
+}
+
+/// The per-axis bounds of every budget, and the axes they are for.
+#[derive(Debug, Clone, Default)]
+pub(super) struct Budgets {
+    axes: Vec<AxisLimits>,
+    table: Vec<f64>,
+}
+
+impl Budgets {
+    fn with_capacity(axes: &[AxisSpec], capacity: usize) -> Self {
+        Budgets {
+            axes: axes.iter().map(|a| a.limits).collect(),
+            table: Vec::with_capacity(capacity),
+        }
+    }
+
+    fn axes(&self) -> &[AxisLimits] {
+        &self.axes
+    }
+
+    /// Stores the bounds of a stretch and returns its budget.
+    fn add(&mut self, k1: &[f64], k2: &[f64], k3: &[f64], feed: Option<f64>) -> Budget {
+        let b = Budget::reduce(&self.axes, k1, k2, k3, feed, self.table.len());
+        self.table.extend_from_slice(k1);
+        self.table.extend_from_slice(k2);
+        self.table.extend_from_slice(k3);
+        b
+    }
+
+    /// Limits with centripetal share `rho` (see the module documentation): the speed ceiling
+    /// at which the curvature terms use at most `rho` of any axis's budgets, and, per axis, the
+    /// acceleration and jerk along the path that what is left at that speed allows. An axis
+    /// the path turns on little keeps most of its budget for speeding up and slowing down.
+    pub fn limits(&self, b: &Budget, rho: f64) -> Limits {
+        if b.is_straight() {
+            return b.straight();
+        }
+        let v = b.ceiling(rho);
+        let n = self.axes.len();
+        let k = &self.table[b.bounds..b.bounds + 3 * n];
+        let (mut a, mut j) = (f64::INFINITY, f64::INFINITY);
+        for (i, l) in self.axes.iter().enumerate() {
+            let (k1, k2, k3) = (k[i], k[n + i], k[2 * n + i]);
+            // What the curvature terms leave of this axis's budgets at speed v.
+            let spare_acceleration = (l.acceleration - k2 * v * v).max(0.0);
+            let spare_jerk = (l.jerk - k3 * v * v * v).max(0.0);
+            // The jerk left is shared between the cross term 3·K2·v·s̈ and K1·s⃛.
+            let cross_share = if k2 > 0.0 && k1 > 0.0 { 0.5 } else { 1.0 };
+            if k1 > 0.0 {
+                a = a.min(spare_acceleration / k1);
+                j = j.min((1.0 - if k2 > 0.0 { 0.5 } else { 0.0 }) * spare_jerk / k1);
+            }
+            if k2 > 0.0 {
+                a = a.min(cross_share * spare_jerk / (3.0 * k2 * v));
+            }
+        }
+        Limits::new(v, a, j)
+    }
+
+    /// Limits with the smallest share whose speed ceiling reaches `speed` (the rest of the
+    /// budget is left for changing speed), at least [`SHARES`]' smallest and at most `largest`.
+    fn limits_for(&self, b: &Budget, speed: f64, largest: f64) -> Limits {
+        if b.is_straight() {
+            return b.straight();
+        }
+        // The share each curvature term needs at `speed`: K2·v² ≤ ρ·a, K3·v³ ≤ ρ·j.
+        let needed = (speed * speed / b.curve_acceleration).max(speed.powi(3) / b.curve_jerk);
+        self.limits(b, needed.clamp(SHARES[0], largest))
+    }
 }
 
 impl Budget {
-    fn new(axes: &[AxisSpec], k1: &[f64], k2: &[f64], k3: &[f64], feed: Option<f64>) -> Budget {
+    /// The minima over the axes of a stretch with bounds K1, K2, K3.
+    fn reduce(
+        axes: &[AxisLimits],
+        k1: &[f64],
+        k2: &[f64],
+        k3: &[f64],
+        feed: Option<f64>,
+        bounds: usize,
+    ) -> Budget {
         let mut b = Budget {
             velocity: feed.unwrap_or(f64::INFINITY),
             acceleration: f64::INFINITY,
             jerk: f64::INFINITY,
             curve_acceleration: f64::INFINITY,
             curve_jerk: f64::INFINITY,
-            cross_jerk: f64::INFINITY,
+            bounds,
         };
-        for (i, axis) in axes.iter().enumerate() {
-            let l = axis.limits;
+        for (i, l) in axes.iter().enumerate() {
             if k1[i] > 0.0 {
                 b.velocity = b.velocity.min(l.velocity / k1[i]);
                 b.acceleration = b.acceleration.min(l.acceleration / k1[i]);
@@ -223,7 +304,6 @@ impl Budget {
             }
             if k2[i] > 0.0 {
                 b.curve_acceleration = b.curve_acceleration.min(l.acceleration / k2[i]);
-                b.cross_jerk = b.cross_jerk.min(l.jerk / k2[i]);
             }
             if k3[i] > 0.0 {
                 b.curve_jerk = b.curve_jerk.min(l.jerk / k3[i]);
@@ -236,18 +316,17 @@ impl Budget {
         self.curve_acceleration == f64::INFINITY && self.curve_jerk == f64::INFINITY
     }
 
-    /// Limits with centripetal share `rho` (see the module documentation).
-    fn limits(&self, rho: f64) -> Limits {
-        if self.is_straight() {
-            return self.straight();
+    /// The speed ceiling with centripetal share `rho`: `K2·v² ≤ rho·a`, `K3·v³ ≤ rho·j` on
+    /// every axis, and the straight ceiling.
+    fn ceiling(&self, rho: f64) -> f64 {
+        let v = self.velocity.min((rho * self.curve_acceleration).sqrt());
+        // The jerk term caps v only where v³ exceeds it (a cube is cheaper than a cube root).
+        let jerk_cap = rho * self.curve_jerk;
+        if v * v * v > jerk_cap {
+            jerk_cap.cbrt()
+        } else {
+            v
         }
-        let v = self
-            .velocity
-            .min((rho * self.curve_acceleration).sqrt())
-            .min((rho * self.curve_jerk).cbrt());
-        let tangential = 1.0 - rho;
-        let a = (tangential * self.acceleration).min(tangential * self.cross_jerk / (6.0 * v));
-        Limits::new(v, a, tangential * self.jerk / 2.0)
     }
 
     /// The limits of the stretch if it were straight (no share to the curvature).
@@ -259,20 +338,14 @@ impl Budget {
         Limits::new(self.velocity, self.acceleration, self.jerk)
     }
 
-    /// Limits with the smallest share whose speed ceiling reaches `speed` (the rest of the
-    /// budget is left for changing speed), at least [`SHARES`]' smallest and at most `largest`.
-    fn limits_for(&self, speed: f64, largest: f64) -> Limits {
+    /// The centripetal share that `limits` (made by [`Budgets::limits`]) give the curvature
+    /// terms: zero on a straight stretch.
+    pub fn share_of(&self, limits: &Limits) -> f64 {
         if self.is_straight() {
-            return self.straight();
+            return 0.0;
         }
-        // The share each curvature term needs at `speed`: K2·v² ≤ ρ·a, K3·v³ ≤ ρ·j.
-        let needed = (speed * speed / self.curve_acceleration).max(speed.powi(3) / self.curve_jerk);
-        self.limits(needed.clamp(SHARES[0], largest))
-    }
-
-    /// Whether the stretch curves (its limits depend on the share).
-    pub fn is_curved(&self) -> bool {
-        !self.is_straight()
+        let v = limits.velocity;
+        (v * v / self.curve_acceleration).max(v.powi(3) / self.curve_jerk)
     }
 }
 
@@ -293,8 +366,13 @@ impl AxisBounds {
         }
     }
 
-    fn budget(&self, axes: &[AxisSpec], feed: Option<f64>) -> Budget {
-        Budget::new(axes, &self.k1, &self.k2, &self.k3, feed)
+    fn budget(&self, budgets: &mut Budgets, feed: Option<f64>) -> Budget {
+        budgets.add(&self.k1, &self.k2, &self.k3, feed)
+    }
+
+    /// The budget's minima alone (not stored: for sizing).
+    fn reduced(&self, axes: &[AxisLimits], feed: Option<f64>) -> Budget {
+        Budget::reduce(axes, &self.k1, &self.k2, &self.k3, feed, usize::MAX)
     }
 }
 
@@ -309,6 +387,8 @@ pub(super) struct Builder<'a> {
     scratch: JetScratch,
     /// Per segment: the budget of the segment on its own.
     budgets: Vec<Budget>,
+    /// The per-axis bounds of every budget made.
+    table: Budgets,
 }
 
 impl<'a> Builder<'a> {
@@ -328,6 +408,7 @@ impl<'a> Builder<'a> {
             tangent: TangentJunction::default(),
             scratch: JetScratch::new(n),
             budgets: Vec::with_capacity(segments.len()),
+            table: Budgets::with_capacity(axes, 3 * axes.len() * 3 * segments.len()),
         }
     }
 
@@ -351,7 +432,8 @@ impl<'a> Builder<'a> {
             self.bounds.k2[i] = self.shapes.bound_over(k, i, 2, lo, hi);
             self.bounds.k3[i] = self.shapes.bound_over(k, i, 3, lo, hi);
         }
-        self.bounds.budget(self.axes, self.feed(k))
+        let feed = self.feed(k);
+        self.bounds.budget(&mut self.table, feed)
     }
 
     pub fn build(mut self) -> Pieces {
@@ -397,6 +479,7 @@ impl<'a> Builder<'a> {
             budgets: Vec::with_capacity(2 * moving.len()),
             covered: Vec::new(),
             lengths: shapes.shapes.iter().map(|s| s.length).collect(),
+            table: Budgets::default(),
         };
         // Each piece's budget; its limits follow once the chain's speeds are estimated.
         let placeholder = Limits::new(1.0, 1.0, 1.0);
@@ -448,7 +531,7 @@ impl<'a> Builder<'a> {
                         .iter()
                         .filter_map(|&q| self.feed(q))
                         .reduce(f64::min);
-                    out.budgets.push(self.bounds.budget(self.axes, feed));
+                    out.budgets.push(self.bounds.budget(&mut self.table, feed));
                     s += curve.length;
                 }
             } else {
@@ -520,6 +603,7 @@ impl<'a> Builder<'a> {
             }
             entry = exit;
         }
+        out.table = std::mem::take(&mut self.table);
         out
     }
 
@@ -748,7 +832,12 @@ impl<'a> Builder<'a> {
         };
         match junction {
             Junction::Corner { budget, .. } | Junction::Tangent { budget, .. }
-                if self.stop_is_faster(p, k, junction.length(), budget.limits(SIZING_SHARE)) =>
+                if self.stop_is_faster(
+                    p,
+                    k,
+                    junction.length(),
+                    self.table.limits(&budget, SIZING_SHARE),
+                ) =>
             {
                 Junction::Stop
             }
@@ -796,7 +885,10 @@ impl<'a> Builder<'a> {
                 continue;
             }
             self.corner_bounds(u1, u2, length, shape);
-            let ceiling = self.bounds.budget(axes, feed).limits(SIZING_SHARE).velocity;
+            let ceiling = self
+                .bounds
+                .reduced(self.table.axes(), feed)
+                .ceiling(SIZING_SHARE);
             if best.map_or(true, |(c, _)| ceiling > c) {
                 best = Some((ceiling, CornerBlend { length, shape }));
             }
@@ -805,7 +897,7 @@ impl<'a> Builder<'a> {
             return Junction::Stop;
         };
         self.corner_bounds(u1, u2, blend.length, blend.shape);
-        let budget = self.bounds.budget(axes, feed);
+        let budget = self.bounds.budget(&mut self.table, feed);
         Junction::Corner { blend, budget }
     }
 
@@ -841,7 +933,7 @@ impl<'a> Builder<'a> {
             (Some(a), Some(b)) => Some(a.min(b)),
             (a, b) => a.or(b),
         };
-        let budget = self.bounds.budget(self.axes, feed);
+        let budget = self.bounds.budget(&mut self.table, feed);
         Junction::Tangent { length, budget }
     }
 
@@ -885,12 +977,18 @@ impl<'a> Builder<'a> {
 /// `d(v²)/ds = 2·A·(1 − v²/W)` and `v²(s) = W + (v0² − W)·e^(−2·A·s/W)` (on a straight piece
 /// `v0² + 2·A·s`). Each piece then gets the share its envelope peak needs, leaving the rest of
 /// its budget for speeding up and slowing down.
-pub(super) fn assign_limits(pieces: &mut [Piece], budgets: &[Budget], largest_share: f64) {
+pub(super) fn assign_limits(
+    pieces: &mut [Piece],
+    budgets: &[Budget],
+    table: &Budgets,
+    largest_share: f64,
+    scratch: &mut Vec<f64>,
+) {
     let m = pieces.len();
-    let ceiling: Vec<f64> = budgets
-        .iter()
-        .map(|b| b.limits(largest_share).velocity)
-        .collect();
+    scratch.clear();
+    scratch.extend(budgets.iter().map(|b| b.ceiling(largest_share)));
+    scratch.resize(2 * m + 1, 0.0);
+    let (ceiling, speeds) = scratch.split_at_mut(m);
     // v² reached from v0² over `length` of piece `i`.
     let reach = |w0: f64, i: usize| -> f64 {
         let b = &budgets[i];
@@ -903,7 +1001,8 @@ pub(super) fn assign_limits(pieces: &mut [Piece], budgets: &[Budget], largest_sh
         };
         reached.min(ceiling[i] * ceiling[i])
     };
-    let mut speeds = vec![0.0; m + 1];
+    speeds[0] = 0.0;
+    speeds[m] = 0.0;
     for i in 1..m {
         speeds[i] = (ceiling[i - 1] * ceiling[i - 1]).min(ceiling[i] * ceiling[i]);
     }
@@ -933,7 +1032,7 @@ pub(super) fn assign_limits(pieces: &mut [Piece], budgets: &[Budget], largest_sh
             (w0 + w1) / 2.0 + a * length
         };
         let peak = peak.min(ceiling[i] * ceiling[i]).sqrt();
-        pieces[i].limits = budgets[i].limits_for(peak, largest_share);
+        pieces[i].limits = table.limits_for(&budgets[i], peak, largest_share);
     }
 }
 
@@ -942,27 +1041,43 @@ mod tests {
     use super::*;
 
     #[test]
-    fn budget_limits_keep_the_jerk_sum_within_the_axis_limit() {
-        // One axis, bounds K1 = 1, K2 = 4, K3 = 9: every share keeps K3·v³ + 3·K2·v·a + K1·j
-        // within j and K2·v² + K1·a within a.
-        let axes = [AxisSpec {
-            name: "x".into(),
+    fn budget_limits_keep_the_jerk_sum_within_every_axis_limit() {
+        // Two axes with different bounds: every share keeps K3·v³ + 3·K2·v·a + K1·j within j
+        // and K2·v² + K1·a within a on both, and the curvature terms take exactly the share
+        // on one of them (or the speed limit binds).
+        let axis = |v, a, j| AxisSpec {
+            name: "q".into(),
             kind: super::super::path::AxisKind::Linear,
-            limits: super::super::path::AxisLimits {
-                velocity: 2.0,
-                acceleration: 3.0,
-                jerk: 50.0,
+            limits: AxisLimits {
+                velocity: v,
+                acceleration: a,
+                jerk: j,
             },
-        }];
-        let budget = Budget::new(&axes, &[1.0], &[4.0], &[9.0], None);
+        };
+        let axes = [axis(2.0, 3.0, 50.0), axis(1.0, 5.0, 20.0)];
+        let mut table = Budgets::with_capacity(&axes, 6);
+        let (k1, k2, k3) = ([1.0, 0.2], [4.0, 9.0], [9.0, 2.0]);
+        let budget = table.add(&k1, &k2, &k3, None);
         for rho in SHARES {
-            let l = budget.limits(rho);
+            let l = table.limits(&budget, rho);
+            let (v, a, j) = (l.velocity, l.acceleration, l.jerk);
+            let mut share: f64 = 0.0;
+            let mut speed: f64 = 0.0;
+            for (i, axis) in axes.iter().enumerate() {
+                let jerk = k3[i] * v.powi(3) + 3.0 * k2[i] * v * a + k1[i] * j;
+                let acceleration = k2[i] * v * v + k1[i] * a;
+                assert!(jerk <= axis.limits.jerk * (1.0 + 1e-12), "{rho} {i}");
+                assert!(acceleration <= axis.limits.acceleration * (1.0 + 1e-12));
+                assert!(k1[i] * v <= axis.limits.velocity * (1.0 + 1e-12));
+                share = share
+                    .max(k2[i] * v * v / axis.limits.acceleration)
+                    .max(k3[i] * v.powi(3) / axis.limits.jerk);
+                speed = speed.max(k1[i] * v / axis.limits.velocity);
+            }
             assert!(
-                9.0 * l.velocity.powi(3) + 12.0 * l.velocity * l.acceleration + l.jerk
-                    <= 50.0 * (1.0 + 1e-12)
+                (share - rho).abs() < 1e-12 || (speed - 1.0).abs() < 1e-12,
+                "{rho}"
             );
-            assert!(4.0 * l.velocity * l.velocity + l.acceleration <= 3.0 * (1.0 + 1e-12));
-            assert!(l.velocity <= 2.0);
         }
     }
 }

@@ -81,36 +81,39 @@ pub fn plan(path: &AxisPath) -> Result<Plan, PathError> {
     let mut spans = Vec::with_capacity(pieces.pieces.len());
     let mut time = 0.0;
     let mut drafts = Vec::new();
+    let mut trial = Vec::new();
     let mut best = Vec::new();
+    let mut best_limits = Vec::new();
+    let mut scratch = Vec::new();
     for c in 0..pieces.chains.len() {
         let chain = pieces.chains[c];
         let range = chain.first..chain.end;
-        let curved = pieces.budgets[range.clone()].iter().any(|b| b.is_curved());
-        let caps: &[f64] = if curved {
-            &SHARE_CAPS
-        } else {
-            &SHARE_CAPS[..1]
-        };
-        // The fastest of the share caps: (cap, duration).
-        let mut fastest: Option<(f64, f64)> = None;
-        for &cap in caps {
+        // The fastest of the share caps. A smaller cap changes nothing when no piece used more
+        // than it.
+        let mut fastest = f64::INFINITY;
+        for (k, &cap) in SHARE_CAPS.iter().enumerate() {
+            if k > 0 && largest_share_used(&pieces, range.clone()) <= cap {
+                break;
+            }
             assign_limits(
                 &mut pieces.pieces[range.clone()],
                 &pieces.budgets[range.clone()],
+                &pieces.table,
                 cap,
+                &mut scratch,
             );
-            let duration = time_chain(&pieces, c, &mut drafts, time, &mut best)?;
-            if fastest.map_or(true, |(_, d)| duration < d) {
-                fastest = Some((cap, duration));
+            let duration = time_chain(&pieces, c, &mut drafts, time, &mut trial)?;
+            if duration < fastest {
+                fastest = duration;
+                std::mem::swap(&mut best, &mut trial);
+                best_limits.clear();
+                best_limits.extend(pieces.pieces[range.clone()].iter().map(|p| p.limits));
             }
         }
-        let (cap, _) = fastest.expect("at least one share cap");
-        assign_limits(
-            &mut pieces.pieces[range.clone()],
-            &pieces.budgets[range],
-            cap,
-        );
-        time += time_chain(&pieces, c, &mut drafts, time, &mut best)?;
+        for (piece, limits) in pieces.pieces[range].iter_mut().zip(&best_limits) {
+            piece.limits = *limits;
+        }
+        time += fastest;
         spans.append(&mut best);
     }
     Ok(Plan {
@@ -122,6 +125,15 @@ pub fn plan(path: &AxisPath) -> Result<Plan, PathError> {
         start: path.start.clone(),
         duration: time,
     })
+}
+
+/// The largest centripetal share any piece in `range` was given.
+fn largest_share_used(pieces: &Pieces, range: std::ops::Range<usize>) -> f64 {
+    pieces.pieces[range.clone()]
+        .iter()
+        .zip(&pieces.budgets[range])
+        .map(|(p, b)| b.share_of(&p.limits))
+        .fold(0.0, f64::max)
 }
 
 /// Times chain `c` from `start_time` into `spans` (cleared first); returns its duration.

@@ -102,10 +102,43 @@ pub fn transfer_distance(v_from: f64, v_to: f64, a: f64, j: f64) -> f64 {
 /// Highest velocity reachable from `v_from` within `distance` (zero acceleration at both ends),
 /// capped at `limits.velocity`. The same function gives the highest velocity from which one can
 /// slow down to `v_from` within `distance` (the transfer distance is symmetric).
+///
+/// In closed form: a change by Δv covers `T(Δv)·(v_from + Δv/2)`, with `T = Δv/A + A/J` once
+/// it reaches A (Δv ≥ A²/J: a quadratic in Δv) and `T = 2·sqrt(Δv/J)` below (a cubic in
+/// sqrt(Δv), solved by Cardano's formula and polished by Newton steps). The result never needs
+/// more than `distance` (checked; rounding is taken off the top).
 pub fn reachable_velocity(v_from: f64, distance: f64, limits: &Limits) -> f64 {
     let (a, j) = (limits.acceleration, limits.jerk);
     if transfer_distance(v_from, limits.velocity, a, j) <= distance {
         return limits.velocity;
+    }
+    if !(distance > 0.0) {
+        return v_from.min(limits.velocity);
+    }
+    let switch = a * a / j;
+    let covered_at_switch = transfer_distance(v_from, v_from + switch, a, j);
+    let dv = if distance >= covered_at_switch {
+        // (Δv + A²/J)·(2·v0 + Δv) = 2·A·d.
+        let b = 2.0 * v_from + switch;
+        let c = 2.0 * a * (v_from * a / j - distance);
+        -2.0 * c / (b + (b * b - 4.0 * c).sqrt())
+    } else {
+        // x³ + 2·v0·x − d·sqrt(J) = 0 with x = sqrt(Δv).
+        let (p, q) = (2.0 * v_from, -distance * j.sqrt());
+        let u = (-0.5 * q + (0.25 * q * q + p * p * p / 27.0).sqrt()).cbrt();
+        let mut x = if u > 0.0 { u - p / (3.0 * u) } else { 0.0 };
+        for _ in 0..2 {
+            x -= (x * x * x + p * x + q) / (3.0 * x * x + p);
+        }
+        x.max(0.0) * x.max(0.0)
+    };
+    let mut v = (v_from + dv).min(limits.velocity);
+    // Rounding may leave the change a few ulps too long for the distance: take it off.
+    for _ in 0..4 {
+        if transfer_distance(v_from, v, a, j) <= distance {
+            return v;
+        }
+        v = v_from + (v - v_from) * (1.0 - 1e-12);
     }
     largest_at_most(
         |v| transfer_distance(v_from, v, a, j),
@@ -273,8 +306,28 @@ impl Recipe {
         let peak = if covered(v) <= length {
             v
         } else {
-            // The covered distance grows with the peak velocity: take the largest that fits.
-            largest_at_most(covered, length, lowest, v)
+            // When both speed changes reach A they cover
+            // (2p² − v0² − v1²)/(2A) + (A/2J)·(2p + v0 + v1): a quadratic in the peak p.
+            let ramp = a / j;
+            let c = -(v_start * v_start + v_end * v_end) / (2.0 * a)
+                + 0.5 * ramp * (v_start + v_end)
+                - length;
+            let p = 0.5 * a * (-ramp + (ramp * ramp - 4.0 * c / a).sqrt());
+            let both_reach_a = p - lowest >= a * ramp;
+            let mut fits = None;
+            if both_reach_a && p.is_finite() && p <= v {
+                // Rounding may leave it a few ulps too long for the length: take them off.
+                let mut p = p;
+                for _ in 0..4 {
+                    if covered(p) <= length {
+                        fits = Some(p);
+                        break;
+                    }
+                    p = lowest + (p - lowest) * (1.0 - 1e-12);
+                }
+            }
+            // Otherwise the covered distance grows with the peak: take the largest that fits.
+            fits.unwrap_or_else(|| peak_within(length, v_start, v_end, lowest, limits))
         };
         // Whatever the speed changes leave (the cruise, or the last ulps of the bisection) is
         // covered at the peak velocity.
@@ -325,6 +378,66 @@ impl Recipe {
             &self.limits,
         )
     }
+}
+
+/// Distance covered changing from `v0` to `p ≥ v0` (zero acceleration at both ends) and its
+/// derivative with respect to `p`.
+fn covered_and_slope(v0: f64, p: f64, a: f64, j: f64) -> (f64, f64) {
+    let dv = p - v0;
+    if dv * j >= a * a {
+        let t = dv / a + a / j;
+        (0.5 * t * (v0 + p), 0.5 * (v0 + p) / a + 0.5 * t)
+    } else if dv > 0.0 {
+        let root = (dv / j).sqrt();
+        let t = 2.0 * root;
+        (0.5 * t * (v0 + p), 0.5 * (v0 + p) / (j * root) + 0.5 * t)
+    } else {
+        (0.0, f64::INFINITY)
+    }
+}
+
+/// The largest peak velocity in `[lowest, limits.velocity]` whose speed-up from `v_start` and
+/// slow-down to `v_end` fit in `length` (which the lowest does and the limit does not): Newton
+/// steps on the covered distance, kept inside a bracket that always holds the answer (a step
+/// leaving it bisects instead). Returns the bracket's lower end, which fits.
+fn peak_within(length: f64, v_start: f64, v_end: f64, lowest: f64, limits: &Limits) -> f64 {
+    let (a, j) = (limits.acceleration, limits.jerk);
+    let covered = |p: f64| {
+        let (d0, s0) = covered_and_slope(v_start, p, a, j);
+        let (d1, s1) = covered_and_slope(v_end, p, a, j);
+        (d0 + d1 - length, s0 + s1)
+    };
+    let (mut lo, mut hi) = (lowest, limits.velocity);
+    // Start from the peak without a jerk limit, (p² − v0²)/2A + (p² − v1²)/2A = length: close
+    // when the changes hold A, and a bound from above either way.
+    let guess = (0.5 * (v_start * v_start + v_end * v_end) + a * length).sqrt();
+    let mut x = if guess > lo && guess < hi { guess } else { hi };
+    for _ in 0..100 {
+        let (f, slope) = covered(x);
+        if f <= 0.0 {
+            lo = x;
+        } else {
+            hi = x;
+        }
+        let newton = x - f / slope;
+        if hi - lo <= 4.0 * f64::EPSILON * hi || (newton - x).abs() <= 4.0 * f64::EPSILON * x {
+            break;
+        }
+        x = if newton > lo && newton < hi {
+            newton
+        } else {
+            0.5 * (lo + hi)
+        };
+    }
+    // Newton converges from one side: the last point may be a few ulps over.
+    let mut p = x;
+    for _ in 0..4 {
+        if p <= lo || covered(p).0 <= 0.0 {
+            return p.max(lo);
+        }
+        p -= 4.0 * f64::EPSILON * p;
+    }
+    lo
 }
 
 /// Duration of the time-optimal rest-to-rest motion over `length` (closed form).
@@ -548,6 +661,58 @@ mod tests {
         // A function with a kink and a flat part.
         let x = largest_at_most(|x: f64| (x - 1.0).max(0.0).sqrt(), 0.5, 0.0, 10.0);
         assert!((x - 1.25).abs() < 1e-14 && (x - 1.0).max(0.0).sqrt() <= 0.5);
+    }
+
+    #[test]
+    fn reachable_velocity_closed_form_matches_the_search() {
+        let mut worst: f64 = 0.0;
+        for &(v, a, j) in &[
+            (2.0, 10.0, 100.0),
+            (0.2, 2.0, 50.0),
+            (0.2, 2.0, 1e8),
+            (1.0, 0.1, 0.05),
+        ] {
+            let l = Limits::new(v, a, j);
+            for k in 0..200 {
+                let v0 = v * (k % 10) as f64 / 10.0;
+                let d = 1e-6 * 1.13f64.powi(k);
+                let fast = reachable_velocity(v0, d, &l);
+                let slow = largest_at_most(|x| transfer_distance(v0, x, a, j), d, v0, v);
+                let slow = if transfer_distance(v0, v, a, j) <= d {
+                    v
+                } else {
+                    slow
+                };
+                assert!(transfer_distance(v0, fast, a, j) <= d, "{v0} {d}");
+                worst = worst.max((fast - slow).abs() / v);
+            }
+        }
+        assert!(worst < 1e-12, "{worst}");
+    }
+
+    #[test]
+    fn peak_search_matches_the_bracketing_search() {
+        let l = Limits::new(2.0, 10.0, 100.0);
+        let mut worst: f64 = 0.0;
+        for k in 0..400 {
+            let (v0, v1) = (0.05 * (k % 20) as f64, 0.07 * (k / 20) as f64);
+            let length = transfer_distance(v0.min(v1), v0.max(v1), 10.0, 100.0)
+                * (1.0 + 0.05 * (k % 7) as f64)
+                + 1e-4 * (k % 5) as f64;
+            let covered = |p: f64| {
+                VelocityChange::new(p - v0, 10.0, 100.0).distance(v0, p)
+                    + VelocityChange::new(p - v1, 10.0, 100.0).distance(p, v1)
+            };
+            let lowest = v0.max(v1);
+            if covered(2.0) <= length {
+                continue;
+            }
+            let fast = peak_within(length, v0, v1, lowest, &l);
+            let slow = largest_at_most(covered, length, lowest, 2.0);
+            assert!(covered(fast) <= length);
+            worst = worst.max((fast - slow).abs());
+        }
+        assert!(worst < 1e-12, "{worst}");
     }
 
     #[test]

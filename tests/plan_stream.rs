@@ -1,0 +1,237 @@
+//! The setpoint stream the co-simulation loop reads: its length is known before the first
+//! sample, its samples are computed as they are read, and they are bit-identical to the
+//! materialised setpoints, for every planner.
+
+use std::path::Path;
+
+use cncsim::kinematics::AxisMap;
+use cncsim::machine::Machine;
+use cncsim::plan::{
+    jerk_limited_plans, plan_program, plan_program_stream, AxisKind, AxisLimits, BlendChoice,
+    PlanSettings, Planner, SetpointSample, SetpointStream, Setpoints,
+};
+use cncsim::program::{parse_gcode, Motion, Program, ReadOptions};
+
+/// Lines, arcs, dwells and a rapid, in both blend modes.
+const PROGRAM: &str = "G21 G90 G64 P0.05
+G0 X10 Y0 Z5
+G1 Z0 F600
+G1 X40 F1200
+G2 X60 Y20 I0 J20
+G4 P0.3
+G1 X60 Y40
+G3 X40 Y60 I-20 J0
+G61
+G1 X10 Y60
+G4 P0.1
+G0 Z5
+M2
+";
+
+/// The same without arcs (the seed trapezoid profile is defined on straight moves only).
+const LINES: &str = "G21 G90
+G0 X10 Y0 Z5
+G1 Z0 F600
+G1 X40 F1200
+G4 P0.3
+G1 X40 Y30
+G1 X10 Y60
+G4 P0.1
+G0 Z5
+M2
+";
+
+fn machine() -> (Machine, AxisMap) {
+    let root = Path::new(env!("CARGO_MANIFEST_DIR"));
+    let machine = Machine::load(&root.join("models/xyz_table.urdf")).unwrap();
+    let axes = AxisMap::cartesian(&machine).unwrap();
+    (machine, axes)
+}
+
+fn program(text: &str) -> Program {
+    parse_gcode(text, "stream-test.ngc", &ReadOptions::default()).unwrap()
+}
+
+fn settings(machine: &Machine, planner: Planner, blend: BlendChoice) -> PlanSettings {
+    PlanSettings {
+        planner,
+        period: 1e-3,
+        rapid_speed: 0.05,
+        blend,
+        axis_names: machine.axes.iter().map(|a| a.name.clone()).collect(),
+        naive_cam_tolerance: None,
+        tool_lever_arms: Vec::new(),
+    }
+}
+
+fn jerk_limited() -> Planner {
+    Planner::JerkLimited {
+        limits: vec![AxisLimits::from_program_units(AxisKind::Linear, 200.0, 2000.0, 50_000.0); 3],
+    }
+}
+
+/// Every planner and blend mode on the program it accepts.
+fn cases(machine: &Machine) -> Vec<(&'static str, Program, PlanSettings)> {
+    vec![
+        (
+            "constant velocity",
+            program(PROGRAM),
+            settings(machine, Planner::ConstantVelocity, BlendChoice::Program),
+        ),
+        (
+            "trapezoid",
+            program(LINES),
+            settings(
+                machine,
+                Planner::Trapezoid { acceleration: 1.0 },
+                BlendChoice::Program,
+            ),
+        ),
+        (
+            "jerk-limited, as programmed",
+            program(PROGRAM),
+            settings(machine, jerk_limited(), BlendChoice::Program),
+        ),
+        (
+            "jerk-limited, exact stop",
+            program(PROGRAM),
+            settings(machine, jerk_limited(), BlendChoice::ExactStop),
+        ),
+    ]
+}
+
+fn bits(v: &[f64]) -> Vec<u64> {
+    v.iter().map(|x| x.to_bits()).collect()
+}
+
+/// Reads `stream` to its end, checking each sample against `expected` bit for bit.
+fn assert_stream_equals(stream: &mut dyn SetpointStream, expected: &Setpoints, what: &str) {
+    assert_eq!(
+        stream.len(),
+        expected.len(),
+        "{what}: length known up front"
+    );
+    assert_eq!(stream.axes(), expected.axes);
+    assert_eq!(stream.period(), expected.period);
+    let mut sample = SetpointSample::zeros(stream.axes());
+    let mut k = 0;
+    while stream.next_sample(&mut sample) {
+        assert!(k < expected.len(), "{what}: more samples than announced");
+        assert_eq!(
+            bits(&sample.position),
+            bits(expected.position(k)),
+            "{what}: {k}"
+        );
+        assert_eq!(
+            bits(&sample.velocity),
+            bits(expected.velocity(k)),
+            "{what}: {k}"
+        );
+        assert_eq!(
+            bits(&sample.acceleration),
+            bits(expected.acceleration(k)),
+            "{what}: {k}"
+        );
+        assert_eq!(sample.segment, expected.segment[k], "{what}: {k}");
+        k += 1;
+    }
+    assert_eq!(k, expected.len(), "{what}: fewer samples than announced");
+    // An exhausted stream stays exhausted.
+    assert!(!stream.next_sample(&mut sample));
+}
+
+#[test]
+fn streamed_and_materialised_setpoints_are_bit_identical() {
+    let (machine, axes) = machine();
+    for (what, program, settings) in cases(&machine) {
+        let materialised = plan_program(&program, &axes, &settings).unwrap();
+        assert!(materialised.len() > 1000, "{what}");
+        // Two streams read in turn: no state is shared between them or with the first plan.
+        let mut a = plan_program_stream(&program, &axes, &settings).unwrap();
+        let mut b = plan_program_stream(&program, &axes, &settings).unwrap();
+        let mut first = SetpointSample::zeros(3);
+        for _ in 0..100 {
+            assert!(a.next_sample(&mut first));
+        }
+        assert_stream_equals(b.as_mut(), &materialised, what);
+        // The first stream continues where it was.
+        let mut rest = SetpointSample::zeros(3);
+        let mut k = 100;
+        while a.next_sample(&mut rest) {
+            assert_eq!(
+                bits(&rest.position),
+                bits(materialised.position(k)),
+                "{what}"
+            );
+            k += 1;
+        }
+        assert_eq!(k, materialised.len());
+    }
+}
+
+#[test]
+fn jerk_limited_stream_is_each_motion_sampled_and_each_dwell_held() {
+    // Independently of the stream: the plans of the two motions between the dwells, each
+    // sampled on its own from t = 0, joined (the second starts where the first ended), with
+    // the dwells' whole periods of rest in between.
+    let (machine, axes) = machine();
+    let program = program(PROGRAM);
+    let settings = settings(&machine, jerk_limited(), BlendChoice::Program);
+    let plans = jerk_limited_plans(&program, &axes, &settings)
+        .unwrap()
+        .unwrap();
+    assert_eq!(
+        plans.len(),
+        3,
+        "motions before, between and after the dwells"
+    );
+    // The dwells: (move index, whole periods, rounded up).
+    let dwells: Vec<(u32, usize)> = program
+        .moves
+        .iter()
+        .enumerate()
+        .filter_map(|(i, m)| match m.motion {
+            Motion::Dwell { seconds } => Some((i as u32, (seconds / 1e-3).ceil() as usize)),
+            _ => None,
+        })
+        .collect();
+    assert_eq!(dwells.len(), 2);
+    let mut expected = Setpoints::new(1e-3, 3);
+    for (i, plan) in plans.iter().enumerate() {
+        let part = plan.sample(1e-3);
+        let skip = usize::from(i > 0);
+        for k in skip..part.len() {
+            expected.push(
+                part.position(k),
+                part.velocity(k),
+                part.acceleration(k),
+                part.segment[k],
+            );
+        }
+        if let Some(&(dwell, ticks)) = dwells.get(i) {
+            let at = part.position(part.len() - 1).to_vec();
+            for _ in 0..ticks {
+                expected.push(&at, &[0.0; 3], &[0.0; 3], dwell);
+            }
+        }
+    }
+    let mut stream = plan_program_stream(&program, &axes, &settings).unwrap();
+    assert_stream_equals(stream.as_mut(), &expected, "jerk-limited");
+}
+
+#[test]
+fn a_ten_hour_program_streams_without_materialising() {
+    // 36 million samples: materialised they would take 3.5 GB; the stream holds the moves.
+    let (machine, axes) = machine();
+    let program = program("G21 G90\nG1 X10 F600\nG4 P36000\nG1 X0\nM2\n");
+    for planner in [Planner::ConstantVelocity, jerk_limited()] {
+        let settings = settings(&machine, planner, BlendChoice::Program);
+        let mut stream = plan_program_stream(&program, &axes, &settings).unwrap();
+        assert!(stream.len() > 36_000_000 && stream.len() < 36_100_000);
+        let mut sample = SetpointSample::zeros(3);
+        for _ in 0..5000 {
+            assert!(stream.next_sample(&mut sample));
+        }
+        assert!(sample.position[0] > 0.0);
+    }
+}
