@@ -1,8 +1,9 @@
 //! The scenario file format (TOML). Unknown keys are rejected; every value that can be wrong
-//! is checked here and reported with the file, line and column it came from.
+//! is checked here and reported with the file, line and column it came from. Numbers must lie
+//! in the ranges of [`limits`], which keep a run physically meaningful and its work bounded.
 
 use crate::control::{ActuatorKind, PidForm, PidGains};
-use crate::diagnostics::{read_text, toml_error, FileError, LineColumn};
+use crate::diagnostics::{check_range, read_text, toml_error, FileError, LineColumn};
 use crate::machine::{AmplifierMode, Feedback};
 use crate::plan::BlendChoice;
 use crate::program::{CircleSpec, FeedRule, PolylineSpec, ReadOptions};
@@ -12,6 +13,47 @@ use std::path::{Path, PathBuf};
 use toml::Spanned;
 
 type Num = Spanned<f64>;
+
+/// Ranges of a scenario's numbers, in the units of their keys (inclusive). Outside them a value
+/// is refused with its place in the file; a run's length is bounded besides by
+/// [`crate::sim::MAX_SERVO_TICKS`] and [`crate::sim::MAX_PHYSICS_STEPS`].
+pub mod limits {
+    /// Servo period (ms): from 100 kHz drives to the slowest seed document (20 ms) with margin.
+    pub const SERVO_PERIOD_MS: (f64, f64) = (0.01, 100.0);
+    /// Physics step (ms); it must also divide the servo period.
+    pub const PHYSICS_STEP_MS: (f64, f64) = (0.001, 100.0);
+    /// Most physics steps per servo period.
+    pub const MAX_SUBSTEPS: usize = 10_000;
+    /// Settle time before the program (s).
+    pub const SETTLE_S: (f64, f64) = (0.0, 3600.0);
+    /// Path speeds: built-in path feed, rapid speed (mm/s). No machine tool moves 20 m/s.
+    pub const SPEED_MM_S: (f64, f64) = (1e-3, 2e4);
+    /// Above this a feed loads with a warning (mm/s).
+    pub const SUSPECT_SPEED_MM_S: f64 = 5e3;
+    /// Trapezoid path acceleration (mm/s²).
+    pub const ACCELERATION_MM_S2: (f64, f64) = (1e-3, 1e7);
+    /// Jerk-limited planner limits per axis, mm or deg per s, s², s³.
+    pub const LIMIT_VELOCITY: (f64, f64) = (1e-3, 1e5);
+    pub const LIMIT_ACCELERATION: (f64, f64) = (1e-3, 1e8);
+    pub const LIMIT_JERK: (f64, f64) = (1e-3, 1e11);
+    /// Corner tolerance (mm).
+    pub const TOLERANCE_MM: (f64, f64) = (1e-6, 100.0);
+    /// Coordinates and radii of built-in paths and pen heights (|value| ≤, mm): 100 m.
+    pub const COORDINATE_MM: f64 = 1e5;
+    /// Following-error fault limits.
+    pub const FOLLOWING_ERROR_LIMIT_MM: (f64, f64) = (1e-6, 1e3);
+    pub const FOLLOWING_ERROR_LIMIT_DEG: (f64, f64) = (1e-6, 360.0);
+    /// PID gains (≥ 0) and output limits.
+    pub const MAX_GAIN: f64 = 1e12;
+    /// Inverse dynamics: closed-loop natural frequency (Hz), damping ratio, model mass scale,
+    /// task-space least-squares damping.
+    pub const NATURAL_FREQUENCY_HZ: (f64, f64) = (1e-3, 1e4);
+    pub const DAMPING_RATIO: (f64, f64) = (1e-3, 100.0);
+    pub const MODEL_MASS_SCALE: (f64, f64) = (1e-3, 100.0);
+    pub const TASK_DAMPING: (f64, f64) = (1e-9, 10.0);
+    /// Recording decimation (record every k-th tick).
+    pub const MAX_DECIMATION: i64 = 1_000_000;
+}
 
 #[derive(Deserialize)]
 #[serde(deny_unknown_fields)]
@@ -444,6 +486,8 @@ pub struct Scenario {
     pub expect: Vec<Expectation>,
     /// `[ab]`: the variants `cncsim ab` runs on this file alone.
     pub ab: Option<DeclaredVariants>,
+    /// Values that are legal but look wrong, located in the file.
+    pub warnings: Vec<FileError>,
 }
 
 impl Scenario {
@@ -462,28 +506,14 @@ impl Scenario {
                 msg,
             )
         };
-        let finite = |v: &Num, what: &str| -> Result<f64, FileError> {
+        // A number within its range (limits), or an error at its place.
+        let ranged = |v: &Num, what: &str, unit: &str, (lo, hi): (f64, f64)| {
             let x = *v.get_ref();
-            if x.is_finite() {
-                Ok(x)
-            } else {
-                Err(err(
-                    v.span(),
-                    format!("{what} = {x}: expected a finite number"),
-                ))
-            }
+            check_range(what, x, unit, lo, hi)
+                .map(|()| x)
+                .map_err(|m| err(v.span(), m))
         };
-        let positive = |v: &Num, what: &str| -> Result<f64, FileError> {
-            let x = finite(v, what)?;
-            if x > 0.0 {
-                Ok(x)
-            } else {
-                Err(err(
-                    v.span(),
-                    format!("{what} = {x}: expected a number > 0"),
-                ))
-            }
-        };
+        let mut warnings = Vec::new();
         let dir = path.parent().unwrap_or(Path::new("."));
         let resolve = |p: &str| dir.join(p);
 
@@ -524,7 +554,7 @@ impl Scenario {
         }
         let feed = || -> Result<f64, FileError> {
             match &p.feed_mm_s {
-                Some(v) => Ok(positive(v, "feed_mm_s")? * 1e-3),
+                Some(v) => Ok(ranged(v, "feed_mm_s", "mm/s", limits::SPEED_MM_S)? * 1e-3),
                 None => Err(FileError::new(
                     path,
                     program_at,
@@ -563,13 +593,9 @@ impl Scenario {
                 (p.pen_down_z_mm, &mut options.hpgl.pen_down_z),
             ] {
                 if let Some(v) = value {
-                    if !v.is_finite() {
-                        return Err(FileError::new(
-                            path,
-                            program_at,
-                            format!("pen height {v} mm: expected a finite number"),
-                        ));
-                    }
+                    let c = limits::COORDINATE_MM;
+                    check_range("pen height", v, "mm", -c, c)
+                        .map_err(|m| FileError::new(path, program_at, m))?;
                     *target = v * 1e-3;
                 }
             }
@@ -588,10 +614,12 @@ impl Scenario {
                 v.start_angle_deg,
                 v.z_mm,
             ];
-            if !nums.iter().all(|x| x.is_finite()) || v.radius_mm <= 0.0 {
+            let c_mm = limits::COORDINATE_MM;
+            let in_reach = nums.iter().all(|x| x.is_finite() && x.abs() <= c_mm);
+            if !in_reach || v.radius_mm <= 0.0 {
                 return Err(err(
                     c.span(),
-                    "circle: expected finite numbers and radius_mm > 0".into(),
+                    format!("circle: expected numbers within ±{c_mm:?} mm and radius_mm > 0, found center_mm = {:?}, radius_mm = {:?}, start_angle_deg = {:?}, z_mm = {:?}", v.center_mm, v.radius_mm, v.start_angle_deg, v.z_mm),
                 ));
             }
             ProgramSource::Circle(CircleSpec {
@@ -605,11 +633,17 @@ impl Scenario {
         } else {
             let pl = p.polyline.as_ref().expect("counted above");
             let pts = &pl.get_ref().points_mm;
-            if pts.len() < 2 || !pts.iter().flatten().all(|x| x.is_finite()) {
+            let c_mm = limits::COORDINATE_MM;
+            if pts.len() < 2
+                || !pts
+                    .iter()
+                    .flatten()
+                    .all(|x| x.is_finite() && x.abs() <= c_mm)
+            {
                 return Err(err(
                     pl.span(),
                     format!(
-                        "polyline: expected at least 2 points of finite numbers, found {}",
+                        "polyline: expected at least 2 points with coordinates within ±{c_mm:?} mm, found {} points",
                         pts.len()
                     ),
                 ));
@@ -620,30 +654,58 @@ impl Scenario {
             })
         };
 
+        for (key, value) in [
+            ("feed_mm_s", p.feed_mm_s.as_ref()),
+            ("rapid_mm_s", Some(&raw.planner.rapid_mm_s)),
+        ] {
+            if let Some(v) = value.filter(|v| *v.get_ref() > limits::SUSPECT_SPEED_MM_S) {
+                warnings.push(err(
+                    v.span(),
+                    format!(
+                        "{key} = {:?} mm/s is more than {:?} mm/s: few machines move that fast",
+                        v.get_ref(),
+                        limits::SUSPECT_SPEED_MM_S
+                    ),
+                ));
+            }
+        }
+
         // Timing: physics step ≤ servo period, and a whole number of steps per period.
-        let servo_period = positive(&raw.timing.servo_period_ms, "servo_period_ms")? * 1e-3;
-        let physics_step = positive(&raw.timing.physics_step_ms, "physics_step_ms")? * 1e-3;
+        let t = &raw.timing;
+        let servo_period_ms = ranged(
+            &t.servo_period_ms,
+            "servo_period_ms",
+            "ms",
+            limits::SERVO_PERIOD_MS,
+        )?;
+        let physics_step_ms = ranged(
+            &t.physics_step_ms,
+            "physics_step_ms",
+            "ms",
+            limits::PHYSICS_STEP_MS,
+        )?;
+        let (servo_period, physics_step) = (servo_period_ms * 1e-3, physics_step_ms * 1e-3);
         if physics_step > servo_period * (1.0 + 1e-12) {
             return Err(err(
-                raw.timing.physics_step_ms.span(),
-                format!("physics_step_ms = {} is longer than servo_period_ms = {}: the physics must step at least once per servo period", physics_step * 1e3, servo_period * 1e3),
+                t.physics_step_ms.span(),
+                format!("physics_step_ms = {physics_step_ms:?} is longer than servo_period_ms = {servo_period_ms:?}: the physics must step at least once per servo period"),
             ));
         }
         let ratio = servo_period / physics_step;
         let substeps = ratio.round();
         if (ratio - substeps).abs() > 1e-9 * ratio {
             return Err(err(
-                raw.timing.physics_step_ms.span(),
-                format!("physics_step_ms = {} does not divide servo_period_ms = {} into whole steps (ratio {ratio:.6})", physics_step * 1e3, servo_period * 1e3),
+                t.physics_step_ms.span(),
+                format!("physics_step_ms = {physics_step_ms:?} does not divide servo_period_ms = {servo_period_ms:?} into whole steps (ratio {ratio:.6})"),
             ));
         }
-        let settle_time = finite(&raw.timing.settle_s, "settle_s")?;
-        if settle_time < 0.0 {
+        if substeps as usize > limits::MAX_SUBSTEPS {
             return Err(err(
-                raw.timing.settle_s.span(),
-                format!("settle_s = {settle_time}: expected a number ≥ 0"),
+                t.physics_step_ms.span(),
+                format!("physics_step_ms = {physics_step_ms:?} makes {substeps} physics steps per servo period: expected at most {}", limits::MAX_SUBSTEPS),
             ));
         }
+        let settle_time = ranged(&t.settle_s, "settle_s", "s", limits::SETTLE_S)?;
 
         let solver_iterations = *raw.timing.solver_iterations.get_ref();
         if !(1..=64).contains(&solver_iterations) {
@@ -663,19 +725,26 @@ impl Scenario {
             Some(c) => {
                 let is_id = matches!(c.kind, ControllerType::InverseDynamics);
                 let omega_n = match &c.natural_frequency_hz {
-                    Some(f) => Some(positive(f, "natural_frequency_hz")? * std::f64::consts::TAU),
+                    Some(f) => Some(
+                        ranged(
+                            f,
+                            "natural_frequency_hz",
+                            "Hz",
+                            limits::NATURAL_FREQUENCY_HZ,
+                        )? * std::f64::consts::TAU,
+                    ),
                     None => None,
                 };
                 let damping_ratio = match &c.damping_ratio {
-                    Some(z) => positive(z, "damping_ratio")?,
+                    Some(z) => ranged(z, "damping_ratio", "", limits::DAMPING_RATIO)?,
                     None => 1.0,
                 };
                 let model_mass_scale = match &c.model_mass_scale {
-                    Some(m) => positive(m, "model_mass_scale")?,
+                    Some(m) => ranged(m, "model_mass_scale", "", limits::MODEL_MASS_SCALE)?,
                     None => 1.0,
                 };
                 let task_damping = match &c.task_damping {
-                    Some(l) => positive(l, "task_damping")?,
+                    Some(l) => ranged(l, "task_damping", "", limits::TASK_DAMPING)?,
                     None => DEFAULT_TASK_DAMPING,
                 };
                 match (is_id, omega_n) {
@@ -714,11 +783,11 @@ impl Scenario {
             let limit = v.output_limit.unwrap_or(f64::INFINITY);
             let ok = [v.kp, v.ki, v.kd]
                 .iter()
-                .all(|x| x.is_finite() && *x >= 0.0)
+                .all(|x| (0.0..=limits::MAX_GAIN).contains(x))
                 && limit > 0.0
                 && !limit.is_nan();
             if !ok {
-                return Err(err(g.span(), format!("controller.axes.{axis}: gains must be finite and ≥ 0, output_limit > 0 (kp={}, ki={}, kd={}, output_limit={limit})", v.kp, v.ki, v.kd)));
+                return Err(err(g.span(), format!("controller.axes.{axis}: gains must be from 0 to {:?}, output_limit > 0 (kp = {:?}, ki = {:?}, kd = {:?}, output_limit = {limit:?})", limits::MAX_GAIN, v.kp, v.ki, v.kd)));
             }
             gains.insert(
                 axis.clone(),
@@ -747,40 +816,71 @@ impl Scenario {
         }
         // Defaults trip well beyond any sane tracking error but long before a runaway.
         let following_error_limit_linear = match &raw.feedback.following_error_limit_mm {
-            Some(v) => positive(v, "following_error_limit_mm")? * 1e-3,
+            Some(v) => {
+                ranged(
+                    v,
+                    "following_error_limit_mm",
+                    "mm",
+                    limits::FOLLOWING_ERROR_LIMIT_MM,
+                )? * 1e-3
+            }
             None => 10e-3,
         };
         let following_error_limit_rotary = match &raw.feedback.following_error_limit_deg {
-            Some(v) => positive(v, "following_error_limit_deg")?.to_radians(),
+            Some(v) => ranged(
+                v,
+                "following_error_limit_deg",
+                "deg",
+                limits::FOLLOWING_ERROR_LIMIT_DEG,
+            )?
+            .to_radians(),
             None => 10f64.to_radians(),
         };
         let decimation = *raw.recording.decimation.get_ref();
-        if decimation < 1 {
-            return Err(err(raw.recording.decimation.span(), format!("decimation = {decimation}: expected a whole number ≥ 1 (record every k-th tick)")));
+        if !(1..=limits::MAX_DECIMATION).contains(&decimation) {
+            return Err(err(raw.recording.decimation.span(), format!("decimation = {decimation}: expected a whole number from 1 to {} (record every k-th tick)", limits::MAX_DECIMATION)));
         }
 
         let rp = &raw.planner;
         let acceleration = match &rp.acceleration_mm_s2 {
-            Some(a) => Some(positive(a, "acceleration_mm_s2")? * 1e-3),
+            Some(a) => {
+                Some(ranged(a, "acceleration_mm_s2", "mm/s²", limits::ACCELERATION_MM_S2)? * 1e-3)
+            }
             None => None,
         };
-        let mut limits = BTreeMap::new();
+        let mut axis_limits = BTreeMap::new();
         for (axis, l) in &rp.limits {
             let v = l.get_ref();
             let values = [v.velocity, v.acceleration, v.jerk];
-            if !values.iter().all(|x| x.is_finite() && *x > 0.0) {
-                return Err(err(l.span(), format!("planner.limits.{axis}: velocity, acceleration and jerk must be finite and > 0, found {values:?}")));
+            let ranges = [
+                ("velocity", "mm/s or deg/s", limits::LIMIT_VELOCITY),
+                (
+                    "acceleration",
+                    "mm/s² or deg/s²",
+                    limits::LIMIT_ACCELERATION,
+                ),
+                ("jerk", "mm/s³ or deg/s³", limits::LIMIT_JERK),
+            ];
+            for (value, (name, unit, (lo, hi))) in values.iter().zip(ranges) {
+                check_range(
+                    &format!("planner.limits.{axis}.{name}"),
+                    *value,
+                    unit,
+                    lo,
+                    hi,
+                )
+                .map_err(|m| err(l.span(), m))?;
             }
-            limits.insert(axis.clone(), (values, at(l.span().start)));
+            axis_limits.insert(axis.clone(), (values, at(l.span().start)));
         }
         let planner = PlannerSettings {
             profile: rp.profile,
             acceleration,
-            limits,
+            limits: axis_limits,
             at: LineColumn::of_first(text, "[planner]"),
         };
         let tolerance = match &rp.tolerance_mm {
-            Some(t) => Some(positive(t, "tolerance_mm")? * 1e-3),
+            Some(t) => Some(ranged(t, "tolerance_mm", "mm", limits::TOLERANCE_MM)? * 1e-3),
             None => None,
         };
         let blend = match rp.blend {
@@ -861,7 +961,12 @@ impl Scenario {
             program,
             planner,
             blend,
-            rapid_speed: positive(&raw.planner.rapid_mm_s, "rapid_mm_s")? * 1e-3,
+            rapid_speed: ranged(
+                &raw.planner.rapid_mm_s,
+                "rapid_mm_s",
+                "mm/s",
+                limits::SPEED_MM_S,
+            )? * 1e-3,
             servo_period,
             substeps: substeps as usize,
             solver_iterations: solver_iterations as usize,
@@ -898,6 +1003,7 @@ impl Scenario {
             analytic_steps,
             expect,
             ab,
+            warnings,
         })
     }
 }
@@ -910,6 +1016,9 @@ impl Scenario {
         map(&mut self.machine_at);
         map(&mut self.planner.at);
         map(&mut self.controller_at);
+        for w in &mut self.warnings {
+            map(&mut w.at);
+        }
         for (_, at) in self.planner.limits.values_mut() {
             map(at);
         }
@@ -969,9 +1078,9 @@ fn flatten_expectations(
                             v.type_str()
                         ))
                     })?;
-                if x.is_nan() {
+                if !x.is_finite() {
                     return Err(fail(format!(
-                        "expect.{prefix}.{k} = nan: expected a number"
+                        "expect.{prefix}.{k} = {x:?}: expected a finite number"
                     )));
                 }
                 Ok(Some(x))

@@ -14,7 +14,7 @@ use crate::plan::{plan_program, AxisKind, AxisLimits, PlanError, PlanSettings, P
 use crate::program::{circle, polyline, read_program, PathGeometry, Program, ProgramErrors};
 use crate::report::{self, AxisLabel, Derived, Metrics, RecordingContent, ReportError};
 use crate::sim::analytic::{run_reference, AxisModel, ReferenceSettings};
-use crate::sim::{CoSimulation, LoopSettings, Stop, Trace};
+use crate::sim::{CoSimulation, LoopSettings, Stop, Trace, MAX_PHYSICS_STEPS, MAX_SERVO_TICKS};
 use std::path::{Path, PathBuf};
 
 #[derive(Debug, thiserror::Error)]
@@ -42,6 +42,8 @@ pub struct RunOutput {
     pub derived: Derived,
     /// Files written, in the order written.
     pub files: Vec<PathBuf>,
+    /// The machine's plausibility warnings (values that loaded but look wrong).
+    pub warnings: Vec<FileError>,
 }
 
 /// Gravity in the machine base frame: URDF convention, z up.
@@ -132,6 +134,7 @@ pub fn prepare_with(s: &Scenario, machine: Machine) -> Result<Prepared, RunError
             source,
         })?;
 
+    check_run_length(s, setpoints.len())?;
     let plant = new_plant(s, &machine, setpoints.position(0))?;
 
     let encoder_resolution: Vec<Option<f64>> = machine
@@ -302,7 +305,39 @@ pub fn run_scenario_with(
         trace: outcome.trace,
         derived,
         files,
+        warnings: machine.warnings.clone(),
     })
+}
+
+/// Refuses a run longer than the loop's bounds, before it starts, with the number it needs.
+pub(crate) fn check_run_length(s: &Scenario, samples: usize) -> Result<(), FileError> {
+    let settle = (s.settle_time / s.servo_period).round() as u64;
+    let ticks = settle + samples as u64;
+    let steps = ticks.saturating_mul(s.substeps as u64);
+    let what = format!(
+        "settle {:?} s + program {:.6} s at a servo period of {:?} ms",
+        s.settle_time,
+        samples.saturating_sub(1) as f64 * s.servo_period,
+        s.servo_period * 1e3
+    );
+    if ticks > MAX_SERVO_TICKS {
+        return Err(FileError::new(
+            &s.path,
+            None,
+            format!("the run needs {ticks} servo ticks ({what}): the limit is {MAX_SERVO_TICKS}"),
+        ));
+    }
+    if steps > MAX_PHYSICS_STEPS {
+        return Err(FileError::new(
+            &s.path,
+            None,
+            format!(
+                "the run needs {steps} physics steps ({ticks} ticks of {} steps; {what}): the limit is {MAX_PHYSICS_STEPS}",
+                s.substeps
+            ),
+        ));
+    }
+    Ok(())
 }
 
 /// The scenario's physics model of the machine at rest at `initial` (joint units per axis).
@@ -471,6 +506,14 @@ pub fn plan_settings(
 /// Reads the scenario's program (built-in path or file) and checks it against the machine.
 pub fn load_checked_program(s: &Scenario, machine: &Machine) -> Result<Program, RunError> {
     let mut program = load_program(s)?;
+    if program.moves.is_empty() {
+        return Err(FileError::new(
+            &program.source,
+            None,
+            "the program has no moves: there is nothing to plan or run",
+        )
+        .into());
+    }
     if program.moves.iter().any(|m| m.tool_axis.is_some()) {
         // Cutter-location data (tool tip and axis on the workpiece): machine axes come from the
         // 5-axis inverse kinematics, starting from machine zero.

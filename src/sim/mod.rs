@@ -14,6 +14,13 @@ use crate::model::Plant;
 use crate::plan::Setpoints;
 use std::time::Instant;
 
+/// Most servo ticks one run may take (settle included): a four-hour program at a 1 ms servo
+/// period is 1.44·10⁷; beyond 10⁸ a run is a mistake (a feed or a period off by orders of
+/// magnitude), and is refused before it starts with the number it would need.
+pub const MAX_SERVO_TICKS: u64 = 100_000_000;
+/// Most physics steps one run may take (ticks × steps per tick).
+pub const MAX_PHYSICS_STEPS: u64 = 1_000_000_000;
+
 /// How the loop runs, per machine axis where it says so.
 #[derive(Debug, Clone, PartialEq)]
 pub struct LoopSettings {
