@@ -3,8 +3,8 @@ use cncsim::machine::Machine;
 use cncsim::program::{inspect, FeedRule, InspectOptions, ReadOptions};
 use cncsim::report::metrics_table;
 use cncsim::scenario::{
-    check, folder_name, outcome_text, run_scenario, tune_scenario, Override, RunOutput, Scenario,
-    TuneError, TuneOptions, TunePlant,
+    check, folder_name, outcome_text, run_scenario, tune_scenario, Override, PlantKind, RunOutput,
+    Scenario, TuneError, TuneOptions,
 };
 use indicatif::{ProgressBar, ProgressStyle};
 use std::path::{Path, PathBuf};
@@ -360,9 +360,9 @@ fn tune(
         options.step = rotary_step;
     }
     let plant = if analytic {
-        TunePlant::Analytic
+        PlantKind::Analytic
     } else {
-        TunePlant::Physics
+        PlantKind::Physics
     };
     let mut progress = |t: &cncsim::tune::Trial| {
         eprintln!(

@@ -11,7 +11,7 @@
 //! 100 000) per kind. Failing inputs are written to `target/mutation-failures/`.
 
 use cncsim::machine::Machine;
-use cncsim::scenario::{prepare_with, Scenario};
+use cncsim::scenario::{Assembly, Scenario};
 use proptest::prelude::*;
 use proptest::test_runner::{Config, RngAlgorithm, TestCaseError, TestRng, TestRunner};
 use std::path::{Path, PathBuf};
@@ -330,23 +330,32 @@ fn run_case(kind: Kind, scenario_path: &Path, mutated: &str) -> Result<(), Strin
         };
     }
     scenario.settle_time = scenario.settle_time.min(RUN_SETTLE_S);
-    let prepared = match prepare_with(&scenario, machine) {
-        Ok(p) => p,
+    let (assembly, mut lanes) = match Assembly::with_machine(&scenario, machine)
+        .and_then(|a| a.lanes().map(|lanes| (a, lanes)))
+    {
+        Ok(wired) => wired,
         Err(e) => {
             reached(2);
             return check_error(&e);
         }
     };
-    let mut setpoints = prepared.setpoints.clone();
+    let mut setpoints = assembly.setpoints.clone();
     let keep = setpoints.len().min(RUN_TICKS);
     let n = setpoints.axes;
     setpoints.position.truncate(keep * n);
     setpoints.velocity.truncate(keep * n);
     setpoints.acceleration.truncate(keep * n);
     setpoints.segment.truncate(keep);
-    let outcome = prepared.cosim.run(&setpoints, &mut |_, _| true);
-    if outcome.trace.len() > keep {
-        return Err(format!("ran {} ticks of {keep}", outcome.trace.len()));
+    let mut recorder = cncsim::sim::TraceRecorder::new(scenario.servo_period, n, lanes.len());
+    let outcome = cncsim::sim::run(
+        &assembly.loop_settings,
+        &mut lanes,
+        &mut setpoints.stream(),
+        &mut recorder,
+        &mut |_, _| true,
+    );
+    if outcome.ticks > keep {
+        return Err(format!("ran {} ticks of {keep}", outcome.ticks));
     }
     reached(3);
     Ok(())

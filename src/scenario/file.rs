@@ -2,7 +2,7 @@
 //! is checked here and reported with the file, line and column it came from. Numbers must lie
 //! in the ranges of [`limits`], which keep a run physically meaningful and its work bounded.
 
-use crate::control::{ActuatorKind, PidForm, PidGains};
+use crate::control::{ActuatorKind, AxisCompensation, CascadeAxis, PidForm, PidGains, PidSettings};
 use crate::diagnostics::{check_range, read_text, toml_error, FileError, LineColumn};
 use crate::machine::{AmplifierMode, Feedback};
 use crate::plan::BlendChoice;
@@ -53,6 +53,15 @@ pub mod limits {
     pub const TASK_DAMPING: (f64, f64) = (1e-9, 10.0);
     /// Recording decimation (record every k-th tick).
     pub const MAX_DECIMATION: i64 = 1_000_000;
+    /// PID error limits and deadband (m or rad).
+    pub const MAX_ERROR: f64 = 1.0;
+    /// Cascade feed-forward shares (1 = the whole setpoint velocity or inertia torque).
+    pub const MAX_FEED_FORWARD_SHARE: f64 = 2.0;
+    /// Cut-off of the cascade's velocity estimate (Hz).
+    pub const VELOCITY_FILTER_HZ: (f64, f64) = (0.0, 1e6);
+    /// Compensated backlash.
+    pub const MAX_BACKLASH_MM: f64 = 100.0;
+    pub const MAX_BACKLASH_DEG: f64 = 90.0;
 }
 
 #[derive(Deserialize)]
@@ -75,6 +84,9 @@ struct RawScenario {
     mechanics: RawMechanics,
     #[serde(default)]
     recording: RawRecording,
+    /// Backlash and friction compensation per axis.
+    #[serde(default)]
+    compensation: BTreeMap<String, Spanned<RawCompensation>>,
     /// Run the analytic reference model beside the physics.
     analytic: Option<RawAnalytic>,
     #[serde(default)]
@@ -274,8 +286,12 @@ struct RawController {
     kind: ControllerType,
     #[serde(default)]
     form: RawPidForm,
-    /// PID gains per axis (`type = "pid"`).
+    /// PID settings per axis (`type = "pid"`).
     axes: Option<Spanned<BTreeMap<String, Spanned<RawGains>>>>,
+    /// Cascade loop settings per axis (`type = "cascade"`).
+    cascade: Option<Spanned<BTreeMap<String, Spanned<RawCascade>>>>,
+    /// Cascade: cut-off of the velocity estimate's low-pass (Hz; 0 = none).
+    velocity_filter_hz: Option<Num>,
     /// Inverse dynamics: closed-loop natural frequency (Hz) and damping ratio of every axis.
     natural_frequency_hz: Option<Num>,
     damping_ratio: Option<Num>,
@@ -317,11 +333,26 @@ pub enum ControlSpace {
     Task,
 }
 
-#[derive(Deserialize, Clone, Copy)]
+/// Which controller runs.
+#[derive(Deserialize, Debug, Clone, Copy, PartialEq, Eq)]
 #[serde(rename_all = "kebab-case")]
-enum ControllerType {
+pub enum ControllerType {
+    /// PID per axis with LinuxCNC's feed-forward terms.
     Pid,
+    /// Position loop over velocity loop per axis, with velocity and acceleration feed-forward.
+    Cascade,
+    /// Computed torque from the machine's rigid-body model.
     InverseDynamics,
+}
+
+impl ControllerType {
+    pub fn name(self) -> &'static str {
+        match self {
+            ControllerType::Pid => "pid",
+            ControllerType::Cascade => "cascade",
+            ControllerType::InverseDynamics => "inverse-dynamics",
+        }
+    }
 }
 
 #[derive(Deserialize, Default, Clone, Copy)]
@@ -332,6 +363,7 @@ enum RawPidForm {
     Incremental,
 }
 
+/// One axis's PID, LinuxCNC's terms; joint units (m or rad), output in V or N·m.
 #[derive(Deserialize)]
 #[serde(deny_unknown_fields)]
 struct RawGains {
@@ -340,8 +372,53 @@ struct RawGains {
     ki: f64,
     #[serde(default)]
     kd: f64,
-    /// |output| limit (N·m or V); default: none beyond the actuator's own saturation.
+    #[serde(default)]
+    ff0: f64,
+    #[serde(default)]
+    ff1: f64,
+    #[serde(default)]
+    ff2: f64,
+    #[serde(default)]
+    bias: f64,
+    #[serde(default)]
+    deadband: f64,
+    max_error: Option<f64>,
+    max_error_i: Option<f64>,
+    max_error_d: Option<f64>,
+    /// |output| limit (N·m or V; LinuxCNC's maxoutput); default: none beyond the actuator's
+    /// own saturation.
     output_limit: Option<f64>,
+}
+
+/// One axis's cascade, joint units (m or rad): Kpp 1/s, Kip 1/s², Kpv and Kiv output per
+/// m/s and per m, the velocity limit in m/s.
+#[derive(Deserialize)]
+#[serde(deny_unknown_fields)]
+struct RawCascade {
+    position_kp: f64,
+    #[serde(default)]
+    position_ki: f64,
+    velocity_kp: f64,
+    #[serde(default)]
+    velocity_ki: f64,
+    #[serde(default)]
+    velocity_ff: f64,
+    #[serde(default)]
+    acceleration_ff: f64,
+    velocity_limit: Option<f64>,
+    output_limit: Option<f64>,
+}
+
+/// One axis's compensation at reversals, in the units of the keys.
+#[derive(Deserialize)]
+#[serde(deny_unknown_fields)]
+struct RawCompensation {
+    backlash_mm: Option<f64>,
+    backlash_deg: Option<f64>,
+    backlash_rate_mm_s: Option<f64>,
+    backlash_rate_deg_s: Option<f64>,
+    friction_pulse: Option<f64>,
+    friction_decay_ms: Option<f64>,
 }
 
 /// Which of the machine's nonlinear mechanics the run keeps (both on by default): turning one
@@ -429,8 +506,33 @@ pub enum ProgramSource {
 /// PID settings of one axis.
 #[derive(Debug, Clone, PartialEq)]
 pub struct AxisGains {
-    pub gains: PidGains,
-    pub output_limit: f64,
+    pub settings: PidSettings,
+    pub at: Option<LineColumn>,
+}
+
+impl AxisGains {
+    pub fn gains(&self) -> PidGains {
+        self.settings.gains()
+    }
+
+    pub fn output_limit(&self) -> f64 {
+        self.settings.output_limit
+    }
+}
+
+/// Cascade settings of one axis.
+#[derive(Debug, Clone, PartialEq)]
+pub struct AxisCascade {
+    pub settings: CascadeAxis,
+    pub at: Option<LineColumn>,
+}
+
+/// Compensation of one axis, SI; `rotary_units` says which unit family the backlash keys used
+/// (`None` when none was given), checked against the axis kind when the machine is known.
+#[derive(Debug, Clone, PartialEq)]
+pub struct CompensationEntry {
+    pub compensation: AxisCompensation,
+    pub rotary_units: Option<bool>,
     pub at: Option<LineColumn>,
 }
 
@@ -462,11 +564,20 @@ pub struct Scenario {
     pub settle_time: f64,
     /// `None`: the scenario has no `[actuator]` (it can be planned, not run).
     pub actuator: Option<ActuatorKind>,
+    /// The controller that runs; `None` without a `[controller]` (plan only). The settings of
+    /// every type given stand side by side below (each checked), so an override of `type`
+    /// switches between them.
+    pub controller: Option<ControllerType>,
     pub pid_form: PidForm,
     pub gains: BTreeMap<String, AxisGains>,
+    pub cascade: BTreeMap<String, AxisCascade>,
+    /// Cut-off of the cascade's velocity estimate (Hz; 0 = unfiltered).
+    pub velocity_filter_hz: f64,
     pub controller_at: Option<LineColumn>,
-    /// `Some` when the controller is the computed-torque one (then `gains` is empty).
+    /// The computed-torque settings, where given (natural_frequency_hz).
     pub inverse_dynamics: Option<InverseDynamicsSettings>,
+    /// Backlash and friction compensation per axis.
+    pub compensation: BTreeMap<String, CompensationEntry>,
     pub encoder_counts_per_rev: BTreeMap<String, (u32, Option<LineColumn>)>,
     /// Feedback position for every axis, overriding the drive file; `None` = the drive's.
     pub feedback_position: Option<Feedback>,
@@ -717,13 +828,12 @@ impl Scenario {
             ));
         }
 
-        // The `[controller]` table may carry PID gains and inverse-dynamics parameters side by
-        // side (so `ab --a controller=pid --b controller=inverse-dynamics` compares them on one
-        // file); `type` chooses, and whatever is given is checked either way.
+        // The `[controller]` table may carry the settings of every controller type side by
+        // side (so `ab --a controller=pid --b controller=cascade` compares them on one file);
+        // `type` chooses, and whatever is given is checked either way.
         let controller_table = LineColumn::of_first(text, "[controller]");
         let inverse_dynamics = match &raw.controller {
             Some(c) => {
-                let is_id = matches!(c.kind, ControllerType::InverseDynamics);
                 let omega_n = match &c.natural_frequency_hz {
                     Some(f) => Some(
                         ranged(
@@ -747,28 +857,36 @@ impl Scenario {
                     Some(l) => ranged(l, "task_damping", "", limits::TASK_DAMPING)?,
                     None => DEFAULT_TASK_DAMPING,
                 };
-                match (is_id, omega_n) {
-                    (true, Some(omega_n)) => Some(InverseDynamicsSettings {
-                        omega_n,
-                        damping_ratio,
-                        model_mass_scale,
-                        space: c.space,
-                        task_damping,
-                    }),
-                    (true, None) => {
-                        return Err(FileError::new(
-                            path,
-                            controller_table,
-                            "type = \"inverse-dynamics\" needs natural_frequency_hz",
-                        ))
-                    }
-                    (false, _) if c.axes.is_none() => {
-                        return Err(FileError::new(path, controller_table, "type = \"pid\" needs gains per axis: axes.<name> = { kp = …, ki = …, kd = … }"));
-                    }
-                    (false, _) => None,
-                }
+                omega_n.map(|omega_n| InverseDynamicsSettings {
+                    omega_n,
+                    damping_ratio,
+                    model_mass_scale,
+                    space: c.space,
+                    task_damping,
+                })
             }
             None => None,
+        };
+        if let Some(c) = &raw.controller {
+            let needs = match c.kind {
+                ControllerType::InverseDynamics if inverse_dynamics.is_none() => {
+                    Some("type = \"inverse-dynamics\" needs natural_frequency_hz")
+                }
+                ControllerType::Pid if c.axes.is_none() => Some(
+                    "type = \"pid\" needs gains per axis: axes.<name> = { kp = …, ki = …, kd = … }",
+                ),
+                ControllerType::Cascade if c.cascade.is_none() => Some(
+                    "type = \"cascade\" needs loop settings per axis: cascade.<name> = { position_kp = …, velocity_kp = …, velocity_ki = … }",
+                ),
+                _ => None,
+            };
+            if let Some(message) = needs {
+                return Err(FileError::new(path, controller_table, message));
+            }
+        }
+        let pid_form = match raw.controller.as_ref().map(|c| c.form) {
+            Some(RawPidForm::Incremental) => PidForm::Incremental,
+            _ => PidForm::Positional,
         };
 
         let mut gains = BTreeMap::new();
@@ -780,6 +898,7 @@ impl Scenario {
             .map_or(&no_axes, |a| a.get_ref());
         for (axis, g) in controller_axes {
             let v = g.get_ref();
+            let fail = |m: String| err(g.span(), format!("controller.axes.{axis}: {m}"));
             let limit = v.output_limit.unwrap_or(f64::INFINITY);
             let ok = [v.kp, v.ki, v.kd]
                 .iter()
@@ -787,18 +906,160 @@ impl Scenario {
                 && limit > 0.0
                 && !limit.is_nan();
             if !ok {
-                return Err(err(g.span(), format!("controller.axes.{axis}: gains must be from 0 to {:?}, output_limit > 0 (kp = {:?}, ki = {:?}, kd = {:?}, output_limit = {limit:?})", limits::MAX_GAIN, v.kp, v.ki, v.kd)));
+                return Err(fail(format!("gains must be from 0 to {:?}, output_limit > 0 (kp = {:?}, ki = {:?}, kd = {:?}, output_limit = {limit:?})", limits::MAX_GAIN, v.kp, v.ki, v.kd)));
+            }
+            let g_max = limits::MAX_GAIN;
+            for (name, value, lo, hi) in [
+                ("ff0", v.ff0, -g_max, g_max),
+                ("ff1", v.ff1, -g_max, g_max),
+                ("ff2", v.ff2, -g_max, g_max),
+                ("bias", v.bias, -g_max, g_max),
+                ("deadband", v.deadband, 0.0, limits::MAX_ERROR),
+            ] {
+                check_range(name, value, "", lo, hi).map_err(&fail)?;
+            }
+            for (name, value) in [
+                ("max_error", v.max_error),
+                ("max_error_i", v.max_error_i),
+                ("max_error_d", v.max_error_d),
+            ] {
+                if let Some(x) = value {
+                    check_range(name, x, "", f64::MIN_POSITIVE, g_max).map_err(&fail)?;
+                }
+            }
+            if let (PidForm::Incremental, Some(_)) = (pid_form, v.max_error_i) {
+                return Err(fail("max_error_i limits the integral of the positional form; the incremental form has none (its accumulated output stays within output_limit)".into()));
             }
             gains.insert(
                 axis.clone(),
                 AxisGains {
-                    gains: PidGains {
+                    settings: PidSettings {
                         kp: v.kp,
                         ki: v.ki,
                         kd: v.kd,
+                        ff0: v.ff0,
+                        ff1: v.ff1,
+                        ff2: v.ff2,
+                        bias: v.bias,
+                        deadband: v.deadband,
+                        max_error: v.max_error,
+                        max_error_i: v.max_error_i,
+                        max_error_d: v.max_error_d,
+                        output_limit: limit,
                     },
-                    output_limit: limit,
                     at: at(g.span().start),
+                },
+            );
+        }
+
+        let mut cascade = BTreeMap::new();
+        let no_cascade = BTreeMap::new();
+        let cascade_axes = raw
+            .controller
+            .as_ref()
+            .and_then(|c| c.cascade.as_ref())
+            .map_or(&no_cascade, |a| a.get_ref());
+        for (axis, entry) in cascade_axes {
+            let v = entry.get_ref();
+            let fail = |m: String| err(entry.span(), format!("controller.cascade.{axis}: {m}"));
+            let g_max = limits::MAX_GAIN;
+            for (name, value, lo, hi) in [
+                ("position_kp", v.position_kp, 0.0, g_max),
+                ("position_ki", v.position_ki, 0.0, g_max),
+                ("velocity_kp", v.velocity_kp, 0.0, g_max),
+                ("velocity_ki", v.velocity_ki, 0.0, g_max),
+                (
+                    "velocity_ff",
+                    v.velocity_ff,
+                    0.0,
+                    limits::MAX_FEED_FORWARD_SHARE,
+                ),
+                (
+                    "acceleration_ff",
+                    v.acceleration_ff,
+                    0.0,
+                    limits::MAX_FEED_FORWARD_SHARE,
+                ),
+            ] {
+                check_range(name, value, "", lo, hi).map_err(&fail)?;
+            }
+            for (name, value) in [
+                ("velocity_limit", v.velocity_limit),
+                ("output_limit", v.output_limit),
+            ] {
+                if let Some(x) = value {
+                    check_range(name, x, "", f64::MIN_POSITIVE, g_max).map_err(&fail)?;
+                }
+            }
+            cascade.insert(
+                axis.clone(),
+                AxisCascade {
+                    settings: CascadeAxis {
+                        position_kp: v.position_kp,
+                        position_ki: v.position_ki,
+                        velocity_kp: v.velocity_kp,
+                        velocity_ki: v.velocity_ki,
+                        velocity_ff: v.velocity_ff,
+                        acceleration_ff: v.acceleration_ff,
+                        velocity_limit: v.velocity_limit.unwrap_or(f64::INFINITY),
+                        output_limit: v.output_limit.unwrap_or(f64::INFINITY),
+                    },
+                    at: at(entry.span().start),
+                },
+            );
+        }
+        let velocity_filter_hz = match raw
+            .controller
+            .as_ref()
+            .and_then(|c| c.velocity_filter_hz.as_ref())
+        {
+            Some(f) => ranged(f, "velocity_filter_hz", "Hz", limits::VELOCITY_FILTER_HZ)?,
+            None => 0.0,
+        };
+
+        let mut compensation = BTreeMap::new();
+        for (axis, entry) in &raw.compensation {
+            let v = entry.get_ref();
+            let fail = |m: String| err(entry.span(), format!("compensation.{axis}: {m}"));
+            let (backlash, rate, rotary_units) = match (
+                v.backlash_mm,
+                v.backlash_deg,
+                v.backlash_rate_mm_s,
+                v.backlash_rate_deg_s,
+            ) {
+                (None, None, None, None) => (0.0, 0.0, None),
+                (Some(b), None, Some(r), None) => {
+                    check_range("backlash_mm", b, "mm", 0.0, limits::MAX_BACKLASH_MM).map_err(&fail)?;
+                    check_range("backlash_rate_mm_s", r, "mm/s", 1e-6, limits::SPEED_MM_S.1).map_err(&fail)?;
+                    (b * 1e-3, r * 1e-3, Some(false))
+                }
+                (None, Some(b), None, Some(r)) => {
+                    check_range("backlash_deg", b, "deg", 0.0, limits::MAX_BACKLASH_DEG).map_err(&fail)?;
+                    check_range("backlash_rate_deg_s", r, "deg/s", 1e-6, limits::LIMIT_VELOCITY.1).map_err(&fail)?;
+                    (b.to_radians(), r.to_radians(), Some(true))
+                }
+                _ => return Err(fail("backlash compensation takes backlash_mm with backlash_rate_mm_s (linear axes) or backlash_deg with backlash_rate_deg_s (rotary axes)".into())),
+            };
+            let (pulse, decay) = match (v.friction_pulse, v.friction_decay_ms) {
+                (None, None) => (0.0, 1.0),
+                (Some(a), Some(d)) => {
+                    check_range("friction_pulse", a, "", -limits::MAX_GAIN, limits::MAX_GAIN).map_err(&fail)?;
+                    check_range("friction_decay_ms", d, "ms", 1e-3, 1e5).map_err(&fail)?;
+                    (a, d * 1e-3)
+                }
+                _ => return Err(fail("friction compensation takes friction_pulse (in controller output units: V or N·m) with friction_decay_ms".into())),
+            };
+            compensation.insert(
+                axis.clone(),
+                CompensationEntry {
+                    compensation: AxisCompensation {
+                        backlash,
+                        backlash_rate: rate,
+                        friction_pulse: pulse,
+                        friction_decay: decay,
+                    },
+                    rotary_units,
+                    at: at(entry.span().start),
                 },
             );
         }
@@ -975,18 +1236,18 @@ impl Scenario {
                 ActuatorModel::IdealTorque => ActuatorKind::IdealTorque,
                 ActuatorModel::DcMotor => ActuatorKind::DcMotor,
             }),
-            // Only PID so far: the `type` enum rejects other names.
-            pid_form: match raw.controller.as_ref().map(|c| (c.kind, c.form)) {
-                Some((ControllerType::Pid, RawPidForm::Incremental)) => PidForm::Incremental,
-                _ => PidForm::Positional,
-            },
+            controller: raw.controller.as_ref().map(|c| c.kind),
+            pid_form,
             gains,
+            cascade,
+            velocity_filter_hz,
             controller_at: raw
                 .controller
                 .as_ref()
                 .and_then(|c| c.axes.as_ref())
                 .and_then(|a| at(a.span().start)),
             inverse_dynamics,
+            compensation,
             encoder_counts_per_rev,
             feedback_position: raw.feedback.position,
             amplifier_mode: raw
@@ -1024,6 +1285,12 @@ impl Scenario {
         }
         for g in self.gains.values_mut() {
             map(&mut g.at);
+        }
+        for c in self.cascade.values_mut() {
+            map(&mut c.at);
+        }
+        for c in self.compensation.values_mut() {
+            map(&mut c.at);
         }
         for (_, at) in self.encoder_counts_per_rev.values_mut() {
             map(at);

@@ -410,6 +410,9 @@ mod file_tests {
         );
         // Chosen PID: no inverse-dynamics settings, the file's gains.
         let s = Scenario::load_with_overrides(&path, &pid[..1], "--a").unwrap();
-        assert!(s.inverse_dynamics.is_none() && s.gains["c"].gains.kp == 196.5);
+        assert!(
+            s.controller == Some(super::super::ControllerType::Pid)
+                && s.gains["c"].settings.kp == 196.5
+        );
     }
 }
