@@ -311,14 +311,15 @@ fn ab(
         }
         println!("  wrote {}", path.display());
     }
+    println!("  wrote {}", out.join("ab.rrd").display());
     let plot = out.join("contour_error.png");
     let labels = [format!("A: {}", sa.name), format!("B: {}", sb.name)];
-    let series =
-        [(&labels[0], &ra), (&labels[1], &rb)].map(|(label, r)| cncsim::report::ContourSeries {
-            label,
-            time: &r.trace.time,
-            contour_error: &r.derived.contour_error,
-        });
+    let curves = [&ra, &rb].map(|r| (r.contour_envelope.times(), r.contour_envelope.values()));
+    let series = [0, 1].map(|i| cncsim::report::ContourSeries {
+        label: &labels[i],
+        time: &curves[i].0,
+        contour_error: &curves[i].1,
+    });
     if let Err(e) = cncsim::report::write_contour_error_plot(&plot, &series) {
         return fail_input(&e);
     }
