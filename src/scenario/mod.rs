@@ -28,8 +28,8 @@ pub use run::{
     run_scenario_traced, run_scenario_with, summary_markdown, RunOutput,
 };
 pub use tune::{
-    outcome_text, tune_scenario, tune_scenario_with, LinearPrediction, TuneError, TuneOptions,
-    TuneReport,
+    outcome_text, tune_cascade, tune_scenario, tune_scenario_with, CascadeTuneReport,
+    LinearPrediction, TuneError, TuneOptions, TuneReport,
 };
 
 /// A scenario or variant name as a single folder name (no separators, no `..`).
