@@ -35,6 +35,7 @@ struct PdWithFeedForward {
 }
 
 impl Controller for PdWithFeedForward {
+    #[allow(clippy::needless_range_loop)] // five per-axis slices, one index
     fn update(&mut self, input: &ControllerInput<'_>, command: &mut [f64]) {
         for i in 0..command.len() {
             let error = input.setpoint_position[i] - input.measured_position[i];
