@@ -219,7 +219,7 @@ pub fn run(
             }
             done += 1;
             if done % PROGRESS_EVERY == 0 && !progress(done, total) {
-                state[0].stop = Some(Stop::Interrupted { time });
+                interrupt(&mut state, time, observer);
                 break;
             }
         }
@@ -242,7 +242,7 @@ pub fn run(
                 break;
             }
             if done % PROGRESS_EVERY == 0 && !progress(done, total) {
-                state[0].stop = Some(Stop::Interrupted { time });
+                interrupt(&mut state, time, observer);
                 break;
             }
             more = setpoints.next_sample(&mut sample);
@@ -262,6 +262,13 @@ pub fn run(
             .collect(),
         wall_time: started.elapsed().as_secs_f64(),
     }
+}
+
+/// Stops the run as interrupted at `time`: the primary lane stops, observers hear it.
+fn interrupt(state: &mut [LaneState], time: f64, observer: &mut dyn Observer) {
+    let stop = Stop::Interrupted { time };
+    observer.stopped(0, &stop);
+    state[0].stop = Some(stop);
 }
 
 /// One servo period of every lane still running: sample, check, measure, control, hold.
