@@ -86,6 +86,7 @@ fn benches(c: &mut Criterion) {
         group.bench_function(format!("xyz table, {label}, per 1000 ticks"), |b| {
             let settings = LoopSettings {
                 servo_period: 1e-3,
+                approach: Setpoints::default(),
                 settle_time: 0.0,
                 encoder: Encoder {
                     resolution: vec![None; 3],
@@ -171,6 +172,7 @@ fn mill(c: &mut Criterion) {
             }
             let settings = LoopSettings {
                 settle_time: 0.0,
+                approach: Setpoints::default(),
                 ..assembly.loop_settings.clone()
             };
             b.iter_batched(

@@ -20,6 +20,11 @@ pub struct AxisMetrics {
     pub rms_following_error_deg: Option<f64>,
     /// Time of the largest following error (s).
     pub max_following_error_time_s: f64,
+    /// Where in the motion the largest following error came: `start` (before the axis first
+    /// caught up with its command), `reversal` (its command slowed through zero and came back
+    /// the other way, until the axis caught up again), `stop` (its command slowed and came
+    /// back the same way, or stayed stopped), or `moving`.
+    pub max_following_error_at: &'static str,
     /// Largest difference between the physics and the analytic reference model (when run).
     #[serde(skip_serializing_if = "Option::is_none")]
     pub max_physics_vs_analytic_mm: Option<f64>,
@@ -90,6 +95,8 @@ pub struct Metrics {
     pub stopped: Option<String>,
     pub max_contour_error_mm: f64,
     pub rms_contour_error_mm: f64,
+    /// Largest |commanded − actual| path speed, leaving out the ticks at which the command
+    /// steps between rest and motion (there the difference is the step, not the machine).
     pub max_path_speed_error_mm_s: f64,
     pub sim_time_s: f64,
     pub wall_time_s: f64,
@@ -113,11 +120,92 @@ impl Metrics {
     }
 }
 
+/// Where an axis is in its motion, for placing its largest error (see
+/// [`AxisMetrics::max_following_error_at`]). Thresholds are shares of the axis's peak commanded
+/// speed: the command is slow below 20 %; the axis has caught up when its speed is within 10 %
+/// of the command's while the command is not slow.
+#[derive(Debug, Clone, Copy, PartialEq, Default)]
+enum Phase {
+    #[default]
+    Start,
+    /// The command slowed down while moving in direction `before` (±1; 0 = not yet moving).
+    Slow { before: f64 },
+    /// The command is back to speed after a slow phase, the axis not yet caught up; `label` is
+    /// what that slow phase was.
+    CatchingUp { label: &'static str },
+    Moving,
+}
+
+const SLOW: f64 = 0.2;
+const CAUGHT_UP: f64 = 0.1;
+
+/// Follows an axis through its phases; says which phase a time belongs to.
+#[derive(Debug, Clone, Copy, Default)]
+struct PhaseTracker {
+    peak: f64,
+    phase: Phase,
+    direction: f64,
+    /// Serial number of the current phase, and the label the largest error's phase got once
+    /// it was known.
+    serial: u32,
+}
+
+impl PhaseTracker {
+    /// Moves on by one tick; returns a label for the phase just left, if a slow phase now
+    /// knows whether it was a reversal or a stop.
+    fn observe(&mut self, commanded: f64, actual: f64) -> Option<(u32, &'static str)> {
+        if self.peak <= 0.0 {
+            return None;
+        }
+        let slow = commanded.abs() < SLOW * self.peak;
+        let caught_up = !slow && (actual - commanded).abs() <= CAUGHT_UP * self.peak;
+        let sign = if slow { 0.0 } else { commanded.signum() };
+        let (next, resolved) = match self.phase {
+            Phase::Start if caught_up => (Phase::Moving, Some("start")),
+            Phase::Start => (Phase::Start, None),
+            Phase::Moving if slow => (Phase::Slow { before: self.direction }, Some("moving")),
+            Phase::Moving => (Phase::Moving, None),
+            Phase::Slow { before } if !slow => {
+                let label = if before != 0.0 && sign != before { "reversal" } else { "stop" };
+                (Phase::CatchingUp { label }, Some(label))
+            }
+            Phase::Slow { .. } => (self.phase, None),
+            Phase::CatchingUp { label } if caught_up => (Phase::Moving, Some(label)),
+            Phase::CatchingUp { label } if slow => (Phase::Slow { before: self.direction }, Some(label)),
+            Phase::CatchingUp { .. } => (self.phase, None),
+        };
+        if sign != 0.0 {
+            self.direction = sign;
+        }
+        let changed = std::mem::discriminant(&next) != std::mem::discriminant(&self.phase);
+        let done = resolved.filter(|_| changed).map(|l| (self.serial, l));
+        if changed {
+            self.serial += 1;
+        }
+        self.phase = next;
+        done
+    }
+
+    /// The label of the current phase as far as it is known at the end of the run.
+    fn final_label(&self) -> &'static str {
+        match self.phase {
+            Phase::Start => "start",
+            Phase::Slow { .. } => "stop",
+            Phase::CatchingUp { label } => label,
+            Phase::Moving => "moving",
+        }
+    }
+}
+
 /// Running figures of one axis.
 #[derive(Debug, Clone, Copy, Default)]
 struct AxisSums {
     max_error: f64,
     max_error_time: f64,
+    /// The phase the largest error came in: its serial, and its label once known.
+    max_error_phase: u32,
+    max_error_at: Option<&'static str>,
+    phases: PhaseTracker,
     sum_error2: f64,
     peak_torque: f64,
     sum_torque2: f64,
@@ -148,6 +236,8 @@ pub struct MetricsAccumulator {
     max_contour: f64,
     sum_contour2: f64,
     max_speed_error: f64,
+    /// The commanded path speed of the previous tick (0: at rest before the first).
+    commanded_speed_before: f64,
     /// Lane 0's positions at tick `primary_tick`, for the comparison with lane 1.
     primary: Vec<f64>,
     primary_tick: Option<usize>,
@@ -171,6 +261,10 @@ impl MetricsAccumulator {
                 .iter()
                 .map(|&peak| AxisSums {
                     stalls: StallCounter::new(peak),
+                    phases: PhaseTracker {
+                        peak: peak.abs(),
+                        ..Default::default()
+                    },
                     max_vs_analytic: compare_analytic.then_some(0.0),
                     ..Default::default()
                 })
@@ -179,6 +273,7 @@ impl MetricsAccumulator {
             max_contour: 0.0,
             sum_contour2: 0.0,
             max_speed_error: 0.0,
+            commanded_speed_before: 0.0,
             primary: vec![0.0; labels.len()],
             primary_tick: None,
         }
@@ -208,10 +303,17 @@ impl MetricsAccumulator {
         self.primary_tick = Some(r.k);
         let sp = r.setpoint;
         for (i, a) in self.axes.iter_mut().enumerate() {
+            if let Some((serial, label)) = a.phases.observe(sp.velocity[i], s.velocity[i]) {
+                if serial == a.max_error_phase && a.max_error_at.is_none() {
+                    a.max_error_at = Some(label);
+                }
+            }
             let error = (sp.position[i] - s.position[i]).abs();
             if error > a.max_error || error.is_nan() {
                 a.max_error = error;
                 a.max_error_time = r.time;
+                a.max_error_phase = a.phases.serial;
+                a.max_error_at = None;
             }
             a.sum_error2 += error * error;
             let torque = r.hold.mean_torque[i];
@@ -224,10 +326,18 @@ impl MetricsAccumulator {
         }
         self.max_contour = nan_max(self.max_contour, path.contour_error);
         self.sum_contour2 += path.contour_error * path.contour_error;
-        self.max_speed_error = nan_max(
-            self.max_speed_error,
-            (path.commanded_speed - path.actual_speed).abs(),
-        );
+        // A tick at which the command steps between rest and motion (the stream's first sample
+        // at feed, its last at rest, an exact stop) compares a command that starts now with a
+        // speed measured before it could act: that difference is the step itself, whatever
+        // the machine does, so it is not counted. The ticks after it are.
+        let moving = path.commanded_speed > 0.0;
+        if moving == (self.commanded_speed_before > 0.0) {
+            self.max_speed_error = nan_max(
+                self.max_speed_error,
+                (path.commanded_speed - path.actual_speed).abs(),
+            );
+        }
+        self.commanded_speed_before = path.commanded_speed;
         stalled
     }
 
@@ -261,6 +371,13 @@ impl MetricsAccumulator {
                     max_following_error_deg: deg.map(|v| v.0),
                     rms_following_error_deg: deg.map(|v| v.1),
                     max_following_error_time_s: a.max_error_time,
+                    max_following_error_at: a.max_error_at.unwrap_or_else(|| {
+                        if a.max_error_phase == a.phases.serial {
+                            a.phases.final_label()
+                        } else {
+                            "moving"
+                        }
+                    }),
                     max_physics_vs_analytic_mm: vs.filter(|_| !label.rotary),
                     max_physics_vs_analytic_deg: vs.filter(|_| label.rotary),
                     peak_torque_nm: a.peak_torque,
@@ -333,6 +450,47 @@ mod tests {
             .collect();
         assert!(commanded[59].abs() > 0.25 * 5e-3);
         assert_eq!(stalls(&commanded, &actual), 0);
+    }
+
+    /// Where the largest error of a velocity series came: errors peak where `error` says.
+    fn place(commanded: &[f64], actual: &[f64], peak_at: usize) -> &'static str {
+        let peak = commanded.iter().fold(0.0f64, |m, v| m.max(v.abs()));
+        let mut a = AxisSums {
+            phases: PhaseTracker { peak, ..Default::default() },
+            ..Default::default()
+        };
+        for (k, (c, v)) in commanded.iter().zip(actual).enumerate() {
+            if let Some((serial, label)) = a.phases.observe(*c, *v) {
+                if serial == a.max_error_phase && a.max_error_at.is_none() {
+                    a.max_error_at = Some(label);
+                }
+            }
+            if k == peak_at {
+                a.max_error_phase = a.phases.serial;
+                a.max_error_at = None;
+            }
+        }
+        a.max_error_at.unwrap_or(if a.max_error_phase == a.phases.serial { a.phases.final_label() } else { "moving" })
+    }
+
+    #[test]
+    fn largest_errors_are_placed_at_start_reversal_stop_or_moving() {
+        // Forward at 1, through zero, backward at 1; the axis lags 5 ticks behind each change.
+        let mut commanded = vec![1.0; 20];
+        commanded.extend((0..10).map(|k| 1.0 - 0.2 * k as f64));
+        commanded.extend(vec![-1.0; 30]);
+        let mut actual = vec![0.0; 5];
+        actual.extend(commanded[..commanded.len() - 5].iter().copied());
+        assert_eq!(place(&commanded, &actual, 2), "start");
+        assert_eq!(place(&commanded, &actual, 12), "moving");
+        assert_eq!(place(&commanded, &actual, 27), "reversal");
+        assert_eq!(place(&commanded, &actual, 33), "reversal");
+        assert_eq!(place(&commanded, &actual, 55), "moving");
+        // A command that slows and goes on the same way: a stop.
+        let mut same: Vec<f64> = vec![1.0; 20];
+        same.extend(vec![0.0; 10]);
+        same.extend(vec![1.0; 20]);
+        assert_eq!(place(&same, &same, 25), "stop");
     }
 
     #[test]

@@ -99,7 +99,8 @@ impl Assembly {
         super::run::validate_against_machine(s, &machine, &labels)?;
         let axis_map = AxisMap::cartesian(&machine)
             .map_err(|e| FileError::new(&s.machine, None, e.to_string()))?;
-        check_run_length(s, setpoints.len())?;
+        let approach = approach_for(s, &machine, &axis_map, &program)?;
+        check_run_length(s, approach.len() + setpoints.len())?;
         let encoder = Encoder {
             resolution: machine
                 .axes
@@ -136,6 +137,7 @@ impl Assembly {
             actuator,
             loop_settings: LoopSettings {
                 servo_period: s.servo_period,
+                approach,
                 settle_time: s.settle_time,
                 encoder,
                 trip,
@@ -148,12 +150,16 @@ impl Assembly {
         self.setpoints.stream()
     }
 
-    /// Where every axis starts: at rest at the first setpoint.
+    /// Where every axis starts: at rest at the start of the approach, or else at the first
+    /// setpoint.
     pub fn start(&self) -> Vec<f64> {
-        if self.setpoints.is_empty() {
-            vec![0.0; self.machine.axes.len()]
-        } else {
+        let approach = &self.loop_settings.approach;
+        if !approach.is_empty() {
+            approach.position(0).to_vec()
+        } else if !self.setpoints.is_empty() {
             self.setpoints.position(0).to_vec()
+        } else {
+            vec![0.0; self.machine.axes.len()]
         }
     }
 
@@ -278,6 +284,45 @@ fn labels(machine: &Machine) -> Vec<AxisLabel> {
             rotary: a.is_rotary(machine),
         })
         .collect()
+}
+
+/// The setpoints of the scenario's approach (none without one): a straight move from its start
+/// to the program's first point at its speed, planned by the scenario's own planner.
+fn approach_for(
+    s: &Scenario,
+    machine: &Machine,
+    axis_map: &AxisMap,
+    program: &Program,
+) -> Result<Setpoints, RunError> {
+    let Some(a) = s.approach else {
+        return Ok(Setpoints::default());
+    };
+    let start = crate::program::Position {
+        linear: a.from,
+        rotary: program.start.rotary,
+    };
+    let first = program.moves.first().map(|m| m.span).unwrap_or_default();
+    let way = Program {
+        source: program.source.clone(),
+        start,
+        moves: vec![crate::program::Move {
+            motion: crate::program::Motion::Linear,
+            end: program.start,
+            tool_axis: None,
+            feed: crate::program::Feed::PathSpeed(a.speed),
+            feed_rule: crate::program::FeedRule::LinuxCnc,
+            blend: crate::program::Blend::ExactStop,
+            tool_down: None,
+            spindle: crate::program::Spindle::Off,
+            span: first,
+        }],
+        warnings: Vec::new(),
+    };
+    let settings = plan_settings(s, machine, s.planner.profile)?;
+    plan_program(&way, axis_map, &settings).map_err(|source| RunError::Plan {
+        path: s.path.clone(),
+        source,
+    })
 }
 
 /// The scenario's program on `machine` and its setpoints.

@@ -130,6 +130,11 @@ struct RawProgram {
     lenient: bool,
     #[serde(default)]
     optimise_pen_up: bool,
+    /// Where the machine is before the program: it reaches the program's first point by an
+    /// untraced straight move from here (mm), as a real machine comes from home.
+    approach_from_mm: Option<Spanned<[f64; 3]>>,
+    /// Speed of that move (mm/s); default: the planner's rapid speed.
+    approach_feed_mm_s: Option<Num>,
 }
 
 #[derive(Deserialize, Default, Clone, Copy)]
@@ -503,6 +508,16 @@ pub enum ProgramSource {
     File { path: PathBuf, options: ReadOptions },
 }
 
+/// The machine's way to the program: a straight move from `from` at `speed`, run before the
+/// settle and not traced, identically in the physics and the analytic model.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Approach {
+    /// Start point in program coordinates (m).
+    pub from: [f64; 3],
+    /// Path speed (m/s).
+    pub speed: f64,
+}
+
 /// PID settings of one axis.
 #[derive(Debug, Clone, PartialEq)]
 pub struct AxisGains {
@@ -555,6 +570,8 @@ pub struct Scenario {
     pub machine: PathBuf,
     pub machine_at: Option<LineColumn>,
     pub program: ProgramSource,
+    /// The untraced approach to the program's first point: from where (m), at what speed (m/s).
+    pub approach: Option<Approach>,
     pub planner: PlannerSettings,
     pub blend: BlendChoice,
     pub rapid_speed: f64,
@@ -765,6 +782,29 @@ impl Scenario {
             })
         };
 
+        let approach = match &p.approach_from_mm {
+            None => {
+                if let Some(f) = &p.approach_feed_mm_s {
+                    return Err(err(f.span(), "approach_feed_mm_s applies with approach_from_mm".into()));
+                }
+                None
+            }
+            Some(from) => {
+                let c = limits::COORDINATE_MM;
+                let v = from.get_ref();
+                if !v.iter().all(|x| x.is_finite() && x.abs() <= c) {
+                    return Err(err(from.span(), format!("approach_from_mm = {v:?}: expected coordinates within ±{c:?} mm")));
+                }
+                let speed = match &p.approach_feed_mm_s {
+                    Some(f) => ranged(f, "approach_feed_mm_s", "mm/s", limits::SPEED_MM_S)?,
+                    None => *raw.planner.rapid_mm_s.get_ref(),
+                };
+                Some(Approach {
+                    from: v.map(|x| x * 1e-3),
+                    speed: speed * 1e-3,
+                })
+            }
+        };
         for (key, value) in [
             ("feed_mm_s", p.feed_mm_s.as_ref()),
             ("rapid_mm_s", Some(&raw.planner.rapid_mm_s)),
@@ -1220,6 +1260,7 @@ impl Scenario {
             machine,
             machine_at: at(raw.machine.span().start),
             program,
+            approach,
             planner,
             blend,
             rapid_speed: ranged(

@@ -17,7 +17,7 @@ pub use assemble::{
 };
 pub use check::{check, Breach, Verdict};
 pub use file::{
-    limits, AxisCascade, AxisGains, CompensationEntry, ControlSpace, ControllerType,
+    limits, Approach, AxisCascade, AxisGains, CompensationEntry, ControlSpace, ControllerType,
     DeclaredVariants, Expectation, InverseDynamicsSettings, PlannerSettings, ProfileName,
     ProgramSource, Scenario,
 };

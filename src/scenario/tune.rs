@@ -199,6 +199,7 @@ pub fn tune_scenario_with(
 
     let loop_settings = LoopSettings {
         settle_time: 0.0,
+        approach: Setpoints::default(),
         ..assembly.loop_settings.clone()
     };
     // A boundary judged on a handful of peaks is a guess: a slow loop (an ultimate period
@@ -741,6 +742,7 @@ pub fn tune_cascade(
     };
     let loop_settings = LoopSettings {
         settle_time: 0.0,
+        approach: Setpoints::default(),
         ..assembly.loop_settings.clone()
     };
     let mut lanes = [Lane {

@@ -27,7 +27,7 @@ pub use plant::{Hold, Plant, Sensors};
 pub use trace::{Trace, TraceRecorder};
 
 use crate::control::{Controller, ControllerInput};
-use crate::plan::{SetpointSample, SetpointStream};
+use crate::plan::{SetpointSample, SetpointStream, Setpoints};
 use std::time::Instant;
 
 /// Most servo ticks one run may take (settle included): a four-hour program at a 1 ms servo
@@ -44,8 +44,13 @@ const PROGRESS_EVERY: usize = 1024;
 #[derive(Debug, Clone, PartialEq)]
 pub struct LoopSettings {
     pub servo_period: f64,
-    /// Time the loop holds the first setpoint before the program starts (s): the machine is
-    /// enabled and in position before cycle start. Not observed.
+    /// The way the machine comes to the program's first point, run after the settle and not
+    /// observed; the plants start at rest at its first sample. Empty: they start at the first
+    /// setpoint.
+    pub approach: Setpoints,
+    /// Time the loop holds the machine at rest where it starts (the approach's first sample,
+    /// or the program's) before it moves (s): the machine is enabled and in position before
+    /// cycle start. Not observed.
     pub settle_time: f64,
     pub encoder: Encoder,
     pub trip: FollowingErrorTrip,
@@ -203,26 +208,41 @@ pub fn run(
         .collect();
     let mut sample = SetpointSample::zeros(n);
     let settle_ticks = (settings.settle_time / t).round() as usize;
-    let total = settle_ticks + setpoints.len();
+    let approach = &settings.approach;
+    let total = approach.len() + settle_ticks + setpoints.len();
     let mut ticks = 0;
     let mut done = 0;
 
-    if setpoints.next_sample(&mut sample) {
-        // Settle: the first setpoint held at rest, not observed.
-        let mut hold = sample.clone();
-        hold.velocity.iter_mut().for_each(|v| *v = 0.0);
-        hold.acceleration.iter_mut().for_each(|a| *a = 0.0);
-        for k in 0..settle_ticks {
-            let time = (k as f64 - settle_ticks as f64) * t;
-            if !tick_lanes(settings, lanes, &mut state, time, &hold, None, observer) {
-                break;
-            }
-            done += 1;
-            if done % PROGRESS_EVERY == 0 && !progress(done, total) {
-                interrupt(&mut state, time, observer);
-                break;
-            }
+    // Before the program, not observed: the machine first settles at rest where it starts (the
+    // approach's first point, or the program's), as an enabled machine holds position before
+    // cycle start; then it comes to the program's first point along the approach.
+    let has_program = setpoints.next_sample(&mut sample);
+    let mut way = approach.stream();
+    let mut step = SetpointSample::zeros(n);
+    let mut on_way = way.next_sample(&mut step);
+    let mut hold = if on_way { step.clone() } else { sample.clone() };
+    hold.velocity.iter_mut().for_each(|v| *v = 0.0);
+    hold.acceleration.iter_mut().for_each(|a| *a = 0.0);
+    let before = (approach.len() + settle_ticks) as f64;
+    let mut settle = settle_ticks;
+    while state[0].stop.is_none() && (settle > 0 || on_way) && has_program {
+        let time = (done as f64 - before) * t;
+        let target = if settle > 0 { &hold } else { &step };
+        if !tick_lanes(settings, lanes, &mut state, time, target, None, observer) {
+            break;
         }
+        done += 1;
+        if done % PROGRESS_EVERY == 0 && !progress(done, total) {
+            interrupt(&mut state, time, observer);
+            break;
+        }
+        if settle > 0 {
+            settle -= 1;
+        } else {
+            on_way = way.next_sample(&mut step);
+        }
+    }
+    if state[0].stop.is_none() && has_program {
         // The program.
         let mut more = state[0].stop.is_none();
         while more {

@@ -341,6 +341,7 @@ fn x_pid() -> PidBank {
 fn loop_settings(axes: usize, encoder: Vec<Option<f64>>) -> LoopSettings {
     LoopSettings {
         servo_period: 1e-3,
+        approach: Setpoints::default(),
         settle_time: 0.1,
         encoder: Encoder {
             resolution: encoder,
