@@ -179,6 +179,22 @@ pub enum Command {
         #[arg(long)]
         out: Option<PathBuf>,
     },
+    /// Calibrate: fit machine and scenario keys to measured figures or traces (CMA-ES, seeded,
+    /// candidates in parallel); writes OUT/report.md, evaluations.csv/json, convergence.png,
+    /// and runs the target and [predict] scenarios with the best values into OUT/predictions/.
+    Calibrate {
+        spec: PathBuf,
+        /// Runs at once (default: the number of cores).
+        #[arg(long)]
+        jobs: Option<usize>,
+        /// Output folder (default: out/calibration_<name>).
+        #[arg(long)]
+        out: Option<PathBuf>,
+        /// Write the best values into the drives files, URDFs and scenarios they came from
+        /// (comments kept).
+        #[arg(long)]
+        write: bool,
+    },
     /// Merge the output folders of a sweep's shards into one (results, summary, plots).
     Merge {
         #[arg(required = true)]

@@ -56,6 +56,12 @@ fn main() -> ExitCode {
             out,
         }) => sweep_cli(&sweep, jobs, shard.as_deref(), out),
         Some(Command::Merge { dirs, out }) => merge_cli(&dirs, &out),
+        Some(Command::Calibrate {
+            spec,
+            jobs,
+            out,
+            write,
+        }) => calibrate_cli(&spec, jobs, out, write),
         Some(Command::Check { scenarios, out }) => check_all(&scenarios, out),
         Some(Command::Plan {
             scenario,
@@ -507,6 +513,105 @@ fn sweep_cli(
         return ExitCode::from(1);
     }
     ExitCode::SUCCESS
+}
+
+fn calibrate_cli(path: &Path, jobs: Option<usize>, out: Option<PathBuf>, write: bool) -> ExitCode {
+    use cncsim::sweep::calibrate::{
+        calibrate, predict, predictions_markdown, write_back, Calibration, CalibrationProgress,
+    };
+    let cal = match Calibration::load(path) {
+        Ok(c) => c,
+        Err(e) => return fail_input(&e),
+    };
+    let threads =
+        jobs.unwrap_or_else(|| std::thread::available_parallelism().map_or(1, |n| n.get()));
+    if threads == 0 {
+        return fail_input(&"--jobs 0: expected at least 1");
+    }
+    let out = out.unwrap_or_else(|| {
+        Path::new("out").join(format!("calibration_{}", folder_name(&cal.name)))
+    });
+    eprintln!(
+        "calibration {}: {} parameters, {} targets, CMA-ES population {}, up to {} candidates on {threads} threads",
+        cal.name,
+        cal.parameters.len(),
+        cal.targets.len(),
+        cal.population,
+        cal.max_evaluations
+    );
+    let bar = ProgressBar::new(cal.max_evaluations as u64 + 1).with_style(
+        ProgressStyle::with_template(
+            "{spinner} [{bar:30}] {pos}/{len} candidates {msg} {elapsed_precise} eta {eta}",
+        )
+        .expect("valid template")
+        .progress_chars("=> "),
+    );
+    let on_change = |p: &CalibrationProgress| {
+        bar.set_position(p.evaluations.load(Ordering::Relaxed) as u64 + 1);
+        if let Some(b) = *p.best.lock().expect("no panics while held") {
+            bar.set_message(format!("(best cost {b:.4})"));
+        }
+    };
+    let progress = CalibrationProgress::default();
+    let result = match calibrate(&cal, &out, threads, &INTERRUPTED, &progress, &on_change) {
+        Ok(r) => r,
+        Err(e) => {
+            bar.finish_and_clear();
+            return fail_input(&e);
+        }
+    };
+    bar.finish_and_clear();
+    let mut report = result.markdown(&cal);
+    let mut files = Vec::new();
+    let written = (|| -> std::io::Result<()> {
+        std::fs::create_dir_all(&out)?;
+        let json = serde_json::to_string_pretty(&result).map_err(std::io::Error::other)?;
+        for (name, text) in [
+            ("evaluations.json", json),
+            ("evaluations.csv", result.csv()),
+        ] {
+            std::fs::write(out.join(name), text)?;
+            files.push(out.join(name));
+        }
+        Ok(())
+    })();
+    if let Err(e) = written {
+        return fail_input(&format!("{}: {e}", out.display()));
+    }
+    if result.plot(&out.join("convergence.png")).is_ok() {
+        files.push(out.join("convergence.png"));
+    }
+    let mut status = ExitCode::SUCCESS;
+    match &result.best {
+        Some(best) if !INTERRUPTED.load(Ordering::Relaxed) => {
+            eprintln!("running the scenarios with the best values …");
+            let runs = predict(&cal, &best.values, &out.join("predictions"), threads, &INTERRUPTED);
+            report += &format!(
+                "\n## With the best values\n\nRecordings in `predictions/<scenario>/`. Where the largest error occurs: start (before the axis first caught up with its command), reversal (after the command slowed and turned), stop, or moving.\n\n{}",
+                predictions_markdown(&cal, &runs)
+            );
+            if write {
+                match write_back(&cal, &best.values) {
+                    Ok(paths) => {
+                        for p in paths {
+                            eprintln!("  updated {}", p.display());
+                        }
+                    }
+                    Err(e) => return fail_input(&e),
+                }
+            }
+        }
+        Some(_) => status = ExitCode::from(130),
+        None => status = ExitCode::from(1),
+    }
+    if std::fs::write(out.join("report.md"), &report).is_ok() {
+        files.insert(0, out.join("report.md"));
+    }
+    print!("{report}");
+    for f in files {
+        println!("  wrote {}", f.display());
+    }
+    status
 }
 
 fn merge_cli(dirs: &[PathBuf], out: &Path) -> ExitCode {

@@ -23,9 +23,10 @@ pub struct Job {
     pub scenario: PathBuf,
     pub changes: Vec<Change>,
     pub out_dir: PathBuf,
-    /// Write the run's CSV and Rerun recording (the scenario's `[recording]`); off: metrics
-    /// only.
+    /// Write the run's Rerun recording and CSV as its `[recording]` asks; off: metrics only.
     pub recordings: bool,
+    /// Write the run's CSV trace even without recordings (a calibration reads it back).
+    pub csv: bool,
 }
 
 /// How a job ended.
@@ -103,7 +104,7 @@ fn run_job(job: &Job, cache: &PlanCache, interrupted: &AtomicBool) -> JobResult 
     };
     if !job.recordings {
         s.record_rrd = false;
-        s.record_csv = false;
+        s.record_csv = job.csv;
     }
     let machine_changes: Vec<_> = job
         .changes
@@ -207,6 +208,7 @@ pub fn run_sweep(
                 changes: sweep.changes(r),
                 out_dir: out.join("runs").join(crate::scenario::folder_name(&folder)),
                 recordings: sweep.recordings,
+                csv: false,
             }
         })
         .collect();
