@@ -35,6 +35,7 @@ pub use self::geometry::{arc_segment, PathGeometry, Segment};
 pub use self::hpgl::{parse_hpgl, parse_hpgl_detailed, HpglOutput};
 pub use self::options::{
     AptOptions, ArcTolerance, FeedTimeBase, GcodeOptions, HpglOptions, LengthUnit, ReadOptions,
+    ToolSpec,
 };
 pub use self::reference::{circle, polyline, CircleSpec, PolylineSpec};
 pub use self::report::{
