@@ -310,6 +310,12 @@ pub(super) fn read_block(
                 letter.to_ascii_uppercase() as char
             )));
         }
+        if cursor.peek().is_some_and(|b| b.is_ascii_alphabetic()) && !starts_function(&cursor) {
+            return Err(cursor.error_here(format!(
+                "expected a number after '{}'",
+                letter.to_ascii_uppercase() as char
+            )));
+        }
         let value = cursor.real_value(params)?;
         let word_end = cursor.end_of_previous();
         let word = Word {
@@ -357,6 +363,20 @@ pub(super) fn read_block(
         }
     }
     Ok(block)
+}
+
+/// Whether the cursor is at the name of a function (`ABS[`, `SIN[`, …).
+fn starts_function(cursor: &Cursor) -> bool {
+    const NAMES: [&str; 14] = [
+        "abs", "acos", "asin", "atan", "cos", "exists", "exp", "fix", "fup", "ln", "round", "sin",
+        "sqrt", "tan",
+    ];
+    let ahead: Vec<u8> = cursor.chars[cursor.index..]
+        .iter()
+        .take(6)
+        .map(|c| c.byte)
+        .collect();
+    NAMES.iter().any(|name| ahead.starts_with(name.as_bytes()))
 }
 
 fn display_label(label: &str) -> String {

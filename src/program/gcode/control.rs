@@ -501,9 +501,10 @@ fn collect_sub<R: BufRead>(
     loop {
         let Some(line) = lines.get(next) else {
             return Err(LineError::new(0, 0, format!(
-                "expected 'o{} endsub' to end the subroutine defined here; the file ends first",
+                "expected 'o{} endsub' to end the subroutine defined here",
                 shown(name)
-            )));
+            ))
+            .found(crate::program::error::Found::EndOfFile));
         };
         compact.clear();
         let o_word = compact_line(&line.text, &mut compact)

@@ -120,7 +120,7 @@ impl Interpreter<'_> {
 
     /// LinuxCNC refuses words that no code in the block (or mode) uses (`check_g_codes`,
     /// `check_other_codes`).
-    fn check_words(&self, block: &Block, motion: Option<u32>) -> Result<(), LineError> {
+    fn check_words(&self, line: &[u8], block: &Block, motion: Option<u32>) -> Result<(), LineError> {
         let mode0 = block.g_code(group::NON_MODAL);
         let motion = motion.unwrap_or(u32::MAX);
         let cycle = is_cycle(motion);
@@ -210,7 +210,7 @@ impl Interpreter<'_> {
                         g4.end,
                         "expected a P word (dwell time in seconds) with G4",
                     )
-                    .found(Found::Text(display_text(&[]).to_string()))
+                    .found(Found::Text(display_text(&line[block.start..block.end])))
                     .hint("write e.g. G4 P0.5 for half a second"));
                 }
                 if arc {
@@ -256,7 +256,7 @@ impl Interpreter<'_> {
     /// Executes a checked block in LinuxCNC's order of execution.
     pub fn execute(&mut self, line: &[u8], block: &Block, span: Span) -> Result<(), LineError> {
         let motion = self.motion_to_be(line, block)?;
-        self.check_words(block, motion)?;
+        self.check_words(line, block, motion)?;
 
         // Feed rate mode.
         match block.g_code(group::FEED_MODE) {
