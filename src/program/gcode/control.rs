@@ -45,6 +45,13 @@ struct Label {
     repeats_left: Option<i64>,
 }
 
+/// LinuxCNC's loop flags, which belong to the interpreter rather than to one loop.
+#[derive(Debug, Default)]
+pub(super) struct LoopFlags {
+    pub doing_break: bool,
+    pub doing_continue: bool,
+}
+
 /// One level of the call stack.
 #[derive(Debug)]
 pub(super) struct Frame {
@@ -56,8 +63,6 @@ pub(super) struct Frame {
     skip_to: Option<String>,
     labels: HashMap<String, Label>,
     executed_if: bool,
-    doing_break: bool,
-    doing_continue: bool,
     /// Named parameters local to this call.
     pub locals: HashMap<String, f64>,
     /// The caller's #1–#30, restored on return.
@@ -73,8 +78,6 @@ impl Frame {
             skip_to: None,
             labels: HashMap::new(),
             executed_if: false,
-            doing_break: false,
-            doing_continue: false,
             locals: HashMap::new(),
             saved_arguments: [0.0; 30],
         }
@@ -241,11 +244,17 @@ fn percent_line(
             "expected nothing after '%' on its line",
         ));
     }
-    if !interp.seen_content && !interp.percent_open {
+    if line.number == 1 {
         interp.percent_open = true;
-    } else {
-        // LinuxCNC stops reading at the second '%' (or at a '%' after content).
+    } else if interp.percent_open {
+        // LinuxCNC stops reading at the closing '%'.
         interp.finished = true;
+    } else {
+        return Err(LineError::new(
+            first.at,
+            first.at + 1,
+            "expected '%' only on the first line, or to close a program that opened with '%'",
+        ));
     }
     interp.seen_content = true;
     Ok(())
@@ -353,14 +362,16 @@ fn o_line<R: BufRead>(
             match existing {
                 Some(label) if label.keyword == Keyword::Do => {
                     // The end of a do-while loop.
+                    // LinuxCNC keeps the break flag across loops until a do-while
+                    // ends: a `break` out of an earlier while also ends the next do-while
+                    // after one pass. cncsim does the same.
                     frame.skip_to = None;
-                    if condition != 0.0 && !frame.doing_break {
+                    if condition != 0.0 && !interp.flow.doing_break {
                         frame.pc = label.index;
                     } else {
                         frame.labels.remove(&o.label);
                     }
-                    frame.doing_break = false;
-                    frame.doing_continue = false;
+                    interp.flow.doing_break = false;
                 }
                 _ => {
                     frame.skip_to = None;
@@ -410,11 +421,10 @@ fn o_line<R: BufRead>(
             };
             if was_skipping {
                 frame.skip_to = None;
-                if frame.doing_continue {
-                    frame.doing_continue = false;
+                if interp.flow.doing_continue {
+                    interp.flow.doing_continue = false;
                     frame.pc = label.index;
                 } else {
-                    frame.doing_break = false;
                     frame.labels.remove(&o.label);
                 }
             } else {
@@ -478,9 +488,9 @@ fn o_line<R: BufRead>(
             }
             frame.skip_to = Some(o.label.clone());
             if o.keyword == Keyword::Break {
-                frame.doing_break = true;
+                interp.flow.doing_break = true;
             } else {
-                frame.doing_continue = true;
+                interp.flow.doing_continue = true;
             }
         }
     }

@@ -261,7 +261,12 @@ impl Interpreter<'_> {
         // Feed rate mode.
         match block.g_code(group::FEED_MODE) {
             Some(930) => self.s.inverse_time = true,
-            Some(940) => self.s.inverse_time = false,
+            Some(940) => {
+                // LinuxCNC clears the feed rate on every G94.
+                self.s.inverse_time = false;
+                self.s.feed_rate = 0.0;
+                self.canon.set_feed_rate(0.0);
+            }
             _ => {}
         }
         // F: in the units current before this block's G20/G21, as LinuxCNC does.
@@ -425,6 +430,7 @@ impl Interpreter<'_> {
         if let Some(code) = block.g_code(group::MOTION) {
             if code == 800 {
                 self.s.motion_mode = None;
+                self.s.cycle.initial_level = None;
             }
         }
         if let Some(code) = motion {
@@ -582,11 +588,10 @@ impl Interpreter<'_> {
                         }
                     }
                     None => {
-                        for (axis, letter) in super::block::AXIS_LETTERS.iter().enumerate() {
-                            if let Some(value) = block.value(*letter) {
-                                offset[axis] += value;
-                            }
-                        }
+                        // LinuxCNC 2.9 looks up tool -1 here and fails; so does cncsim.
+                        let g43 = block.g[group::TOOL_LENGTH].expect("G43.2");
+                        return Err(LineError::new(g43.start, g43.end, "expected an H word with G43.2")
+                            .hint("LinuxCNC 2.9 refuses G43.2 with axis words alone; use G43.1 or G43.2 H"));
                     }
                 }
                 offset

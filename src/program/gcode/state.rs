@@ -6,7 +6,7 @@ use std::path::Path;
 use std::rc::Rc;
 
 use super::canon::{Axes, Canon};
-use super::control::{Frame, Sub};
+use super::control::{Frame, LoopFlags, Sub};
 use super::expr::Parameters;
 use super::params::{self, Store};
 use super::Errors;
@@ -94,6 +94,7 @@ pub(super) struct Interpreter<'a> {
     pub params: Store,
     pub frames: Vec<Frame>,
     pub subs: HashMap<String, Rc<Sub>>,
+    pub flow: LoopFlags,
     /// The value the last subroutine returned (`#<_value>`), and whether it returned one.
     pub returned: (f64, bool),
     pub percent_open: bool,
@@ -172,6 +173,7 @@ impl<'a> Interpreter<'a> {
             params,
             frames: vec![Frame::main()],
             subs: HashMap::new(),
+            flow: LoopFlags::default(),
             returned: (0.0, false),
             percent_open: false,
             seen_content: false,

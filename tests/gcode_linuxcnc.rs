@@ -1,0 +1,733 @@
+//! Differential test of the G-code front end against LinuxCNC's own interpreter, `rs274`
+//! (Debian package `linuxcnc-uspace`): both read the same program with the same tool table,
+//! and every traverse, feed, arc and dwell must agree.
+//!
+//! What is compared, move by move, in machine coordinates (program position plus G92 offset,
+//! XY rotation, G54–G59.3 origin and tool length offset, as LinuxCNC's canonical layer
+//! applies them): end points of traverses, feeds and arcs; arc centres, directions and
+//! turns; feed rates (mm/min); dwell times. Tolerance: 1.1e-4 program units on positions
+//! (rs274 prints four decimals; 0.11 µm in mm programs, 2.8 µm in inch programs), 1e-4 s on
+//! dwells, 1e-6 relative on feeds.
+//!
+//! Always (plain `cargo test`): the programs in `tests/fixtures/gcode/` against the rs274
+//! output committed beside them (`*.canon`).
+//! When rs274 is available (`CNCSIM_LINUXCNC_ROOT` = a directory `linuxcnc-uspace` was
+//! unpacked into, or `rs274` on the PATH): the fixtures' outputs are regenerated and checked
+//! against the committed ones (`CNCSIM_UPDATE_FIXTURES=1` rewrites them), every program under
+//! the directories in `CNCSIM_LINUXCNC_CORPUS` (and the package's own `ncfiles`) is run
+//! through both interpreters, and generated programs are compared. With
+//! `CNCSIM_REQUIRE_ORACLES=1` a missing rs274 is a failure, not a skip.
+
+use std::collections::BTreeMap;
+use std::io::Read;
+use std::path::{Path, PathBuf};
+use std::process::{Command, Stdio};
+use std::time::{Duration, Instant};
+
+use cncsim::program::{
+    move_length, parse_gcode, Feed, LengthUnit, Motion, Plane, Position, Program, ReadOptions,
+    ToolSpec,
+};
+
+// ---------------------------------------------------------------------------------------
+// Events: what both sides are reduced to
+// ---------------------------------------------------------------------------------------
+
+#[derive(Debug, Clone, PartialEq)]
+enum Kind {
+    Traverse,
+    Feed {
+        /// mm/min (deg/min for purely rotary moves).
+        rate: f64,
+    },
+    Arc {
+        /// Centre in machine mm (the plane's two coordinates, in X Y Z slots).
+        centre: [f64; 3],
+        plane: Plane,
+        clockwise: bool,
+        turns: u32,
+        rate: f64,
+    },
+    Dwell {
+        seconds: f64,
+    },
+}
+
+#[derive(Debug, Clone)]
+struct Event {
+    kind: Kind,
+    /// Machine position: X Y Z in mm, A B C in degrees.
+    end: [f64; 6],
+    /// Position tolerance (mm) from the units the move was programmed in.
+    tolerance: f64,
+    /// Whether only rotary axes move (feed in deg/min).
+    line: String,
+}
+
+fn plane_slots(plane: Plane) -> (usize, usize, usize) {
+    match plane {
+        Plane::XY => (0, 1, 2),
+        Plane::ZX => (2, 0, 1),
+        Plane::YZ => (1, 2, 0),
+    }
+}
+
+// ---------------------------------------------------------------------------------------
+// rs274's canonical output → events (what LinuxCNC's emccanon does with it)
+// ---------------------------------------------------------------------------------------
+
+fn rotate(x: f64, y: f64, degrees: f64) -> (f64, f64) {
+    let (s, c) = degrees.to_radians().sin_cos();
+    (x * c - y * s, x * s + y * c)
+}
+
+fn numbers(args: &str) -> Vec<f64> {
+    args.split([',', ' '])
+        .filter(|t| !t.is_empty())
+        .filter_map(|t| t.trim().parse::<f64>().ok())
+        .collect()
+}
+
+/// Parses rs274's output into events (mm, degrees). Offsets are converted to mm when
+/// announced, as emccanon does.
+fn canon_events(output: &str) -> Vec<Event> {
+    let mut factor = 1.0; // mm per program unit
+    let mut g5x = [0.0; 6];
+    let mut g92 = [0.0; 6];
+    let mut tool = [0.0; 6];
+    let mut rotation = 0.0;
+    let mut feed = 0.0; // mm/min (or units/min for rotary)
+    let mut feed_number = 0.0;
+    let mut plane = Plane::XY;
+    let mut position = [0.0; 6];
+    let mut events = Vec::new();
+    for raw in output.lines() {
+        let Some(call_start) = raw.find("N..... ") else {
+            continue;
+        };
+        let call = raw[call_start + 7..].trim();
+        let Some(open) = call.find('(') else { continue };
+        let name = &call[..open];
+        let args = call[open + 1..].trim_end_matches(')');
+        let to_mm = |v: &[f64], factor: f64| -> [f64; 6] {
+            let mut out = [0.0; 6];
+            for axis in 0..6 {
+                out[axis] = v.get(axis).copied().unwrap_or(0.0) * if axis < 3 { factor } else { 1.0 };
+            }
+            out
+        };
+        let machine = |p: &[f64], factor: f64, g5x: &[f64; 6], g92: &[f64; 6], tool: &[f64; 6], rotation: f64| -> [f64; 6] {
+            let mut q = to_mm(p, factor);
+            for axis in 0..6 {
+                q[axis] += g92[axis];
+            }
+            let (x, y) = rotate(q[0], q[1], rotation);
+            q[0] = x;
+            q[1] = y;
+            for axis in 0..6 {
+                q[axis] += g5x[axis] + tool[axis];
+            }
+            q
+        };
+        match name {
+            "USE_LENGTH_UNITS" => {
+                factor = if args.contains("INCHES") { 25.4 } else { 1.0 };
+            }
+            "SET_G5X_OFFSET" => g5x = to_mm(&numbers(args)[1..], factor),
+            "SET_G92_OFFSET" => g92 = to_mm(&numbers(args), factor),
+            "SET_XY_ROTATION" => rotation = numbers(args)[0],
+            "USE_TOOL_LENGTH_OFFSET" => tool = to_mm(&numbers(args), factor),
+            "SET_FEED_RATE" => {
+                feed_number = numbers(args)[0];
+                feed = feed_number * factor;
+            }
+            "SELECT_PLANE" => {
+                plane = if args.contains("XZ") {
+                    Plane::ZX
+                } else if args.contains("YZ") {
+                    Plane::YZ
+                } else {
+                    Plane::XY
+                };
+            }
+            "STRAIGHT_TRAVERSE" | "STRAIGHT_FEED" => {
+                let end = machine(&numbers(args), factor, &g5x, &g92, &tool, rotation);
+                let rotary_only = (0..3).all(|a| (end[a] - position[a]).abs() < 1e-9)
+                    && (3..6).any(|a| (end[a] - position[a]).abs() > 1e-9);
+                let kind = if name == "STRAIGHT_TRAVERSE" {
+                    Kind::Traverse
+                } else {
+                    Kind::Feed {
+                        rate: if rotary_only { feed_number } else { feed },
+                    }
+                };
+                events.push(Event {
+                    kind,
+                    end,
+                    tolerance: 1.1e-4 * factor,
+                    line: call.to_string(),
+                });
+                position = end;
+            }
+            "ARC_FEED" => {
+                let v = numbers(args);
+                let (first, second, normal) = plane_slots(plane);
+                let mut p = [0.0; 6];
+                p[first] = v[0];
+                p[second] = v[1];
+                p[normal] = v[5];
+                p[3] = v[6];
+                p[4] = v[7];
+                p[5] = v[8];
+                let end = machine(&p, factor, &g5x, &g92, &tool, rotation);
+                let mut c = p;
+                c[first] = v[2];
+                c[second] = v[3];
+                let centre6 = machine(&c, factor, &g5x, &g92, &tool, rotation);
+                let rotation_count = v[4];
+                events.push(Event {
+                    kind: Kind::Arc {
+                        centre: [centre6[0], centre6[1], centre6[2]],
+                        plane,
+                        clockwise: rotation_count < 0.0,
+                        turns: (rotation_count.abs() as u32).saturating_sub(1),
+                        rate: feed,
+                    },
+                    end,
+                    tolerance: 1.1e-4 * factor,
+                    line: call.to_string(),
+                });
+                position = end;
+            }
+            "DWELL" => events.push(Event {
+                kind: Kind::Dwell {
+                    seconds: numbers(args)[0],
+                },
+                end: position,
+                tolerance: 1.1e-4 * factor,
+                line: call.to_string(),
+            }),
+            _ => {}
+        }
+    }
+    events
+}
+
+// ---------------------------------------------------------------------------------------
+// cncsim's program → events
+// ---------------------------------------------------------------------------------------
+
+fn machine_mm(p: &Position) -> [f64; 6] {
+    [
+        p.linear[0] * 1000.0,
+        p.linear[1] * 1000.0,
+        p.linear[2] * 1000.0,
+        p.rotary[0].to_degrees(),
+        p.rotary[1].to_degrees(),
+        p.rotary[2].to_degrees(),
+    ]
+}
+
+fn program_events(program: &Program) -> Vec<Event> {
+    let mut from = program.start;
+    let mut events = Vec::new();
+    for mv in &program.moves {
+        let rate = match mv.feed {
+            Feed::Rapid => 0.0,
+            Feed::PathSpeed(speed) => speed * 60_000.0,
+            Feed::InverseTime(seconds) => {
+                let length = move_length(&from, mv) * 1000.0;
+                let rotary = (0..3)
+                    .map(|a| (mv.end.rotary[a] - from.rotary[a]).to_degrees().powi(2))
+                    .sum::<f64>()
+                    .sqrt();
+                let path = if length > 0.0 { length } else { rotary };
+                (path / seconds * 60.0).max(0.1)
+            }
+        };
+        let kind = match mv.motion {
+            Motion::Dwell { seconds } => Kind::Dwell { seconds },
+            Motion::Linear if mv.feed == Feed::Rapid => Kind::Traverse,
+            Motion::Linear => Kind::Feed { rate },
+            Motion::Arc {
+                center,
+                plane,
+                clockwise,
+                turns,
+            } => Kind::Arc {
+                centre: [center[0] * 1000.0, center[1] * 1000.0, center[2] * 1000.0],
+                plane,
+                clockwise,
+                turns,
+                rate,
+            },
+        };
+        events.push(Event {
+            kind,
+            end: machine_mm(&mv.end),
+            tolerance: 0.0,
+            line: format!("line {}", mv.span.line),
+        });
+        from = mv.end;
+    }
+    events
+}
+
+/// The first difference between the oracle's events and ours, if any.
+fn compare(oracle: &[Event], ours: &[Event]) -> Result<(), String> {
+    for (index, (a, b)) in oracle.iter().zip(ours).enumerate() {
+        let tol = a.tolerance.max(1e-9);
+        let close = |x: f64, y: f64| (x - y).abs() <= tol;
+        let rate_close = |x: f64, y: f64| (x - y).abs() <= 1e-6 * x.abs().max(1.0) + 1e-4;
+        let same_end = (0..3).all(|i| close(a.end[i], b.end[i]))
+            && (3..6).all(|i| (a.end[i] - b.end[i]).abs() <= 1.1e-4);
+        let same_kind = match (&a.kind, &b.kind) {
+            (Kind::Traverse, Kind::Traverse) => true,
+            (Kind::Feed { rate: x }, Kind::Feed { rate: y }) => rate_close(*x, *y),
+            (
+                Kind::Arc {
+                    centre: c1,
+                    plane: p1,
+                    clockwise: d1,
+                    turns: t1,
+                    rate: r1,
+                },
+                Kind::Arc {
+                    centre: c2,
+                    plane: p2,
+                    clockwise: d2,
+                    turns: t2,
+                    rate: r2,
+                },
+            ) => {
+                let (first, second, _) = plane_slots(*p1);
+                p1 == p2
+                    && d1 == d2
+                    && t1 == t2
+                    && close(c1[first], c2[first])
+                    && close(c1[second], c2[second])
+                    && rate_close(*r1, *r2)
+            }
+            (Kind::Dwell { seconds: x }, Kind::Dwell { seconds: y }) => (x - y).abs() <= 1e-4,
+            _ => false,
+        };
+        if !(same_end && same_kind) {
+            return Err(format!(
+                "move {}: LinuxCNC {} → {:?} {:?}; cncsim ({}) → {:?} {:?}",
+                index + 1,
+                a.line,
+                a.kind,
+                &a.end,
+                b.line,
+                b.kind,
+                &b.end
+            ));
+        }
+    }
+    if oracle.len() != ours.len() {
+        return Err(format!(
+            "LinuxCNC makes {} moves, cncsim {}; the first extra: {:?}",
+            oracle.len(),
+            ours.len(),
+            oracle
+                .get(ours.len())
+                .map(|e| e.line.clone())
+                .or_else(|| ours.get(oracle.len()).map(|e| e.line.clone()))
+        ));
+    }
+    Ok(())
+}
+
+// ---------------------------------------------------------------------------------------
+// Tool tables (LinuxCNC format: `T1 P1 Z10 D6 ;comment`, user units = inches in rs274)
+// ---------------------------------------------------------------------------------------
+
+fn parse_tool_table(text: &str) -> Vec<ToolSpec> {
+    let mut tools = Vec::new();
+    for line in text.lines() {
+        let line = line.split(';').next().unwrap_or("");
+        let mut tool = ToolSpec::default();
+        let mut has_number = false;
+        for word in line.split_whitespace() {
+            let (letter, value) = word.split_at(1);
+            let Ok(value) = value.parse::<f64>() else { continue };
+            let inch = value * 0.0254;
+            match letter.to_ascii_uppercase().as_str() {
+                "T" => {
+                    tool.number = value as u32;
+                    has_number = true;
+                }
+                "X" => tool.offset.linear[0] = inch,
+                "Y" => tool.offset.linear[1] = inch,
+                "Z" => tool.offset.linear[2] = inch,
+                "A" => tool.offset.rotary[0] = value.to_radians(),
+                "B" => tool.offset.rotary[1] = value.to_radians(),
+                "C" => tool.offset.rotary[2] = value.to_radians(),
+                "D" => tool.diameter = inch,
+                _ => {}
+            }
+        }
+        if has_number {
+            tools.push(tool);
+        }
+    }
+    tools
+}
+
+/// The tool table used where a program brings none: tools 1–99, lengths 0.1 in × T.
+fn default_tool_table() -> String {
+    (1..100)
+        .map(|t| format!("T{t} P{t} Z{:.4} D{:.4}\n", 0.1 * t as f64, 0.01 * t as f64))
+        .collect()
+}
+
+/// The options that make cncsim read a program as the standalone rs274 does: user units
+/// inches (rs274's machine), block delete off, the same tools.
+fn oracle_options(tool_table: &str) -> ReadOptions {
+    let mut options = ReadOptions::default();
+    options.gcode.user_units = LengthUnit::Inch;
+    options.gcode.block_delete = false;
+    options.gcode.tools = parse_tool_table(tool_table);
+    options
+}
+
+// ---------------------------------------------------------------------------------------
+// Comparing one program
+// ---------------------------------------------------------------------------------------
+
+#[derive(Debug, Clone, PartialEq)]
+enum Outcome {
+    /// Both accept it and agree move by move.
+    Match { moves: usize },
+    /// Both refuse it.
+    BothRefuse,
+    /// cncsim refuses a construct by name (what it does not support).
+    Refused(String),
+    /// A disagreement.
+    Mismatch(String),
+}
+
+/// rs274's error message for a program, if it stopped on one. A missing program end is not
+/// an error for cncsim (nor for LinuxCNC's own task, which runs such files).
+fn oracle_error(stderr: &str) -> Option<String> {
+    stderr
+        .lines()
+        .map(str::trim)
+        .find(|line| {
+            !line.is_empty()
+                && *line != "executing"
+                && !line.starts_with("File ended with no percent sign")
+        })
+        .map(str::to_string)
+}
+
+fn judge(program_path: &Path, text: &[u8], canon: &str, stderr: &str, tool_table: &str) -> Outcome {
+    let options = oracle_options(tool_table);
+    let oracle = canon_events(canon);
+    let oracle_failed = oracle_error(stderr);
+    match parse_gcode(text, program_path, &options) {
+        Ok(program) => {
+            if let Some(error) = oracle_failed {
+                return Outcome::Mismatch(format!("LinuxCNC refuses it ({error}), cncsim accepts it"));
+            }
+            let ours = program_events(&program);
+            match compare(&oracle, &ours) {
+                Ok(()) => Outcome::Match { moves: ours.len() },
+                Err(difference) => Outcome::Mismatch(difference),
+            }
+        }
+        Err(errors) => {
+            let first = errors.errors[0].to_string();
+            if oracle_failed.is_some() {
+                Outcome::BothRefuse
+            } else if first.contains("not supported") || first.contains("cncsim") {
+                Outcome::Refused(first)
+            } else {
+                Outcome::Mismatch(format!("cncsim refuses it, LinuxCNC runs it: {first}"))
+            }
+        }
+    }
+}
+
+// ---------------------------------------------------------------------------------------
+// Running rs274
+// ---------------------------------------------------------------------------------------
+
+struct Oracle {
+    program: PathBuf,
+    library_path: Option<String>,
+}
+
+fn find_oracle() -> Option<Oracle> {
+    if let Ok(root) = std::env::var("CNCSIM_LINUXCNC_ROOT") {
+        let root = PathBuf::from(root);
+        let program = root.join("usr/bin/rs274");
+        if program.exists() {
+            let library_path = format!(
+                "{}:{}",
+                root.join("usr/lib").display(),
+                root.join("usr/lib/x86_64-linux-gnu").display()
+            );
+            return Some(Oracle {
+                program,
+                library_path: Some(library_path),
+            });
+        }
+    }
+    let path = std::env::var_os("PATH")?;
+    std::env::split_paths(&path)
+        .map(|dir| dir.join("rs274"))
+        .find(|candidate| candidate.exists())
+        .map(|program| Oracle {
+            program,
+            library_path: None,
+        })
+}
+
+fn require_oracles() -> bool {
+    std::env::var("CNCSIM_REQUIRE_ORACLES").is_ok_and(|v| v == "1")
+}
+
+/// Runs rs274 on `program` (in its directory) with `tool_table`; (stdout, stderr).
+fn run_oracle(oracle: &Oracle, program: &Path, tool_table: &str) -> (String, String) {
+    let directory = tempfile::tempdir().expect("temporary directory");
+    let table = directory.path().join("tool.tbl");
+    std::fs::write(&table, tool_table).expect("write tool table");
+    let mut command = Command::new(&oracle.program);
+    command
+        .arg("-t")
+        .arg(&table)
+        .arg("-g")
+        .arg(program.file_name().expect("file name"))
+        .current_dir(program.parent().expect("directory"))
+        .stdin(Stdio::null())
+        .stdout(Stdio::piped())
+        .stderr(Stdio::piped());
+    if let Some(path) = &oracle.library_path {
+        command.env("LD_LIBRARY_PATH", path);
+    }
+    let mut child = command.spawn().expect("rs274 starts");
+    let mut stdout = child.stdout.take().expect("stdout");
+    let mut stderr = child.stderr.take().expect("stderr");
+    let out_thread = std::thread::spawn(move || {
+        let mut text = String::new();
+        let _ = stdout.read_to_string(&mut text);
+        text
+    });
+    let err_thread = std::thread::spawn(move || {
+        let mut text = String::new();
+        let _ = stderr.read_to_string(&mut text);
+        text
+    });
+    let started = Instant::now();
+    loop {
+        if child.try_wait().expect("wait").is_some() {
+            break;
+        }
+        if started.elapsed() > Duration::from_secs(20) {
+            let _ = child.kill();
+            let _ = child.wait();
+            break;
+        }
+        std::thread::sleep(Duration::from_millis(5));
+    }
+    let out = out_thread.join().unwrap_or_default();
+    let mut err = err_thread.join().unwrap_or_default();
+    if started.elapsed() > Duration::from_secs(20) {
+        err.push_str("\nrs274 timed out after 20 s");
+    }
+    (out, err)
+}
+
+// ---------------------------------------------------------------------------------------
+// The fixtures: our own programs with rs274's output committed beside them
+// ---------------------------------------------------------------------------------------
+
+fn fixtures_dir() -> PathBuf {
+    PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("tests/fixtures/gcode")
+}
+
+fn fixture_programs() -> Vec<PathBuf> {
+    let mut programs: Vec<PathBuf> = std::fs::read_dir(fixtures_dir())
+        .expect("fixtures directory")
+        .filter_map(|entry| entry.ok().map(|e| e.path()))
+        .filter(|path| path.extension().is_some_and(|e| e == "ngc"))
+        .collect();
+    programs.sort();
+    programs
+}
+
+fn fixture_tool_table() -> String {
+    std::fs::read_to_string(fixtures_dir().join("tool.tbl")).expect("fixture tool table")
+}
+
+/// The committed oracle output of a fixture: `<name>.canon` (stdout) and `<name>.err`
+/// (stderr, when rs274 reported an error).
+fn committed_oracle(program: &Path) -> (String, String) {
+    let canon = std::fs::read_to_string(program.with_extension("canon"))
+        .unwrap_or_else(|_| panic!("{} has no .canon beside it", program.display()));
+    let err = std::fs::read_to_string(program.with_extension("err")).unwrap_or_default();
+    (canon, err)
+}
+
+#[test]
+fn fixtures_match_linuxcnc_as_recorded() {
+    let tool_table = fixture_tool_table();
+    let mut failures = Vec::new();
+    let programs = fixture_programs();
+    assert!(programs.len() >= 10, "fixtures missing: {programs:?}");
+    for program in &programs {
+        let text = std::fs::read(program).expect("read fixture");
+        let (canon, err) = committed_oracle(program);
+        let outcome = judge(program, &text, &canon, &err, &tool_table);
+        // `refused_*` programs are refused by both; every other one runs to its end in both.
+        let refused = program
+            .file_name()
+            .is_some_and(|n| n.to_string_lossy().starts_with("refused_"));
+        match (outcome, refused) {
+            (Outcome::Match { .. }, false) | (Outcome::BothRefuse, true) => {}
+            (other, _) => failures.push(format!("{}: {other:?}", program.display())),
+        }
+    }
+    assert!(failures.is_empty(), "{}", failures.join("\n"));
+}
+
+/// Strips rs274's line counter so that outputs compare as text.
+fn normalise_canon(output: &str) -> String {
+    output
+        .lines()
+        .map(|line| line.trim_start().trim_start_matches(|c: char| c.is_ascii_digit()).trim_start())
+        .collect::<Vec<_>>()
+        .join("\n")
+}
+
+#[test]
+fn fixture_outputs_are_what_linuxcnc_prints_today() {
+    let Some(oracle) = find_oracle() else {
+        assert!(!require_oracles(), "CNCSIM_REQUIRE_ORACLES=1 but rs274 was not found (set CNCSIM_LINUXCNC_ROOT)");
+        eprintln!("rs274 not found: skipping the regeneration check");
+        return;
+    };
+    let tool_table = fixture_tool_table();
+    let update = std::env::var("CNCSIM_UPDATE_FIXTURES").is_ok_and(|v| v == "1");
+    let mut stale = Vec::new();
+    for program in fixture_programs() {
+        let (out, err) = run_oracle(&oracle, &program, &tool_table);
+        let err = oracle_error(&err).map(|e| e + "\n").unwrap_or_default();
+        if update {
+            std::fs::write(program.with_extension("canon"), &out).expect("write canon");
+            if err.is_empty() {
+                let _ = std::fs::remove_file(program.with_extension("err"));
+            } else {
+                std::fs::write(program.with_extension("err"), &err).expect("write err");
+            }
+            continue;
+        }
+        let (canon, committed_err) = committed_oracle(&program);
+        if normalise_canon(&canon) != normalise_canon(&out) || committed_err.trim() != err.trim() {
+            stale.push(program.display().to_string());
+        }
+    }
+    assert!(
+        stale.is_empty(),
+        "rs274's output differs from the committed fixtures (regenerate with CNCSIM_UPDATE_FIXTURES=1): {stale:?}"
+    );
+}
+
+// ---------------------------------------------------------------------------------------
+// The corpus: LinuxCNC's own programs
+// ---------------------------------------------------------------------------------------
+
+fn collect_programs(dir: &Path, out: &mut Vec<PathBuf>) {
+    let Ok(entries) = std::fs::read_dir(dir) else { return };
+    let mut paths: Vec<PathBuf> = entries.filter_map(|e| e.ok().map(|e| e.path())).collect();
+    paths.sort();
+    for path in paths {
+        if path.is_dir() {
+            collect_programs(&path, out);
+        } else if path.extension().is_some_and(|e| e.eq_ignore_ascii_case("ngc")) {
+            out.push(path);
+        }
+    }
+}
+
+/// Programs the comparison finds to differ, with the reason; every other program must match,
+/// be refused by both, or be refused by cncsim by name. A program listed here that starts to
+/// match fails the test too, so the list stays true.
+const KNOWN_MISMATCHES: &[(&str, &str)] = &[];
+
+#[test]
+fn linuxcnc_corpus_matches() {
+    let Some(oracle) = find_oracle() else {
+        assert!(!require_oracles(), "CNCSIM_REQUIRE_ORACLES=1 but rs274 was not found (set CNCSIM_LINUXCNC_ROOT)");
+        eprintln!("rs274 not found: skipping the corpus comparison");
+        return;
+    };
+    let mut dirs: Vec<PathBuf> = std::env::var_os("CNCSIM_LINUXCNC_CORPUS")
+        .map(|v| std::env::split_paths(&v).collect())
+        .unwrap_or_default();
+    if let Ok(root) = std::env::var("CNCSIM_LINUXCNC_ROOT") {
+        dirs.push(PathBuf::from(root).join("usr/share/linuxcnc/ncfiles"));
+    }
+    let mut programs = Vec::new();
+    for dir in &dirs {
+        collect_programs(dir, &mut programs);
+    }
+    if programs.is_empty() {
+        assert!(!require_oracles(), "no corpus programs found in {dirs:?}");
+        return;
+    }
+    let default_table = default_tool_table();
+    let mut outcomes: BTreeMap<String, Outcome> = BTreeMap::new();
+    for program in &programs {
+        let table_path = program.with_file_name("test.tbl");
+        let table = std::fs::read_to_string(&table_path).unwrap_or_else(|_| default_table.clone());
+        let (out, err) = run_oracle(&oracle, program, &table);
+        let text = std::fs::read(program).expect("read program");
+        let key = corpus_key(program, &dirs);
+        outcomes.insert(key, judge(program, &text, &out, &err, &table));
+    }
+    let mut summary = BTreeMap::new();
+    let mut unexpected = Vec::new();
+    for (name, outcome) in &outcomes {
+        let label = match outcome {
+            Outcome::Match { .. } => "match",
+            Outcome::BothRefuse => "both refuse",
+            Outcome::Refused(_) => "refused by name",
+            Outcome::Mismatch(_) => "mismatch",
+        };
+        *summary.entry(label).or_insert(0usize) += 1;
+        let known = KNOWN_MISMATCHES.iter().find(|(known, _)| name.ends_with(known));
+        match (outcome, known) {
+            (Outcome::Mismatch(reason), None) => unexpected.push(format!("{name}: {reason}")),
+            (Outcome::Mismatch(_), Some(_)) => {}
+            (_, Some(_)) => unexpected.push(format!("{name}: listed as a known mismatch but now {label}")),
+            _ => {}
+        }
+        println!("{label:>16}  {name}  {}", match outcome {
+            Outcome::Refused(reason) | Outcome::Mismatch(reason) => reason.clone(),
+            Outcome::Match { moves } => format!("{moves} moves"),
+            Outcome::BothRefuse => String::new(),
+        });
+    }
+    let accepted_by_linuxcnc = outcomes
+        .values()
+        .filter(|o| !matches!(o, Outcome::BothRefuse))
+        .count();
+    println!(
+        "corpus: {} programs; of the {accepted_by_linuxcnc} LinuxCNC runs, {} match move for move; {summary:?}",
+        outcomes.len(),
+        summary.get("match").copied().unwrap_or(0)
+    );
+    assert!(unexpected.is_empty(), "{} unexpected:\n{}", unexpected.len(), unexpected.join("\n"));
+}
+
+fn corpus_key(program: &Path, dirs: &[PathBuf]) -> String {
+    for dir in dirs {
+        if let Ok(relative) = program.strip_prefix(dir) {
+            let base = dir.file_name().map(|n| n.to_string_lossy().into_owned()).unwrap_or_default();
+            return format!("{base}/{}", relative.display());
+        }
+    }
+    program.display().to_string()
+}
