@@ -407,24 +407,36 @@ enum Outcome {
     Mismatch(String),
 }
 
-/// rs274's error message for a program, if it stopped on one. A missing program end is not
-/// an error for cncsim (nor for LinuxCNC's own task, which runs such files).
-fn oracle_error(stderr: &str) -> Option<String> {
-    stderr
+/// rs274 exits with 1 on an error and prints the message and then the offending block as
+/// the last two lines of its standard error (which also carries `(PRINT,…)` output). A
+/// missing program end is not an error for cncsim (nor for LinuxCNC's own task, which runs
+/// such files).
+fn oracle_error(stderr: &str, failed: bool) -> Option<String> {
+    if !failed {
+        return None;
+    }
+    let lines: Vec<&str> = stderr
         .lines()
         .map(str::trim)
-        .find(|line| {
-            !line.is_empty()
-                && *line != "executing"
-                && !line.starts_with("File ended with no percent sign")
-        })
-        .map(str::to_string)
+        .filter(|line| !line.is_empty())
+        .collect();
+    let message = if lines.len() >= 2 {
+        lines[lines.len() - 2]
+    } else {
+        lines.last().copied().unwrap_or("rs274 failed")
+    };
+    (!message.starts_with("File ended with no percent sign")).then(|| message.to_string())
 }
 
-fn judge(program_path: &Path, text: &[u8], canon: &str, stderr: &str, tool_table: &str) -> Outcome {
+fn judge(
+    program_path: &Path,
+    text: &[u8],
+    canon: &str,
+    oracle_failed: Option<String>,
+    tool_table: &str,
+) -> Outcome {
     let options = oracle_options(tool_table);
     let oracle = canon_events(canon);
-    let oracle_failed = oracle_error(stderr);
     match parse_gcode(text, program_path, &options) {
         Ok(program) => {
             if let Some(error) = oracle_failed {
@@ -488,8 +500,9 @@ fn require_oracles() -> bool {
     std::env::var("CNCSIM_REQUIRE_ORACLES").is_ok_and(|v| v == "1")
 }
 
-/// Runs rs274 on `program` (in its directory) with `tool_table`; (stdout, stderr).
-fn run_oracle(oracle: &Oracle, program: &Path, tool_table: &str) -> (String, String) {
+/// Runs rs274 on `program` (in its directory) with `tool_table`: its output and its error
+/// message, if it stopped on one.
+fn run_oracle(oracle: &Oracle, program: &Path, tool_table: &str) -> (String, Option<String>) {
     let directory = tempfile::tempdir().expect("temporary directory");
     let table = directory.path().join("tool.tbl");
     std::fs::write(&table, tool_table).expect("write tool table");
@@ -520,23 +533,22 @@ fn run_oracle(oracle: &Oracle, program: &Path, tool_table: &str) -> (String, Str
         text
     });
     let started = Instant::now();
-    loop {
-        if child.try_wait().expect("wait").is_some() {
-            break;
+    let failed = loop {
+        if let Some(status) = child.try_wait().expect("wait") {
+            break !status.success();
         }
         if started.elapsed() > Duration::from_secs(20) {
             let _ = child.kill();
             let _ = child.wait();
-            break;
+            let _ = out_thread.join();
+            let _ = err_thread.join();
+            return (String::new(), Some("rs274 timed out after 20 s".to_string()));
         }
         std::thread::sleep(Duration::from_millis(5));
-    }
+    };
     let out = out_thread.join().unwrap_or_default();
-    let mut err = err_thread.join().unwrap_or_default();
-    if started.elapsed() > Duration::from_secs(20) {
-        err.push_str("\nrs274 timed out after 20 s");
-    }
-    (out, err)
+    let err = err_thread.join().unwrap_or_default();
+    (out, oracle_error(&err, failed))
 }
 
 // ---------------------------------------------------------------------------------------
@@ -562,11 +574,13 @@ fn fixture_tool_table() -> String {
 }
 
 /// The committed oracle output of a fixture: `<name>.canon` (stdout) and `<name>.err`
-/// (stderr, when rs274 reported an error).
-fn committed_oracle(program: &Path) -> (String, String) {
+/// (rs274's error message, when it stopped on one).
+fn committed_oracle(program: &Path) -> (String, Option<String>) {
     let canon = std::fs::read_to_string(program.with_extension("canon"))
         .unwrap_or_else(|_| panic!("{} has no .canon beside it", program.display()));
-    let err = std::fs::read_to_string(program.with_extension("err")).unwrap_or_default();
+    let err = std::fs::read_to_string(program.with_extension("err"))
+        .ok()
+        .map(|e| e.trim().to_string());
     (canon, err)
 }
 
@@ -579,7 +593,7 @@ fn fixtures_match_linuxcnc_as_recorded() {
     for program in &programs {
         let text = std::fs::read(program).expect("read fixture");
         let (canon, err) = committed_oracle(program);
-        let outcome = judge(program, &text, &canon, &err, &tool_table);
+        let outcome = judge(program, &text, &canon, err, &tool_table);
         // `refused_*` programs are refused by both; every other one runs to its end in both.
         let refused = program
             .file_name()
@@ -613,18 +627,19 @@ fn fixture_outputs_are_what_linuxcnc_prints_today() {
     let mut stale = Vec::new();
     for program in fixture_programs() {
         let (out, err) = run_oracle(&oracle, &program, &tool_table);
-        let err = oracle_error(&err).map(|e| e + "\n").unwrap_or_default();
         if update {
             std::fs::write(program.with_extension("canon"), &out).expect("write canon");
-            if err.is_empty() {
-                let _ = std::fs::remove_file(program.with_extension("err"));
-            } else {
-                std::fs::write(program.with_extension("err"), &err).expect("write err");
+            match &err {
+                None => {
+                    let _ = std::fs::remove_file(program.with_extension("err"));
+                }
+                Some(err) => std::fs::write(program.with_extension("err"), format!("{err}\n"))
+                    .expect("write err"),
             }
             continue;
         }
         let (canon, committed_err) = committed_oracle(&program);
-        if normalise_canon(&canon) != normalise_canon(&out) || committed_err.trim() != err.trim() {
+        if normalise_canon(&canon) != normalise_canon(&out) || committed_err != err {
             stale.push(program.display().to_string());
         }
     }
@@ -685,7 +700,7 @@ fn linuxcnc_corpus_matches() {
         let (out, err) = run_oracle(&oracle, program, &table);
         let text = std::fs::read(program).expect("read program");
         let key = corpus_key(program, &dirs);
-        outcomes.insert(key, judge(program, &text, &out, &err, &table));
+        outcomes.insert(key, judge(program, &text, &out, err, &table));
     }
     let mut summary = BTreeMap::new();
     let mut unexpected = Vec::new();

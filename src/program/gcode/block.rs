@@ -412,6 +412,9 @@ fn read_o_word(cursor: &mut Cursor, params: &dyn Parameters) -> Result<OWord, Li
         }
         cursor.index = close + 1;
         label
+    } else if matches!(cursor.peek(), Some(b'#' | b'[')) {
+        // A numbered label computed from a parameter or expression.
+        cursor.integer_value(params)?.to_string()
     } else {
         let number_start = cursor.index;
         while cursor.peek().is_some_and(|b| b.is_ascii_digit()) {

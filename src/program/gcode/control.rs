@@ -125,6 +125,9 @@ pub(super) fn run<R: BufRead>(interp: &mut Interpreter, lines: &mut Lines<R>) {
             break;
         }
         let outcome = one_line(interp, lines, &line, index, &mut compact);
+        if !interp.seen_nonblank && line.text.iter().any(|b| !b.is_ascii_whitespace()) {
+            interp.seen_nonblank = true;
+        }
         if let Err(error) = outcome {
             report(interp, &line, error);
             if in_control_flow(interp) {
@@ -244,7 +247,7 @@ fn percent_line(
             "expected nothing after '%' on its line",
         ));
     }
-    if line.number == 1 {
+    if !interp.seen_nonblank {
         interp.percent_open = true;
     } else if interp.percent_open {
         // LinuxCNC stops reading at the closing '%'.
@@ -308,13 +311,7 @@ fn o_line<R: BufRead>(
                     shown(&o.label)
                 )));
             }
-            if o.label != frame.name {
-                return Err(error(format!(
-                    "expected the label of the subroutine being run, o{}, on its '{}'",
-                    shown(&frame.name),
-                    o.keyword.name()
-                )));
-            }
+            // LinuxCNC returns whatever label the return carries.
             interp.returned = match o.values.first() {
                 Some(&value) => (value, true),
                 None => (0.0, false),

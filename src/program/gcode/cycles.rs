@@ -61,7 +61,12 @@ impl Interpreter<'_> {
             )));
         }
         if code == 870 && plane != Plane::XY {
-            return Err(error("expected G87 (back boring) in the G17 plane; cncsim runs it only there".into()));
+            return Err(error("expected G87 (back boring) in the G17 plane; G87 in G18/G19 is not supported".into()));
+        }
+        if matches!(code, 740 | 840) && plane != Plane::XY {
+            return Err(error(format!(
+                "expected {name} (tapping) in the G17 plane; {name} in G18/G19 is not supported: LinuxCNC 2.9 exchanges the axes there"
+            )));
         }
         let c_word = block.value(c_letter).unwrap_or(self.s.cycle.bottom);
         let mut current_cc = self.s.current[c_axis];
@@ -73,6 +78,7 @@ impl Interpreter<'_> {
             }
         };
         let (mut aa, mut bb, r, cc, aa_step, bb_step);
+        let (mut radius_step, mut angle_step) = (0.0, 0.0);
         if self.s.absolute {
             aa_step = 0.0;
             bb_step = 0.0;
@@ -89,6 +95,8 @@ impl Interpreter<'_> {
         } else {
             aa_step = block.value(AXIS_LETTERS[a_axis]).unwrap_or(0.0);
             bb_step = block.value(AXIS_LETTERS[b_axis]).unwrap_or(0.0);
+            radius_step = block.polar_radius.map_or(0.0, |w| w.value);
+            angle_step = block.polar_angle.map_or(0.0, |w| w.value.to_radians());
             r = r_word + old_cc;
             cc = r + c_word;
             aa = self.s.current[a_axis];
@@ -184,6 +192,15 @@ impl Interpreter<'_> {
             while repeat < repeats {
                 aa += aa_step;
                 bb += bb_step;
+                if radius_step != 0.0 || angle_step != 0.0 {
+                    if aa == 0.0 && bb == 0.0 {
+                        return Err(error("expected a polar step away from the origin: from there the direction is not defined".into()));
+                    }
+                    let radius = aa.hypot(bb) + radius_step;
+                    let angle = bb.atan2(aa) + angle_step;
+                    aa = radius * angle.cos();
+                    bb = radius * angle.sin();
+                }
                 if repeat == 0.0 && current_cc > r {
                     go(self, aa, bb, current_cc, false)?;
                     go(self, aa, bb, r, false)?;

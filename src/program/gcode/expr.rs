@@ -374,10 +374,16 @@ impl<'l> Cursor<'l> {
             if self.peek() != Some(b'#') {
                 return Err(self.error_here("expected a parameter (#…) inside EXISTS[…]"));
             }
-            let exists = match self.parameter_ref(params) {
-                Ok(ParameterRef::Named(name)) => params.exists(&name),
-                Ok(ParameterRef::Numbered(_)) => true,
-                Err(_) => false,
+            let exists = if self.peek_at(1) == Some(b'<') {
+                match self.parameter_ref(params)? {
+                    ParameterRef::Named(name) => params.exists(&name),
+                    ParameterRef::Numbered(_) => true,
+                }
+            } else {
+                // A number (LinuxCNC: whether it is in range); errors inside it count.
+                self.index += 1;
+                let index = self.integer_value(params)?;
+                (1..PARAMETER_COUNT as i64).contains(&index)
             };
             if self.peek() != Some(b']') {
                 return Err(self.error_here("expected ']' to close EXISTS[…]"));

@@ -99,6 +99,9 @@ pub(super) struct Interpreter<'a> {
     pub returned: (f64, bool),
     pub percent_open: bool,
     pub seen_content: bool,
+    /// Whether a line with anything but blanks has been read (a '%' opens the program only
+    /// before that).
+    pub seen_nonblank: bool,
     pub finished: bool,
     pub ended_by_program_end: bool,
     /// Blocks executed so far (bounded by `GcodeOptions::max_blocks`).
@@ -177,6 +180,7 @@ impl<'a> Interpreter<'a> {
             returned: (0.0, false),
             percent_open: false,
             seen_content: false,
+            seen_nonblank: false,
             finished: false,
             ended_by_program_end: false,
             blocks: 0,
