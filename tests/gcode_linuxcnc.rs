@@ -102,10 +102,17 @@ fn canon_events(output: &str) -> Vec<Event> {
     let mut position = [0.0; 6];
     let mut events = Vec::new();
     for raw in output.lines() {
-        let Some(call_start) = raw.find("N..... ") else {
+        // `   12 N..... NAME(args)` or `   12 N0010  NAME(args)`: counter, N word, call.
+        let rest = raw
+            .trim_start()
+            .trim_start_matches(|c: char| c.is_ascii_digit())
+            .trim_start();
+        let Some(after_n) = rest.strip_prefix('N') else {
             continue;
         };
-        let call = raw[call_start + 7..].trim();
+        let call = after_n
+            .trim_start_matches(|c: char| c == '.' || c.is_ascii_digit())
+            .trim();
         let Some(open) = call.find('(') else { continue };
         let name = &call[..open];
         let args = call[open + 1..].trim_end_matches(')');
@@ -420,12 +427,14 @@ fn oracle_error(stderr: &str, failed: bool) -> Option<String> {
         .map(str::trim)
         .filter(|line| !line.is_empty())
         .collect();
-    let message = if lines.len() >= 2 {
-        lines[lines.len() - 2]
-    } else {
-        lines.last().copied().unwrap_or("rs274 failed")
-    };
-    (!message.starts_with("File ended with no percent sign")).then(|| message.to_string())
+    let tail = &lines[lines.len().saturating_sub(2)..];
+    if tail
+        .iter()
+        .any(|line| line.starts_with("File ended with no percent sign"))
+    {
+        return None;
+    }
+    Some(tail.first().copied().unwrap_or("rs274 failed").to_string())
 }
 
 fn judge(
@@ -746,3 +755,4 @@ fn corpus_key(program: &Path, dirs: &[PathBuf]) -> String {
     }
     program.display().to_string()
 }
+

@@ -18,6 +18,8 @@ pub(super) enum ActiveComment {
     None,
     /// Byte range of the text after the comma, in the raw line.
     Message { start: usize, end: usize },
+    /// `(ABORT,…)`: LinuxCNC stops the program with this text as its error.
+    Abort { start: usize, end: usize },
 }
 
 /// Takes comments out of a line, drops blanks and lower-cases letters. Returns the first
@@ -91,9 +93,23 @@ fn active_comment(line: &[u8], start: usize, end: usize) -> ActiveComment {
         .take(4)
         .collect();
     let word: Vec<u8> = letters.iter().map(|&(_, b)| b).collect();
+    let letters6: Vec<(usize, u8)> = inner
+        .iter()
+        .enumerate()
+        .filter(|(_, b)| !b.is_ascii_whitespace())
+        .map(|(i, b)| (i, b.to_ascii_lowercase()))
+        .take(6)
+        .collect();
+    let word6: Vec<u8> = letters6.iter().map(|&(_, b)| b).collect();
     if word.starts_with(b"msg,") {
         let comma = letters[3].0;
         ActiveComment::Message {
+            start: start + comma + 1,
+            end,
+        }
+    } else if word6.starts_with(b"abort,") {
+        let comma = letters6[5].0;
+        ActiveComment::Abort {
             start: start + comma + 1,
             end,
         }
