@@ -194,6 +194,11 @@ fn one_line<R: BufRead>(
             _ => return Ok(()),
         }
     }
+    if let super::lexer::ActiveComment::Abort { start, end } = message {
+        let text = String::from_utf8_lossy(&line.text[start..end]).trim().to_string();
+        interp.finished = true;
+        return Err(LineError::new(start, end, format!("expected no (ABORT,…) comment: the program aborts here ({text})")));
+    }
     let Some(first) = compact.first().copied() else {
         return Ok(());
     };
@@ -218,11 +223,6 @@ fn one_line<R: BufRead>(
     }
     for (target, value) in &block.settings {
         interp.set_parameter(target, *value);
-    }
-    if let super::lexer::ActiveComment::Abort { start, end } = message {
-        let text = String::from_utf8_lossy(&line.text[start..end]).trim().to_string();
-        interp.finished = true;
-        return Err(LineError::new(start, end, format!("expected no (ABORT,…) comment: the program aborts here ({text})")));
     }
     if let super::lexer::ActiveComment::Message { start, end } = message {
         let text = String::from_utf8_lossy(&line.text[start..end]).trim().to_string();
