@@ -513,6 +513,9 @@ fn require_oracles() -> bool {
 /// Runs rs274 on `program` (in its directory) with `tool_table`: its output and its error
 /// message, if it stopped on one.
 fn run_oracle(oracle: &Oracle, program: &Path, tool_table: &str) -> (String, Option<String>) {
+    // One rs274 at a time: runs side by side were seen to disturb each other's output.
+    static ONE_AT_A_TIME: std::sync::Mutex<()> = std::sync::Mutex::new(());
+    let _turn = ONE_AT_A_TIME.lock().unwrap_or_else(|poisoned| poisoned.into_inner());
     let directory = tempfile::tempdir().expect("temporary directory");
     let table = directory.path().join("tool.tbl");
     std::fs::write(&table, tool_table).expect("write tool table");
@@ -679,7 +682,19 @@ fn collect_programs(dir: &Path, out: &mut Vec<PathBuf>) {
 /// Programs the comparison finds to differ, with the reason; every other program must match,
 /// be refused by both, or be refused by cncsim by name. A program listed here that starts to
 /// match fails the test too, so the list stays true.
-const KNOWN_MISMATCHES: &[(&str, &str)] = &[];
+const KNOWN_MISMATCHES: &[(&str, &str)] = &[
+    (
+        "ncfiles/skeleton.ngc",
+        "rs274's stand-alone canon re-reads the position after M6 without the tool length offset \
+         that `T1 M06 G43 H1` applied in the same block, so its next move lands 0.1 in higher; \
+         LinuxCNC's motion controller keeps the offset, as cncsim does",
+    ),
+    (
+        "tests/remap/introspect/foo.ngc",
+        "a subroutine definition with no endsub: LinuxCNC skips to the end of the file and runs \
+         nothing; cncsim names the missing endsub",
+    ),
+];
 
 #[test]
 fn linuxcnc_corpus_matches() {
