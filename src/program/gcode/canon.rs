@@ -48,6 +48,15 @@ pub(super) struct Canon {
     max_moves: usize,
 }
 
+/// The settings a move takes from the canon when it is made: a move held back by cutter
+/// compensation keeps those of the moment it was programmed (LinuxCNC queues the commands
+/// that change them behind it).
+#[derive(Debug, Clone, Copy)]
+pub(super) struct Snapshot {
+    feed: Option<FeedSetting>,
+    spindle: Spindle,
+}
+
 /// Moves beyond the limit: the interpreter stops with this.
 pub(super) struct TooManyMoves(pub usize);
 
@@ -64,6 +73,24 @@ impl Canon {
             position: Position::default(),
             max_moves: options.gcode.max_moves,
         }
+    }
+
+    pub fn snapshot(&self) -> Snapshot {
+        Snapshot {
+            feed: self.feed,
+            spindle: self.spindle,
+        }
+    }
+
+    /// Runs `make` with the feed and spindle of `snapshot`, then restores the current ones.
+    pub fn replay<T>(&mut self, snapshot: Snapshot, make: impl FnOnce(&mut Self) -> T) -> T {
+        let now = self.snapshot();
+        self.feed = snapshot.feed;
+        self.spindle = snapshot.spindle;
+        let result = make(self);
+        self.feed = now.feed;
+        self.spindle = now.spindle;
+        result
     }
 
     pub fn use_length_units(&mut self, units: LengthUnit) {
@@ -111,6 +138,11 @@ impl Canon {
         self.feed.map_or(0.0, |feed| {
             feed.number * feed.unit.metres() / units.metres()
         })
+    }
+
+    /// The machine position (SI) after the last move.
+    pub fn position(&self) -> Position {
+        self.position
     }
 
     /// The machine position (SI) of a point in program coordinates.

@@ -101,11 +101,7 @@ pub(super) fn g_code_info(tenths: u32) -> Option<(usize, Support)> {
             No("feed per revolution (G95) is not supported"),
         ),
         200 | 210 => (group::UNITS, Yes),
-        400 => (group::CUTTER_COMP, Yes),
-        410 | 411 | 420 | 421 => (
-            group::CUTTER_COMP,
-            No("cutter radius compensation (G41/G42) is not supported; post the tool-centre path"),
-        ),
+        400 | 410 | 411 | 420 | 421 => (group::CUTTER_COMP, Yes),
         430 | 431 | 432 | 490 => (group::TOOL_LENGTH, Yes),
         980 | 990 => (group::RETURN_MODE, Yes),
         540 | 550 | 560 | 570 | 580 | 590..=593 => (group::COORD_SYSTEM, Yes),

@@ -26,6 +26,9 @@ impl Interpreter<'_> {
         if self.s.feed_rate == 0.0 {
             return Err(error(format!("expected a non-zero feed rate (F word) before {name}")));
         }
+        if self.comp.side.is_some() {
+            return Err(error(format!("expected cutter radius compensation off (G40) for {name}")));
+        }
         if self.s.inverse_time {
             return Err(error(format!("expected feed per minute (G94) with {name}: canned cycles cannot use inverse time")));
         }

@@ -303,6 +303,7 @@ impl Interpreter<'_> {
         // M6 / M61: tool change.
         match block.m[mgroup::TOOL_CHANGE] {
             Some(word) if word.code == 6 => {
+                self.refuse_with_comp(word, "a tool change")?;
                 let Some(selected) = self.s.selected_tool else {
                     return Err(LineError::new(word.start, word.end, "expected a T word selecting the tool before M6"));
                 };
@@ -354,6 +355,16 @@ impl Interpreter<'_> {
             self.dwell(p.value, span)?;
         }
         // Plane.
+        if let (Some(word), Some(_)) = (block.g[group::PLANE], self.comp.side) {
+            let plane = match word.code {
+                170 => Plane::XY,
+                180 => Plane::ZX,
+                _ => Plane::YZ,
+            };
+            if plane != self.s.plane {
+                return Err(LineError::new(word.start, word.end, "expected no change of plane while cutter radius compensation is on"));
+            }
+        }
         match block.g_code(group::PLANE) {
             Some(170) => self.s.plane = Plane::XY,
             Some(180) => self.s.plane = Plane::ZX,
@@ -366,12 +377,23 @@ impl Interpreter<'_> {
             Some(210) => self.set_units(LengthUnit::Millimetre),
             _ => {}
         }
-        // Cutter compensation: only G40 gets this far (G41/G42 are refused while reading).
+        // Cutter radius compensation.
+        if let Some(code) = block.g_code(group::CUTTER_COMP) {
+            let word = block.g[group::CUTTER_COMP].expect("comp word");
+            self.cutter_compensation(code, block, span)
+                .map_err(|e| e.located(word.start, word.end))?;
+        }
         // Tool length offset.
         if let Some(word) = block.g[group::TOOL_LENGTH] {
+            self.refuse_with_comp(word, "a change of tool length offset")?;
             self.tool_length_offset(word.code, block)?;
         }
         // Coordinate system.
+        if let Some(word) = block.g[group::COORD_SYSTEM] {
+            if word.code != 530 + 10 * self.s.origin_index as u32 {
+                self.refuse_with_comp(word, "a change of coordinate system")?;
+            }
+        }
         if let Some(code) = block.g_code(group::COORD_SYSTEM) {
             let system = match code {
                 540..=590 => (code / 10 - 53) as usize,
@@ -418,6 +440,12 @@ impl Interpreter<'_> {
         // Non-modal codes.
         if let Some(word) = block.g[group::NON_MODAL] {
             match word.code {
+                280 | 300 => self.refuse_with_comp(word, "G28/G30")?,
+                530 => self.refuse_with_comp(word, "G53")?,
+                520 | 920..=923 => self.refuse_with_comp(word, "a change of axis offsets")?,
+                _ => {}
+            }
+            match word.code {
                 100 => self.g10(block)?,
                 280 | 300 => self.go_home(word.code, block, span)?,
                 281 | 301 => self.save_home(word.code),
@@ -443,8 +471,21 @@ impl Interpreter<'_> {
                 _ => self.cycle(code, block, span)?,
             }
         }
-        // Stops.
+        // After a tool change LinuxCNC re-reads the position from the machine.
+        if block.m[mgroup::TOOL_CHANGE].is_some() {
+            self.refresh_position();
+        }
+        // Stops: the move compensation holds back is sent first.
         if let Some(word) = block.m[mgroup::STOP] {
+            if self.comp.holds_anything() {
+                let current = self.s.current;
+                let point = match self.s.plane {
+                    Plane::ZX => [current[2], current[0]],
+                    _ => [current[0], current[1]],
+                };
+                self.move_endpoint_and_flush(point)
+                    .map_err(|e| LineError::new(word.start, word.end, e.problem))?;
+            }
             match word.code {
                 2 | 30 => {
                     self.ended_by_program_end = true;
@@ -463,9 +504,22 @@ impl Interpreter<'_> {
     }
 
     fn dwell(&mut self, seconds: f64, span: Span) -> Result<(), LineError> {
+        if self.comp_dwell(seconds, span) {
+            return Ok(());
+        }
         self.canon
             .dwell(seconds, span)
             .map_err(|limit| too_many_moves(limit.0))
+    }
+
+    /// LinuxCNC refuses some codes while cutter radius compensation is on.
+    fn refuse_with_comp(&self, word: super::block::CodeWord, what: &str) -> Result<(), LineError> {
+        if self.comp.side.is_some() {
+            return Err(LineError::new(word.start, word.end, format!(
+                "expected {what} only with cutter radius compensation off (G40)"
+            )));
+        }
+        Ok(())
     }
 
     fn sync_spindle(&mut self) {
@@ -477,7 +531,7 @@ impl Interpreter<'_> {
     }
 
     /// A T/Q/P word naming a tool of the table (0: no tool).
-    fn tool_number(&self, word: super::block::Word) -> Result<i64, LineError> {
+    pub fn tool_number(&self, word: super::block::Word) -> Result<i64, LineError> {
         let rounded = word.value.round();
         if (word.value - rounded).abs() > 0.0001 || rounded < 0.0 {
             return Err(LineError::new(word.start, word.end, "expected a whole tool number of 0 or more"));
@@ -499,7 +553,7 @@ impl Interpreter<'_> {
         Ok(number)
     }
 
-    fn spindle_tool(&self) -> ToolEntry {
+    pub fn spindle_tool(&self) -> ToolEntry {
         self.s
             .tool(self.s.current_tool)
             .copied()
@@ -537,6 +591,7 @@ impl Interpreter<'_> {
             }
         }
         s.units = units;
+        self.comp.scale(factor);
         // The feed stays what the machine was told; the interpreter's number follows it.
         self.s.feed_rate = self.canon.feed_rate_in(units);
     }
@@ -869,6 +924,18 @@ impl Interpreter<'_> {
             }
         }
         self.traverse(&end, span)
+    }
+
+    /// The current point from the machine's position (LinuxCNC `refresh_actual_position`).
+    fn refresh_position(&mut self) {
+        let position = self.canon.position();
+        let metres = self.s.units.metres();
+        let mut machine = [0.0; 6];
+        for axis in 0..3 {
+            machine[axis] = position.linear[axis] / metres;
+            machine[axis + 3] = position.rotary[axis].to_degrees();
+        }
+        self.s.current = self.relative_to_program(&machine);
     }
 
     /// A machine point (program units) in program coordinates (LinuxCNC `find_relative`).

@@ -19,6 +19,7 @@
 mod block;
 mod canon;
 mod codes;
+mod comp;
 mod control;
 mod cycles;
 mod execute;
@@ -193,6 +194,15 @@ impl LineError {
     pub fn hint(mut self, hint: impl Into<String>) -> Self {
         self.hint = Some(hint.into());
         self
+    }
+
+    /// An error found without a position (0..0) placed on `start..end` of the line.
+    pub fn located(self, start: usize, end: usize) -> Self {
+        if self.start == 0 && self.end == 0 {
+            LineError { start, end, ..self }
+        } else {
+            self
+        }
     }
 }
 

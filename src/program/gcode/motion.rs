@@ -61,6 +61,16 @@ impl Interpreter<'_> {
             }
             return Ok(end);
         }
+        // After the entry move, compensation works from the programmed point: X always,
+        // Y in G17 and Z in G18 (LinuxCNC `find_ends`).
+        if self.comp.side.is_some() && !self.comp.first_move {
+            end[0] = self.comp.programmed[0];
+            match s.plane {
+                Plane::XY => end[1] = self.comp.programmed[1],
+                Plane::ZX => end[2] = self.comp.programmed[2],
+                Plane::YZ => {}
+            }
+        }
         for (axis, &letter) in AXIS_LETTERS.iter().enumerate() {
             if let Some(value) = block.value(letter) {
                 if s.absolute {
@@ -142,7 +152,17 @@ impl Interpreter<'_> {
             None
         };
         self.s.motion_mode = Some(code);
+        self.comp.arc_not_allowed = false;
         let target = self.find_ends(block)?;
+        if self.comp.active() {
+            if block.g_code(group::NON_MODAL) == Some(530) {
+                return Err(LineError::new(start, end, "expected no G53 move while cutter radius compensation is on"));
+            }
+            let inverse_time = self.comp_inverse_time_rate(inverse_time, &target);
+            return self
+                .straight_comp(code == 0, &target, inverse_time, span)
+                .map_err(|e| e.located(start, end));
+        }
         if code == 0 {
             self.traverse(&target, span)
         } else {
@@ -190,13 +210,44 @@ impl Interpreter<'_> {
     pub fn arc(&mut self, line: &[u8], code: u32, block: &Block, span: Span) -> Result<(), LineError> {
         let range = block_text_range(line);
         let found = || Found::Text(display_text(&line[range.0..range.1]));
+        if self.comp.arc_not_allowed {
+            return Err(LineError::new(range.0, range.1, "expected a straight move just after turning cutter compensation off (G40), not an arc")
+                .found(found()));
+        }
         let inverse_time = self
             .feed_check(block, range.0, range.1)
             .map_err(|e| e.found(found()))?;
         self.s.motion_mode = Some(code);
         let end = self.find_ends(block)?;
         let clockwise = code == 20;
-        let (centre, turns) = self.arc_centre(line, block, &end, clockwise, range)?;
+        let (first, second, _, _, _) = plane_axes(self.s.plane);
+        let comp = self.comp.active() && matches!(self.s.plane, Plane::XY | Plane::ZX);
+        // Compensated arcs after the entry start from the programmed point.
+        let start = if comp && !self.comp.first_move {
+            let p = self.comp.programmed;
+            [p[first], p[second]]
+        } else {
+            [self.s.current[first], self.s.current[second]]
+        };
+        let (centre, turns) = self.arc_centre(line, block, start, &end, clockwise, range)?;
+        if comp {
+            let turn = if clockwise { -(turns as i32 + 1) } else { turns as i32 + 1 };
+            let inverse_time = match inverse_time {
+                Some(_) => {
+                    let radius = (centre[0] - start[0]).hypot(centre[1] - start[1]);
+                    let angle = super::comp::sweep(start, centre, turn, [end[first], end[second]]);
+                    let normal = 3 - first - second;
+                    let rise = end[normal] - self.comp.programmed[normal];
+                    let length = (radius * angle).hypot(rise);
+                    self.comp_rate(block, length);
+                    None
+                }
+                None => None,
+            };
+            return self
+                .arc_comp(clockwise, &end, centre, turn, inverse_time, span)
+                .map_err(|e| e.located(range.0, range.1));
+        }
         let mut centre_axes = self.s.current;
         let (first, second, _, _, _) = plane_axes(self.s.plane);
         centre_axes[first] = centre[0];
@@ -214,6 +265,7 @@ impl Interpreter<'_> {
         &self,
         line: &[u8],
         block: &Block,
+        start: [f64; 2],
         end: &Axes,
         clockwise: bool,
         block_range: (usize, usize),
@@ -251,7 +303,6 @@ impl Interpreter<'_> {
                 rounded as u32 - 1
             }
         };
-        let start = [self.s.current[first], self.s.current[second]];
         let stop = [end[first], end[second]];
         let radius_tolerance = tolerance.radius(unit);
         let describe = |c: [f64; 2]| format!("({}{:.4},{}{:.4})", names[0], c[0], names[1], c[1]);
@@ -365,6 +416,45 @@ impl Interpreter<'_> {
             }));
         }
         Ok((centre, turns))
+    }
+}
+
+impl Interpreter<'_> {
+    /// In inverse time with compensation LinuxCNC sets the feed rate from the programmed
+    /// length (F × length per minute) and feeds the compensated move at that rate.
+    fn comp_inverse_time_rate(&mut self, inverse_time: Option<f64>, target: &Axes) -> Option<f64> {
+        let seconds = inverse_time?;
+        let programmed = if self.comp.first_move {
+            [self.s.current[0], self.s.current[1], self.s.current[2]]
+        } else {
+            self.comp.programmed
+        };
+        let length = (0..3)
+            .map(|axis| (target[axis] - programmed[axis]).powi(2))
+            .sum::<f64>()
+            .sqrt();
+        let length = if length > 0.0 {
+            length
+        } else {
+            (3..6)
+                .map(|axis| (target[axis] - self.s.current[axis]).powi(2))
+                .sum::<f64>()
+                .sqrt()
+        };
+        self.set_inverse_rate(60.0 / seconds, length);
+        None
+    }
+
+    fn comp_rate(&mut self, block: &Block, length: f64) {
+        if let Some(f) = block.value(b'f') {
+            self.set_inverse_rate(f, length);
+        }
+    }
+
+    fn set_inverse_rate(&mut self, f: f64, length: f64) {
+        let rate = (length * f).max(0.1);
+        self.s.feed_rate = rate;
+        self.canon.set_feed_rate(rate);
     }
 }
 

@@ -6,6 +6,7 @@ use std::path::Path;
 use std::rc::Rc;
 
 use super::canon::{Axes, Canon};
+use super::comp::Compensation;
 use super::control::{Frame, LoopFlags, Sub};
 use super::expr::Parameters;
 use super::params::{self, Store};
@@ -95,6 +96,7 @@ pub(super) struct Interpreter<'a> {
     pub frames: Vec<Frame>,
     pub subs: HashMap<String, Rc<Sub>>,
     pub flow: LoopFlags,
+    pub comp: Compensation,
     /// The value the last subroutine returned (`#<_value>`), and whether it returned one.
     pub returned: (f64, bool),
     pub percent_open: bool,
@@ -177,6 +179,7 @@ impl<'a> Interpreter<'a> {
             frames: vec![Frame::main()],
             subs: HashMap::new(),
             flow: LoopFlags::default(),
+            comp: Compensation::new(),
             returned: (0.0, false),
             percent_open: false,
             seen_content: false,
@@ -189,6 +192,11 @@ impl<'a> Interpreter<'a> {
     }
 
     pub fn finish(mut self, line_count: usize, byte_count: usize) -> Result<Program, ProgramErrors> {
+        if self.comp.holds_anything() {
+            // The program ended with compensation holding a move back (LinuxCNC would drop
+            // it with the file's missing end): send it.
+            let _ = self.dequeue();
+        }
         if self.percent_open && !self.ended_by_program_end && !self.finished {
             self.errors.push(
                 ProgramError::new(
@@ -257,7 +265,11 @@ impl<'a> Interpreter<'a> {
                 Plane::ZX => 180.0,
                 Plane::YZ => 190.0,
             },
-            "_ccomp" => 400.0,
+            "_ccomp" => match self.comp.side {
+                None => 400.0,
+                Some(super::comp::Side::Left) => 410.0,
+                Some(super::comp::Side::Right) => 420.0,
+            },
             "_metric" => flag(s.units == LengthUnit::Millimetre),
             "_imperial" => flag(s.units == LengthUnit::Inch),
             "_absolute" => flag(s.absolute),
