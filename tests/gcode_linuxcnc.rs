@@ -25,8 +25,8 @@ use std::process::{Command, Stdio};
 use std::time::{Duration, Instant};
 
 use cncsim::program::{
-    move_length, parse_gcode, Feed, LengthUnit, Motion, Plane, Position, Program, ReadOptions,
-    ToolSpec,
+    move_length, parse_gcode, parse_tool_table, Feed, LengthUnit, Motion, Plane, Position,
+    Program, ReadOptions,
 };
 
 // ---------------------------------------------------------------------------------------
@@ -347,40 +347,8 @@ fn compare(oracle: &[Event], ours: &[Event]) -> Result<(), String> {
 }
 
 // ---------------------------------------------------------------------------------------
-// Tool tables (LinuxCNC format: `T1 P1 Z10 D6 ;comment`, user units = inches in rs274)
+// Tool tables (user units = inches in rs274)
 // ---------------------------------------------------------------------------------------
-
-fn parse_tool_table(text: &str) -> Vec<ToolSpec> {
-    let mut tools = Vec::new();
-    for line in text.lines() {
-        let line = line.split(';').next().unwrap_or("");
-        let mut tool = ToolSpec::default();
-        let mut has_number = false;
-        for word in line.split_whitespace() {
-            let (letter, value) = word.split_at(1);
-            let Ok(value) = value.parse::<f64>() else { continue };
-            let inch = value * 0.0254;
-            match letter.to_ascii_uppercase().as_str() {
-                "T" => {
-                    tool.number = value as u32;
-                    has_number = true;
-                }
-                "X" => tool.offset.linear[0] = inch,
-                "Y" => tool.offset.linear[1] = inch,
-                "Z" => tool.offset.linear[2] = inch,
-                "A" => tool.offset.rotary[0] = value.to_radians(),
-                "B" => tool.offset.rotary[1] = value.to_radians(),
-                "C" => tool.offset.rotary[2] = value.to_radians(),
-                "D" => tool.diameter = inch,
-                _ => {}
-            }
-        }
-        if has_number {
-            tools.push(tool);
-        }
-    }
-    tools
-}
 
 /// The tool table used where a program brings none: tools 1–99, lengths 0.1 in × T.
 fn default_tool_table() -> String {
@@ -395,7 +363,8 @@ fn oracle_options(tool_table: &str) -> ReadOptions {
     let mut options = ReadOptions::default();
     options.gcode.user_units = LengthUnit::Inch;
     options.gcode.block_delete = false;
-    options.gcode.tools = parse_tool_table(tool_table);
+    options.gcode.tools = parse_tool_table(tool_table, "tool.tbl", LengthUnit::Inch)
+        .expect("the tool table reads");
     options
 }
 

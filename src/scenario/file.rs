@@ -5,7 +5,9 @@ use crate::control::{ActuatorKind, PidForm, PidGains};
 use crate::diagnostics::{read_text, toml_error, FileError, LineColumn};
 use crate::machine::{AmplifierMode, Feedback};
 use crate::plan::BlendChoice;
-use crate::program::{CircleSpec, FeedRule, PolylineSpec, ReadOptions};
+use crate::program::{
+    parse_tool_table, CircleSpec, FeedRule, LengthUnit, PolylineSpec, ReadOptions,
+};
 use serde::Deserialize;
 use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};
@@ -76,6 +78,10 @@ struct RawProgram {
     lenient: bool,
     #[serde(default)]
     optimise_pen_up: bool,
+    /// G-code: a LinuxCNC tool table file (lengths in mm) and the G28/G30 positions (mm).
+    tool_table: Option<Spanned<String>>,
+    g28_home_mm: Option<[f64; 3]>,
+    g30_home_mm: Option<[f64; 3]>,
 }
 
 #[derive(Deserialize, Default, Clone, Copy)]
@@ -575,6 +581,32 @@ impl Scenario {
             }
             options.hpgl.lenient = p.lenient;
             options.hpgl.optimise_pen_up = p.optimise_pen_up;
+            if let Some(table) = &p.tool_table {
+                let table_path = resolve(table.get_ref());
+                let text = std::fs::read_to_string(&table_path).map_err(|error| {
+                    err(
+                        table.span(),
+                        format!("tool table '{}': {error}", table_path.display()),
+                    )
+                })?;
+                options.gcode.tools = parse_tool_table(&text, &table_path, LengthUnit::Millimetre)
+                    .map_err(|errors| err(table.span(), errors.to_string()))?;
+            }
+            for (value, target, key) in [
+                (p.g28_home_mm, &mut options.gcode.g28_home, "g28_home_mm"),
+                (p.g30_home_mm, &mut options.gcode.g30_home, "g30_home_mm"),
+            ] {
+                if let Some(home) = value {
+                    if !home.iter().all(|v| v.is_finite()) {
+                        return Err(FileError::new(
+                            path,
+                            program_at,
+                            format!("{key}: expected finite numbers"),
+                        ));
+                    }
+                    target.linear = home.map(|v| v * 1e-3);
+                }
+            }
             ProgramSource::File {
                 path: file,
                 options,

@@ -28,6 +28,7 @@ mod lexer;
 mod motion;
 mod params;
 mod state;
+mod tool_table;
 
 use std::collections::VecDeque;
 use std::io::BufRead;
@@ -38,6 +39,8 @@ use super::error::{display_text, ErrorSink, Found, ProgramError, ProgramErrors};
 use super::options::ReadOptions;
 use super::source::{char_column, saturate};
 use super::types::{Program, Span};
+
+pub use self::tool_table::parse_tool_table;
 
 /// Decodes G-code held in memory. `source` names the program in messages.
 pub fn parse_gcode(
