@@ -527,11 +527,11 @@ fn collect_sub<R: BufRead>(
             Some((label, Keyword::EndSub)) if label == name => break,
             Some((label, Keyword::Sub)) => {
                 return Err(LineError::new(0, 0, format!(
-                    "expected 'o{} endsub' before another subroutine definition (o{} sub on line {}); definitions do not nest",
+                    "expected 'o{} endsub' before another subroutine definition (line {}); definitions do not nest",
                     shown(name),
-                    shown(&label),
                     line.number
-                )));
+                ))
+                .found(crate::program::error::Found::Text(format!("o{} sub", shown(&label)))));
             }
             _ => {}
         }

@@ -545,7 +545,7 @@ impl Interpreter<'_> {
                 format!("expected a tool of the tool table; tool {number} is not in it"),
             )
             .hint(if known.is_empty() {
-                "the tool table is empty: give the tools in the scenario's [program] tools".to_string()
+                "the tool table is empty: name a LinuxCNC tool table with the scenario's [program] tool_table (or inspect --tool-table)".to_string()
             } else {
                 format!("the table has tools {}", known.join(", "))
             }));
