@@ -748,3 +748,172 @@ fn corpus_key(program: &Path, dirs: &[PathBuf]) -> String {
     program.display().to_string()
 }
 
+
+// ---------------------------------------------------------------------------------------
+// Generated programs
+// ---------------------------------------------------------------------------------------
+
+/// A small deterministic generator (xorshift), so that a failing program can be regenerated.
+struct Generator(u64);
+
+impl Generator {
+    fn next(&mut self) -> u64 {
+        self.0 ^= self.0 << 13;
+        self.0 ^= self.0 >> 7;
+        self.0 ^= self.0 << 17;
+        self.0
+    }
+
+    fn below(&mut self, n: u64) -> u64 {
+        self.next() % n
+    }
+
+    /// A coordinate with up to three decimals in [-limit, limit].
+    fn coordinate(&mut self, limit: i64) -> f64 {
+        (self.below((2 * limit * 1000 + 1) as u64) as i64 - limit * 1000) as f64 / 1000.0
+    }
+}
+
+/// A program mixing the constructs cncsim runs: moves and arcs (some with expressions),
+/// parameters, loops, conditionals, subroutines, offsets, tools, canned cycles, units and
+/// distance modes.
+fn generated_program(seed: u64) -> String {
+    let mut g = Generator(seed.wrapping_mul(0x9E37_79B9_7F4A_7C15) | 1);
+    let mut text = String::from("o<step> sub\n  G1 X[#1 + #3] Y[#2 - #3]\n  o<step> return [#1 * 2]\no<step> endsub\n");
+    text.push_str(if g.below(4) == 0 { "G20\n" } else { "G21\n" });
+    text.push_str("G90 G17 G94 F[100 + 50]\nG0 X0 Y0 Z5\n");
+    // rs274's stand-alone canon re-reads the position after M6 ignoring the XY rotation of
+    // the coordinate system, and keeps the tool length offset in the units it was given in
+    // across G20/G21 (LinuxCNC's motion controller does neither), so a program either rotates
+    // coordinate systems and switches units, or changes tools.
+    let rotations = g.below(2) == 0;
+    let blocks = 10 + g.below(25);
+    for block in 0..blocks {
+        // Every if and loop gets its own labels (LinuxCNC refuses a label used twice).
+        let (l1, l2) = (100 + 2 * block, 101 + 2 * block);
+        match g.below(16) {
+            0 | 1 => {
+                let (x, y) = (g.coordinate(50), g.coordinate(50));
+                text.push_str(&format!("G1 X{x} Y{y}\n"));
+            }
+            2 => {
+                let (x, z) = (g.coordinate(50), g.coordinate(5));
+                text.push_str(&format!("#1 = {x}\n#<z> = {z}\nG0 X[#1 * 2 / 2] Z[#<z> + 0]\n"));
+            }
+            3 => {
+                // An arc about a centre offset: the end is computed on the circle.
+                let (i, j) = (g.coordinate(20), g.coordinate(20));
+                let angle = g.below(360) as f64;
+                text.push_str(&format!(
+                    "#5 = [#<_x> + {i}]\n#6 = [#<_y> + {j}]\n#7 = SQRT[{i} * {i} + {j} * {j}]\nG{} X[#5 + #7 * COS[{angle}]] Y[#6 + #7 * SIN[{angle}]] I{i} J{j}\n",
+                    if g.below(2) == 0 { 2 } else { 3 }
+                ));
+            }
+            4 => {
+                let (i, j) = (g.coordinate(15), g.coordinate(15));
+                text.push_str(&format!("G{} I{i} J{j} P{}\n", if g.below(2) == 0 { 2 } else { 3 }, 1 + g.below(2)));
+            }
+            5 => {
+                let count = 1 + g.below(4);
+                let (dx, dy) = (g.coordinate(5), g.coordinate(5));
+                text.push_str(&format!("o{l1} repeat [{count}]\n  G91 G1 X{dx} Y{dy}\n  G90\no{l1} endrepeat\n"));
+            }
+            6 => {
+                text.push_str(&format!(
+                    "#9 = 0\no{l1} while [#9 LT {}]\n  #9 = [#9 + 1]\n  o{l2} if [#9 MOD 2 EQ 0]\n    o{l1} continue\n  o{l2} endif\n  G1 X[#9 * 3] Y{}\no{l1} endwhile\n",
+                    1 + g.below(5),
+                    g.coordinate(30)
+                ));
+            }
+            7 => {
+                let (a, b, c) = (g.coordinate(20), g.coordinate(20), g.coordinate(3));
+                text.push_str(&format!("o<step> call [{a}] [{b}] [{c}]\nG0 Z[#<_value> / 100]\n"));
+            }
+            8 => {
+                let system = 1 + g.below(9);
+                let (x, y) = (g.coordinate(40), g.coordinate(40));
+                let code = ["G54", "G55", "G56", "G57", "G58", "G59", "G59.1", "G59.2", "G59.3"][system as usize - 1];
+                let rotation = if rotations { g.below(4) * 15 } else { 0 };
+                text.push_str(&format!("G10 L2 P{system} X{x} Y{y} R{rotation}\n{code}\n"));
+            }
+            9 => {
+                let (x, y) = (g.coordinate(30), g.coordinate(30));
+                text.push_str(&format!("G92 X{x} Y{y}\nG0 X0 Y0\nG92.{}\n", 1 + g.below(2)));
+            }
+            10 if !rotations => {
+                let tool = 1 + g.below(9);
+                text.push_str(&format!("T{tool} M6\nG43 H{tool}\nG0 Z{}\n", g.coordinate(10)));
+            }
+            11 => {
+                let (x, y) = (g.coordinate(40), g.coordinate(40));
+                let cycle = ["G81", "G82 P0.2", "G83 Q1.5", "G73 Q1", "G85", "G89 P0.1"][g.below(6) as usize];
+                let retract = if g.below(2) == 0 { "G98" } else { "G99" };
+                text.push_str(&format!(
+                    "G0 Z5\n{retract} {cycle} X{x} Y{y} Z-3 R1 L{}\nG80\n",
+                    1 + g.below(3)
+                ));
+            }
+            12 if rotations => text.push_str(if g.below(2) == 0 { "G20\n" } else { "G21\n" }),
+            13 => text.push_str(&format!("G4 P{}\n", g.below(10) as f64 / 10.0)),
+            14 => text.push_str(&format!("G28 Z{}\n", g.coordinate(5))),
+            _ => {
+                // A G18 arc about a centre offset K (along Z), its end on the circle.
+                let k = g.coordinate(10);
+                let angle = g.below(360) as f64;
+                text.push_str(&format!(
+                    "#5 = [#<_z> + {k}]\n#6 = #<_x>\nG18 G2 Z[#5 + ABS[{k}] * COS[{angle}]] X[#6 + ABS[{k}] * SIN[{angle}]] K{k}\nG17\n"
+                ));
+            }
+        }
+    }
+    text.push_str("M2\n");
+    text
+}
+
+#[test]
+fn generated_programs_match_linuxcnc() {
+    let Some(oracle) = find_oracle() else {
+        assert!(!require_oracles(), "CNCSIM_REQUIRE_ORACLES=1 but rs274 was not found (set CNCSIM_LINUXCNC_ROOT)");
+        eprintln!("rs274 not found: skipping the generated programs");
+        return;
+    };
+    let count: u64 = std::env::var("CNCSIM_GENERATED_PROGRAMS")
+        .ok()
+        .and_then(|v| v.parse().ok())
+        .unwrap_or(300);
+    let directory = tempfile::tempdir().expect("temporary directory");
+    let table = default_tool_table();
+    let mut failures = Vec::new();
+    let mut outcomes: BTreeMap<&str, usize> = BTreeMap::new();
+    for seed in 1..=count {
+        let text = generated_program(seed);
+        let path = directory.path().join(format!("generated_{seed}.ngc"));
+        std::fs::write(&path, &text).expect("write program");
+        if let Ok(keep) = std::env::var("CNCSIM_KEEP_GENERATED") {
+            let _ = std::fs::write(Path::new(&keep).join(format!("generated_{seed}.ngc")), &text);
+        }
+        let (out, err) = run_oracle(&oracle, &path, &table);
+        let outcome = judge(&path, text.as_bytes(), &out, err, &table);
+        let label = match &outcome {
+            Outcome::Match { .. } => "match",
+            Outcome::BothRefuse => "both refuse",
+            Outcome::Refused(_) => "refused by name",
+            Outcome::Mismatch(_) => "mismatch",
+        };
+        *outcomes.entry(label).or_insert(0) += 1;
+        if !matches!(outcome, Outcome::Match { .. } | Outcome::BothRefuse) {
+            failures.push(format!("seed {seed}: {outcome:?}\n{text}"));
+        }
+    }
+    println!("generated programs: {outcomes:?}");
+    assert!(
+        failures.is_empty(),
+        "{} of {count} differ; the first:\n{}",
+        failures.len(),
+        failures.iter().take(3).cloned().collect::<Vec<_>>().join("\n\n")
+    );
+    assert!(
+        outcomes.get("match").copied().unwrap_or(0) as u64 * 2 > count,
+        "most generated programs should run: {outcomes:?}"
+    );
+}

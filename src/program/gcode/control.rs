@@ -62,6 +62,9 @@ pub(super) struct Frame {
     /// Skipping forward to the next line with this label.
     skip_to: Option<String>,
     labels: HashMap<String, Label>,
+    /// Every label that opened an if or a loop in this frame, with its keyword and line:
+    /// LinuxCNC refuses a label used again on another line.
+    seen: HashMap<String, (Keyword, usize)>,
     executed_if: bool,
     /// Named parameters local to this call.
     pub locals: HashMap<String, f64>,
@@ -77,6 +80,7 @@ impl Frame {
             pc: 0,
             skip_to: None,
             labels: HashMap::new(),
+            seen: HashMap::new(),
             executed_if: false,
             locals: HashMap::new(),
             saved_arguments: [0.0; 30],
@@ -281,6 +285,23 @@ fn o_line<R: BufRead>(
     let depth = interp.frames.len() - 1;
     let frame = interp.frames.last_mut().expect("frame");
     let condition = o.values.first().copied().unwrap_or(0.0);
+    if matches!(o.keyword, Keyword::If | Keyword::Do | Keyword::While | Keyword::Repeat) {
+        let closes_do = o.keyword == Keyword::While
+            && frame.seen.get(&o.label).is_some_and(|(keyword, _)| *keyword == Keyword::Do);
+        match frame.seen.get(&o.label) {
+            Some(&(_, first_line)) if first_line != line.number && !closes_do => {
+                return Err(error(format!(
+                    "expected each if/loop label once; o{} was already used on line {first_line}",
+                    shown(&o.label)
+                ))
+                .hint("LinuxCNC refuses a label used again; give each if and loop its own number"));
+            }
+            Some(_) => {}
+            None => {
+                frame.seen.insert(o.label.clone(), (o.keyword, line.number));
+            }
+        }
+    }
     match o.keyword {
         Keyword::Sub => {
             if depth > 0 {
@@ -487,6 +508,10 @@ fn o_line<R: BufRead>(
                     shown(&o.label),
                     o.keyword.name()
                 )));
+            }
+            if o.keyword == Keyword::Continue && was_skipping {
+                // Reached while already skipping to this loop's end: nothing to do.
+                return Ok(());
             }
             frame.skip_to = Some(o.label.clone());
             if o.keyword == Keyword::Break {
