@@ -67,7 +67,7 @@ pub(super) struct Frame {
     seen: HashMap<String, (Keyword, usize)>,
     executed_if: bool,
     /// Named parameters local to this call.
-    pub locals: HashMap<String, f64>,
+    pub locals: super::params::NameMap,
     /// The caller's #1–#30, restored on return.
     saved_arguments: [f64; 30],
 }
@@ -82,7 +82,7 @@ impl Frame {
             labels: HashMap::new(),
             seen: HashMap::new(),
             executed_if: false,
-            locals: HashMap::new(),
+            locals: super::params::NameMap::default(),
             saved_arguments: [0.0; 30],
         }
     }

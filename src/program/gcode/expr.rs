@@ -166,6 +166,10 @@ impl<'l> Cursor<'l> {
             };
             return Err(error);
         }
+        if let Some(value) = exact_decimal(&self.chars[first..end]) {
+            self.index = end;
+            return Ok(value);
+        }
         // The compacted characters are ASCII digits, signs and a point: parse them directly.
         let mut text = [0u8; 64];
         let count = end - first;
@@ -202,6 +206,27 @@ impl<'l> Cursor<'l> {
     /// `#…` as a value.
     fn parameter_value(&mut self, params: &dyn Parameters) -> Result<f64, LineError> {
         let start = self.at();
+        if self.peek_at(1) == Some(b'<') {
+            // A named parameter, looked up without allocating for names of usual length.
+            self.index += 1;
+            let (first, end) = self.name_range()?;
+            let mut buffer = [0u8; 64];
+            let chars = &self.chars[first..end];
+            let owned;
+            let name = if chars.len() <= buffer.len() {
+                for (slot, c) in buffer.iter_mut().zip(chars) {
+                    *slot = c.byte;
+                }
+                std::str::from_utf8(&buffer[..chars.len()]).unwrap_or("")
+            } else {
+                owned = chars.iter().map(|c| c.byte as char).collect::<String>();
+                owned.as_str()
+            };
+            return params.named(name).map_err(|problem| {
+                LineError::new(start, self.end_of_previous(), problem)
+                    .hint("assign it first, e.g. #<name> = 0 (names without '_' are local to their subroutine)")
+            });
+        }
         match self.parameter_ref(params)? {
             ParameterRef::Numbered(index) => Ok(params.numbered(index)),
             ParameterRef::Named(name) => params.named(&name).map_err(|problem| {
@@ -238,36 +263,31 @@ impl<'l> Cursor<'l> {
 
     /// `<name>` (the compacted characters: lower case, blanks removed).
     fn name(&mut self) -> Result<String, LineError> {
+        let (start, end) = self.name_range()?;
+        Ok(self.chars[start..end].iter().map(|c| c.byte as char).collect())
+    }
+
+    /// The character range of a `<name>`, moving past its `>`.
+    fn name_range(&mut self) -> Result<(usize, usize), LineError> {
         let open = self.at();
         self.index += 1;
-        let mut name = String::new();
-        loop {
-            match self.peek() {
-                None => {
-                    return Err(LineError::new(
-                        open,
-                        self.line.len(),
-                        "expected '>' to close the parameter name",
-                    ));
-                }
-                Some(b'>') => {
-                    self.index += 1;
-                    break;
-                }
-                Some(byte) => {
-                    name.push(byte as char);
-                    self.index += 1;
-                }
-            }
-        }
-        if name.is_empty() {
+        let start = self.index;
+        let Some(length) = self.chars[start..].iter().position(|c| c.byte == b'>') else {
+            return Err(LineError::new(
+                open,
+                self.line.len(),
+                "expected '>' to close the parameter name",
+            ));
+        };
+        self.index = start + length + 1;
+        if length == 0 {
             return Err(LineError::new(
                 open,
                 self.end_of_previous(),
                 "expected a parameter name between '<' and '>'",
             ));
         }
-        Ok(name)
+        Ok((start, start + length))
     }
 
     /// `[ value op value op … ]` with LinuxCNC's precedence.
@@ -281,26 +301,33 @@ impl<'l> Cursor<'l> {
     }
 
     fn expression_body(&mut self, params: &dyn Parameters) -> Result<f64, LineError> {
-        let mut values: Vec<f64> = Vec::with_capacity(4);
-        let mut operators: Vec<(Operator, usize)> = Vec::with_capacity(4);
-        values.push(self.real_value(params)?);
+        // Operators on the stack rise strictly in precedence (five levels), so fixed stacks
+        // suffice.
+        let mut values = [0.0f64; 8];
+        let mut operators = [(Operator::Close, 0usize); 8];
+        let (mut value_count, mut operator_count) = (1, 0);
+        values[0] = self.real_value(params)?;
         loop {
             let at = self.at();
             let operator = self.operator()?;
-            while let Some(&(top, top_at)) = operators.last() {
+            while operator_count > 0 {
+                let (top, top_at) = operators[operator_count - 1];
                 if top.precedence() < operator.precedence() {
                     break;
                 }
-                operators.pop();
-                let right = values.pop().expect("operand");
-                let left = values.pop().expect("operand");
-                values.push(apply(top, left, right, top_at, self)?);
+                operator_count -= 1;
+                let right = values[value_count - 1];
+                let left = values[value_count - 2];
+                value_count -= 1;
+                values[value_count - 1] = apply(top, left, right, top_at, self)?;
             }
             if operator == Operator::Close {
-                return Ok(values.pop().expect("value"));
+                return Ok(values[value_count - 1]);
             }
-            operators.push((operator, at));
-            values.push(self.real_value(params)?);
+            operators[operator_count] = (operator, at);
+            operator_count += 1;
+            values[value_count] = self.real_value(params)?;
+            value_count += 1;
         }
     }
 
@@ -435,6 +462,47 @@ impl<'l> Cursor<'l> {
         };
         Ok(value)
     }
+}
+
+/// A number of at most 15 significant digits and 22 decimals, converted with one correctly
+/// rounded division (the same value `str::parse` gives, faster); `None` for anything else.
+fn exact_decimal(chars: &[Significant]) -> Option<f64> {
+    const POWERS: [f64; 23] = [
+        1e0, 1e1, 1e2, 1e3, 1e4, 1e5, 1e6, 1e7, 1e8, 1e9, 1e10, 1e11, 1e12, 1e13, 1e14, 1e15,
+        1e16, 1e17, 1e18, 1e19, 1e20, 1e21, 1e22,
+    ];
+    let mut negative = false;
+    let mut digits = chars;
+    if let Some(first) = digits.first() {
+        if first.byte == b'-' || first.byte == b'+' {
+            negative = first.byte == b'-';
+            digits = &digits[1..];
+        }
+    }
+    let mut mantissa: u64 = 0;
+    let mut significant = 0;
+    let mut decimals: Option<usize> = None;
+    for c in digits {
+        match c.byte {
+            b'0'..=b'9' => {
+                if mantissa != 0 || c.byte != b'0' {
+                    significant += 1;
+                }
+                mantissa = mantissa * 10 + u64::from(c.byte - b'0');
+                if let Some(d) = &mut decimals {
+                    *d += 1;
+                }
+                if significant > 15 {
+                    return None;
+                }
+            }
+            b'.' if decimals.is_none() => decimals = Some(0),
+            _ => return None,
+        }
+    }
+    let scale = *POWERS.get(decimals.unwrap_or(0))?;
+    let value = mantissa as f64 / scale;
+    Some(if negative { -value } else { value })
 }
 
 /// `value` as a whole number if it is one within LinuxCNC's tolerance.

@@ -91,6 +91,8 @@ pub(super) struct Lines<R> {
     next_offset: usize,
     eof: bool,
     read_error: Option<std::io::Error>,
+    /// Buffers of dropped lines, reused for the next ones.
+    spare: Vec<Vec<u8>>,
 }
 
 impl<R: BufRead> Lines<R> {
@@ -102,6 +104,7 @@ impl<R: BufRead> Lines<R> {
             next_offset: 0,
             eof: false,
             read_error: None,
+            spare: Vec::new(),
         }
     }
 
@@ -118,9 +121,16 @@ impl<R: BufRead> Lines<R> {
 
     /// Drops the lines before `index`: nothing will come back to them.
     pub fn release_before(&mut self, index: usize) {
-        while self.base < index && !self.kept.is_empty() {
-            self.kept.pop_front();
+        while self.base < index {
+            let Some(line) = self.kept.pop_front() else {
+                break;
+            };
             self.base += 1;
+            if self.spare.len() < 4 {
+                if let Ok(line) = Rc::try_unwrap(line) {
+                    self.spare.push(line.text);
+                }
+            }
         }
     }
 
@@ -128,7 +138,8 @@ impl<R: BufRead> Lines<R> {
         if self.eof {
             return false;
         }
-        let mut text = Vec::new();
+        let mut text = self.spare.pop().unwrap_or_default();
+        text.clear();
         match self.reader.read_until(b'\n', &mut text) {
             Ok(0) => {
                 self.eof = true;

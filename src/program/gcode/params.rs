@@ -7,20 +7,44 @@
 //! like LinuxCNC's, lengths there are in the machine's (user) units.
 
 use std::collections::HashMap;
+use std::hash::{BuildHasherDefault, Hasher};
 
 use super::expr::PARAMETER_COUNT;
+
+/// FNV-1a: parameter names are short, and the standard hasher's defence against crafted keys
+/// costs more than the lookups themselves here.
+#[derive(Default)]
+pub(super) struct Fnv(u64);
+
+impl Hasher for Fnv {
+    fn finish(&self) -> u64 {
+        self.0
+    }
+
+    fn write(&mut self, bytes: &[u8]) {
+        let mut hash = if self.0 == 0 { 0xcbf2_9ce4_8422_2325 } else { self.0 };
+        for &byte in bytes {
+            hash ^= u64::from(byte);
+            hash = hash.wrapping_mul(0x0100_0000_01b3);
+        }
+        self.0 = hash;
+    }
+}
+
+/// Named parameters by name.
+pub(super) type NameMap = HashMap<String, f64, BuildHasherDefault<Fnv>>;
 
 /// Numbered parameters and named globals; locals live in the call frames.
 pub(super) struct Store {
     numbered: Vec<f64>,
-    globals: HashMap<String, f64>,
+    globals: NameMap,
 }
 
 impl Store {
     pub fn new() -> Self {
         Store {
             numbered: vec![0.0; PARAMETER_COUNT],
-            globals: HashMap::new(),
+            globals: NameMap::default(),
         }
     }
 
