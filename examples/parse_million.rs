@@ -79,11 +79,11 @@ fn main() {
         let path = directory.path().join("million.ngc");
         write(&path);
         let size = std::fs::metadata(&path).unwrap().len();
-        let lines = std::fs::read(&path)
-            .unwrap()
-            .iter()
-            .filter(|&&b| b == b'\n')
-            .count();
+        let lines = std::io::BufRead::split(
+            std::io::BufReader::new(std::fs::File::open(&path).unwrap()),
+            b'\n',
+        )
+        .count();
         let rss_before = peak_rss_kib();
         let started = Instant::now();
         let program = read_program(&path, &ReadOptions::default()).expect("parses");

@@ -203,17 +203,25 @@ fn normalise_number_label(digits: &str) -> Option<String> {
     Some(if trimmed.is_empty() { "0" } else { trimmed }.to_string())
 }
 
-/// Splits a compacted block into words and checks letters, numbers and modal groups.
+/// Splits a compacted block into words and checks letters, numbers and modal groups, into
+/// `block` (reused from line to line: a block is large).
 pub(super) fn read_block(
     line: &[u8],
     chars: &[Significant],
     params: &dyn Parameters,
-) -> Result<Block, LineError> {
-    let mut block = Block {
-        start: chars.first().map_or(0, |c| c.at),
-        end: chars.last().map_or(0, |c| c.at + 1),
-        ..Block::default()
-    };
+    block: &mut Block,
+) -> Result<(), LineError> {
+    block.g = Default::default();
+    block.m = Default::default();
+    block.second_coolant = None;
+    block.words = Default::default();
+    block.polar_radius = None;
+    block.polar_angle = None;
+    block.settings.clear();
+    block.o_word = None;
+    block.start = chars.first().map_or(0, |c| c.at);
+    block.end = chars.last().map_or(0, |c| c.at + 1);
+    block.has_codes = false;
     let mut cursor = Cursor::new(line, chars, 0);
     while let Some(letter) = cursor.peek() {
         let word_start = cursor.at();
@@ -324,8 +332,8 @@ pub(super) fn read_block(
             end: word_end,
         };
         match letter {
-            b'g' => add_g(&mut block, line, word)?,
-            b'm' => add_m(&mut block, word)?,
+            b'g' => add_g(block, line, word)?,
+            b'm' => add_m(block, word)?,
             b'@' | b'^' => {
                 let slot = if letter == b'@' {
                     &mut block.polar_radius
@@ -362,7 +370,7 @@ pub(super) fn read_block(
             }
         }
     }
-    Ok(block)
+    Ok(())
 }
 
 /// Whether the cursor is at the name of a function (`ABS[`, `SIN[`, …).

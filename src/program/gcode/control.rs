@@ -12,7 +12,7 @@ use std::collections::HashMap;
 use std::io::BufRead;
 use std::rc::Rc;
 
-use super::block::{read_block, scan_o_word, Keyword, OWord};
+use super::block::{read_block, scan_o_word, Block, Keyword, OWord};
 use super::lexer::{compact_line, Significant};
 use super::state::Interpreter;
 use super::{program_error, LineError, Lines, SourceLine};
@@ -102,6 +102,7 @@ impl Frame {
 /// error.
 pub(super) fn run<R: BufRead>(interp: &mut Interpreter, lines: &mut Lines<R>) {
     let mut compact: Vec<Significant> = Vec::new();
+    let mut block = Block::default();
     while !interp.finished {
         let frame = interp.frames.last_mut().expect("main frame");
         let index = frame.pc;
@@ -128,7 +129,7 @@ pub(super) fn run<R: BufRead>(interp: &mut Interpreter, lines: &mut Lines<R>) {
             interp.finished = true;
             break;
         }
-        let outcome = one_line(interp, lines, &line, index, &mut compact);
+        let outcome = one_line(interp, lines, &line, index, &mut compact, &mut block);
         if !interp.seen_nonblank && line.text.iter().any(|b| !b.is_ascii_whitespace()) {
             interp.seen_nonblank = true;
         }
@@ -187,6 +188,7 @@ fn one_line<R: BufRead>(
     line: &Rc<SourceLine>,
     index: usize,
     compact: &mut Vec<Significant>,
+    block: &mut Block,
 ) -> Result<(), LineError> {
     compact.clear();
     let message = compact_line(&line.text, compact)?;
@@ -218,7 +220,7 @@ fn one_line<R: BufRead>(
         }
         words = &words[1..];
     }
-    let block = read_block(&line.text, words, interp)?;
+    read_block(&line.text, words, interp, block)?;
     if let Some(o_word) = &block.o_word {
         for (target, value) in &block.settings {
             interp.set_parameter(target, *value);
@@ -240,7 +242,7 @@ fn one_line<R: BufRead>(
         return Ok(());
     }
     let span = super::span_in_line(line, first.at);
-    interp.execute(&line.text, &block, span)
+    interp.execute(&line.text, block, span)
 }
 
 fn percent_line(
