@@ -138,7 +138,7 @@ impl Default for GcodeOptions {
             g28_home: Position::default(),
             g30_home: Position::default(),
             tools: Vec::new(),
-            max_blocks: 100_000_000,
+            max_blocks: 20_000_000,
             max_moves: 10_000_000,
         }
     }

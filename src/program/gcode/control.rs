@@ -149,6 +149,9 @@ pub(super) fn run<R: BufRead>(interp: &mut Interpreter, lines: &mut Lines<R>) {
 }
 
 fn report(interp: &mut Interpreter, line: &SourceLine, error: LineError) {
+    // An error found without a position points at the whole block.
+    let (start, end) = super::block_text_range(&line.text);
+    let error = error.located(start, end);
     let error = program_error(interp.source, line, error);
     interp.errors.push(error);
 }
