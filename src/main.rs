@@ -6,8 +6,8 @@ use cncsim::program::{
 };
 use cncsim::report::metrics_table;
 use cncsim::scenario::{
-    check, folder_name, outcome_text, run_scenario, tune_scenario, Override, RunOutput, Scenario,
-    TuneError, TuneOptions, TunePlant,
+    check, folder_name, outcome_text, run_scenario, tune_scenario, Override, PlantKind, RunOutput,
+    Scenario, TuneError, TuneOptions,
 };
 use indicatif::{ProgressBar, ProgressStyle};
 use std::path::{Path, PathBuf};
@@ -52,6 +52,13 @@ fn main() -> ExitCode {
             run_one(&scenario, None)
         }
         Some(Command::Run { scenario, out }) => run_one(&scenario, out),
+        Some(Command::Sweep {
+            sweep,
+            jobs,
+            shard,
+            out,
+        }) => sweep_cli(&sweep, jobs, shard.as_deref(), out),
+        Some(Command::Merge { dirs, out }) => merge_cli(&dirs, &out),
         Some(Command::Check { scenarios, out }) => check_all(&scenarios, out),
         Some(Command::Plan {
             scenario,
@@ -77,6 +84,23 @@ fn main() -> ExitCode {
         Some(Command::Tune {
             scenario,
             axis,
+            analytic,
+            linear,
+            json,
+            cascade: true,
+            velocity_bandwidth_hz,
+            ..
+        }) => tune_cascade_cli(
+            &scenario,
+            &axis,
+            velocity_bandwidth_hz,
+            analytic,
+            linear,
+            json,
+        ),
+        Some(Command::Tune {
+            scenario,
+            axis,
             step_mm,
             step_deg,
             tolerance,
@@ -86,6 +110,8 @@ fn main() -> ExitCode {
             analytic,
             linear,
             json,
+            cascade: false,
+            ..
         }) => {
             let mut options = TuneOptions::new(&axis, step_mm * 1e-3);
             options.tolerance = tolerance;
@@ -162,9 +188,11 @@ fn run_one(path: &Path, out: Option<PathBuf>) -> ExitCode {
         Ok(s) => s,
         Err(e) => return fail_input(&e),
     };
+    print_warnings(&scenario.warnings);
     let out = out.unwrap_or_else(|| Path::new("out").join(folder_name(&scenario.name)));
     match execute(&scenario, &out) {
         Ok(run) => {
+            print_warnings(&run.warnings);
             print!("{}", metrics_table(&run.metrics));
             for f in &run.files {
                 println!("  wrote {}", f.display());
@@ -328,14 +356,15 @@ fn ab(
         }
         println!("  wrote {}", path.display());
     }
+    println!("  wrote {}", out.join("ab.rrd").display());
     let plot = out.join("contour_error.png");
     let labels = [format!("A: {}", sa.name), format!("B: {}", sb.name)];
-    let series =
-        [(&labels[0], &ra), (&labels[1], &rb)].map(|(label, r)| cncsim::report::ContourSeries {
-            label,
-            time: &r.trace.time,
-            contour_error: &r.derived.contour_error,
-        });
+    let curves = [&ra, &rb].map(|r| (r.contour_envelope.times(), r.contour_envelope.values()));
+    let series = [0, 1].map(|i| cncsim::report::ContourSeries {
+        label: &labels[i],
+        time: &curves[i].0,
+        contour_error: &curves[i].1,
+    });
     if let Err(e) = cncsim::report::write_contour_error_plot(&plot, &series) {
         return fail_input(&e);
     }
@@ -377,9 +406,9 @@ fn tune(
         options.step = rotary_step;
     }
     let plant = if analytic {
-        TunePlant::Analytic
+        PlantKind::Analytic
     } else {
-        TunePlant::Physics
+        PlantKind::Physics
     };
     let mut progress = |t: &cncsim::tune::Trial| {
         eprintln!(
@@ -406,6 +435,157 @@ fn tune(
         Err(e @ TuneError::Search { .. }) => {
             eprintln!("error: {e}");
             ExitCode::from(1)
+        }
+        Err(e) => fail_input(&e),
+    }
+}
+
+fn sweep_cli(
+    path: &Path,
+    jobs: Option<usize>,
+    shard: Option<&str>,
+    out: Option<PathBuf>,
+) -> ExitCode {
+    use cncsim::sweep::{
+        execute, parse_shard, run_sweep, write_results, Progress, Sweep, SweepResults,
+    };
+    let sweep = match Sweep::load(path) {
+        Ok(s) => s,
+        Err(e) => return fail_input(&e),
+    };
+    let shard = match shard.map(parse_shard).transpose() {
+        Ok(s) => s,
+        Err(e) => return fail_input(&e),
+    };
+    let threads =
+        jobs.unwrap_or_else(|| std::thread::available_parallelism().map_or(1, |n| n.get()));
+    if threads == 0 {
+        return fail_input(&"--jobs 0: expected at least 1");
+    }
+    let out = out.unwrap_or_else(|| {
+        let mut name = format!("sweep_{}", folder_name(&sweep.name));
+        if let Some((k, n)) = shard {
+            name += &format!("_shard_{k}_of_{n}");
+        }
+        Path::new("out").join(name)
+    });
+    let (runs, jobs) = run_sweep(&sweep, &out, shard);
+    eprintln!(
+        "sweep {}: {} runs ({} scenarios × {} variants × {} points{}) on {threads} threads",
+        sweep.name,
+        jobs.len(),
+        sweep.scenarios.len(),
+        sweep.variants.len(),
+        sweep.points().len(),
+        shard.map_or(String::new(), |(k, n)| format!(", shard {k}/{n}"))
+    );
+    let progress = Progress {
+        total: jobs.len(),
+        ..Default::default()
+    };
+    let bar = ProgressBar::new(jobs.len() as u64).with_style(
+        ProgressStyle::with_template(
+            "{spinner} [{bar:30}] {pos}/{len} runs {msg} {elapsed_precise} eta {eta}",
+        )
+        .expect("valid template")
+        .progress_chars("=> "),
+    );
+    let on_change = |p: &Progress| {
+        bar.set_position(p.done.load(Ordering::Relaxed) as u64);
+        bar.set_message(format!(
+            "({} running, {} failed)",
+            p.running.load(Ordering::Relaxed),
+            p.failed.load(Ordering::Relaxed)
+        ));
+    };
+    let (results, plans) = execute(&jobs, threads, &INTERRUPTED, &progress, &on_change);
+    bar.finish_and_clear();
+    let table = SweepResults::new(&sweep, &runs, &results, shard);
+    match write_results(&table, &out) {
+        Ok(files) => {
+            print!("{}", table.summary());
+            eprintln!("{} plans made for {} runs", plans, results.len());
+            for f in files {
+                println!("  wrote {}", f.display());
+            }
+        }
+        Err(e) => return fail_input(&e),
+    }
+    if INTERRUPTED.load(Ordering::Relaxed) {
+        eprintln!(
+            "interrupted: {} of {} runs done; the files hold them",
+            results.len(),
+            jobs.len()
+        );
+        return ExitCode::from(130);
+    }
+    if results
+        .iter()
+        .any(|r| r.error.is_some() || r.stopped.is_some())
+    {
+        return ExitCode::from(1);
+    }
+    ExitCode::SUCCESS
+}
+
+fn merge_cli(dirs: &[PathBuf], out: &Path) -> ExitCode {
+    let merged = match cncsim::sweep::merge(dirs) {
+        Ok(m) => m,
+        Err(e) => return fail_input(&e),
+    };
+    match cncsim::sweep::write_results(&merged, out) {
+        Ok(files) => {
+            println!(
+                "merged {} folders: {} of {} runs",
+                dirs.len(),
+                merged.rows.len(),
+                merged.total_runs
+            );
+            for f in files {
+                println!("  wrote {}", f.display());
+            }
+            ExitCode::SUCCESS
+        }
+        Err(e) => fail_input(&e),
+    }
+}
+
+fn tune_cascade_cli(
+    path: &Path,
+    axis: &str,
+    bandwidth_hz: Option<f64>,
+    analytic: bool,
+    linear: bool,
+    json: bool,
+) -> ExitCode {
+    let mut scenario = match Scenario::load(path) {
+        Ok(s) => s,
+        Err(e) => return fail_input(&e),
+    };
+    if linear {
+        scenario.friction = false;
+        scenario.backlash = false;
+    }
+    let machine = match cncsim::scenario::machine_for(&scenario) {
+        Ok(m) => m,
+        Err(e) => return fail_input(&e),
+    };
+    let plant = if analytic {
+        PlantKind::Analytic
+    } else {
+        PlantKind::Physics
+    };
+    match cncsim::scenario::tune_cascade(&scenario, machine, axis, bandwidth_hz, plant) {
+        Ok(report) if json => {
+            println!(
+                "{}",
+                serde_json::to_string_pretty(&report).expect("plain values")
+            );
+            ExitCode::SUCCESS
+        }
+        Ok(report) => {
+            print!("{}", report.text());
+            ExitCode::SUCCESS
         }
         Err(e) => fail_input(&e),
     }
@@ -438,15 +618,19 @@ fn check_all(paths: &[PathBuf], out: Option<PathBuf>) -> ExitCode {
     }
     let root = out.unwrap_or_else(|| PathBuf::from("out"));
     let (mut passed, mut failed, mut skipped) = (0, 0, 0);
+    // Bad input anywhere makes the exit status 2 (as for every command), whatever else ran.
+    let mut bad_input = false;
     for f in &files {
         let scenario = match Scenario::load(f) {
             Ok(s) => s,
             Err(e) => {
                 eprintln!("error: {e}");
                 failed += 1;
+                bad_input = true;
                 continue;
             }
         };
+        print_warnings(&scenario.warnings);
         if scenario.actuator.is_none() && scenario.expect.is_empty() {
             println!(
                 "SKIP {} (planning scenario: no [actuator] or [controller] to run)",
@@ -457,6 +641,7 @@ fn check_all(paths: &[PathBuf], out: Option<PathBuf>) -> ExitCode {
         }
         match execute(&scenario, &root.join(folder_name(&scenario.name))) {
             Ok(run) => {
+                print_warnings(&run.warnings);
                 let verdict = check(&scenario, &run.metrics_json);
                 let stopped = run.stop.is_some();
                 if verdict.passed() && !stopped {
@@ -481,14 +666,24 @@ fn check_all(paths: &[PathBuf], out: Option<PathBuf>) -> ExitCode {
             Err(e) => {
                 eprintln!("error: {e}");
                 failed += 1;
+                bad_input = true;
             }
         }
     }
     println!("{passed} passed, {failed} failed, {skipped} skipped");
-    if failed == 0 {
+    if bad_input {
+        ExitCode::from(2)
+    } else if failed == 0 {
         ExitCode::SUCCESS
     } else {
         ExitCode::from(1)
+    }
+}
+
+/// Values that loaded but look wrong, as compilers print warnings.
+fn print_warnings(warnings: &[cncsim::diagnostics::FileError]) {
+    for w in warnings {
+        eprintln!("warning: {w}");
     }
 }
 
