@@ -69,7 +69,10 @@ fn bench(c: &mut Criterion) {
     let options = ReadOptions::default();
     let programs = [
         ("plain", generate_program(1_000_000)),
-        ("parameters_and_loops", generate_parametric_program(1_000_000)),
+        (
+            "parameters_and_loops",
+            generate_parametric_program(1_000_000),
+        ),
     ];
     let mut group = c.benchmark_group("gcode");
     group

@@ -25,8 +25,8 @@ use std::process::{Command, Stdio};
 use std::time::{Duration, Instant};
 
 use cncsim::program::{
-    move_length, parse_gcode, parse_tool_table, Feed, LengthUnit, Motion, Plane, Position,
-    Program, ReadOptions,
+    move_length, parse_gcode, parse_tool_table, Feed, LengthUnit, Motion, Plane, Position, Program,
+    ReadOptions,
 };
 
 // ---------------------------------------------------------------------------------------
@@ -118,12 +118,18 @@ fn canon_events(output: &str) -> Vec<Event> {
         let args = call[open + 1..].trim_end_matches(')');
         let to_mm = |v: &[f64], factor: f64| -> [f64; 6] {
             let mut out = [0.0; 6];
-            for axis in 0..6 {
-                out[axis] = v.get(axis).copied().unwrap_or(0.0) * if axis < 3 { factor } else { 1.0 };
+            for (axis, slot) in out.iter_mut().enumerate() {
+                *slot = v.get(axis).copied().unwrap_or(0.0) * if axis < 3 { factor } else { 1.0 };
             }
             out
         };
-        let machine = |p: &[f64], factor: f64, g5x: &[f64; 6], g92: &[f64; 6], tool: &[f64; 6], rotation: f64| -> [f64; 6] {
+        let machine = |p: &[f64],
+                       factor: f64,
+                       g5x: &[f64; 6],
+                       g92: &[f64; 6],
+                       tool: &[f64; 6],
+                       rotation: f64|
+         -> [f64; 6] {
             let mut q = to_mm(p, factor);
             for axis in 0..6 {
                 q[axis] += g92[axis];
@@ -363,8 +369,8 @@ fn oracle_options(tool_table: &str) -> ReadOptions {
     let mut options = ReadOptions::default();
     options.gcode.user_units = LengthUnit::Inch;
     options.gcode.block_delete = false;
-    options.gcode.tools = parse_tool_table(tool_table, "tool.tbl", LengthUnit::Inch)
-        .expect("the tool table reads");
+    options.gcode.tools =
+        parse_tool_table(tool_table, "tool.tbl", LengthUnit::Inch).expect("the tool table reads");
     options
 }
 
@@ -419,7 +425,9 @@ fn judge(
     match parse_gcode(text, program_path, &options) {
         Ok(program) => {
             if let Some(error) = oracle_failed {
-                return Outcome::Mismatch(format!("LinuxCNC refuses it ({error}), cncsim accepts it"));
+                return Outcome::Mismatch(format!(
+                    "LinuxCNC refuses it ({error}), cncsim accepts it"
+                ));
             }
             let ours = program_events(&program);
             match compare(&oracle, &ours) {
@@ -484,7 +492,9 @@ fn require_oracles() -> bool {
 fn run_oracle(oracle: &Oracle, program: &Path, tool_table: &str) -> (String, Option<String>) {
     // One rs274 at a time: runs side by side were seen to disturb each other's output.
     static ONE_AT_A_TIME: std::sync::Mutex<()> = std::sync::Mutex::new(());
-    let _turn = ONE_AT_A_TIME.lock().unwrap_or_else(|poisoned| poisoned.into_inner());
+    let _turn = ONE_AT_A_TIME
+        .lock()
+        .unwrap_or_else(|poisoned| poisoned.into_inner());
     let directory = tempfile::tempdir().expect("temporary directory");
     let table = directory.path().join("tool.tbl");
     std::fs::write(&table, tool_table).expect("write tool table");
@@ -524,7 +534,10 @@ fn run_oracle(oracle: &Oracle, program: &Path, tool_table: &str) -> (String, Opt
             let _ = child.wait();
             let _ = out_thread.join();
             let _ = err_thread.join();
-            return (String::new(), Some("rs274 timed out after 20 s".to_string()));
+            return (
+                String::new(),
+                Some("rs274 timed out after 20 s".to_string()),
+            );
         }
         std::thread::sleep(Duration::from_millis(5));
     };
@@ -592,7 +605,11 @@ fn fixtures_match_linuxcnc_as_recorded() {
 fn normalise_canon(output: &str) -> String {
     output
         .lines()
-        .map(|line| line.trim_start().trim_start_matches(|c: char| c.is_ascii_digit()).trim_start())
+        .map(|line| {
+            line.trim_start()
+                .trim_start_matches(|c: char| c.is_ascii_digit())
+                .trim_start()
+        })
         .collect::<Vec<_>>()
         .join("\n")
 }
@@ -600,7 +617,10 @@ fn normalise_canon(output: &str) -> String {
 #[test]
 fn fixture_outputs_are_what_linuxcnc_prints_today() {
     let Some(oracle) = find_oracle() else {
-        assert!(!require_oracles(), "CNCSIM_REQUIRE_ORACLES=1 but rs274 was not found (set CNCSIM_LINUXCNC_ROOT)");
+        assert!(
+            !require_oracles(),
+            "CNCSIM_REQUIRE_ORACLES=1 but rs274 was not found (set CNCSIM_LINUXCNC_ROOT)"
+        );
         eprintln!("rs274 not found: skipping the regeneration check");
         return;
     };
@@ -636,13 +656,18 @@ fn fixture_outputs_are_what_linuxcnc_prints_today() {
 // ---------------------------------------------------------------------------------------
 
 fn collect_programs(dir: &Path, out: &mut Vec<PathBuf>) {
-    let Ok(entries) = std::fs::read_dir(dir) else { return };
+    let Ok(entries) = std::fs::read_dir(dir) else {
+        return;
+    };
     let mut paths: Vec<PathBuf> = entries.filter_map(|e| e.ok().map(|e| e.path())).collect();
     paths.sort();
     for path in paths {
         if path.is_dir() {
             collect_programs(&path, out);
-        } else if path.extension().is_some_and(|e| e.eq_ignore_ascii_case("ngc")) {
+        } else if path
+            .extension()
+            .is_some_and(|e| e.eq_ignore_ascii_case("ngc"))
+        {
             out.push(path);
         }
     }
@@ -674,7 +699,10 @@ const KNOWN_MISMATCHES: &[(&str, &str)] = &[
 #[test]
 fn linuxcnc_corpus_matches() {
     let Some(oracle) = find_oracle() else {
-        assert!(!require_oracles(), "CNCSIM_REQUIRE_ORACLES=1 but rs274 was not found (set CNCSIM_LINUXCNC_ROOT)");
+        assert!(
+            !require_oracles(),
+            "CNCSIM_REQUIRE_ORACLES=1 but rs274 was not found (set CNCSIM_LINUXCNC_ROOT)"
+        );
         eprintln!("rs274 not found: skipping the corpus comparison");
         return;
     };
@@ -712,19 +740,24 @@ fn linuxcnc_corpus_matches() {
             Outcome::Mismatch(_) => "mismatch",
         };
         *summary.entry(label).or_insert(0usize) += 1;
-        let known = KNOWN_MISMATCHES.iter().find(|(known, _)| name.ends_with(known));
+        let known = KNOWN_MISMATCHES
+            .iter()
+            .find(|(known, _)| name.ends_with(known));
         match (outcome, known) {
             (Outcome::Mismatch(reason), None) => unexpected.push(format!("{name}: {reason}")),
-            (Outcome::Match { .. }, Some(_)) => {
-                unexpected.push(format!("{name}: listed as a known mismatch but now matches"))
-            }
+            (Outcome::Match { .. }, Some(_)) => unexpected.push(format!(
+                "{name}: listed as a known mismatch but now matches"
+            )),
             _ => {}
         }
-        println!("{label:>16}  {name}  {}", match outcome {
-            Outcome::Refused(reason) | Outcome::Mismatch(reason) => reason.clone(),
-            Outcome::Match { moves } => format!("{moves} moves"),
-            Outcome::BothRefuse => String::new(),
-        });
+        println!(
+            "{label:>16}  {name}  {}",
+            match outcome {
+                Outcome::Refused(reason) | Outcome::Mismatch(reason) => reason.clone(),
+                Outcome::Match { moves } => format!("{moves} moves"),
+                Outcome::BothRefuse => String::new(),
+            }
+        );
     }
     let accepted_by_linuxcnc = outcomes
         .values()
@@ -735,19 +768,26 @@ fn linuxcnc_corpus_matches() {
         outcomes.len(),
         summary.get("match").copied().unwrap_or(0)
     );
-    assert!(unexpected.is_empty(), "{} unexpected:\n{}", unexpected.len(), unexpected.join("\n"));
+    assert!(
+        unexpected.is_empty(),
+        "{} unexpected:\n{}",
+        unexpected.len(),
+        unexpected.join("\n")
+    );
 }
 
 fn corpus_key(program: &Path, dirs: &[PathBuf]) -> String {
     for dir in dirs {
         if let Ok(relative) = program.strip_prefix(dir) {
-            let base = dir.file_name().map(|n| n.to_string_lossy().into_owned()).unwrap_or_default();
+            let base = dir
+                .file_name()
+                .map(|n| n.to_string_lossy().into_owned())
+                .unwrap_or_default();
             return format!("{base}/{}", relative.display());
         }
     }
     program.display().to_string()
 }
-
 
 // ---------------------------------------------------------------------------------------
 // Generated programs
@@ -779,7 +819,9 @@ impl Generator {
 /// distance modes.
 fn generated_program(seed: u64) -> String {
     let mut g = Generator(seed.wrapping_mul(0x9E37_79B9_7F4A_7C15) | 1);
-    let mut text = String::from("o<step> sub\n  G1 X[#1 + #3] Y[#2 - #3]\n  o<step> return [#1 * 2]\no<step> endsub\n");
+    let mut text = String::from(
+        "o<step> sub\n  G1 X[#1 + #3] Y[#2 - #3]\n  o<step> return [#1 * 2]\no<step> endsub\n",
+    );
     text.push_str(if g.below(4) == 0 { "G20\n" } else { "G21\n" });
     text.push_str("G90 G17 G94 F[100 + 50]\nG0 X0 Y0 Z5\n");
     // rs274's stand-alone canon re-reads the position after M6 ignoring the XY rotation of
@@ -798,7 +840,9 @@ fn generated_program(seed: u64) -> String {
             }
             2 => {
                 let (x, z) = (g.coordinate(50), g.coordinate(5));
-                text.push_str(&format!("#1 = {x}\n#<z> = {z}\nG0 X[#1 * 2 / 2] Z[#<z> + 0]\n"));
+                text.push_str(&format!(
+                    "#1 = {x}\n#<z> = {z}\nG0 X[#1 * 2 / 2] Z[#<z> + 0]\n"
+                ));
             }
             3 => {
                 // An arc about a centre offset: the end is computed on the circle.
@@ -811,12 +855,18 @@ fn generated_program(seed: u64) -> String {
             }
             4 => {
                 let (i, j) = (g.coordinate(15), g.coordinate(15));
-                text.push_str(&format!("G{} I{i} J{j} P{}\n", if g.below(2) == 0 { 2 } else { 3 }, 1 + g.below(2)));
+                text.push_str(&format!(
+                    "G{} I{i} J{j} P{}\n",
+                    if g.below(2) == 0 { 2 } else { 3 },
+                    1 + g.below(2)
+                ));
             }
             5 => {
                 let count = 1 + g.below(4);
                 let (dx, dy) = (g.coordinate(5), g.coordinate(5));
-                text.push_str(&format!("o{l1} repeat [{count}]\n  G91 G1 X{dx} Y{dy}\n  G90\no{l1} endrepeat\n"));
+                text.push_str(&format!(
+                    "o{l1} repeat [{count}]\n  G91 G1 X{dx} Y{dy}\n  G90\no{l1} endrepeat\n"
+                ));
             }
             6 => {
                 text.push_str(&format!(
@@ -827,26 +877,37 @@ fn generated_program(seed: u64) -> String {
             }
             7 => {
                 let (a, b, c) = (g.coordinate(20), g.coordinate(20), g.coordinate(3));
-                text.push_str(&format!("o<step> call [{a}] [{b}] [{c}]\nG0 Z[#<_value> / 100]\n"));
+                text.push_str(&format!(
+                    "o<step> call [{a}] [{b}] [{c}]\nG0 Z[#<_value> / 100]\n"
+                ));
             }
             8 => {
                 let system = 1 + g.below(9);
                 let (x, y) = (g.coordinate(40), g.coordinate(40));
-                let code = ["G54", "G55", "G56", "G57", "G58", "G59", "G59.1", "G59.2", "G59.3"][system as usize - 1];
+                let code = [
+                    "G54", "G55", "G56", "G57", "G58", "G59", "G59.1", "G59.2", "G59.3",
+                ][system as usize - 1];
                 let rotation = if rotations { g.below(4) * 15 } else { 0 };
                 text.push_str(&format!("G10 L2 P{system} X{x} Y{y} R{rotation}\n{code}\n"));
             }
             9 => {
                 let (x, y) = (g.coordinate(30), g.coordinate(30));
-                text.push_str(&format!("G92 X{x} Y{y}\nG0 X0 Y0\nG92.{}\n", 1 + g.below(2)));
+                text.push_str(&format!(
+                    "G92 X{x} Y{y}\nG0 X0 Y0\nG92.{}\n",
+                    1 + g.below(2)
+                ));
             }
             10 if !rotations => {
                 let tool = 1 + g.below(9);
-                text.push_str(&format!("T{tool} M6\nG43 H{tool}\nG0 Z{}\n", g.coordinate(10)));
+                text.push_str(&format!(
+                    "T{tool} M6\nG43 H{tool}\nG0 Z{}\n",
+                    g.coordinate(10)
+                ));
             }
             11 => {
                 let (x, y) = (g.coordinate(40), g.coordinate(40));
-                let cycle = ["G81", "G82 P0.2", "G83 Q1.5", "G73 Q1", "G85", "G89 P0.1"][g.below(6) as usize];
+                let cycle = ["G81", "G82 P0.2", "G83 Q1.5", "G73 Q1", "G85", "G89 P0.1"]
+                    [g.below(6) as usize];
                 let retract = if g.below(2) == 0 { "G98" } else { "G99" };
                 text.push_str(&format!(
                     "G0 Z5\n{retract} {cycle} X{x} Y{y} Z-3 R1 L{}\nG80\n",
@@ -873,7 +934,10 @@ fn generated_program(seed: u64) -> String {
 #[test]
 fn generated_programs_match_linuxcnc() {
     let Some(oracle) = find_oracle() else {
-        assert!(!require_oracles(), "CNCSIM_REQUIRE_ORACLES=1 but rs274 was not found (set CNCSIM_LINUXCNC_ROOT)");
+        assert!(
+            !require_oracles(),
+            "CNCSIM_REQUIRE_ORACLES=1 but rs274 was not found (set CNCSIM_LINUXCNC_ROOT)"
+        );
         eprintln!("rs274 not found: skipping the generated programs");
         return;
     };
@@ -890,7 +954,10 @@ fn generated_programs_match_linuxcnc() {
         let path = directory.path().join(format!("generated_{seed}.ngc"));
         std::fs::write(&path, &text).expect("write program");
         if let Ok(keep) = std::env::var("CNCSIM_KEEP_GENERATED") {
-            let _ = std::fs::write(Path::new(&keep).join(format!("generated_{seed}.ngc")), &text);
+            let _ = std::fs::write(
+                Path::new(&keep).join(format!("generated_{seed}.ngc")),
+                &text,
+            );
         }
         let (out, err) = run_oracle(&oracle, &path, &table);
         let outcome = judge(&path, text.as_bytes(), &out, err, &table);
@@ -910,7 +977,12 @@ fn generated_programs_match_linuxcnc() {
         failures.is_empty(),
         "{} of {count} differ; the first:\n{}",
         failures.len(),
-        failures.iter().take(3).cloned().collect::<Vec<_>>().join("\n\n")
+        failures
+            .iter()
+            .take(3)
+            .cloned()
+            .collect::<Vec<_>>()
+            .join("\n\n")
     );
     assert!(
         outcomes.get("match").copied().unwrap_or(0) as u64 * 2 > count,

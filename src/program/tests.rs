@@ -276,7 +276,11 @@ fn path_control_dwell_spindle_and_feed_modes() {
     assert_eq!(moves[6].feed, Feed::PathSpeed(0.001));
     assert_eq!(durations(&program)[3], Some(1.5));
     // LinuxCNC clears the feed rate on every G94: a G1 after it needs a new F.
-    let errors = errors_of(parse_gcode("G1 X1 F60\nG94\nG1 X2", "t.ngc", &ReadOptions::default()));
+    let errors = errors_of(parse_gcode(
+        "G1 X1 F60\nG94\nG1 X2",
+        "t.ngc",
+        &ReadOptions::default(),
+    ));
     assert_eq!(errors, vec!["t.ngc:3:1: expected a non-zero feed rate (F word) before a G1/G2/G3 move, found 'G1 X2'; hint: add e.g. F300 (mm per minute in G94)"]);
 }
 
@@ -1134,7 +1138,11 @@ fn full_circle_from_centre_offsets_alone_and_g80_with_g0_as_linuxcnc() {
         other => panic!("{other:?}"),
     }
     assert_eq!(program.moves[1].end.linear, [0.0, 0.0, 0.0]);
-    assert_close(summarize(&program).cut_length, std::f64::consts::TAU * 0.02, 1e-15);
+    assert_close(
+        summarize(&program).cut_length,
+        std::f64::consts::TAU * 0.02,
+        1e-15,
+    );
     // G80 gives way to a motion code in the same block, in either order.
     assert_eq!(program.moves[2].end.linear[0], 0.005);
     assert_eq!(program.moves[3].end.linear[1], 0.005);

@@ -506,7 +506,11 @@ impl Default for RawRecording {
 pub enum ProgramSource {
     Circle(CircleSpec),
     Polyline(PolylineSpec),
-    File { path: PathBuf, options: ReadOptions },
+    /// The reader settings are boxed: with the G-code tool table they outweigh the others.
+    File {
+        path: PathBuf,
+        options: Box<ReadOptions>,
+    },
 }
 
 /// PID settings of one axis.
@@ -746,7 +750,7 @@ impl Scenario {
             }
             ProgramSource::File {
                 path: file,
-                options,
+                options: Box::new(options),
             }
         } else if let Some(c) = &p.circle {
             let v = c.get_ref();

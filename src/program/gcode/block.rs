@@ -481,8 +481,8 @@ fn read_o_word(cursor: &mut Cursor, params: &dyn Parameters) -> Result<OWord, Li
             ),
         ));
     }
-    let takes_values = needs_value
-        || matches!(keyword, Keyword::Call | Keyword::Return | Keyword::EndSub);
+    let takes_values =
+        needs_value || matches!(keyword, Keyword::Call | Keyword::Return | Keyword::EndSub);
     if !takes_values && !values.is_empty() {
         return Err(LineError::new(
             start,
@@ -494,7 +494,10 @@ fn read_o_word(cursor: &mut Cursor, params: &dyn Parameters) -> Result<OWord, Li
         return Err(LineError::new(
             start,
             cursor.end_of_previous(),
-            format!("expected at most one return value after '{}'", keyword.name()),
+            format!(
+                "expected at most one return value after '{}'",
+                keyword.name()
+            ),
         ));
     }
     Ok(OWord {
@@ -556,11 +559,15 @@ fn add_g(block: &mut Block, _line: &[u8], word: Word) -> Result<(), LineError> {
         Some(_) if code == 800 => {}
         Some(previous) if previous.code == 800 => block.g[group] = Some(entry),
         Some(previous) => {
-            return Err(LineError::new(word.start, word.end, format!(
+            return Err(LineError::new(
+                word.start,
+                word.end,
+                format!(
                 "expected one G code of the {} group per block, but {} and {name} are both in it",
                 group::name(group),
                 format_g(previous.code)
-            ))
+            ),
+            )
             .hint("LinuxCNC refuses two codes of one modal group in a block; split the block"));
         }
     }
@@ -617,11 +624,15 @@ fn add_m(block: &mut Block, word: Word) -> Result<(), LineError> {
             block.second_coolant = Some(entry)
         }
         Some(previous) => {
-            return Err(LineError::new(word.start, word.end, format!(
+            return Err(LineError::new(
+                word.start,
+                word.end,
+                format!(
                 "expected one M code of the {} group per block, but M{} and M{code} are both in it",
                 mgroup::name(group),
                 previous.code
-            ))
+            ),
+            )
             .hint("LinuxCNC refuses two codes of one modal group in a block; split the block"));
         }
     }

@@ -7,6 +7,9 @@
 //! then the tool length offset) and converts to SI. A move's `end` is therefore the position
 //! the machine is commanded to: program position plus every active offset.
 
+// Axis loops index several parallel arrays (positions and offsets) at once.
+#![allow(clippy::needless_range_loop)]
+
 use crate::program::options::{LengthUnit, ReadOptions};
 use crate::program::types::{
     Blend, Feed, FeedRule, Motion, Move, Plane, Position, Program, Span, Spindle,
@@ -164,11 +167,7 @@ impl Canon {
                 self.units.to_metres(p[1]),
                 self.units.to_metres(p[2]),
             ],
-            rotary: [
-                p[3].to_radians(),
-                p[4].to_radians(),
-                p[5].to_radians(),
-            ],
+            rotary: [p[3].to_radians(), p[4].to_radians(), p[5].to_radians()],
         }
     }
 
@@ -234,12 +233,7 @@ impl Canon {
     }
 
     pub fn dwell(&mut self, seconds: f64, span: Span) -> Result<(), TooManyMoves> {
-        self.push(
-            Motion::Dwell { seconds },
-            self.position,
-            Feed::Rapid,
-            span,
-        )
+        self.push(Motion::Dwell { seconds }, self.position, Feed::Rapid, span)
     }
 
     fn feed_for(&self, end: &Position, inverse_time: Option<f64>) -> Feed {

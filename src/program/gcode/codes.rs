@@ -76,7 +76,7 @@ pub(super) fn g_code_info(tenths: u32) -> Option<(usize, Support)> {
             group::MOTION,
             No("G88 stops for the operator to retract the spindle by hand, which a simulation cannot do"),
         ),
-        730 | 740 | 810..=890 if tenths % 10 == 0 => (group::MOTION, Yes),
+        730 | 740 | 810..=890 if tenths.is_multiple_of(10) => (group::MOTION, Yes),
         50..=53 => (
             group::MOTION,
             No("spline and NURBS motion (G5.x) is not supported; post the path as lines and arcs"),

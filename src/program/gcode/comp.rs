@@ -173,7 +173,12 @@ impl Interpreter<'_> {
     }
 
     /// G40, G41, G42, G41.1, G42.1.
-    pub fn cutter_compensation(&mut self, code: u32, block: &Block, span: Span) -> Result<(), LineError> {
+    pub fn cutter_compensation(
+        &mut self,
+        code: u32,
+        block: &Block,
+        span: Span,
+    ) -> Result<(), LineError> {
         let word = block.g[super::codes::group::CUTTER_COMP].expect("comp code");
         let error = |problem: String| LineError::new(word.start, word.end, problem);
         if code == 400 {
@@ -190,15 +195,25 @@ impl Interpreter<'_> {
             return Ok(());
         }
         if !matches!(self.s.plane, Plane::XY | Plane::ZX) {
-            return Err(error("expected the G17 or G18 plane for cutter radius compensation".into()));
+            return Err(error(
+                "expected the G17 or G18 plane for cutter radius compensation".into(),
+            ));
         }
         if self.comp.side.is_some() {
-            return Err(error("expected G40 before turning cutter radius compensation on again".into()));
+            return Err(error(
+                "expected G40 before turning cutter radius compensation on again".into(),
+            ));
         }
-        let mut side = if matches!(code, 410 | 411) { Side::Left } else { Side::Right };
+        let mut side = if matches!(code, 410 | 411) {
+            Side::Left
+        } else {
+            Side::Right
+        };
         let radius = if matches!(code, 411 | 421) {
             let Some(d) = block.word(b'd') else {
-                return Err(error("expected a D word (tool diameter) with G41.1/G42.1".into()));
+                return Err(error(
+                    "expected a D word (tool diameter) with G41.1/G42.1".into(),
+                ));
             };
             if let Some(l) = block.value(b'l') {
                 if !matches!(l.round() as i64, 0 | 9) {
@@ -218,11 +233,15 @@ impl Interpreter<'_> {
                 }
                 None => self.spindle_tool(),
             };
-            self.from_user(tool.diameter) / 2.0
+            self.user_to_program(tool.diameter) / 2.0
         };
         let radius = if radius < 0.0 {
             // A negative diameter swaps the side (a nominal-diameter path with a smaller tool).
-            side = if side == Side::Left { Side::Right } else { Side::Left };
+            side = if side == Side::Left {
+                Side::Right
+            } else {
+                Side::Left
+            };
             -radius
         } else {
             radius
@@ -244,9 +263,15 @@ impl Interpreter<'_> {
         let indices = plane_indices(self.s.plane);
         for held in &mut self.comp.held {
             match held {
-                Held::Straight { rapid, direction, end, .. } => {
+                Held::Straight {
+                    rapid,
+                    direction,
+                    end,
+                    ..
+                } => {
                     if let Some(start) = endpoint {
-                        let dot = direction[0] * (point[0] - start[0]) + direction[1] * (point[1] - start[1]);
+                        let dot = direction[0] * (point[0] - start[0])
+                            + direction[1] * (point[1] - start[1]);
                         if dot < 0.0 {
                             return Err(LineError::new(0, 0, format!(
                                 "expected a concave corner the compensated tool can reach; the {} into it would have to run backwards (gouging)",
@@ -257,10 +282,18 @@ impl Interpreter<'_> {
                     end[indices[0]] = point[0];
                     end[indices[1]] = point[1];
                 }
-                Held::Arc { original_sweep, end, centre, turn, .. } => {
+                Held::Arc {
+                    original_sweep,
+                    end,
+                    centre,
+                    turn,
+                    ..
+                } => {
                     if let Some(start) = endpoint {
                         let new_sweep = sweep(start, *centre, *turn, point);
-                        if *original_sweep != 0.0 && new_sweep.abs() > original_sweep.abs() + tolerance {
+                        if *original_sweep != 0.0
+                            && new_sweep.abs() > original_sweep.abs() + tolerance
+                        {
                             return Err(LineError::new(0, 0, "expected an arc the compensated tool can reach in this concave corner without gouging"));
                         }
                     }
@@ -282,23 +315,44 @@ impl Interpreter<'_> {
         let plane = self.s.plane;
         for command in held {
             let outcome = match command {
-                Held::Straight { rapid, end, inverse_time, settings, span, .. } => {
-                    self.canon.replay(settings, |canon| {
-                        if rapid {
-                            canon.straight_traverse(&end, span)
-                        } else {
-                            canon.straight_feed(&end, inverse_time, span)
-                        }
-                    })
-                }
-                Held::Arc { end, centre, turn, inverse_time, settings, span, .. } => {
+                Held::Straight {
+                    rapid,
+                    end,
+                    inverse_time,
+                    settings,
+                    span,
+                    ..
+                } => self.canon.replay(settings, |canon| {
+                    if rapid {
+                        canon.straight_traverse(&end, span)
+                    } else {
+                        canon.straight_feed(&end, inverse_time, span)
+                    }
+                }),
+                Held::Arc {
+                    end,
+                    centre,
+                    turn,
+                    inverse_time,
+                    settings,
+                    span,
+                    ..
+                } => {
                     let mut centre_axes = end;
                     let [a, b, _] = plane_indices(plane);
                     centre_axes[a] = centre[0];
                     centre_axes[b] = centre[1];
                     let turns = turn.unsigned_abs().saturating_sub(1);
                     self.canon.replay(settings, |canon| {
-                        canon.arc_feed(&end, &centre_axes, plane, turn < 0, turns, inverse_time, span)
+                        canon.arc_feed(
+                            &end,
+                            &centre_axes,
+                            plane,
+                            turn < 0,
+                            turns,
+                            inverse_time,
+                            span,
+                        )
                     })
                 }
                 Held::Dwell { seconds, span } => self.canon.dwell(seconds, span),
@@ -317,19 +371,55 @@ impl Interpreter<'_> {
         true
     }
 
-    fn hold_straight(&mut self, rapid: bool, direction: [f64; 2], end: Axes, inverse_time: Option<f64>, span: Span) {
+    fn hold_straight(
+        &mut self,
+        rapid: bool,
+        direction: [f64; 2],
+        end: Axes,
+        inverse_time: Option<f64>,
+        span: Span,
+    ) {
         let settings = self.canon.snapshot();
-        self.comp.held.push(Held::Straight { rapid, direction, end, inverse_time, settings, span });
+        self.comp.held.push(Held::Straight {
+            rapid,
+            direction,
+            end,
+            inverse_time,
+            settings,
+            span,
+        });
     }
 
     #[allow(clippy::too_many_arguments)]
-    fn hold_arc(&mut self, original_sweep: f64, end: Axes, centre: [f64; 2], turn: i32, inverse_time: Option<f64>, span: Span) {
+    fn hold_arc(
+        &mut self,
+        original_sweep: f64,
+        end: Axes,
+        centre: [f64; 2],
+        turn: i32,
+        inverse_time: Option<f64>,
+        span: Span,
+    ) {
         let settings = self.canon.snapshot();
-        self.comp.held.push(Held::Arc { original_sweep, end, centre, turn, inverse_time, settings, span });
+        self.comp.held.push(Held::Arc {
+            original_sweep,
+            end,
+            centre,
+            turn,
+            inverse_time,
+            settings,
+            span,
+        });
     }
 
     /// A compensated G0/G1 to the programmed point `target` (program coordinates).
-    pub fn straight_comp(&mut self, rapid: bool, target: &Axes, inverse_time: Option<f64>, span: Span) -> Result<(), LineError> {
+    pub fn straight_comp(
+        &mut self,
+        rapid: bool,
+        target: &Axes,
+        inverse_time: Option<f64>,
+        span: Span,
+    ) -> Result<(), LineError> {
         let side = self.comp.side.expect("comp on");
         let radius = self.comp.radius;
         let [px, py, pz] = self.plane_point(target);
@@ -342,7 +432,12 @@ impl Interpreter<'_> {
                     "expected a cutter compensation entry move longer than the tool radius ({radius:.4}); it is {distance:.4}"
                 )));
             }
-            let alpha = (py - cy).atan2(px - cx) + if side == Side::Left { FRAC_PI_2 } else { -FRAC_PI_2 };
+            let alpha = (py - cy).atan2(px - cx)
+                + if side == Side::Left {
+                    FRAC_PI_2
+                } else {
+                    -FRAC_PI_2
+                };
             let end_point = [px + radius * alpha.cos(), py + radius * alpha.sin(), pz];
             self.comp.endpoint = Some([cx, cy]);
             self.set_plane_point(&mut end, end_point);
@@ -372,26 +467,30 @@ impl Interpreter<'_> {
                 }
                 (alpha - theta - FRAC_PI_2, -FRAC_PI_2)
             };
-            let end_point = [px + radius * (alpha + gamma).cos(), py + radius * (alpha + gamma).sin(), pz];
+            let end_point = [
+                px + radius * (alpha + gamma).cos(),
+                py + radius * (alpha + gamma).sin(),
+                pz,
+            ];
             let front_arc_turn = match self.comp.held.first() {
                 Some(Held::Arc { turn, .. }) => Some(*turn),
                 _ => None,
             };
-            let concave = beta < -CORNER_TOLERANCE
-                || beta > PI + CORNER_TOLERANCE
+            let concave = !(-CORNER_TOLERANCE..=PI + CORNER_TOLERANCE).contains(&beta)
                 || (beta > PI - CORNER_TOLERANCE
                     && front_arc_turn.is_some_and(|turn| {
                         (side == Side::Right && turn > 0) || (side == Side::Left && turn < 0)
                     }));
             if !concave && beta > CORNER_TOLERANCE {
                 // Convex corner: go around the programmed corner.
-                let mid = [opx + radius * (alpha + gamma).cos(), opy + radius * (alpha + gamma).sin()];
+                let mid = [
+                    opx + radius * (alpha + gamma).cos(),
+                    opy + radius * (alpha + gamma).sin(),
+                ];
                 self.move_endpoint_and_flush([cx, cy])?;
                 let mut corner_end = self.s.current;
                 self.set_plane_point(&mut corner_end, [mid[0], mid[1], cz]);
-                for axis in 3..6 {
-                    corner_end[axis] = target[axis];
-                }
+                corner_end[3..].copy_from_slice(&target[3..]);
                 if rapid {
                     self.hold_straight(true, [0.0, 0.0], corner_end, None, span);
                 } else {
@@ -402,30 +501,56 @@ impl Interpreter<'_> {
                 self.comp.endpoint = Some(mid);
             } else if concave {
                 match self.comp.held.first().cloned() {
-                    Some(Held::Arc { end: prev_end, centre, turn: prev_turn, .. }) => {
+                    Some(Held::Arc {
+                        end: prev_end,
+                        centre,
+                        turn: prev_turn,
+                        ..
+                    }) => {
                         let [e1, e2, _] = self.plane_point(&prev_end);
                         let old_radius = (centre[1] - e2).hypot(centre[0] - e1);
                         let base = (py - opy).atan2(px - opx);
-                        let theta = if prev_turn > 0 { base + FRAC_PI_2 } else { base - FRAC_PI_2 };
+                        let theta = if prev_turn > 0 {
+                            base + FRAC_PI_2
+                        } else {
+                            base - FRAC_PI_2
+                        };
                         let phi = (centre[1] - opy).atan2(centre[0] - opx);
                         let inside = tool_inside_arc(side, prev_turn);
-                        let uncompensated = if inside { old_radius + radius } else { old_radius - radius };
+                        let uncompensated = if inside {
+                            old_radius + radius
+                        } else {
+                            old_radius - radius
+                        };
                         let d = uncompensated * (theta - phi).cos();
-                        let gouge = || LineError::new(0, 0, "expected an arc-to-line corner the compensated tool can fit in without gouging");
+                        let gouge = || {
+                            LineError::new(0, 0, "expected an arc-to-line corner the compensated tool can fit in without gouging")
+                        };
                         let angle = if inside {
                             let l = (d - radius) / old_radius;
                             if !(-1.0..=1.0).contains(&l) {
                                 return Err(gouge());
                             }
-                            if prev_turn > 0 { -l.acos() + theta + PI } else { l.acos() + theta + PI }
+                            if prev_turn > 0 {
+                                -l.acos() + theta + PI
+                            } else {
+                                l.acos() + theta + PI
+                            }
                         } else {
                             let l = (d + radius) / old_radius;
                             if !(-1.0..=1.0).contains(&l) {
                                 return Err(gouge());
                             }
-                            if prev_turn > 0 { l.acos() + theta + PI } else { -l.acos() + theta + PI }
+                            if prev_turn > 0 {
+                                l.acos() + theta + PI
+                            } else {
+                                -l.acos() + theta + PI
+                            }
                         };
-                        let mid = [centre[0] + old_radius * angle.cos(), centre[1] + old_radius * angle.sin()];
+                        let mid = [
+                            centre[0] + old_radius * angle.cos(),
+                            centre[1] + old_radius * angle.sin(),
+                        ];
                         self.move_endpoint_and_flush(mid)?;
                     }
                     _ => {
@@ -434,7 +559,10 @@ impl Interpreter<'_> {
                             return Err(LineError::new(0, 0, "expected an inside corner of more than zero degrees for cutter compensation"));
                         }
                         let retreat = radius / half_corner.tan();
-                        let mid = [cx + retreat * (theta + gamma).cos(), cy + retreat * (theta + gamma).sin()];
+                        let mid = [
+                            cx + retreat * (theta + gamma).cos(),
+                            cy + retreat * (theta + gamma).sin(),
+                        ];
                         self.move_endpoint_and_flush(mid)?;
                     }
                 }
@@ -468,11 +596,17 @@ impl Interpreter<'_> {
         let [ex, ey, ez] = self.plane_point(target);
         let [cx, cy, cz] = self.plane_point(&self.s.current);
         let spiral = self.options.gcode.arc_tolerance.spiral(self.s.units);
-        let too_small = || LineError::new(0, 0, "expected an arc radius larger than the tool radius with cutter compensation on the inside of the arc");
+        let too_small = || {
+            LineError::new(0, 0, "expected an arc radius larger than the tool radius with cutter compensation on the inside of the arc")
+        };
         let mut end = *target;
         if self.comp.first_move {
             if (ex - cx).hypot(ey - cy) <= radius {
-                return Err(LineError::new(0, 0, "expected a cutter compensation entry arc longer than the tool radius"));
+                return Err(LineError::new(
+                    0,
+                    0,
+                    "expected a cutter compensation entry arc longer than the tool radius",
+                ));
             }
             let arc_radius = (centre[0] - cx).hypot(centre[1] - cy);
             if arc_radius <= radius && tool_inside_arc(side, turn) {
@@ -493,10 +627,13 @@ impl Interpreter<'_> {
                 return Err(too_small());
             }
             let c_len = b_len / a_angle.cos();
-            let new_centre = [new_end[0] + c_len * ab_angle.cos(), new_end[1] + c_len * ab_angle.sin()];
+            let new_centre = [
+                new_end[0] + c_len * ab_angle.cos(),
+                new_end[1] + c_len * ab_angle.sin(),
+            ];
             if ((new_centre[0] - new_end[0]).hypot(new_centre[1] - new_end[1])
                 - (new_centre[0] - cx).hypot(new_centre[1] - cy))
-                .abs()
+            .abs()
                 > spiral
             {
                 return Err(too_small());
@@ -511,10 +648,22 @@ impl Interpreter<'_> {
         let [opx, opy, _] = self.programmed_plane();
         let arc_radius = (centre[0] - ex).hypot(centre[1] - ey);
         let mut theta = (cy - opy).atan2(cx - opx);
-        theta = if side == Side::Left { theta - FRAC_PI_2 } else { theta + FRAC_PI_2 };
+        theta = if side == Side::Left {
+            theta - FRAC_PI_2
+        } else {
+            theta + FRAC_PI_2
+        };
         let mut delta = (centre[1] - opy).atan2(centre[0] - opx);
-        let alpha = if clockwise { delta + FRAC_PI_2 } else { delta - FRAC_PI_2 };
-        let mut beta = if side == Side::Left { theta - alpha } else { alpha - theta };
+        let alpha = if clockwise {
+            delta + FRAC_PI_2
+        } else {
+            delta - FRAC_PI_2
+        };
+        let mut beta = if side == Side::Left {
+            theta - alpha
+        } else {
+            alpha - theta
+        };
         if beta > 1.5 * PI {
             beta -= 2.0 * PI;
         } else if beta < -FRAC_PI_2 {
@@ -533,17 +682,26 @@ impl Interpreter<'_> {
         let original = sweep([opx, opy], centre, turn, [ex, ey]);
         self.set_plane_point(&mut end, [new_end[0], new_end[1], ez]);
         let inside = tool_inside_arc(side, turn);
-        if beta < -CORNER_TOLERANCE
-            || beta > PI + CORNER_TOLERANCE
+        if !(-CORNER_TOLERANCE..=PI + CORNER_TOLERANCE).contains(&beta)
             || ((beta - PI).abs() < CORNER_TOLERANCE && !inside)
         {
             // Concave corner into the arc.
             match self.comp.held.first().cloned() {
-                Some(Held::Arc { end: prev_end, centre: prev_centre, turn: prev_turn, .. }) => {
+                Some(Held::Arc {
+                    end: prev_end,
+                    centre: prev_centre,
+                    turn: prev_turn,
+                    ..
+                }) => {
                     let [e1, e2, _] = self.plane_point(&prev_end);
                     let old_radius = (prev_centre[1] - e2).hypot(prev_centre[0] - e1);
-                    let new_radius = if inside { arc_radius - radius } else { arc_radius + radius };
-                    let centre_distance = (prev_centre[1] - centre[1]).hypot(prev_centre[0] - centre[0]);
+                    let new_radius = if inside {
+                        arc_radius - radius
+                    } else {
+                        arc_radius + radius
+                    };
+                    let centre_distance =
+                        (prev_centre[1] - centre[1]).hypot(prev_centre[0] - centre[0]);
                     if old_radius == 0.0 || centre_distance == 0.0 {
                         return Err(LineError::new(0, 0, "expected arcs with different centres: arc-to-arc compensation with one centre is not defined"));
                     }
@@ -559,28 +717,50 @@ impl Interpreter<'_> {
                     } else {
                         direction - pullback
                     };
-                    let mid = [prev_centre[0] + old_radius * dir.cos(), prev_centre[1] + old_radius * dir.sin()];
+                    let mid = [
+                        prev_centre[0] + old_radius * dir.cos(),
+                        prev_centre[1] + old_radius * dir.sin(),
+                    ];
                     self.move_endpoint_and_flush(mid)?;
                 }
                 _ => {
                     let offset = arc_radius * (beta - FRAC_PI_2).sin();
-                    let gouge = || LineError::new(0, 0, "expected an arc the compensated tool can reach in this concave corner without gouging");
+                    let gouge = || {
+                        LineError::new(0, 0, "expected an arc the compensated tool can reach in this concave corner without gouging")
+                    };
                     let (distance, angle) = if inside {
                         let distance = arc_radius - radius;
                         let l = (offset + radius) / distance;
                         if !(-1.0..=1.0).contains(&l) {
                             return Err(gouge());
                         }
-                        (distance, if turn > 0 { theta + l.asin() } else { theta - l.asin() })
+                        (
+                            distance,
+                            if turn > 0 {
+                                theta + l.asin()
+                            } else {
+                                theta - l.asin()
+                            },
+                        )
                     } else {
                         let distance = arc_radius + radius;
                         let l = (offset - radius) / distance;
                         if !(-1.0..=1.0).contains(&l) {
                             return Err(gouge());
                         }
-                        (distance, if turn > 0 { theta + PI - l.asin() } else { theta + PI + l.asin() })
+                        (
+                            distance,
+                            if turn > 0 {
+                                theta + PI - l.asin()
+                            } else {
+                                theta + PI + l.asin()
+                            },
+                        )
                     };
-                    let mid = [centre[0] + distance * angle.cos(), centre[1] + distance * angle.sin()];
+                    let mid = [
+                        centre[0] + distance * angle.cos(),
+                        centre[1] + distance * angle.sin(),
+                    ];
                     self.move_endpoint_and_flush(mid)?;
                 }
             }

@@ -204,9 +204,15 @@ fn one_line<R: BufRead>(
         }
     }
     if let super::lexer::ActiveComment::Abort { start, end } = message {
-        let text = String::from_utf8_lossy(&line.text[start..end]).trim().to_string();
+        let text = String::from_utf8_lossy(&line.text[start..end])
+            .trim()
+            .to_string();
         interp.finished = true;
-        return Err(LineError::new(start, end, format!("expected no (ABORT,…) comment: the program aborts here ({text})")));
+        return Err(LineError::new(
+            start,
+            end,
+            format!("expected no (ABORT,…) comment: the program aborts here ({text})"),
+        ));
     }
     let Some(first) = compact.first().copied() else {
         return Ok(());
@@ -234,12 +240,18 @@ fn one_line<R: BufRead>(
         interp.set_parameter(target, *value);
     }
     if let super::lexer::ActiveComment::Message { start, end } = message {
-        let text = String::from_utf8_lossy(&line.text[start..end]).trim().to_string();
+        let text = String::from_utf8_lossy(&line.text[start..end])
+            .trim()
+            .to_string();
         let span = super::span_in_line(line, first.at);
-        interp.canon.program.warnings.push(crate::program::types::Warning {
-            span,
-            message: format!("message: {text}"),
-        });
+        interp
+            .canon
+            .program
+            .warnings
+            .push(crate::program::types::Warning {
+                span,
+                message: format!("message: {text}"),
+            });
     }
     if !block.has_codes {
         return Ok(());
@@ -290,16 +302,24 @@ fn o_line<R: BufRead>(
     let depth = interp.frames.len() - 1;
     let frame = interp.frames.last_mut().expect("frame");
     let condition = o.values.first().copied().unwrap_or(0.0);
-    if matches!(o.keyword, Keyword::If | Keyword::Do | Keyword::While | Keyword::Repeat) {
+    if matches!(
+        o.keyword,
+        Keyword::If | Keyword::Do | Keyword::While | Keyword::Repeat
+    ) {
         let closes_do = o.keyword == Keyword::While
-            && frame.seen.get(&o.label).is_some_and(|(keyword, _)| *keyword == Keyword::Do);
+            && frame
+                .seen
+                .get(&o.label)
+                .is_some_and(|(keyword, _)| *keyword == Keyword::Do);
         match frame.seen.get(&o.label) {
             Some(&(_, first_line)) if first_line != line.number && !closes_do => {
                 return Err(error(format!(
                     "expected each if/loop label once; o{} was already used on line {first_line}",
                     shown(&o.label)
                 ))
-                .hint("LinuxCNC refuses a label used again; give each if and loop its own number"));
+                .hint(
+                    "LinuxCNC refuses a label used again; give each if and loop its own number",
+                ));
             }
             Some(_) => {}
             None => {
@@ -438,7 +458,11 @@ fn o_line<R: BufRead>(
             } else {
                 Keyword::Repeat
             };
-            let Some(label) = frame.labels.get(&o.label).copied().filter(|l| l.keyword == opener)
+            let Some(label) = frame
+                .labels
+                .get(&o.label)
+                .copied()
+                .filter(|l| l.keyword == opener)
             else {
                 return Err(error(format!(
                     "expected an open 'o{} {}' before this '{}'",
@@ -542,10 +566,14 @@ fn collect_sub<R: BufRead>(
     let mut next = index + 1;
     loop {
         let Some(line) = lines.get(next) else {
-            return Err(LineError::new(0, 0, format!(
-                "expected 'o{} endsub' to end the subroutine defined here",
-                shown(name)
-            ))
+            return Err(LineError::new(
+                0,
+                0,
+                format!(
+                    "expected 'o{} endsub' to end the subroutine defined here",
+                    shown(name)
+                ),
+            )
             .found(crate::program::error::Found::EndOfFile));
         };
         compact.clear();

@@ -24,13 +24,19 @@ impl Interpreter<'_> {
         let name = format_g(code);
         let error = |problem: String| LineError::new(at, at_end, problem);
         if self.s.feed_rate == 0.0 {
-            return Err(error(format!("expected a non-zero feed rate (F word) before {name}")));
+            return Err(error(format!(
+                "expected a non-zero feed rate (F word) before {name}"
+            )));
         }
         if self.comp.side.is_some() {
-            return Err(error(format!("expected cutter radius compensation off (G40) for {name}")));
+            return Err(error(format!(
+                "expected cutter radius compensation off (G40) for {name}"
+            )));
         }
         if self.s.inverse_time {
-            return Err(error(format!("expected feed per minute (G94) with {name}: canned cycles cannot use inverse time")));
+            return Err(error(format!(
+                "expected feed per minute (G94) with {name}: canned cycles cannot use inverse time"
+            )));
         }
         let plane = self.s.plane;
         let (a_axis, b_axis, c_axis, _, _) = plane_axes(plane);
@@ -39,7 +45,9 @@ impl Interpreter<'_> {
             Some(r) => r,
             None if self.s.motion_mode == Some(code) => self.s.cycle.r,
             None => {
-                return Err(error(format!("expected an R word (retract plane) with {name}")));
+                return Err(error(format!(
+                    "expected an R word (retract plane) with {name}"
+                )));
             }
         };
         let repeats = match block.word(b'l') {
@@ -47,7 +55,11 @@ impl Interpreter<'_> {
             Some(l) => {
                 let rounded = l.value.round();
                 if (l.value - rounded).abs() > 0.0001 || rounded < 1.0 {
-                    return Err(LineError::new(l.start, l.end, "expected a whole number of repeats of 1 or more after L"));
+                    return Err(LineError::new(
+                        l.start,
+                        l.end,
+                        "expected a whole number of repeats of 1 or more after L",
+                    ));
                 }
                 rounded
             }
@@ -64,7 +76,10 @@ impl Interpreter<'_> {
             )));
         }
         if code == 870 && plane != Plane::XY {
-            return Err(error("expected G87 (back boring) in the G17 plane; G87 in G18/G19 is not supported".into()));
+            return Err(error(
+                "expected G87 (back boring) in the G17 plane; G87 in G18/G19 is not supported"
+                    .into(),
+            ));
         }
         if matches!(code, 740 | 840) && plane != Plane::XY {
             return Err(error(format!(
@@ -115,7 +130,11 @@ impl Interpreter<'_> {
             820 | 860 | 890 => match block.value(b'p') {
                 Some(p) => p,
                 None if self.s.motion_mode == Some(code) => self.s.cycle.p,
-                None => return Err(error(format!("expected a P word (dwell seconds) with {name}"))),
+                None => {
+                    return Err(error(format!(
+                        "expected a P word (dwell seconds) with {name}"
+                    )))
+                }
             },
             740 | 840 => block.value(b'p').unwrap_or(self.s.cycle.p),
             _ => 0.0,
@@ -125,10 +144,14 @@ impl Interpreter<'_> {
                 let q = match block.word(b'q') {
                     Some(q) => q.value,
                     None if self.s.motion_mode == Some(code) => self.s.cycle.q,
-                    None => return Err(error(format!("expected a Q word (peck depth) with {name}"))),
+                    None => {
+                        return Err(error(format!("expected a Q word (peck depth) with {name}")))
+                    }
                 };
                 if q <= 0.0 {
-                    return Err(error(format!("expected a positive Q (peck depth) with {name}")));
+                    return Err(error(format!(
+                        "expected a positive Q (peck depth) with {name}"
+                    )));
                 }
                 if (r - cc) / q > MAX_PECKS {
                     return Err(error(format!(
@@ -142,9 +165,15 @@ impl Interpreter<'_> {
         };
         let (i, j, k) = if code == 870 {
             let memory = self.s.cycle;
-            let i = block.value(b'i').or((self.s.motion_mode == Some(code)).then_some(memory.i));
-            let j = block.value(b'j').or((self.s.motion_mode == Some(code)).then_some(memory.j));
-            let k = block.value(b'k').or((self.s.motion_mode == Some(code)).then_some(memory.k));
+            let i = block
+                .value(b'i')
+                .or((self.s.motion_mode == Some(code)).then_some(memory.i));
+            let j = block
+                .value(b'j')
+                .or((self.s.motion_mode == Some(code)).then_some(memory.j));
+            let k = block
+                .value(b'k')
+                .or((self.s.motion_mode == Some(code)).then_some(memory.k));
             match (i, j, k) {
                 (Some(i), Some(j), Some(k)) => (i, j, k),
                 _ => return Err(error("expected I, J and K words with G87".into())),
@@ -155,10 +184,14 @@ impl Interpreter<'_> {
         let spindle = self.s.turning;
         match code {
             840 if spindle != Turning::Clockwise => {
-                return Err(error("expected the spindle turning clockwise (M3) in G84".into()));
+                return Err(error(
+                    "expected the spindle turning clockwise (M3) in G84".into(),
+                ));
             }
             740 if spindle != Turning::CounterClockwise => {
-                return Err(error("expected the spindle turning counter-clockwise (M4) in G74".into()));
+                return Err(error(
+                    "expected the spindle turning counter-clockwise (M4) in G74".into(),
+                ));
             }
             860 | 870 if spindle == Turning::Stopped => {
                 return Err(error(format!("expected the spindle turning in {name}")));
@@ -166,19 +199,26 @@ impl Interpreter<'_> {
             _ => {}
         }
         let mut point = self.s.current;
-        let mut go = |interp: &mut Self, a: f64, b: f64, c: f64, feed: bool| -> Result<(), LineError> {
-            point[a_axis] = a;
-            point[b_axis] = b;
-            point[c_axis] = c;
-            if feed {
-                interp.feed_to(&point, span)
-            } else {
-                interp.traverse(&point, span)
-            }
-        };
+        let mut go =
+            |interp: &mut Self, a: f64, b: f64, c: f64, feed: bool| -> Result<(), LineError> {
+                point[a_axis] = a;
+                point[b_axis] = b;
+                point[c_axis] = c;
+                if feed {
+                    interp.feed_to(&point, span)
+                } else {
+                    interp.traverse(&point, span)
+                }
+            };
         // First motion: climb to the R plane if below it.
         if old_cc < r {
-            go(self, self.s.current[a_axis], self.s.current[b_axis], r, false)?;
+            go(
+                self,
+                self.s.current[a_axis],
+                self.s.current[b_axis],
+                r,
+                false,
+            )?;
             old_cc = r;
             current_cc = r;
         }

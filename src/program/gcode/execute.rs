@@ -3,6 +3,9 @@
 //! length offset, coordinate system, path control, distance modes, retract mode, the
 //! non-modal codes (G10, G28, G30, G52, G53, G92) and finally the motion, then the stops.
 
+// Axis loops index several parallel arrays (positions, offsets, parameters) at once.
+#![allow(clippy::needless_range_loop)]
+
 use super::block::{format_g, Block};
 use super::canon::{rotate, Axes};
 use super::codes::{group, mgroup};
@@ -45,11 +48,18 @@ impl Interpreter<'_> {
         let polar = block.polar_radius.is_some() || block.polar_angle.is_some();
         if polar {
             if self.s.plane != Plane::XY {
-                return Err(self.word_error(block.polar_radius.or(block.polar_angle), "expected polar coordinates (@ ^) only in the G17 plane"));
+                return Err(self.word_error(
+                    block.polar_radius.or(block.polar_angle),
+                    "expected polar coordinates (@ ^) only in the G17 plane",
+                ));
             }
             for letter in [b'x', b'y'] {
                 if let Some(word) = block.word(letter) {
-                    return Err(LineError::new(word.start, word.end, "expected either polar coordinates (@ ^) or X/Y, not both"));
+                    return Err(LineError::new(
+                        word.start,
+                        word.end,
+                        "expected either polar coordinates (@ ^) or X/Y, not both",
+                    ));
                 }
             }
         }
@@ -59,36 +69,53 @@ impl Interpreter<'_> {
             if code == 800 {
                 if axes && !covets_axes(mode0) {
                     let axis = block.first_axis_word().expect("axis word");
-                    return Err(LineError::new(axis.start, axis.end, "expected no axis words with G80")
-                        .hint("G80 cancels the motion mode; put the move in its own block"));
+                    return Err(LineError::new(
+                        axis.start,
+                        axis.end,
+                        "expected no axis words with G80",
+                    )
+                    .hint("G80 cancels the motion mode; put the move in its own block"));
                 }
             } else {
                 if covets_axes(mode0) {
                     let g0 = block.g[group::NON_MODAL].expect("group 0 word");
-                    return Err(LineError::new(g0.start, g0.end, format!(
+                    return Err(LineError::new(
+                        g0.start,
+                        g0.end,
+                        format!(
                         "expected only one code that uses the axis words, but {} and {} both do",
                         format_g(g0.code),
                         format_g(code)
-                    )));
+                    ),
+                    ));
                 }
                 if !axes && !matches!(code, 0 | 10 | 20 | 30) {
-                    return Err(LineError::new(word.start, word.end, format!(
-                        "expected axis words with {}",
-                        format_g(code)
-                    ))
+                    return Err(LineError::new(
+                        word.start,
+                        word.end,
+                        format!("expected axis words with {}", format_g(code)),
+                    )
                     .found(Found::Text(display_text(&line[block.start..block.end]))));
                 }
             }
             if matches!(mode0, Some(520 | 920)) && !axes {
                 let g0 = block.g[group::NON_MODAL].expect("group 0 word");
-                return Err(LineError::new(g0.start, g0.end, format!("expected axis words with {}", format_g(g0.code))));
+                return Err(LineError::new(
+                    g0.start,
+                    g0.end,
+                    format!("expected axis words with {}", format_g(g0.code)),
+                ));
             }
             return Ok(if code == 800 { None } else { Some(code) });
         }
         if covets_axes(mode0) {
             if matches!(mode0, Some(520 | 920)) && !axes {
                 let g0 = block.g[group::NON_MODAL].expect("group 0 word");
-                return Err(LineError::new(g0.start, g0.end, format!("expected axis words with {}", format_g(g0.code))));
+                return Err(LineError::new(
+                    g0.start,
+                    g0.end,
+                    format!("expected axis words with {}", format_g(g0.code)),
+                ));
             }
             return Ok(None);
         }
@@ -120,7 +147,12 @@ impl Interpreter<'_> {
 
     /// LinuxCNC refuses words that no code in the block (or mode) uses (`check_g_codes`,
     /// `check_other_codes`).
-    fn check_words(&self, line: &[u8], block: &Block, motion: Option<u32>) -> Result<(), LineError> {
+    fn check_words(
+        &self,
+        line: &[u8],
+        block: &Block,
+        motion: Option<u32>,
+    ) -> Result<(), LineError> {
         let mode0 = block.g_code(group::NON_MODAL);
         let motion = motion.unwrap_or(u32::MAX);
         let cycle = is_cycle(motion);
@@ -148,10 +180,14 @@ impl Interpreter<'_> {
         if cycle {
             for letter in [b'a', b'b', b'c'] {
                 if let Some(word) = block.word(letter) {
-                    return Err(LineError::new(word.start, word.end, format!(
-                        "expected no {} word in a canned cycle",
-                        letter.to_ascii_uppercase() as char
-                    )));
+                    return Err(LineError::new(
+                        word.start,
+                        word.end,
+                        format!(
+                            "expected no {} word in a canned cycle",
+                            letter.to_ascii_uppercase() as char
+                        ),
+                    ));
                 }
             }
         }
@@ -179,7 +215,10 @@ impl Interpreter<'_> {
             || matches!(motion, 740 | 820 | 840 | 860 | 880 | 890)
             || m_uses_p)
         {
-            unused(b'p', "G2, G3, G4, G10, G64, G82, G84, G86, G88, G89 or M50-M53")?;
+            unused(
+                b'p',
+                "G2, G3, G4, G10, G64, G82, G84, G86, G88, G89 or M50-M53",
+            )?;
         }
         if let (true, Some(p)) = (arc, block.word(b'p')) {
             let rounded = p.value.round();
@@ -214,38 +253,66 @@ impl Interpreter<'_> {
                     .hint("write e.g. G4 P0.5 for half a second"));
                 }
                 if arc {
-                    return Err(LineError::new(g4.start, g4.end, "expected G4 without G2 or G3 in its block: both use P"));
+                    return Err(LineError::new(
+                        g4.start,
+                        g4.end,
+                        "expected G4 without G2 or G3 in its block: both use P",
+                    ));
                 }
             }
             Some(530) => {
                 let g53 = block.g[group::NON_MODAL].expect("G53");
                 if !matches!(motion, 0 | 10) {
-                    return Err(LineError::new(g53.start, g53.end, "expected G0 or G1 with G53"));
+                    return Err(LineError::new(
+                        g53.start,
+                        g53.end,
+                        "expected G0 or G1 with G53",
+                    ));
                 }
                 let incremental = block.g_code(group::DISTANCE) == Some(910)
                     || (block.g_code(group::DISTANCE) != Some(900) && !self.s.absolute);
                 if incremental {
-                    return Err(LineError::new(g53.start, g53.end, "expected absolute distance mode (G90) with G53"));
+                    return Err(LineError::new(
+                        g53.start,
+                        g53.end,
+                        "expected absolute distance mode (G90) with G53",
+                    ));
                 }
             }
             Some(100) => {
                 let g10 = block.g[group::NON_MODAL].expect("G10");
                 let l = block.value(b'l').map(|l| l.round() as i64);
                 if !matches!(l, Some(1 | 2 | 10 | 11 | 20)) {
-                    return Err(LineError::new(g10.start, g10.end, "expected G10 with L1, L2, L10, L11 or L20"));
+                    return Err(LineError::new(
+                        g10.start,
+                        g10.end,
+                        "expected G10 with L1, L2, L10, L11 or L20",
+                    ));
                 }
                 let Some(p) = block.word(b'p') else {
-                    return Err(LineError::new(g10.start, g10.end, "expected a P word with G10 (coordinate system or tool number)"));
+                    return Err(LineError::new(
+                        g10.start,
+                        g10.end,
+                        "expected a P word with G10 (coordinate system or tool number)",
+                    ));
                 };
                 let p_int = p.value.round();
                 if (p.value - p_int).abs() > 0.0002 {
-                    return Err(LineError::new(p.start, p.end, "expected a whole-number P with G10"));
+                    return Err(LineError::new(
+                        p.start,
+                        p.end,
+                        "expected a whole-number P with G10",
+                    ));
                 }
                 if matches!(l, Some(2 | 20)) && !(0.0..=9.0).contains(&p_int) {
                     return Err(LineError::new(p.start, p.end, "expected P0 to P9 with G10 L2/L20 (0 = the active system, 1 = G54 … 9 = G59.3)"));
                 }
                 if matches!(l, Some(1 | 10 | 11)) && p_int < 1.0 {
-                    return Err(LineError::new(p.start, p.end, "expected a tool number of 1 or more after P with G10 L1/L10/L11"));
+                    return Err(LineError::new(
+                        p.start,
+                        p.end,
+                        "expected a tool number of 1 or more after P with G10 L1/L10/L11",
+                    ));
                 }
             }
             _ => {}
@@ -305,7 +372,11 @@ impl Interpreter<'_> {
             Some(word) if word.code == 6 => {
                 self.refuse_with_comp(word, "a tool change")?;
                 let Some(selected) = self.s.selected_tool else {
-                    return Err(LineError::new(word.start, word.end, "expected a T word selecting the tool before M6"));
+                    return Err(LineError::new(
+                        word.start,
+                        word.end,
+                        "expected a T word selecting the tool before M6",
+                    ));
                 };
                 self.s.current_tool = selected;
                 // LinuxCNC stops the spindle for a tool change.
@@ -315,7 +386,11 @@ impl Interpreter<'_> {
             }
             Some(word) => {
                 let Some(q) = block.word(b'q') else {
-                    return Err(LineError::new(word.start, word.end, "expected a Q word (tool number) with M61"));
+                    return Err(LineError::new(
+                        word.start,
+                        word.end,
+                        "expected a Q word (tool number) with M61",
+                    ));
                 };
                 self.s.current_tool = self.tool_number(q)?;
                 self.set_tool_parameters();
@@ -362,7 +437,11 @@ impl Interpreter<'_> {
                 _ => Plane::YZ,
             };
             if plane != self.s.plane {
-                return Err(LineError::new(word.start, word.end, "expected no change of plane while cutter radius compensation is on"));
+                return Err(LineError::new(
+                    word.start,
+                    word.end,
+                    "expected no change of plane while cutter radius compensation is on",
+                ));
             }
         }
         match block.g_code(group::PLANE) {
@@ -449,8 +528,7 @@ impl Interpreter<'_> {
                 100 => self.g10(block)?,
                 280 | 300 => self.go_home(word.code, block, span)?,
                 281 | 301 => self.save_home(word.code),
-                520 | 920 => self.axis_offsets(word.code, block),
-                921 | 922 | 923 => self.axis_offsets(word.code, block),
+                520 | 920..=923 => self.axis_offsets(word.code, block),
                 _ => {} // G4 above, G53 with the motion
             }
         }
@@ -515,9 +593,11 @@ impl Interpreter<'_> {
     /// LinuxCNC refuses some codes while cutter radius compensation is on.
     fn refuse_with_comp(&self, word: super::block::CodeWord, what: &str) -> Result<(), LineError> {
         if self.comp.side.is_some() {
-            return Err(LineError::new(word.start, word.end, format!(
-                "expected {what} only with cutter radius compensation off (G40)"
-            )));
+            return Err(LineError::new(
+                word.start,
+                word.end,
+                format!("expected {what} only with cutter radius compensation off (G40)"),
+            ));
         }
         Ok(())
     }
@@ -534,7 +614,11 @@ impl Interpreter<'_> {
     pub fn tool_number(&self, word: super::block::Word) -> Result<i64, LineError> {
         let rounded = word.value.round();
         if (word.value - rounded).abs() > 0.0001 || rounded < 0.0 {
-            return Err(LineError::new(word.start, word.end, "expected a whole tool number of 0 or more"));
+            return Err(LineError::new(
+                word.start,
+                word.end,
+                "expected a whole tool number of 0 or more",
+            ));
         }
         let number = rounded as i64;
         if number != 0 && self.s.tool(number).is_none() {
@@ -568,7 +652,8 @@ impl Interpreter<'_> {
         let tool = self.spindle_tool();
         self.params.set(params::TOOL_NUMBER, tool.number as f64);
         for axis in 0..6 {
-            self.params.set(params::TOOL_OFFSET + axis, tool.offset[axis]);
+            self.params
+                .set(params::TOOL_OFFSET + axis, tool.offset[axis]);
         }
         self.params.set(params::TOOL_DIAMETER, tool.diameter);
     }
@@ -600,7 +685,7 @@ impl Interpreter<'_> {
         let user = |interp: &Self, offset: &Axes| -> Axes {
             let mut out = *offset;
             for value in out.iter_mut().take(3) {
-                *value = interp.from_user(*value);
+                *value = interp.user_to_program(*value);
             }
             out
         };
@@ -669,7 +754,11 @@ impl Interpreter<'_> {
         let mut origin = [0.0; 6];
         for (axis, value) in origin.iter_mut().enumerate() {
             let stored = self.params.get(coordinate_system_index(system, axis));
-            *value = if axis < 3 { self.from_user(stored) } else { stored };
+            *value = if axis < 3 {
+                self.user_to_program(stored)
+            } else {
+                stored
+            };
         }
         (origin, self.params.get(coordinate_system_index(system, 9)))
     }
@@ -701,7 +790,11 @@ impl Interpreter<'_> {
         if self.params.get(params::G92_APPLIED) != 0.0 {
             for axis in 0..6 {
                 let stored = self.params.get(params::G92_OFFSET + axis);
-                p[axis] -= if axis < 3 { self.from_user(stored) } else { stored };
+                p[axis] -= if axis < 3 {
+                    self.user_to_program(stored)
+                } else {
+                    stored
+                };
             }
         }
         p
@@ -733,15 +826,27 @@ impl Interpreter<'_> {
     fn g10_coordinate_system(&mut self, l: i64, p: i64, block: &Block) -> Result<(), LineError> {
         for letter in [b'i', b'j'] {
             if let Some(word) = block.word(letter) {
-                return Err(LineError::new(word.start, word.end, "expected no I or J word with G10 L2/L20"));
+                return Err(LineError::new(
+                    word.start,
+                    word.end,
+                    "expected no I or J word with G10 L2/L20",
+                ));
             }
         }
-        let system = if p == 0 { self.s.origin_index } else { p as usize };
+        let system = if p == 0 {
+            self.s.origin_index
+        } else {
+            p as usize
+        };
         let current = self.current_in_system(system);
         let rotation_index = coordinate_system_index(system, 9);
         let r = match block.word(b'r') {
             Some(word) if l == 20 => {
-                return Err(LineError::new(word.start, word.end, "expected no R word with G10 L20"));
+                return Err(LineError::new(
+                    word.start,
+                    word.end,
+                    "expected no R word with G10 L20",
+                ));
             }
             Some(word) => {
                 self.params.set(rotation_index, word.value);
@@ -752,7 +857,7 @@ impl Interpreter<'_> {
         let stored = |interp: &Self, axis: usize| -> f64 {
             let value = interp.params.get(coordinate_system_index(system, axis));
             if axis < 3 {
-                interp.from_user(value)
+                interp.user_to_program(value)
             } else {
                 value
             }
@@ -771,7 +876,7 @@ impl Interpreter<'_> {
             origin[0] = old_x + stored(self, 0) - x;
             origin[1] = old_y + stored(self, 1) - y;
             for axis in 0..2 {
-                let user = self.to_user(origin[axis]);
+                let user = self.program_to_user(origin[axis]);
                 self.params.set(coordinate_system_index(system, axis), user);
             }
             if system == self.s.origin_index {
@@ -784,7 +889,7 @@ impl Interpreter<'_> {
             for axis in 0..2 {
                 origin[axis] = match block.value(super::block::AXIS_LETTERS[axis]) {
                     Some(value) => {
-                        let user = self.to_user(value);
+                        let user = self.program_to_user(value);
                         self.params.set(coordinate_system_index(system, axis), user);
                         value
                     }
@@ -800,7 +905,11 @@ impl Interpreter<'_> {
                     } else {
                         value
                     };
-                    let user = if axis < 3 { self.to_user(value) } else { value };
+                    let user = if axis < 3 {
+                        self.program_to_user(value)
+                    } else {
+                        value
+                    };
                     self.params.set(coordinate_system_index(system, axis), user);
                     value
                 }
@@ -835,7 +944,11 @@ impl Interpreter<'_> {
             || block.has(b'j');
         let g10 = block.g[group::NON_MODAL].expect("G10");
         if !has_values {
-            return Err(LineError::new(g10.start, g10.end, "expected offsets (X Y Z A B C) or R with G10 L1/L10/L11"));
+            return Err(LineError::new(
+                g10.start,
+                g10.end,
+                "expected offsets (X Y Z A B C) or R with G10 L1/L10/L11",
+            ));
         }
         let _ = p;
         let index = self
@@ -848,7 +961,11 @@ impl Interpreter<'_> {
         if l == 1 {
             for (axis, letter) in super::block::AXIS_LETTERS.iter().enumerate() {
                 if let Some(value) = block.value(*letter) {
-                    entry.offset[axis] = if axis < 3 { self.to_user(value) } else { value };
+                    entry.offset[axis] = if axis < 3 {
+                        self.program_to_user(value)
+                    } else {
+                        value
+                    };
                 }
             }
         } else {
@@ -861,42 +978,53 @@ impl Interpreter<'_> {
             if l == 11 && self.params.get(params::G92_APPLIED) != 0.0 {
                 for axis in 0..6 {
                     let stored = self.params.get(params::G92_OFFSET + axis);
-                    t[axis] += if axis < 3 { self.from_user(stored) } else { stored };
+                    t[axis] += if axis < 3 {
+                        self.user_to_program(stored)
+                    } else {
+                        stored
+                    };
                 }
             }
             let rotation = self.params.get(coordinate_system_index(system, 9));
-            let old = [self.from_user(entry.offset[0]), self.from_user(entry.offset[1])];
+            let old = [
+                self.user_to_program(entry.offset[0]),
+                self.user_to_program(entry.offset[1]),
+            ];
             match (block.value(b'x'), block.value(b'y')) {
                 (Some(x), Some(y)) => {
                     let (tx, ty) = rotate(t[0] - x, t[1] - y, rotation);
-                    entry.offset[0] = self.to_user(tx);
-                    entry.offset[1] = self.to_user(ty);
+                    entry.offset[0] = self.program_to_user(tx);
+                    entry.offset[1] = self.program_to_user(ty);
                 }
                 (Some(x), None) => {
                     let (_, oy) = rotate(old[0], old[1], -rotation);
                     let (ox, oy) = rotate(0.0, oy, rotation);
                     let (tx, ty) = rotate(t[0] - x, 0.0, rotation);
-                    entry.offset[0] = self.to_user(tx + ox);
-                    entry.offset[1] = self.to_user(ty + oy);
+                    entry.offset[0] = self.program_to_user(tx + ox);
+                    entry.offset[1] = self.program_to_user(ty + oy);
                 }
                 (None, Some(y)) => {
                     let (ox, _) = rotate(old[0], old[1], -rotation);
                     let (ox, oy) = rotate(ox, 0.0, rotation);
                     let (tx, ty) = rotate(0.0, t[1] - y, rotation);
-                    entry.offset[0] = self.to_user(tx + ox);
-                    entry.offset[1] = self.to_user(ty + oy);
+                    entry.offset[0] = self.program_to_user(tx + ox);
+                    entry.offset[1] = self.program_to_user(ty + oy);
                 }
                 (None, None) => {}
             }
             for axis in 2..6 {
                 if let Some(value) = block.value(super::block::AXIS_LETTERS[axis]) {
                     let offset = t[axis] - value;
-                    entry.offset[axis] = if axis < 3 { self.to_user(offset) } else { offset };
+                    entry.offset[axis] = if axis < 3 {
+                        self.program_to_user(offset)
+                    } else {
+                        offset
+                    };
                 }
             }
         }
         if let Some(r) = block.value(b'r') {
-            entry.diameter = self.to_user(r) * 2.0;
+            entry.diameter = self.program_to_user(r) * 2.0;
         }
         self.s.tools[index] = entry;
         if number == self.s.current_tool {
@@ -909,11 +1037,19 @@ impl Interpreter<'_> {
     fn go_home(&mut self, code: u32, block: &Block, span: Span) -> Result<(), LineError> {
         let through = self.find_ends(block)?;
         self.traverse(&through, span)?;
-        let base = if code == 280 { params::G28_HOME } else { params::G30_HOME };
+        let base = if code == 280 {
+            params::G28_HOME
+        } else {
+            params::G30_HOME
+        };
         let mut home = [0.0; 6];
         for (axis, value) in home.iter_mut().enumerate() {
             let stored = self.params.get(base + axis);
-            *value = if axis < 3 { self.from_user(stored) } else { stored };
+            *value = if axis < 3 {
+                self.user_to_program(stored)
+            } else {
+                stored
+            };
         }
         let relative = self.relative_to_program(&home);
         let mut end = through;
@@ -971,9 +1107,17 @@ impl Interpreter<'_> {
             machine[axis] =
                 s.current[axis] + s.tool_offset[axis] + s.origin_offset[axis] + s.axis_offset[axis];
         }
-        let base = if code == 281 { params::G28_HOME } else { params::G30_HOME };
+        let base = if code == 281 {
+            params::G28_HOME
+        } else {
+            params::G30_HOME
+        };
         for (axis, value) in machine.iter().enumerate() {
-            let user = if axis < 3 { self.to_user(*value) } else { *value };
+            let user = if axis < 3 {
+                self.program_to_user(*value)
+            } else {
+                *value
+            };
             self.params.set(base + axis, user);
         }
     }
@@ -1014,7 +1158,11 @@ impl Interpreter<'_> {
                 self.params.set(params::G92_APPLIED, 1.0);
                 for axis in 0..6 {
                     let stored = self.params.get(params::G92_OFFSET + axis);
-                    let value = if axis < 3 { self.from_user(stored) } else { stored };
+                    let value = if axis < 3 {
+                        self.user_to_program(stored)
+                    } else {
+                        stored
+                    };
                     let s = &mut self.s;
                     s.current[axis] += s.axis_offset[axis] - value;
                     s.axis_offset[axis] = value;
@@ -1027,15 +1175,23 @@ impl Interpreter<'_> {
     fn store_axis_offsets(&mut self) {
         for axis in 0..6 {
             let value = self.s.axis_offset[axis];
-            let user = if axis < 3 { self.to_user(value) } else { value };
+            let user = if axis < 3 {
+                self.program_to_user(value)
+            } else {
+                value
+            };
             self.params.set(params::G92_OFFSET + axis, user);
         }
     }
 }
 
 pub(super) fn too_many_moves(limit: usize) -> LineError {
-    LineError::new(0, 0, format!(
+    LineError::new(
+        0,
+        0,
+        format!(
         "expected at most {limit} moves from one program; this one makes more (an endless loop?)"
-    ))
+    ),
+    )
     .hint("the limit is GcodeOptions::max_moves")
 }

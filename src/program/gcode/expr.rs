@@ -81,7 +81,9 @@ impl<'l> Cursor<'l> {
     pub fn error_here(&self, problem: impl Into<String>) -> LineError {
         match self.chars.get(self.index) {
             Some(c) => LineError::new(c.at, c.at + 1, problem),
-            None => LineError::new(self.line.len(), self.line.len(), problem).found(Found::EndOfLine),
+            None => {
+                LineError::new(self.line.len(), self.line.len(), problem).found(Found::EndOfLine)
+            }
         }
     }
 
@@ -189,7 +191,11 @@ impl<'l> Cursor<'l> {
         };
         self.index = end;
         value.ok_or_else(|| {
-            LineError::new(self.chars[first].at, self.end_of_previous(), "expected a number")
+            LineError::new(
+                self.chars[first].at,
+                self.end_of_previous(),
+                "expected a number",
+            )
         })
     }
 
@@ -198,9 +204,8 @@ impl<'l> Cursor<'l> {
     pub fn integer_value(&mut self, params: &dyn Parameters) -> Result<i64, LineError> {
         let start = self.at();
         let value = self.real_value(params)?;
-        whole_number(value).ok_or_else(|| {
-            LineError::new(start, self.end_of_previous(), "expected a whole number")
-        })
+        whole_number(value)
+            .ok_or_else(|| LineError::new(start, self.end_of_previous(), "expected a whole number"))
     }
 
     /// `#…` as a value.
@@ -264,7 +269,10 @@ impl<'l> Cursor<'l> {
     /// `<name>` (the compacted characters: lower case, blanks removed).
     fn name(&mut self) -> Result<String, LineError> {
         let (start, end) = self.name_range()?;
-        Ok(self.chars[start..end].iter().map(|c| c.byte as char).collect())
+        Ok(self.chars[start..end]
+            .iter()
+            .map(|c| c.byte as char)
+            .collect())
     }
 
     /// The character range of a `<name>`, moving past its `>`.
@@ -468,8 +476,8 @@ impl<'l> Cursor<'l> {
 /// rounded division (the same value `str::parse` gives, faster); `None` for anything else.
 fn exact_decimal(chars: &[Significant]) -> Option<f64> {
     const POWERS: [f64; 23] = [
-        1e0, 1e1, 1e2, 1e3, 1e4, 1e5, 1e6, 1e7, 1e8, 1e9, 1e10, 1e11, 1e12, 1e13, 1e14, 1e15,
-        1e16, 1e17, 1e18, 1e19, 1e20, 1e21, 1e22,
+        1e0, 1e1, 1e2, 1e3, 1e4, 1e5, 1e6, 1e7, 1e8, 1e9, 1e10, 1e11, 1e12, 1e13, 1e14, 1e15, 1e16,
+        1e17, 1e18, 1e19, 1e20, 1e21, 1e22,
     ];
     let mut negative = false;
     let mut digits = chars;
@@ -546,7 +554,12 @@ impl Operator {
         match self {
             Operator::Close => 1,
             Operator::And | Operator::Or | Operator::Xor => 2,
-            Operator::Eq | Operator::Ne | Operator::Gt | Operator::Ge | Operator::Lt | Operator::Le => 3,
+            Operator::Eq
+            | Operator::Ne
+            | Operator::Gt
+            | Operator::Ge
+            | Operator::Lt
+            | Operator::Le => 3,
             Operator::Plus | Operator::Minus => 4,
             Operator::Times | Operator::Divide | Operator::Modulo => 5,
             Operator::Power => 6,
@@ -577,8 +590,12 @@ fn apply(
         Operator::Minus => left - right,
         Operator::Times => left * right,
         Operator::Divide if right == 0.0 => {
-            return Err(LineError::new(at, cursor.end_of_previous(), "expected a non-zero divisor")
-                .found(Found::Text(format!("{left} / 0"))));
+            return Err(LineError::new(
+                at,
+                cursor.end_of_previous(),
+                "expected a non-zero divisor",
+            )
+            .found(Found::Text(format!("{left} / 0"))));
         }
         Operator::Divide => left / right,
         Operator::Modulo => {

@@ -17,9 +17,15 @@ pub(super) struct Significant {
 pub(super) enum ActiveComment {
     None,
     /// Byte range of the text after the comma, in the raw line.
-    Message { start: usize, end: usize },
+    Message {
+        start: usize,
+        end: usize,
+    },
     /// `(ABORT,…)`: LinuxCNC stops the program with this text as its error.
-    Abort { start: usize, end: usize },
+    Abort {
+        start: usize,
+        end: usize,
+    },
 }
 
 /// Takes comments out of a line, drops blanks and lower-cases letters. Returns the first

@@ -93,7 +93,11 @@ impl Interpreter<'_> {
         let at = radius.or(angle).expect("a polar word");
         let (x, y) = (self.s.current[0], self.s.current[1]);
         let indeterminate = || {
-            LineError::new(at.start, at.end, "expected a polar angle: from the origin the direction is not defined")
+            LineError::new(
+                at.start,
+                at.end,
+                "expected a polar angle: from the origin the direction is not defined",
+            )
         };
         if self.s.absolute {
             let (r, theta) = match (radius, angle) {
@@ -156,7 +160,11 @@ impl Interpreter<'_> {
         let target = self.find_ends(block)?;
         if self.comp.active() {
             if block.g_code(group::NON_MODAL) == Some(530) {
-                return Err(LineError::new(start, end, "expected no G53 move while cutter radius compensation is on"));
+                return Err(LineError::new(
+                    start,
+                    end,
+                    "expected no G53 move while cutter radius compensation is on",
+                ));
             }
             let inverse_time = self.comp_inverse_time_rate(inverse_time, &target);
             return self
@@ -175,7 +183,12 @@ impl Interpreter<'_> {
     }
 
     /// Checks a feed move has a feed; in inverse time returns the move's duration (s).
-    fn feed_check(&self, block: &Block, start: usize, end: usize) -> Result<Option<f64>, LineError> {
+    fn feed_check(
+        &self,
+        block: &Block,
+        start: usize,
+        end: usize,
+    ) -> Result<Option<f64>, LineError> {
         if self.s.inverse_time {
             return match block.word(b'f') {
                 Some(f) if f.value > 0.0 => Ok(Some(60.0 / f.value)),
@@ -207,7 +220,13 @@ impl Interpreter<'_> {
     }
 
     /// G2 / G3.
-    pub fn arc(&mut self, line: &[u8], code: u32, block: &Block, span: Span) -> Result<(), LineError> {
+    pub fn arc(
+        &mut self,
+        line: &[u8],
+        code: u32,
+        block: &Block,
+        span: Span,
+    ) -> Result<(), LineError> {
         let range = block_text_range(line);
         let found = || Found::Text(display_text(&line[range.0..range.1]));
         if self.comp.arc_not_allowed {
@@ -231,7 +250,11 @@ impl Interpreter<'_> {
         };
         let (centre, turns) = self.arc_centre(line, block, start, &end, clockwise, range)?;
         if comp {
-            let turn = if clockwise { -(turns as i32 + 1) } else { turns as i32 + 1 };
+            let turn = if clockwise {
+                -(turns as i32 + 1)
+            } else {
+                turns as i32 + 1
+            };
             let inverse_time = match inverse_time {
                 Some(_) => {
                     let radius = (centre[0] - start[0]).hypot(centre[1] - start[1]);
@@ -253,7 +276,15 @@ impl Interpreter<'_> {
         centre_axes[first] = centre[0];
         centre_axes[second] = centre[1];
         self.canon
-            .arc_feed(&end, &centre_axes, self.s.plane, clockwise, turns, inverse_time, span)
+            .arc_feed(
+                &end,
+                &centre_axes,
+                self.s.plane,
+                clockwise,
+                turns,
+                inverse_time,
+                span,
+            )
             .map_err(|limit| too_many_moves(limit.0))?;
         self.s.current = end;
         Ok(())
@@ -326,7 +357,11 @@ impl Interpreter<'_> {
             }
             let radius = r.value.abs();
             if radius < radius_tolerance {
-                return Err(LineError::new(r.start, r.end, "expected a non-zero arc radius"));
+                return Err(LineError::new(
+                    r.start,
+                    r.end,
+                    "expected a non-zero arc radius",
+                ));
             }
             let mid = [(start[0] + stop[0]) / 2.0, (start[1] + stop[1]) / 2.0];
             let mut half_chord = (mid[0] - stop[0]).hypot(mid[1] - stop[1]);
@@ -386,10 +421,14 @@ impl Interpreter<'_> {
             )
         };
         if r1 < radius_tolerance || r2 < radius_tolerance {
-            return Err(LineError::new(block_range.0, block_range.1, format!(
+            return Err(LineError::new(
+                block_range.0,
+                block_range.1,
+                format!(
                 "expected an arc centre away from its start and end points (zero-radius arc: {})",
                 geometry()
-            ))
+            ),
+            )
             .found(found()));
         }
         let abs_err = (r1 - r2).abs();

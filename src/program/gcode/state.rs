@@ -117,7 +117,10 @@ impl<'a> Interpreter<'a> {
         let gcode = &options.gcode;
         let user = gcode.user_units;
         let mut params = Store::new();
-        for (base, home) in [(params::G28_HOME, &gcode.g28_home), (params::G30_HOME, &gcode.g30_home)] {
+        for (base, home) in [
+            (params::G28_HOME, &gcode.g28_home),
+            (params::G30_HOME, &gcode.g30_home),
+        ] {
             for axis in 0..3 {
                 params.set(base + axis, user.from_metres(home.linear[axis]));
                 params.set(base + 3 + axis, home.rotary[axis].to_degrees());
@@ -191,7 +194,11 @@ impl<'a> Interpreter<'a> {
         }
     }
 
-    pub fn finish(mut self, line_count: usize, byte_count: usize) -> Result<Program, ProgramErrors> {
+    pub fn finish(
+        mut self,
+        line_count: usize,
+        byte_count: usize,
+    ) -> Result<Program, ProgramErrors> {
         if self.comp.holds_anything() {
             // The program ended with compensation holding a move back (LinuxCNC would drop
             // it with the file's missing end): send it.
@@ -216,12 +223,12 @@ impl<'a> Interpreter<'a> {
     }
 
     /// A length in program units converted to user (machine) units, for the parameters.
-    pub fn to_user(&self, value: f64) -> f64 {
+    pub fn program_to_user(&self, value: f64) -> f64 {
         value * self.s.units.metres() / self.options.gcode.user_units.metres()
     }
 
     /// A length in user units converted to program units.
-    pub fn from_user(&self, value: f64) -> f64 {
+    pub fn user_to_program(&self, value: f64) -> f64 {
         value * self.options.gcode.user_units.metres() / self.s.units.metres()
     }
 
@@ -253,7 +260,10 @@ impl<'a> Interpreter<'a> {
                 };
                 let machine = self.canon.machine(&s.current);
                 if axis < 3 {
-                    self.options.gcode.user_units.from_metres(machine.linear[axis])
+                    self.options
+                        .gcode
+                        .user_units
+                        .from_metres(machine.linear[axis])
                 } else {
                     machine.rotary[axis - 3].to_degrees()
                 }
@@ -335,7 +345,9 @@ impl Parameters for Interpreter<'_> {
                     "expected a parameter cncsim knows; #<{name}> reads the machine's INI file or HAL, which cncsim does not have"
                 ));
             }
-            return Err(format!("expected a defined parameter; #<{name}> is not defined"));
+            return Err(format!(
+                "expected a defined parameter; #<{name}> is not defined"
+            ));
         }
         self.frames
             .last()

@@ -31,16 +31,18 @@ pub fn parse_tool_table(
         let mut number = None;
         let mut position = 0;
         for word in content.split_whitespace() {
-            let at = content[position..].find(word).map_or(position, |p| p + position);
+            let at = content[position..]
+                .find(word)
+                .map_or(position, |p| p + position);
             position = at + word.len();
             let error = |problem: String| {
                 ProgramError::new(source, Some(span_at(at)), problem).found_text(word.as_bytes())
             };
             let (letter, value) = word.split_at(word.chars().next().map_or(0, char::len_utf8));
             let Ok(value) = value.parse::<f64>() else {
-                errors.push(error(format!(
-                    "expected a letter followed by a number (e.g. T1, Z50.0)"
-                )));
+                errors.push(error(
+                    "expected a letter followed by a number (e.g. T1, Z50.0)".to_string(),
+                ));
                 continue;
             };
             if !value.is_finite() {
@@ -50,7 +52,9 @@ pub fn parse_tool_table(
             match letter.to_ascii_uppercase().as_str() {
                 "T" => {
                     if value < 0.0 || value.fract() != 0.0 || value > f64::from(u32::MAX) {
-                        errors.push(error("expected a whole tool number of 0 or more after T".to_string()));
+                        errors.push(error(
+                            "expected a whole tool number of 0 or more after T".to_string(),
+                        ));
                         continue;
                     }
                     number = Some(value as u32);
