@@ -25,6 +25,20 @@ pub(super) struct CodeWord {
     pub end: usize,
 }
 
+impl Word {
+    /// An error pointing at this word.
+    pub fn error(&self, problem: impl Into<String>) -> LineError {
+        LineError::new(self.start, self.end, problem)
+    }
+}
+
+impl CodeWord {
+    /// An error pointing at this code.
+    pub fn error(&self, problem: impl Into<String>) -> LineError {
+        LineError::new(self.start, self.end, problem)
+    }
+}
+
 /// The keyword of an O-word control line.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub(super) enum Keyword {

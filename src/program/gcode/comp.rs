@@ -180,7 +180,7 @@ impl Interpreter<'_> {
         span: Span,
     ) -> Result<(), LineError> {
         let word = block.g[super::codes::group::CUTTER_COMP].expect("comp code");
-        let error = |problem: String| LineError::new(word.start, word.end, problem);
+        let error = |problem: String| word.error(problem);
         if code == 400 {
             if self.comp.active() && !self.comp.first_move {
                 let current = self.plane_point(&self.s.current);
@@ -371,6 +371,12 @@ impl Interpreter<'_> {
         true
     }
 
+    /// Holds a move back with the feed and spindle of this moment.
+    fn hold(&mut self, make: impl FnOnce(Snapshot) -> Held) {
+        let settings = self.canon.snapshot();
+        self.comp.held.push(make(settings));
+    }
+
     fn hold_straight(
         &mut self,
         rapid: bool,
@@ -379,8 +385,7 @@ impl Interpreter<'_> {
         inverse_time: Option<f64>,
         span: Span,
     ) {
-        let settings = self.canon.snapshot();
-        self.comp.held.push(Held::Straight {
+        self.hold(|settings| Held::Straight {
             rapid,
             direction,
             end,
@@ -390,7 +395,6 @@ impl Interpreter<'_> {
         });
     }
 
-    #[allow(clippy::too_many_arguments)]
     fn hold_arc(
         &mut self,
         original_sweep: f64,
@@ -400,8 +404,7 @@ impl Interpreter<'_> {
         inverse_time: Option<f64>,
         span: Span,
     ) {
-        let settings = self.canon.snapshot();
-        self.comp.held.push(Held::Arc {
+        self.hold(|settings| Held::Arc {
             original_sweep,
             end,
             centre,

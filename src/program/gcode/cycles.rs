@@ -55,11 +55,7 @@ impl Interpreter<'_> {
             Some(l) => {
                 let rounded = l.value.round();
                 if (l.value - rounded).abs() > 0.0001 || rounded < 1.0 {
-                    return Err(LineError::new(
-                        l.start,
-                        l.end,
-                        "expected a whole number of repeats of 1 or more after L",
-                    ));
+                    return Err(l.error("expected a whole number of repeats of 1 or more after L"));
                 }
                 rounded
             }

@@ -55,11 +55,9 @@ impl Interpreter<'_> {
             }
             for letter in [b'x', b'y'] {
                 if let Some(word) = block.word(letter) {
-                    return Err(LineError::new(
-                        word.start,
-                        word.end,
-                        "expected either polar coordinates (@ ^) or X/Y, not both",
-                    ));
+                    return Err(
+                        word.error("expected either polar coordinates (@ ^) or X/Y, not both")
+                    );
                 }
             }
         }
@@ -69,63 +67,42 @@ impl Interpreter<'_> {
             if code == 800 {
                 if axes && !covets_axes(mode0) {
                     let axis = block.first_axis_word().expect("axis word");
-                    return Err(LineError::new(
-                        axis.start,
-                        axis.end,
-                        "expected no axis words with G80",
-                    )
-                    .hint("G80 cancels the motion mode; put the move in its own block"));
+                    return Err(axis
+                        .error("expected no axis words with G80")
+                        .hint("G80 cancels the motion mode; put the move in its own block"));
                 }
             } else {
                 if covets_axes(mode0) {
                     let g0 = block.g[group::NON_MODAL].expect("group 0 word");
-                    return Err(LineError::new(
-                        g0.start,
-                        g0.end,
-                        format!(
+                    return Err(g0.error(format!(
                         "expected only one code that uses the axis words, but {} and {} both do",
                         format_g(g0.code),
                         format_g(code)
-                    ),
-                    ));
+                    )));
                 }
                 if !axes && !matches!(code, 0 | 10 | 20 | 30) {
-                    return Err(LineError::new(
-                        word.start,
-                        word.end,
-                        format!("expected axis words with {}", format_g(code)),
-                    )
-                    .found(Found::Text(display_text(&line[block.start..block.end]))));
+                    return Err(word
+                        .error(format!("expected axis words with {}", format_g(code)))
+                        .found(Found::Text(display_text(&line[block.start..block.end]))));
                 }
             }
             if matches!(mode0, Some(520 | 920)) && !axes {
                 let g0 = block.g[group::NON_MODAL].expect("group 0 word");
-                return Err(LineError::new(
-                    g0.start,
-                    g0.end,
-                    format!("expected axis words with {}", format_g(g0.code)),
-                ));
+                return Err(g0.error(format!("expected axis words with {}", format_g(g0.code))));
             }
             return Ok(if code == 800 { None } else { Some(code) });
         }
         if covets_axes(mode0) {
             if matches!(mode0, Some(520 | 920)) && !axes {
                 let g0 = block.g[group::NON_MODAL].expect("group 0 word");
-                return Err(LineError::new(
-                    g0.start,
-                    g0.end,
-                    format!("expected axis words with {}", format_g(g0.code)),
-                ));
+                return Err(g0.error(format!("expected axis words with {}", format_g(g0.code))));
             }
             return Ok(None);
         }
         if axes {
             if self.s.motion_mode.is_none() && !g43_1 {
                 let axis = block.first_axis_word().expect("axis word");
-                return Err(LineError::new(
-                    axis.start,
-                    axis.end,
-                    "expected a motion mode (G0, G1, G2, G3 or a canned cycle) for the axis words",
+                return Err(axis.error("expected a motion mode (G0, G1, G2, G3 or a canned cycle) for the axis words",
                 )
                 .hint("no motion mode is active (at program start or after G80); add G0 or G1"));
             }
@@ -140,7 +117,7 @@ impl Interpreter<'_> {
 
     fn word_error(&self, word: Option<super::block::Word>, problem: &str) -> LineError {
         match word {
-            Some(word) => LineError::new(word.start, word.end, problem.to_string()),
+            Some(word) => word.error(problem.to_string()),
             None => LineError::new(0, 0, problem.to_string()),
         }
     }
@@ -162,32 +139,25 @@ impl Interpreter<'_> {
         let comp_on = matches!(comp, Some(410 | 411 | 420 | 421));
         let unused = |letter: u8, users: &str| -> Result<(), LineError> {
             match block.word(letter) {
-                Some(word) => Err(LineError::new(
-                    word.start,
-                    word.end,
-                    format!(
+                Some(word) => Err(word
+                    .error(format!(
                         "expected {} to come with {users}",
                         letter.to_ascii_uppercase() as char
-                    ),
-                )
-                .hint(format!(
-                    "no code in this block uses the {} word",
-                    letter.to_ascii_uppercase() as char
-                ))),
+                    ))
+                    .hint(format!(
+                        "no code in this block uses the {} word",
+                        letter.to_ascii_uppercase() as char
+                    ))),
                 None => Ok(()),
             }
         };
         if cycle {
             for letter in [b'a', b'b', b'c'] {
                 if let Some(word) = block.word(letter) {
-                    return Err(LineError::new(
-                        word.start,
-                        word.end,
-                        format!(
-                            "expected no {} word in a canned cycle",
-                            letter.to_ascii_uppercase() as char
-                        ),
-                    ));
+                    return Err(word.error(format!(
+                        "expected no {} word in a canned cycle",
+                        letter.to_ascii_uppercase() as char
+                    )));
                 }
             }
         }
@@ -223,11 +193,9 @@ impl Interpreter<'_> {
         if let (true, Some(p)) = (arc, block.word(b'p')) {
             let rounded = p.value.round();
             if (p.value - rounded).abs() > 0.001 || rounded < 1.0 {
-                return Err(LineError::new(
-                    p.start,
-                    p.end,
-                    "expected a whole number of turns of 1 or more after P on an arc",
-                ));
+                return Err(
+                    p.error("expected a whole number of turns of 1 or more after P on an arc")
+                );
             }
         }
         if !(matches!(motion, 730 | 830)
@@ -244,75 +212,48 @@ impl Interpreter<'_> {
             Some(40) => {
                 let g4 = block.g[group::NON_MODAL].expect("G4");
                 if !block.has(b'p') {
-                    return Err(LineError::new(
-                        g4.start,
-                        g4.end,
-                        "expected a P word (dwell time in seconds) with G4",
-                    )
-                    .found(Found::Text(display_text(&line[block.start..block.end])))
-                    .hint("write e.g. G4 P0.5 for half a second"));
+                    return Err(g4
+                        .error("expected a P word (dwell time in seconds) with G4")
+                        .found(Found::Text(display_text(&line[block.start..block.end])))
+                        .hint("write e.g. G4 P0.5 for half a second"));
                 }
                 if arc {
-                    return Err(LineError::new(
-                        g4.start,
-                        g4.end,
-                        "expected G4 without G2 or G3 in its block: both use P",
-                    ));
+                    return Err(g4.error("expected G4 without G2 or G3 in its block: both use P"));
                 }
             }
             Some(530) => {
                 let g53 = block.g[group::NON_MODAL].expect("G53");
                 if !matches!(motion, 0 | 10) {
-                    return Err(LineError::new(
-                        g53.start,
-                        g53.end,
-                        "expected G0 or G1 with G53",
-                    ));
+                    return Err(g53.error("expected G0 or G1 with G53"));
                 }
                 let incremental = block.g_code(group::DISTANCE) == Some(910)
                     || (block.g_code(group::DISTANCE) != Some(900) && !self.s.absolute);
                 if incremental {
-                    return Err(LineError::new(
-                        g53.start,
-                        g53.end,
-                        "expected absolute distance mode (G90) with G53",
-                    ));
+                    return Err(g53.error("expected absolute distance mode (G90) with G53"));
                 }
             }
             Some(100) => {
                 let g10 = block.g[group::NON_MODAL].expect("G10");
                 let l = block.value(b'l').map(|l| l.round() as i64);
                 if !matches!(l, Some(1 | 2 | 10 | 11 | 20)) {
-                    return Err(LineError::new(
-                        g10.start,
-                        g10.end,
-                        "expected G10 with L1, L2, L10, L11 or L20",
-                    ));
+                    return Err(g10.error("expected G10 with L1, L2, L10, L11 or L20"));
                 }
                 let Some(p) = block.word(b'p') else {
-                    return Err(LineError::new(
-                        g10.start,
-                        g10.end,
-                        "expected a P word with G10 (coordinate system or tool number)",
-                    ));
+                    return Err(
+                        g10.error("expected a P word with G10 (coordinate system or tool number)")
+                    );
                 };
                 let p_int = p.value.round();
                 if (p.value - p_int).abs() > 0.0002 {
-                    return Err(LineError::new(
-                        p.start,
-                        p.end,
-                        "expected a whole-number P with G10",
-                    ));
+                    return Err(p.error("expected a whole-number P with G10"));
                 }
                 if matches!(l, Some(2 | 20)) && !(0.0..=9.0).contains(&p_int) {
-                    return Err(LineError::new(p.start, p.end, "expected P0 to P9 with G10 L2/L20 (0 = the active system, 1 = G54 … 9 = G59.3)"));
+                    return Err(p.error("expected P0 to P9 with G10 L2/L20 (0 = the active system, 1 = G54 … 9 = G59.3)"));
                 }
                 if matches!(l, Some(1 | 10 | 11)) && p_int < 1.0 {
-                    return Err(LineError::new(
-                        p.start,
-                        p.end,
-                        "expected a tool number of 1 or more after P with G10 L1/L10/L11",
-                    ));
+                    return Err(
+                        p.error("expected a tool number of 1 or more after P with G10 L1/L10/L11")
+                    );
                 }
             }
             _ => {}
@@ -339,11 +280,7 @@ impl Interpreter<'_> {
         // F: in the units current before this block's G20/G21, as LinuxCNC does.
         if let Some(f) = block.word(b'f') {
             if f.value < 0.0 {
-                return Err(LineError::new(
-                    f.start,
-                    f.end,
-                    "expected a feed rate of zero or more",
-                ));
+                return Err(f.error("expected a feed rate of zero or more"));
             }
             if !self.s.inverse_time {
                 self.s.feed_rate = f.value;
@@ -353,11 +290,7 @@ impl Interpreter<'_> {
         // S.
         if let Some(s) = block.word(b's') {
             if s.value < 0.0 {
-                return Err(LineError::new(
-                    s.start,
-                    s.end,
-                    "expected a spindle speed of zero or more",
-                ));
+                return Err(s.error("expected a spindle speed of zero or more"));
             }
             self.s.speed = s.value;
             self.sync_spindle();
@@ -372,11 +305,7 @@ impl Interpreter<'_> {
             Some(word) if word.code == 6 => {
                 self.refuse_with_comp(word, "a tool change")?;
                 let Some(selected) = self.s.selected_tool else {
-                    return Err(LineError::new(
-                        word.start,
-                        word.end,
-                        "expected a T word selecting the tool before M6",
-                    ));
+                    return Err(word.error("expected a T word selecting the tool before M6"));
                 };
                 self.s.current_tool = selected;
                 // LinuxCNC stops the spindle for a tool change.
@@ -386,11 +315,7 @@ impl Interpreter<'_> {
             }
             Some(word) => {
                 let Some(q) = block.word(b'q') else {
-                    return Err(LineError::new(
-                        word.start,
-                        word.end,
-                        "expected a Q word (tool number) with M61",
-                    ));
+                    return Err(word.error("expected a Q word (tool number) with M61"));
                 };
                 self.s.current_tool = self.tool_number(q)?;
                 self.set_tool_parameters();
@@ -421,11 +346,7 @@ impl Interpreter<'_> {
         if block.g_code(group::NON_MODAL) == Some(40) {
             let p = block.word(b'p').expect("checked");
             if p.value < 0.0 {
-                return Err(LineError::new(
-                    p.start,
-                    p.end,
-                    "expected a dwell time of zero or more seconds",
-                ));
+                return Err(p.error("expected a dwell time of zero or more seconds"));
             }
             self.dwell(p.value, span)?;
         }
@@ -437,11 +358,8 @@ impl Interpreter<'_> {
                 _ => Plane::YZ,
             };
             if plane != self.s.plane {
-                return Err(LineError::new(
-                    word.start,
-                    word.end,
-                    "expected no change of plane while cutter radius compensation is on",
-                ));
+                return Err(word
+                    .error("expected no change of plane while cutter radius compensation is on"));
             }
         }
         match block.g_code(group::PLANE) {
@@ -486,11 +404,7 @@ impl Interpreter<'_> {
             Some(640) => {
                 let tolerance = match block.word(b'p') {
                     Some(p) if p.value < 0.0 => {
-                        return Err(LineError::new(
-                            p.start,
-                            p.end,
-                            "expected a G64 P tolerance of zero or more",
-                        ));
+                        return Err(p.error("expected a G64 P tolerance of zero or more"));
                     }
                     Some(p) if p.value > 0.0 => Some(self.s.units.to_metres(p.value)),
                     _ => None,
@@ -562,7 +476,7 @@ impl Interpreter<'_> {
                     _ => [current[0], current[1]],
                 };
                 self.move_endpoint_and_flush(point)
-                    .map_err(|e| LineError::new(word.start, word.end, e.problem))?;
+                    .map_err(|e| word.error(e.problem))?;
             }
             match word.code {
                 2 | 30 => {
@@ -593,11 +507,9 @@ impl Interpreter<'_> {
     /// LinuxCNC refuses some codes while cutter radius compensation is on.
     fn refuse_with_comp(&self, word: super::block::CodeWord, what: &str) -> Result<(), LineError> {
         if self.comp.side.is_some() {
-            return Err(LineError::new(
-                word.start,
-                word.end,
-                format!("expected {what} only with cutter radius compensation off (G40)"),
-            ));
+            return Err(word.error(format!(
+                "expected {what} only with cutter radius compensation off (G40)"
+            )));
         }
         Ok(())
     }
@@ -614,19 +526,12 @@ impl Interpreter<'_> {
     pub fn tool_number(&self, word: super::block::Word) -> Result<i64, LineError> {
         let rounded = word.value.round();
         if (word.value - rounded).abs() > 0.0001 || rounded < 0.0 {
-            return Err(LineError::new(
-                word.start,
-                word.end,
-                "expected a whole tool number of 0 or more",
-            ));
+            return Err(word.error("expected a whole tool number of 0 or more"));
         }
         let number = rounded as i64;
         if number != 0 && self.s.tool(number).is_none() {
             let known: Vec<String> = self.s.tools.iter().map(|t| t.number.to_string()).collect();
-            return Err(LineError::new(
-                word.start,
-                word.end,
-                format!("expected a tool of the tool table; tool {number} is not in it"),
+            return Err(word.error(format!("expected a tool of the tool table; tool {number} is not in it"),
             )
             .hint(if known.is_empty() {
                 "the tool table is empty: name a LinuxCNC tool table with the scenario's [program] tool_table (or inspect --tool-table)".to_string()
@@ -730,7 +635,7 @@ impl Interpreter<'_> {
                     None => {
                         // LinuxCNC 2.9 looks up tool -1 here and fails; so does cncsim.
                         let g43 = block.g[group::TOOL_LENGTH].expect("G43.2");
-                        return Err(LineError::new(g43.start, g43.end, "expected an H word with G43.2")
+                        return Err(g43.error("expected an H word with G43.2")
                             .hint("LinuxCNC 2.9 refuses G43.2 with axis words alone; use G43.1 or G43.2 H"));
                     }
                 }
@@ -826,11 +731,7 @@ impl Interpreter<'_> {
     fn g10_coordinate_system(&mut self, l: i64, p: i64, block: &Block) -> Result<(), LineError> {
         for letter in [b'i', b'j'] {
             if let Some(word) = block.word(letter) {
-                return Err(LineError::new(
-                    word.start,
-                    word.end,
-                    "expected no I or J word with G10 L2/L20",
-                ));
+                return Err(word.error("expected no I or J word with G10 L2/L20"));
             }
         }
         let system = if p == 0 {
@@ -842,11 +743,7 @@ impl Interpreter<'_> {
         let rotation_index = coordinate_system_index(system, 9);
         let r = match block.word(b'r') {
             Some(word) if l == 20 => {
-                return Err(LineError::new(
-                    word.start,
-                    word.end,
-                    "expected no R word with G10 L20",
-                ));
+                return Err(word.error("expected no R word with G10 L20"));
             }
             Some(word) => {
                 self.params.set(rotation_index, word.value);
@@ -944,11 +841,7 @@ impl Interpreter<'_> {
             || block.has(b'j');
         let g10 = block.g[group::NON_MODAL].expect("G10");
         if !has_values {
-            return Err(LineError::new(
-                g10.start,
-                g10.end,
-                "expected offsets (X Y Z A B C) or R with G10 L1/L10/L11",
-            ));
+            return Err(g10.error("expected offsets (X Y Z A B C) or R with G10 L1/L10/L11"));
         }
         let _ = p;
         let index = self

@@ -92,13 +92,8 @@ impl Interpreter<'_> {
         }
         let at = radius.or(angle).expect("a polar word");
         let (x, y) = (self.s.current[0], self.s.current[1]);
-        let indeterminate = || {
-            LineError::new(
-                at.start,
-                at.end,
-                "expected a polar angle: from the origin the direction is not defined",
-            )
-        };
+        let indeterminate =
+            || at.error("expected a polar angle: from the origin the direction is not defined");
         if self.s.absolute {
             let (r, theta) = match (radius, angle) {
                 (Some(r), Some(a)) => (r.value, a.value.to_radians()),
@@ -192,11 +187,9 @@ impl Interpreter<'_> {
         if self.s.inverse_time {
             return match block.word(b'f') {
                 Some(f) if f.value > 0.0 => Ok(Some(60.0 / f.value)),
-                Some(f) => Err(LineError::new(
-                    f.start,
-                    f.end,
-                    "expected a positive F word (inverse time: 1/minutes) in G93 mode",
-                )),
+                Some(f) => {
+                    Err(f.error("expected a positive F word (inverse time: 1/minutes) in G93 mode"))
+                }
                 None => Err(LineError::new(
                     start,
                     end,
@@ -309,27 +302,21 @@ impl Interpreter<'_> {
             .into_iter()
             .find(|l| !offset_letters.contains(l));
         if let Some(word) = forbidden.and_then(|letter| block.word(letter)) {
-            return Err(LineError::new(
-                word.start,
-                word.end,
-                format!(
-                    "expected centre offsets {} and {} for an arc in the {} plane",
-                    offset_letters[0].to_ascii_uppercase() as char,
-                    offset_letters[1].to_ascii_uppercase() as char,
-                    plane_name(self.s.plane)
-                ),
-            ));
+            return Err(word.error(format!(
+                "expected centre offsets {} and {} for an arc in the {} plane",
+                offset_letters[0].to_ascii_uppercase() as char,
+                offset_letters[1].to_ascii_uppercase() as char,
+                plane_name(self.s.plane)
+            )));
         }
         let turns = match block.word(b'p') {
             None => 0,
             Some(p) => {
                 let rounded = p.value.round();
                 if rounded > f64::from(u32::MAX) {
-                    return Err(LineError::new(
-                        p.start,
-                        p.end,
-                        "expected a whole number of turns of 1 or more after P on an arc",
-                    ));
+                    return Err(
+                        p.error("expected a whole number of turns of 1 or more after P on an arc")
+                    );
                 }
                 rounded as u32 - 1
             }
@@ -339,12 +326,9 @@ impl Interpreter<'_> {
         let describe = |c: [f64; 2]| format!("({}{:.4},{}{:.4})", names[0], c[0], names[1], c[1]);
         if let Some(r) = block.word(b'r') {
             if block.has(offset_letters[0]) || block.has(offset_letters[1]) {
-                return Err(LineError::new(
-                    r.start,
-                    r.end,
-                    "expected either R or centre offsets on an arc, not both",
-                )
-                .found(found()));
+                return Err(r
+                    .error("expected either R or centre offsets on an arc, not both")
+                    .found(found()));
             }
             if start == stop {
                 return Err(LineError::new(
@@ -357,16 +341,12 @@ impl Interpreter<'_> {
             }
             let radius = r.value.abs();
             if radius < radius_tolerance {
-                return Err(LineError::new(
-                    r.start,
-                    r.end,
-                    "expected a non-zero arc radius",
-                ));
+                return Err(r.error("expected a non-zero arc radius"));
             }
             let mid = [(start[0] + stop[0]) / 2.0, (start[1] + stop[1]) / 2.0];
             let mut half_chord = (mid[0] - stop[0]).hypot(mid[1] - stop[1]);
             if half_chord - radius > radius_tolerance {
-                return Err(LineError::new(r.start, r.end, format!(
+                return Err(r.error(format!(
                     "expected an arc radius of at least {:.4} {} (half the distance from start {} to end {})",
                     half_chord, unit.symbol(), describe(start), describe(stop)
                 )));
