@@ -116,6 +116,10 @@ pub enum Command {
         /// List every move, however long the program.
         #[arg(long)]
         all: bool,
+        /// G-code: a LinuxCNC tool table file (`T1 P1 Z50 D6`, lengths in mm) for T, M6,
+        /// G43 and cutter compensation.
+        #[arg(long)]
+        tool_table: Option<PathBuf>,
     },
     /// Ziegler–Nichols gains for one axis: find the ultimate gain K_cr and period P_cr of the
     /// scenario's simulated axis (P only, raised until sustained oscillation), print Kp, Ki, Kd

@@ -1,6 +1,9 @@
 use clap::Parser;
 use cncsim::machine::Machine;
-use cncsim::program::{inspect, FeedRule, InspectOptions, ReadOptions};
+use cncsim::program::{
+    inspect, parse_tool_table, FeedRule, InspectOptions, LengthUnit, ProgramError, ProgramErrors,
+    ReadOptions,
+};
 use cncsim::report::metrics_table;
 use cncsim::scenario::{
     check, folder_name, outcome_text, run_scenario, tune_scenario, Override, PlantKind, RunOutput,
@@ -136,8 +139,24 @@ fn main() -> ExitCode {
             lenient,
             optimise_pen_up,
             all,
+            tool_table,
         }) => {
             let mut options = ReadOptions::default();
+            if let Some(table) = tool_table {
+                let tools = std::fs::read_to_string(&table)
+                    .map_err(|error| {
+                        ProgramErrors::single(ProgramError::new(
+                            &table,
+                            None,
+                            format!("could not read the tool table: {error}"),
+                        ))
+                    })
+                    .and_then(|text| parse_tool_table(&text, &table, LengthUnit::Millimetre));
+                match tools {
+                    Ok(tools) => options.gcode.tools = tools,
+                    Err(e) => return fail_input(&e),
+                }
+            }
             if euclidean_feed {
                 options.feed_rule = FeedRule::EuclideanAllAxes;
             }

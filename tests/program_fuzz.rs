@@ -6,7 +6,9 @@
 //! million per language:
 //!     cargo test --release --test fuzz -- --ignored --test-threads=1
 
-use cncsim::program::{parse_apt, parse_gcode, parse_hpgl, Program, ProgramErrors, ReadOptions};
+use cncsim::program::{
+    parse_apt, parse_gcode, parse_hpgl, Program, ProgramErrors, ReadOptions, ToolSpec,
+};
 use proptest::prelude::*;
 use proptest::test_runner::{Config, TestRunner};
 
@@ -55,10 +57,16 @@ fn check(result: Result<Program, ProgramErrors>, source: &str) {
 }
 
 fn run_gcode(bytes: &[u8]) {
-    check(
-        parse_gcode(bytes, "f.ngc", &ReadOptions::default()),
-        "f.ngc",
-    );
+    // Loops may run long or forever: bound each case well below the defaults.
+    let mut options = ReadOptions::default();
+    options.gcode.max_blocks = 200_000;
+    options.gcode.max_moves = 50_000;
+    options.gcode.tools = vec![ToolSpec {
+        number: 1,
+        diameter: 0.006,
+        ..ToolSpec::default()
+    }];
+    check(parse_gcode(bytes, "f.ngc", &options), "f.ngc");
 }
 
 fn run_hpgl(bytes: &[u8]) {
@@ -100,10 +108,146 @@ fn sentence(vocabulary: &'static [&'static str]) -> impl Strategy<Value = Vec<u8
 }
 
 const GCODE_WORDS: &[&str] = &[
-    "G0", "G1", "G2", "G3", "G4", "G17", "G18", "G19", "G20", "G21", "G90", "G91", "G90.1",
-    "G91.1", "G93", "G94", "G61", "G64", "G80", "M2", "M3", "M4", "M5", "M30", "X", "Y", "Z", "A",
-    "B", "C", "I", "J", "K", "R", "P", "F", "S", "N", "(", ")", ";", "%", "/", " ", "\n", "\n",
+    "G0",
+    "G1",
+    "G2",
+    "G3",
+    "G4",
+    "G17",
+    "G18",
+    "G19",
+    "G20",
+    "G21",
+    "G90",
+    "G91",
+    "G90.1",
+    "G91.1",
+    "G93",
+    "G94",
+    "G61",
+    "G64",
+    "G80",
+    "M2",
+    "M3",
+    "M4",
+    "M5",
+    "M30",
+    "X",
+    "Y",
+    "Z",
+    "A",
+    "B",
+    "C",
+    "I",
+    "J",
+    "K",
+    "R",
+    "P",
+    "F",
+    "S",
+    "N",
+    "(",
+    ")",
+    ";",
+    "%",
+    "/",
+    " ",
+    "\n",
+    "\n",
     "\r\n",
+    // Parameters and expressions.
+    "#1",
+    "#2",
+    "#<a>",
+    "#<_g>",
+    "#[",
+    "=",
+    "[",
+    "]",
+    "+",
+    "-",
+    "*",
+    "/",
+    "**",
+    "MOD",
+    "EQ",
+    "NE",
+    "LT",
+    "GT",
+    "AND",
+    "OR",
+    "XOR",
+    "SIN[",
+    "ATAN[1]/[",
+    "SQRT[",
+    "EXISTS[#<a>]",
+    "ROUND[",
+    "#<_x>",
+    "#5420",
+    "@",
+    "^",
+    // O-word control flow.
+    "o100 sub",
+    "o100 endsub",
+    "o100 call [1] [2]",
+    "o100 return",
+    "o<s> sub",
+    "o<s> endsub",
+    "o<s> call",
+    "o1 while [#1 LT 3]",
+    "o1 endwhile",
+    "o2 if [#1]",
+    "o2 elseif [1]",
+    "o2 else",
+    "o2 endif",
+    "o3 repeat [3]",
+    "o3 endrepeat",
+    "o4 do",
+    "o4 while [0]",
+    "o1 break",
+    "o1 continue",
+    "o5 while [1]",
+    "o5 endwhile",
+    // Offsets, tools, homes, cycles, compensation.
+    "G10 L2 P1",
+    "G10 L20 P0",
+    "G10 L1 P1",
+    "G54",
+    "G55",
+    "G59.3",
+    "G92",
+    "G92.1",
+    "G92.2",
+    "G92.3",
+    "G52",
+    "G53",
+    "G28",
+    "G30",
+    "G28.1",
+    "T1",
+    "M6",
+    "M61 Q1",
+    "G43",
+    "G43.1",
+    "G49",
+    "H1",
+    "G81",
+    "G82",
+    "G83",
+    "G73",
+    "G85",
+    "G89",
+    "G98",
+    "G99",
+    "L",
+    "Q",
+    "G41",
+    "G42",
+    "G41.1",
+    "G40",
+    "D1",
+    "(MSG,hi)",
+    "(ABORT,stop)",
 ];
 const HPGL_WORDS: &[&str] = &[
     "IN",

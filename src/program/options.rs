@@ -1,7 +1,7 @@
 //! Settings that steer the readers: feed rule, G-code defaults, HPGL pen heights and
 //! optimisation, APT feed units, error limits.
 
-use super::types::FeedRule;
+use super::types::{FeedRule, Position};
 
 /// Length units a G-code program starts in (before any G20/G21).
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
@@ -93,6 +93,17 @@ impl ArcTolerance {
     }
 }
 
+/// One tool of the tool table G43 and M6 read (SI: metres, radians).
+#[derive(Debug, Clone, Copy, PartialEq, Default)]
+pub struct ToolSpec {
+    /// The T number.
+    pub number: u32,
+    /// Tool length offset (Z, and X Y A B C where a machine needs them).
+    pub offset: Position,
+    /// Cutter diameter, for cutter radius compensation with `D`.
+    pub diameter: f64,
+}
+
 /// G-code (RS274/NGC) settings.
 #[derive(Debug, Clone, PartialEq)]
 pub struct GcodeOptions {
@@ -101,6 +112,20 @@ pub struct GcodeOptions {
     /// The block-delete switch: when on, blocks starting with `/` are skipped.
     pub block_delete: bool,
     pub arc_tolerance: ArcTolerance,
+    /// The machine's own length units (LinuxCNC `LINEAR_UNITS`): the units of the numbered
+    /// parameters that hold offsets (#5161…, #5211…, #5221…, #5401…), as a program reads them.
+    pub user_units: LengthUnit,
+    /// Machine positions G28 and G30 go to (LinuxCNC #5161–#5166 and #5181–#5186).
+    pub g28_home: Position,
+    pub g30_home: Position,
+    /// The tool table: T words must name a tool in it (or 0 for none).
+    pub tools: Vec<ToolSpec>,
+    /// At most this many blocks are executed (loops and subroutines count every pass): an
+    /// endless loop stops with an error instead of hanging.
+    pub max_blocks: u64,
+    /// At most this many moves are produced: an endless loop that moves stops with an error
+    /// instead of filling memory.
+    pub max_moves: usize,
 }
 
 impl Default for GcodeOptions {
@@ -109,6 +134,12 @@ impl Default for GcodeOptions {
             initial_units: LengthUnit::Millimetre,
             block_delete: true,
             arc_tolerance: ArcTolerance::default(),
+            user_units: LengthUnit::Millimetre,
+            g28_home: Position::default(),
+            g30_home: Position::default(),
+            tools: Vec::new(),
+            max_blocks: 20_000_000,
+            max_moves: 10_000_000,
         }
     }
 }

@@ -6,7 +6,9 @@ use crate::control::{ActuatorKind, AxisCompensation, CascadeAxis, PidForm, PidGa
 use crate::diagnostics::{check_range, read_text, toml_error, FileError, LineColumn};
 use crate::machine::{AmplifierMode, Feedback};
 use crate::plan::BlendChoice;
-use crate::program::{CircleSpec, FeedRule, PolylineSpec, ReadOptions};
+use crate::program::{
+    parse_tool_table, CircleSpec, FeedRule, LengthUnit, PolylineSpec, ReadOptions,
+};
 use serde::Deserialize;
 use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};
@@ -135,6 +137,10 @@ struct RawProgram {
     approach_from_mm: Option<Spanned<[f64; 3]>>,
     /// Speed of that move (mm/s); default: the planner's rapid speed.
     approach_feed_mm_s: Option<Num>,
+    /// G-code: a LinuxCNC tool table file (lengths in mm) and the G28/G30 positions (mm).
+    tool_table: Option<Spanned<String>>,
+    g28_home_mm: Option<[f64; 3]>,
+    g30_home_mm: Option<[f64; 3]>,
 }
 
 #[derive(Deserialize, Default, Clone, Copy)]
@@ -505,7 +511,11 @@ impl Default for RawRecording {
 pub enum ProgramSource {
     Circle(CircleSpec),
     Polyline(PolylineSpec),
-    File { path: PathBuf, options: ReadOptions },
+    /// The reader settings are boxed: with the G-code tool table they outweigh the others.
+    File {
+        path: PathBuf,
+        options: Box<ReadOptions>,
+    },
 }
 
 /// The machine's way to the program: a straight move from `from` at `speed`, run before the
@@ -729,9 +739,35 @@ impl Scenario {
             }
             options.hpgl.lenient = p.lenient;
             options.hpgl.optimise_pen_up = p.optimise_pen_up;
+            if let Some(table) = &p.tool_table {
+                let table_path = resolve(table.get_ref());
+                let text = std::fs::read_to_string(&table_path).map_err(|error| {
+                    err(
+                        table.span(),
+                        format!("tool table '{}': {error}", table_path.display()),
+                    )
+                })?;
+                options.gcode.tools = parse_tool_table(&text, &table_path, LengthUnit::Millimetre)
+                    .map_err(|errors| err(table.span(), errors.to_string()))?;
+            }
+            for (value, target, key) in [
+                (p.g28_home_mm, &mut options.gcode.g28_home, "g28_home_mm"),
+                (p.g30_home_mm, &mut options.gcode.g30_home, "g30_home_mm"),
+            ] {
+                if let Some(home) = value {
+                    if !home.iter().all(|v| v.is_finite()) {
+                        return Err(FileError::new(
+                            path,
+                            program_at,
+                            format!("{key}: expected finite numbers"),
+                        ));
+                    }
+                    target.linear = home.map(|v| v * 1e-3);
+                }
+            }
             ProgramSource::File {
                 path: file,
-                options,
+                options: Box::new(options),
             }
         } else if let Some(c) = &p.circle {
             let v = c.get_ref();
