@@ -132,6 +132,17 @@ pub struct HpglOptions {
     /// P1 and P2 (plotter units) after IN / a bare IP: the HP 7475's A-size defaults.
     pub default_p1: [f64; 2],
     pub default_p2: [f64; 2],
+    /// The page (hard-clip limits, plotter units) until a PS: the HP 7475's A size. RO
+    /// turns the plot about it and IR places P1 and P2 in it.
+    pub default_page: [f64; 2],
+    /// Refuse commands that do not move the pen (PS CO PW NP EC PG …, PCL wrappers) instead
+    /// of skipping them with one warning per kind.
+    pub strict: bool,
+    /// Fills (RA RR WG FP) are outlines plus the hatch lines FT asks for; `false` draws
+    /// the outlines only.
+    pub hatch_fills: bool,
+    /// At most this many fill hatch lines per file: a bound on the work a file can ask for.
+    pub max_fill_lines: usize,
 }
 
 impl Default for HpglOptions {
@@ -145,6 +156,10 @@ impl Default for HpglOptions {
             optimise_pen_up: false,
             default_p1: [250.0, 596.0],
             default_p2: [10250.0, 7796.0],
+            default_page: [10365.0, 7962.0],
+            strict: false,
+            hatch_fills: true,
+            max_fill_lines: 2_000_000,
         }
     }
 }
