@@ -1,6 +1,7 @@
 //! Settings that steer the readers: feed rule, G-code defaults, HPGL pen heights and
 //! optimisation, APT feed units, error limits.
 
+use super::apt::CircleSense;
 use super::types::FeedRule;
 
 /// Length units a G-code program starts in (before any G20/G21).
@@ -175,12 +176,33 @@ pub enum FeedTimeBase {
 }
 
 /// APT CL settings.
-#[derive(Debug, Clone, PartialEq, Default)]
+#[derive(Debug, Clone, PartialEq)]
 pub struct AptOptions {
     /// Units before the first `UNITS` record.
     pub initial_units: LengthUnit,
     /// How to read a `FEDRAT` value that carries no IPM/MMPM word.
     pub feed_time_base: FeedTimeBase,
+    /// Which way CIRCLE arcs turn about their axis vector (NX: clockwise).
+    pub circle_sense: CircleSense,
+    /// Largest distance (m) of the chords standing for an arc about a tilted axis.
+    pub chord_tolerance: f64,
+    /// At most this many chords for one such arc.
+    pub max_chords: usize,
+    /// Refuse records that do not move the tool instead of skipping them with a warning.
+    pub strict: bool,
+}
+
+impl Default for AptOptions {
+    fn default() -> Self {
+        AptOptions {
+            initial_units: LengthUnit::default(),
+            feed_time_base: FeedTimeBase::default(),
+            circle_sense: CircleSense::default(),
+            chord_tolerance: 1e-6,
+            max_chords: 1_000_000,
+            strict: false,
+        }
+    }
 }
 
 /// Everything the readers can be told.
