@@ -950,20 +950,18 @@ impl Reader<'_> {
         let saved = std::mem::take(&mut self.polygon);
         self.polygon_mode = true;
         self.polygon = Polygon {
-            paths: vec![SubPath { start: if sweep.abs() >= 360.0 { on_arc } else { centre_plotter }, edges: Vec::new() }],
+            paths: vec![SubPath {
+                start: centre_plotter,
+                edges: Vec::new(),
+            }],
         };
         self.plotter.pen_down = true;
+        // Out along the first radius, round the arc, back along the second (for a full
+        // circle the two radii coincide, as HP plotters draw it).
         let built = (|| {
-            if sweep.abs() < 360.0 {
-                self.move_to(on_arc, Piece::Line, span)?;
-            } else {
-                self.plotter.position = on_arc;
-            }
+            self.move_to(on_arc, Piece::Line, span)?;
             self.user_arc(centre, sweep, chord, span)?;
-            if sweep.abs() < 360.0 {
-                self.move_to(centre_plotter, Piece::Line, span)?;
-            }
-            Ok(())
+            self.move_to(centre_plotter, Piece::Line, span)
         })();
         self.polygon_mode = false;
         self.plotter.pen_down = was_down;
