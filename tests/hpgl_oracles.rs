@@ -350,8 +350,9 @@ fn live_ezdxf_agrees() {
 }
 
 /// Real plot files (not committed: `CNCSIM_HPGL_CORPUS=DIR`) against the oracles: HP-GL/2
-/// files (PE, PCL) against ezdxf with fills as outlines, the rest against hp2xx. Files with
-/// labels are left out (hp2xx draws labels with another font). Prints one line per file.
+/// files (PE, PCL) against ezdxf with fills as outlines, the rest against hp2xx with the HP
+/// 7475's P2 − P1 (10000 × 7200 units, which an IP with two values keeps). Files with labels
+/// are left out (hp2xx draws labels with another font). Prints one line per file.
 #[test]
 #[ignore = "needs a directory of real plot files and the oracles"]
 fn corpus_against_oracles() {
@@ -378,6 +379,7 @@ fn corpus_against_oracles() {
             .arg(python())
             .arg(oracle_script())
             .args([oracle, path.to_str().unwrap()])
+            .args(if hpgl2 { &[][..] } else { &["-W", "10000", "-H", "7200"][..] })
             .output()
             .unwrap();
         if !output.status.success() {

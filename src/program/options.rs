@@ -142,7 +142,8 @@ pub struct HpglOptions {
     /// Fills (RA RR WG FP) are outlines plus the hatch lines FT asks for; `false` draws
     /// the outlines only.
     pub hatch_fills: bool,
-    /// At most this many fill hatch lines per file: a bound on the work a file can ask for.
+    /// At most this many fill hatch lines per file: a bound on the work and memory a file
+    /// can ask for (each line is four moves).
     pub max_fill_lines: usize,
 }
 
@@ -160,7 +161,7 @@ impl Default for HpglOptions {
             default_page: [10365.0, 7962.0],
             strict: false,
             hatch_fills: true,
-            max_fill_lines: 2_000_000,
+            max_fill_lines: 250_000,
         }
     }
 }

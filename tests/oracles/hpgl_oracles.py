@@ -1,7 +1,9 @@
 #!/usr/bin/env python3
 """Independent readings of HPGL files and of the Hershey font, for tests/hpgl_oracles.rs.
 
-    hpgl_oracles.py hp2xx FILE    pen-down polylines as GNU hp2xx (Debian package) draws them
+    hpgl_oracles.py hp2xx FILE [OPTION …]
+                                  pen-down polylines as GNU hp2xx (Debian package) draws them
+                                  (options go to hp2xx, e.g. -W 10000 -H 7200)
     hpgl_oracles.py ezdxf FILE    pen-down polylines and polygon outlines as ezdxf's HP-GL/2
                                   reader (PyPI package ezdxf) draws them
     hpgl_oracles.py hershey       Roman Simplex glyphs as the PyPI package Hershey-Fonts
@@ -16,11 +18,11 @@ import subprocess
 import sys
 
 
-def hp2xx(path):
+def hp2xx(path, options=()):
     # -m hpgl writes the drawing back as plain PU/PD vectors in plotter units (-t: true
     # size); labels, circles and arcs come out as the vectors hp2xx draws them with.
     output = subprocess.run(
-        ["hp2xx", "-q", "-m", "hpgl", "-t", "-f", "-", path],
+        ["hp2xx", "-q", "-m", "hpgl", "-t", *options, "-f", "-", path],
         check=True,
         capture_output=True,
     ).stdout.decode("ascii", "replace")
@@ -94,7 +96,7 @@ def hershey():
 if __name__ == "__main__":
     kind = sys.argv[1]
     if kind == "hp2xx":
-        hp2xx(sys.argv[2])
+        hp2xx(sys.argv[2], sys.argv[3:])
     elif kind == "ezdxf":
         ezdxf_lines(sys.argv[2])
     elif kind == "hershey":

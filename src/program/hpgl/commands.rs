@@ -907,7 +907,7 @@ impl Reader<'_> {
                 start,
                 edges: points
                     .iter()
-                    .map(|&to| Edge { piece: Piece::Line, to, drawn: true })
+                    .map(|&to| Edge { piece: Piece::Line, to })
                     .collect(),
             }],
         }

@@ -20,8 +20,6 @@ pub(super) enum Piece {
 pub(super) struct Edge {
     pub(super) piece: Piece,
     pub(super) to: [f64; 2],
-    /// Drawn by `EP` (pen down when it was recorded); pen-up edges still bound the fill.
-    pub(super) drawn: bool,
 }
 
 /// One closed sub-polygon.
@@ -204,7 +202,6 @@ mod tests {
         let corner = |x, y| Edge {
             piece: Piece::Line,
             to: [x, y],
-            drawn: true,
         };
         SubPath {
             start: [low, low],
@@ -249,7 +246,6 @@ mod tests {
                         turns: 0,
                     },
                     to: [10.0, 0.0],
-                    drawn: true,
                 }],
             }],
         };

@@ -141,8 +141,9 @@ impl Reader<'_> {
         Ok(())
     }
 
-    /// Polygon mode: a pen-down move adds an edge; a pen-up move adds an edge that bounds
-    /// the fill but is not drawn, or moves the start of a sub-polygon that has no edge yet.
+    /// Polygon mode: a pen-down move adds an edge; a pen-up move closes the sub-polygon and
+    /// starts the next one where it ends (HP-GL/2), or moves the start of a sub-polygon that
+    /// has no edge yet.
     fn record(&mut self, to: [f64; 2], piece: Piece) {
         let drawn = self.plotter.pen_down;
         let position = self.plotter.position;
@@ -154,10 +155,15 @@ impl Reader<'_> {
             });
         }
         let path = paths.last_mut().expect("a sub-polygon");
-        if path.edges.is_empty() && !drawn {
+        if drawn {
+            path.edges.push(Edge { piece, to });
+        } else if path.edges.is_empty() {
             path.start = to;
         } else {
-            path.edges.push(Edge { piece, to, drawn });
+            paths.push(SubPath {
+                start: to,
+                edges: Vec::new(),
+            });
         }
     }
 
@@ -265,8 +271,7 @@ impl Reader<'_> {
         Ok(())
     }
 
-    /// Draws the edges of a polygon (pen-up across edges recorded with the pen up),
-    /// closing each sub-polygon; the pen ends up.
+    /// Draws the edges of a polygon, closing each sub-polygon; the pen ends up.
     pub(super) fn outline(&mut self, polygon: &Polygon, span: Span) -> Result<(), Problem> {
         for path in &polygon.paths {
             if path.edges.is_empty() {
@@ -274,12 +279,8 @@ impl Reader<'_> {
             }
             self.pen_up(span);
             self.move_to(path.start, Piece::Line, span)?;
+            self.pen_down(span);
             for edge in &path.edges {
-                if edge.drawn {
-                    self.pen_down(span);
-                } else {
-                    self.pen_up(span);
-                }
                 self.move_to(edge.to, edge.piece, span)?;
             }
             if path.end() != path.start {
