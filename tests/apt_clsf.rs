@@ -10,7 +10,9 @@ use cncsim::program::{
 use nalgebra::{Rotation3, Unit, Vector3};
 
 fn fixture(name: &str) -> std::path::PathBuf {
-    Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/fixtures/apt").join(name)
+    Path::new(env!("CARGO_MANIFEST_DIR"))
+        .join("tests/fixtures/apt")
+        .join(name)
 }
 
 fn apt(text: &str) -> Program {
@@ -35,7 +37,10 @@ fn circle_records(text: &str, frame_origin: Vector3<f64>) -> Vec<Record> {
     text.lines()
         .filter_map(|line| line.strip_prefix("CIRCLE/"))
         .map(|rest| {
-            let v: Vec<f64> = rest.split(',').filter_map(|f| f.trim().parse().ok()).collect();
+            let v: Vec<f64> = rest
+                .split(',')
+                .filter_map(|f| f.trim().parse().ok())
+                .collect();
             Record {
                 centre: Vector3::new(v[0], v[1], v[2]) + frame_origin,
                 axis: Unit::new_normalize(Vector3::new(v[3], v[4], v[5])),
@@ -97,7 +102,10 @@ fn reference_arc(
         sweep = -std::f64::consts::TAU;
     }
     sweep -= std::f64::consts::TAU * f64::from(extra_turns);
-    let (h0, h1) = ((start - record.centre).dot(&axis), (end - record.centre).dot(&axis));
+    let (h0, h1) = (
+        (start - record.centre).dot(&axis),
+        (end - record.centre).dot(&axis),
+    );
     let steps = (sweep.abs().to_degrees().ceil() as usize).max(1);
     (0..=steps)
         .map(|k| {
@@ -141,7 +149,11 @@ fn nx_clsf_arcs_follow_their_circle_records() {
             for p in &decoded {
                 let d = p - record.centre;
                 let off_axis = (d - record.axis.into_inner() * d.dot(&record.axis)).norm();
-                assert!((off_axis - record.radius).abs() < 1e-9, "{off_axis} vs {}", record.radius);
+                assert!(
+                    (off_axis - record.radius).abs() < 1e-9,
+                    "{off_axis} vs {}",
+                    record.radius
+                );
             }
             // And along the arc the record describes, in its direction.
             let start = Vector3::from(position) * 1000.0;
@@ -150,14 +162,20 @@ fn nx_clsf_arcs_follow_their_circle_records() {
             let apart = distance_to_polyline(&decoded, &reference)
                 .max(distance_to_polyline(&reference, &decoded));
             // One-degree chords of a radius-10 arc: 0.0015 mm apart at most.
-            assert!(apart < 0.002, "arc {arcs}: {apart} mm from the record's arc");
+            assert!(
+                apart < 0.002,
+                "arc {arcs}: {apart} mm from the record's arc"
+            );
             arcs += 1;
         }
         position = mv.end.linear;
     }
     assert_eq!(arcs, 5);
     // The helical entry: two turns (TIMES,2), 4 mm down.
-    let helix = program.moves.iter().find(|m| matches!(m.motion, Motion::Arc { turns: 1, .. }));
+    let helix = program
+        .moves
+        .iter()
+        .find(|m| matches!(m.motion, Motion::Arc { turns: 1, .. }));
     assert!(helix.is_some());
     // Each kind of skipped record warned about once.
     let kinds: Vec<&str> = program
@@ -167,16 +185,24 @@ fn nx_clsf_arcs_follow_their_circle_records() {
         .collect();
     assert_eq!(
         kinds,
-        ["TOOL", "TLDATA", "MSYS:", "PAINT", "LOAD", "COOLNT", "CUTCOM", "END-OF-PATH"]
+        [
+            "TOOL",
+            "TLDATA",
+            "MSYS:",
+            "PAINT",
+            "LOAD",
+            "COOLNT",
+            "CUTCOM",
+            "END-OF-PATH"
+        ]
     );
 }
 
 #[test]
 fn a_large_circle_is_an_arc_not_a_chord() {
     // The case: a radius-473 mm arc (90°), once silently a chord up to 139 mm off.
-    let program = apt(
-        "UNITS/MM\nFEDRAT/1000\nGOTO/473,0,0\nCIRCLE/0,0,0,0,0,-1,473,0.01\nGOTO/0,473,0\n",
-    );
+    let program =
+        apt("UNITS/MM\nFEDRAT/1000\nGOTO/473,0,0\nCIRCLE/0,0,0,0,0,-1,473,0.01\nGOTO/0,473,0\n");
     let mv = &program.moves[1];
     let decoded = decoded_arc(&program.moves[0].end.linear, mv);
     let record = Record {
@@ -187,7 +213,10 @@ fn a_large_circle_is_an_arc_not_a_chord() {
     let reference = reference_arc(&record, decoded[0], *decoded.last().unwrap(), 0);
     // The quarter arc through (334.5, 334.5), not the three-quarter one nor the chord.
     let middle = decoded[decoded.len() / 2];
-    assert!((middle - Vector3::new(334.46, 334.46, 0.0)).norm() < 0.01, "{middle}");
+    assert!(
+        (middle - Vector3::new(334.46, 334.46, 0.0)).norm() < 0.01,
+        "{middle}"
+    );
     assert!(distance_to_polyline(&decoded, &reference) < 0.08);
 }
 
@@ -201,9 +230,15 @@ fn arcs_about_tilted_axes_are_chords_within_a_micrometre() {
     );
     let program = apt(&text);
     let points: Vec<Vector3<f64>> = std::iter::once(Vector3::new(20.0, 0.0, 0.0))
-        .chain(program.moves[1..].iter().map(|m| Vector3::from(m.end.linear) * 1000.0))
+        .chain(
+            program.moves[1..]
+                .iter()
+                .map(|m| Vector3::from(m.end.linear) * 1000.0),
+        )
         .collect();
-    assert!(program.moves[1..].iter().all(|m| m.motion == Motion::Linear));
+    assert!(program.moves[1..]
+        .iter()
+        .all(|m| m.motion == Motion::Linear));
     let record = Record {
         centre: Vector3::zeros(),
         axis: Unit::new_normalize(Vector3::new(0.0, 1.0, 1.0)),
@@ -216,7 +251,10 @@ fn arcs_about_tilted_axes_are_chords_within_a_micrometre() {
         let middle = (w[0] + w[1]) / 2.0;
         assert!(20.0 - middle.norm() <= 1e-3 + 1e-9);
     }
-    assert!(program.warnings.iter().any(|w| w.message.contains("chords within 0.0010 mm")));
+    assert!(program
+        .warnings
+        .iter()
+        .any(|w| w.message.contains("chords within 0.0010 mm")));
     // Clockwise about the axis, the end is three quarters round; the other sense takes
     // the quarter turn.
     let mut options = ReadOptions::default();
@@ -231,10 +269,20 @@ fn delay_gohome_tlaxis_and_godlta() {
     let program = apt(
         "FROM/0,0,50\nSPINDL/RPM,6000,CLW\nFEDRAT/MMPM,600\nGOTO/10,0,5\nDELAY/1.5\nDELAY/REV,30\nTLAXIS/0,0,2\nGODLTA/0,0,-5\nGOHOME\nFINI\n",
     );
-    let kinds: Vec<String> = program.moves.iter().map(|m| format!("{:?}", m.motion)).collect();
+    let kinds: Vec<String> = program
+        .moves
+        .iter()
+        .map(|m| format!("{:?}", m.motion))
+        .collect();
     assert_eq!(
         kinds,
-        ["Linear", "Dwell { seconds: 1.5 }", "Dwell { seconds: 0.3 }", "Linear", "Linear"]
+        [
+            "Linear",
+            "Dwell { seconds: 1.5 }",
+            "Dwell { seconds: 0.3 }",
+            "Linear",
+            "Linear"
+        ]
     );
     assert_eq!(program.moves[3].end.linear, [0.01, 0.0, 0.0]);
     assert_eq!(program.moves[3].tool_axis, Some([0.0, 0.0, 1.0]));
@@ -261,7 +309,9 @@ fn records_that_cannot_be_followed_are_errors() {
     for (input, expected) in table {
         let actual = first_error(input, &options);
         if actual != *expected {
-            failures.push(format!("input {input:?}\n  expected: {expected}\n  actual:   {actual}"));
+            failures.push(format!(
+                "input {input:?}\n  expected: {expected}\n  actual:   {actual}"
+            ));
         }
     }
     assert!(failures.is_empty(), "{}", failures.join("\n"));

@@ -32,6 +32,9 @@ fn fixtures() -> PathBuf {
 }
 
 type Polyline = Vec<[f64; 2]>;
+type Segment = ([f64; 2], [f64; 2]);
+/// A glyph as the oracle lists it: code, bearings, strokes in Hershey units.
+type Glyph = (u8, i32, i32, Vec<Vec<[i32; 2]>>);
 
 /// cncsim's pen-down polylines in plotter units, arcs sampled every half degree, with the
 /// byte offsets of the commands that drew them.
@@ -40,7 +43,10 @@ fn our_polylines(program: &Program) -> Vec<(Polyline, Vec<u32>)> {
     let mut current: Option<(Polyline, Vec<u32>)> = None;
     let mut position = program.start;
     for mv in &program.moves {
-        let to = [mv.end.linear[0] * UNITS_PER_METRE, mv.end.linear[1] * UNITS_PER_METRE];
+        let to = [
+            mv.end.linear[0] * UNITS_PER_METRE,
+            mv.end.linear[1] * UNITS_PER_METRE,
+        ];
         match mv.tool_down {
             Some(true) => {
                 let line = current.get_or_insert_with(|| (vec![to], Vec::new()));
@@ -144,12 +150,15 @@ fn distance_to_segment(p: [f64; 2], a: [f64; 2], b: [f64; 2]) -> f64 {
 fn one_sided(from: &[Polyline], to: &[Polyline], cap: f64) -> (f64, [f64; 2]) {
     let cell = (4.0 * cap).max(8.0);
     let key = |p: [f64; 2]| ((p[0] / cell).floor() as i64, (p[1] / cell).floor() as i64);
-    let mut grid: std::collections::HashMap<(i64, i64), Vec<([f64; 2], [f64; 2])>> =
+    let mut grid: std::collections::HashMap<(i64, i64), Vec<Segment>> =
         std::collections::HashMap::new();
     for line in to {
         for pair in line.windows(2) {
             let (a, b) = (pair[0], pair[1]);
-            let (low, high) = (key([a[0].min(b[0]), a[1].min(b[1])]), key([a[0].max(b[0]), a[1].max(b[1])]));
+            let (low, high) = (
+                key([a[0].min(b[0]), a[1].min(b[1])]),
+                key([a[0].max(b[0]), a[1].max(b[1])]),
+            );
             // Long segments are sampled into the cells they cross.
             if (high.0 - low.0 + 1) * (high.1 - low.1 + 1) > 64 {
                 let length = (b[0] - a[0]).hypot(b[1] - a[1]);
@@ -222,15 +231,51 @@ fn outlines_only() -> ReadOptions {
 }
 
 const CASES: &[Case] = &[
-    Case { file: "autocad_7475.plt", oracle: "hp2xx", marks_only: false, tolerance: 1.0, options: plain },
+    Case {
+        file: "autocad_7475.plt",
+        oracle: "hp2xx",
+        marks_only: false,
+        tolerance: 1.0,
+        options: plain,
+    },
     // hp2xx draws arcs as 5° chords, up to r·(1 − cos 2.5°) off the arc: 0.95 units for the
     // largest radius here (1000). Where both draw chords (ellipses under anisotropic SC)
     // the two chord sets can sit on either side: twice that.
-    Case { file: "shapes.plt", oracle: "hp2xx", marks_only: false, tolerance: 1.9, options: plain },
-    Case { file: "autocad_hpgl2_ro90.plt", oracle: "hp2xx", marks_only: false, tolerance: 1.0, options: plain },
-    Case { file: "instrument_labels.plt", oracle: "hp2xx", marks_only: true, tolerance: 0.5, options: plain },
-    Case { file: "hpgl2_driver.plt", oracle: "ezdxf", marks_only: false, tolerance: 0.5, options: outlines_only },
-    Case { file: "hpgl2_curves.plt", oracle: "ezdxf", marks_only: false, tolerance: 1.0, options: plain },
+    Case {
+        file: "shapes.plt",
+        oracle: "hp2xx",
+        marks_only: false,
+        tolerance: 1.9,
+        options: plain,
+    },
+    Case {
+        file: "autocad_hpgl2_ro90.plt",
+        oracle: "hp2xx",
+        marks_only: false,
+        tolerance: 1.0,
+        options: plain,
+    },
+    Case {
+        file: "instrument_labels.plt",
+        oracle: "hp2xx",
+        marks_only: true,
+        tolerance: 0.5,
+        options: plain,
+    },
+    Case {
+        file: "hpgl2_driver.plt",
+        oracle: "ezdxf",
+        marks_only: false,
+        tolerance: 0.5,
+        options: outlines_only,
+    },
+    Case {
+        file: "hpgl2_curves.plt",
+        oracle: "ezdxf",
+        marks_only: false,
+        tolerance: 1.0,
+        options: plain,
+    },
 ];
 
 /// Compares cncsim's reading of `case.file` with the oracle's output `oracle_text`.
@@ -257,7 +302,12 @@ fn compare(case: &Case, oracle_text: &str) -> Result<(), String> {
         .map(|(line, _)| line)
         .collect();
     if ours.is_empty() || theirs.is_empty() {
-        return Err(format!("{}: nothing to compare ({} ours, {} theirs)", case.file, ours.len(), theirs.len()));
+        return Err(format!(
+            "{}: nothing to compare ({} ours, {} theirs)",
+            case.file,
+            ours.len(),
+            theirs.len()
+        ));
     }
     shift_to_origin(&mut ours);
     shift_to_origin(&mut theirs);
@@ -304,7 +354,10 @@ fn run_oracle(arguments: &[&str], probe: &[&str]) -> Option<String> {
         .is_ok_and(|output| output.status.success());
     if !available {
         let required = std::env::var("CNCSIM_REQUIRE_ORACLES").is_ok_and(|v| v == "1");
-        assert!(!required, "oracle {probe:?} is not installed and CNCSIM_REQUIRE_ORACLES=1");
+        assert!(
+            !required,
+            "oracle {probe:?} is not installed and CNCSIM_REQUIRE_ORACLES=1"
+        );
         eprintln!("skipped: oracle {probe:?} is not installed");
         return None;
     }
@@ -346,7 +399,10 @@ fn live_hp2xx_agrees() {
 #[test]
 fn live_ezdxf_agrees() {
     let python = python();
-    live("ezdxf", &[python.as_str(), "-c", "import ezdxf.addons.hpgl2"]);
+    live(
+        "ezdxf",
+        &[python.as_str(), "-c", "import ezdxf.addons.hpgl2"],
+    );
 }
 
 /// Real plot files (not committed: `CNCSIM_HPGL_CORPUS=DIR`) against the oracles: HP-GL/2
@@ -371,15 +427,22 @@ fn corpus_against_oracles() {
             continue;
         }
         let hpgl2 = has(b"PE") || has(b"\x1b%");
-        let (oracle, options): (&str, fn() -> ReadOptions) =
-            if hpgl2 { ("ezdxf", outlines_only) } else { ("hp2xx", plain) };
+        let (oracle, options): (&str, fn() -> ReadOptions) = if hpgl2 {
+            ("ezdxf", outlines_only)
+        } else {
+            ("hp2xx", plain)
+        };
         // Bounded: an oracle that hangs on a damaged file is given up after five minutes.
         let output = Command::new("timeout")
             .arg("300")
             .arg(python())
             .arg(oracle_script())
             .args([oracle, path.to_str().unwrap()])
-            .args(if hpgl2 { &[][..] } else { &["-W", "10000", "-H", "7200"][..] })
+            .args(if hpgl2 {
+                &[][..]
+            } else {
+                &["-W", "10000", "-H", "7200"][..]
+            })
             .output()
             .unwrap();
         if !output.status.success() {
@@ -394,7 +457,10 @@ fn corpus_against_oracles() {
                 continue;
             }
         };
-        let mut ours: Vec<Polyline> = our_polylines(&program).into_iter().map(|(l, _)| l).collect();
+        let mut ours: Vec<Polyline> = our_polylines(&program)
+            .into_iter()
+            .map(|(l, _)| l)
+            .collect();
         let mut theirs: Vec<Polyline> = oracle_polylines(&String::from_utf8_lossy(&output.stdout))
             .into_iter()
             .map(|(_, l)| l)
@@ -421,13 +487,15 @@ fn corpus_against_oracles() {
 // The stroke font
 // ---------------------------------------------------------------------------------------
 
-/// A glyph as the oracle lists it: code, bearings, strokes in Hershey units.
-fn oracle_glyphs(text: &str) -> Vec<(u8, i32, i32, Vec<Vec<[i32; 2]>>)> {
+fn oracle_glyphs(text: &str) -> Vec<Glyph> {
     text.lines()
         .filter(|line| !line.trim().is_empty())
         .map(|line| {
             let (head, strokes) = line.split_once('|').unwrap();
-            let head: Vec<i32> = head.split_whitespace().map(|v| v.parse().unwrap()).collect();
+            let head: Vec<i32> = head
+                .split_whitespace()
+                .map(|v| v.parse().unwrap())
+                .collect();
             let strokes = strokes
                 .split(';')
                 .map(str::trim)
@@ -464,7 +532,10 @@ fn compare_glyphs(oracle: &str) -> Result<(), String> {
                     .map(|p| {
                         let x = (p[0] - 1000.0 - 80.0) / 10.0 + centre;
                         let y = 9.0 - (p[1] - 1000.0) / 10.0;
-                        assert!((x - x.round()).abs() < 1e-6 && (y - y.round()).abs() < 1e-6, "{p:?}");
+                        assert!(
+                            (x - x.round()).abs() < 1e-6 && (y - y.round()).abs() < 1e-6,
+                            "{p:?}"
+                        );
                         [x.round() as i32, y.round() as i32]
                     })
                     .collect()
@@ -473,7 +544,10 @@ fn compare_glyphs(oracle: &str) -> Result<(), String> {
         // A dot (a stroke of one point) draws nothing on either side.
         let strokes: Vec<Vec<[i32; 2]>> = strokes.into_iter().filter(|s| s.len() > 1).collect();
         if ours != strokes {
-            failures.push(format!("'{}': ours {ours:?}, oracle {strokes:?}", code as char));
+            failures.push(format!(
+                "'{}': ours {ours:?}, oracle {strokes:?}",
+                code as char
+            ));
         }
     }
     if failures.is_empty() {
@@ -493,7 +567,10 @@ fn stroke_font_matches_the_committed_hershey_glyphs() {
 #[test]
 fn live_hershey_fonts_agree() {
     let python = python();
-    if let Some(output) = run_oracle(&["hershey"], &[python.as_str(), "-c", "import HersheyFonts"]) {
+    if let Some(output) = run_oracle(
+        &["hershey"],
+        &[python.as_str(), "-c", "import HersheyFonts"],
+    ) {
         assert_eq!(oracle_glyphs(&output).len(), 94);
         compare_glyphs(&output).unwrap();
     }

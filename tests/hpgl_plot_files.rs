@@ -53,9 +53,14 @@ fn a_comma_before_the_terminator_is_allowed() {
 
 #[test]
 fn commands_that_do_not_draw_warn_once_per_kind_and_strict_refuses_them() {
-    let text = b"IN;PS1000,1000;CO\"made by hand\";PW0.35;PT0.3;NP8;PU0,0;PD100,0;PU;EC;PG1;EC1;NP4;";
+    let text =
+        b"IN;PS1000,1000;CO\"made by hand\";PW0.35;PT0.3;NP8;PU0,0;PD100,0;PU;EC;PG1;EC1;NP4;";
     let program = hpgl(text);
-    let messages: Vec<&str> = program.warnings.iter().map(|w| w.message.as_str()).collect();
+    let messages: Vec<&str> = program
+        .warnings
+        .iter()
+        .map(|w| w.message.as_str())
+        .collect();
     assert_eq!(
         messages,
         [
@@ -77,9 +82,13 @@ fn commands_that_do_not_draw_warn_once_per_kind_and_strict_refuses_them() {
 #[test]
 fn pcl_and_pjl_around_an_hpgl2_plot() {
     let mut job = Vec::new();
-    job.extend_from_slice(b"\x1b%-12345X@PJL JOB\r\n@PJL ENTER LANGUAGE=PCL\r\n\x1bE\x1b&l1O\x1b*v6W");
+    job.extend_from_slice(
+        b"\x1b%-12345X@PJL JOB\r\n@PJL ENTER LANGUAGE=PCL\r\n\x1bE\x1b&l1O\x1b*v6W",
+    );
     job.extend_from_slice(&[0, 3, 0, 8, 8, 8]); // binary colour set-up data
-    job.extend_from_slice(b"\x1b%-1BBPIN;SP1;PU0,0;PD400,0;PU;\x1b%0A\x1bE\x1b%-12345X@PJL EOJ\r\n\x1b%-12345X");
+    job.extend_from_slice(
+        b"\x1b%-1BBPIN;SP1;PU0,0;PD400,0;PU;\x1b%0A\x1bE\x1b%-12345X@PJL EOJ\r\n\x1b%-12345X",
+    );
     let program = hpgl(&job);
     assert_eq!(drawn(&program), vec![[[0.0, 0.0], [400.0, 0.0]]]);
     assert_eq!(program.warnings.len(), 2, "{:?}", program.warnings);
@@ -104,20 +113,37 @@ fn drawing_after_a_page_advance_or_outside_the_window_is_refused() {
         first_error(b"IN;PU0,0;PD10,0;PG;PD20,0;", &ReadOptions::default()),
         "bad.plt:1:20: expected one page; this draws after the page advance (PG) at line 1 column 17, found 'PD20,0'; hint: plot each page to its own file"
     );
-    assert!(parse_hpgl(b"IN;IW0,0,100,100;PU10,10;PD90,90;", "t.plt", &ReadOptions::default()).is_ok());
+    assert!(parse_hpgl(
+        b"IN;IW0,0,100,100;PU10,10;PD90,90;",
+        "t.plt",
+        &ReadOptions::default()
+    )
+    .is_ok());
     assert_eq!(
         first_error(b"IN;IW0,0,100,100;PU10,10;PD90,90,150,90;", &ReadOptions::default()),
         "bad.plt:1:26: expected drawing inside the input window (IW 0,0,100,100 plotter units); clipping at the window is not supported, found 'PD90,90,150,90'; hint: re-plot without an input window, or keep the drawing inside it"
     );
     // An arc bulging out of the window is caught too, though its ends are inside.
-    assert!(parse_hpgl(b"IN;IW0,0,100,100;PU95,75;PD;AA50,50,-58;", "t.plt", &ReadOptions::default()).is_err());
+    assert!(parse_hpgl(
+        b"IN;IW0,0,100,100;PU95,75;PD;AA50,50,-58;",
+        "t.plt",
+        &ReadOptions::default()
+    )
+    .is_err());
 }
 
 #[test]
 fn circles_stay_circles_under_equal_units_and_become_ellipses_under_unequal_ones() {
     // Equal user units: one arc move.
     let program = hpgl(b"IN;IP0,0,1000,1000;SC0,10,0,10;PA5,5;CI2;");
-    assert_eq!(program.moves.iter().filter(|m| matches!(m.motion, Motion::Arc { .. })).count(), 1);
+    assert_eq!(
+        program
+            .moves
+            .iter()
+            .filter(|m| matches!(m.motion, Motion::Arc { .. }))
+            .count(),
+        1
+    );
     // X units twice Y units: chords at 5° on an ellipse with semi-axes 200 and 100.
     let program = hpgl(b"IN;IP0,0,1000,500;SC0,10,0,10;PA5,5;CI2;");
     let segments = drawn(&program);
@@ -138,9 +164,25 @@ fn a_mirrored_scale_turns_arcs_the_other_way() {
     // User Y runs down (IP with P2 below P1): a counter-clockwise user arc is clockwise on
     // the table.
     let program = hpgl(b"IN;IP0,1000,1000,0;SC0,10,0,10;PA5,5;PD;AR1,0,90;");
-    let arc = program.moves.iter().find(|m| matches!(m.motion, Motion::Arc { .. })).unwrap();
-    assert!(matches!(arc.motion, Motion::Arc { clockwise: true, .. }));
-    assert!(close([arc.end.linear[0] * UNITS_PER_METRE, arc.end.linear[1] * UNITS_PER_METRE], [600.0, 600.0]));
+    let arc = program
+        .moves
+        .iter()
+        .find(|m| matches!(m.motion, Motion::Arc { .. }))
+        .unwrap();
+    assert!(matches!(
+        arc.motion,
+        Motion::Arc {
+            clockwise: true,
+            ..
+        }
+    ));
+    assert!(close(
+        [
+            arc.end.linear[0] * UNITS_PER_METRE,
+            arc.end.linear[1] * UNITS_PER_METRE
+        ],
+        [600.0, 600.0]
+    ));
 }
 
 #[test]
@@ -161,18 +203,30 @@ fn fills_are_outlines_plus_the_hatch_the_fill_type_asks_for() {
     // Without hatching, the outline alone.
     let mut options = ReadOptions::default();
     options.hpgl.hatch_fills = false;
-    assert_eq!(drawn(&hpgl_with(b"IN;PT0.5;PU0,0;RA200,100;", &options)).len(), 4);
+    assert_eq!(
+        drawn(&hpgl_with(b"IN;PT0.5;PU0,0;RA200,100;", &options)).len(),
+        4
+    );
     // Cross-hatch at 45° and 135°, 30 units apart, inside a wedge.
     let program = hpgl(b"IN;PU500,500;FT4,30,45;WG100,0,90;");
     for [a, b] in drawn(&program) {
         for p in [a, b] {
             let (x, y) = (p[0] - 500.0, p[1] - 500.0);
-            assert!(x >= -1e-9 && y >= -1e-9 && x.hypot(y) <= 100.0 + 1e-6, "{p:?}");
+            assert!(
+                x >= -1e-9 && y >= -1e-9 && x.hypot(y) <= 100.0 + 1e-6,
+                "{p:?}"
+            );
         }
     }
     // The pen ends where it started.
     let last = program.moves.last().unwrap();
-    assert!(close([last.end.linear[0] * UNITS_PER_METRE, last.end.linear[1] * UNITS_PER_METRE], [500.0, 500.0]));
+    assert!(close(
+        [
+            last.end.linear[0] * UNITS_PER_METRE,
+            last.end.linear[1] * UNITS_PER_METRE
+        ],
+        [500.0, 500.0]
+    ));
     // A fill that would take more lines than allowed is refused.
     let mut options = ReadOptions::default();
     options.hpgl.max_fill_lines = 3;
@@ -197,7 +251,9 @@ fn polygon_mode_keeps_holes_and_edges_only_what_the_pen_drew() {
     let program = hpgl(b"IN;PU0,0;PM0;PD100,0,100,100;PU0,100;PM2;EP;");
     let segments = drawn(&program);
     assert_eq!(segments.len(), 3);
-    assert!(!segments.iter().any(|s| s[0][1] == 100.0 && s[1][1] == 100.0));
+    assert!(!segments
+        .iter()
+        .any(|s| s[0][1] == 100.0 && s[1][1] == 100.0));
     assert_eq!(
         first_error(b"PM1;", &ReadOptions::default()),
         "bad.plt:1:1: expected PM0 (polygon mode) before PM1, found 'PM1'"
@@ -207,7 +263,21 @@ fn polygon_mode_keeps_holes_and_edges_only_what_the_pen_drew() {
 #[test]
 fn encoded_polylines_rotation_and_relative_input_points() {
     // PE: pen-up absolute move to (1000, 500), then a relative line of (+200, −100).
-    let pe: &[u8] = &[b'P', b'E', b'<', b'=', 63 + 16, 191 + 31, 63 + 40, 191 + 15, 63 + 16, 191 + 6, 63 + 9, 191 + 3, b';'];
+    let pe: &[u8] = &[
+        b'P',
+        b'E',
+        b'<',
+        b'=',
+        63 + 16,
+        191 + 31,
+        63 + 40,
+        191 + 15,
+        63 + 16,
+        191 + 6,
+        63 + 9,
+        191 + 3,
+        b';',
+    ];
     let program = hpgl(pe);
     assert_eq!(drawn(&program), vec![[[1000.0, 500.0], [1200.0, 400.0]]]);
     // RO 90 on a 1000 × 600 page: the rotated x axis runs up the page from its

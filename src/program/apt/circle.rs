@@ -59,9 +59,12 @@ impl Circle {
         chord_tolerance: f64,
         max_chords: usize,
     ) -> Result<ArcPath, String> {
-        for (what, point) in [("start (the tool's position)", start), ("end (the GOTO)", end)] {
+        for (what, point) in [
+            ("start (the tool's position)", start),
+            ("end (the GOTO)", end),
+        ] {
             let off = self.off_circle(point);
-            if !(off <= self.tolerance) {
+            if off.is_nan() || off > self.tolerance {
                 return Err(format!(
                     "expected the arc's {what} on the CIRCLE (radius {:.4} mm), but it is {:.4} mm off it; expected at most {:.4} mm",
                     self.radius * 1e3,
@@ -115,7 +118,11 @@ impl Circle {
             sweep = tau;
         }
         sweep += tau * f64::from(self.turns);
-        let signed = if counter_clockwise_about_axis { sweep } else { -sweep };
+        let signed = if counter_clockwise_about_axis {
+            sweep
+        } else {
+            -sweep
+        };
         let step = if self.radius > chord_tolerance {
             2.0 * (1.0 - chord_tolerance / self.radius).acos()
         } else {
@@ -139,9 +146,7 @@ impl Circle {
                 let fraction = f64::from(index) / f64::from(count);
                 let angle = signed * fraction;
                 let height = height_start + (height_end - height_start) * fraction;
-                self.centre
-                    + (u * angle.cos() + v * angle.sin()) * self.radius
-                    + axis * height
+                self.centre + (u * angle.cos() + v * angle.sin()) * self.radius + axis * height
             })
             .collect();
         Ok(ArcPath::Chords(points))
@@ -198,7 +203,10 @@ mod tests {
                 1000,
             )
             .unwrap_err();
-        assert!(error.contains("end (the GOTO)") && error.contains("0.2000 mm off"), "{error}");
+        assert!(
+            error.contains("end (the GOTO)") && error.contains("0.2000 mm off"),
+            "{error}"
+        );
     }
 
     #[test]
@@ -209,7 +217,13 @@ mod tests {
         let start = Vector3::new(0.01, 0.0, 0.0);
         let end = unit.cross(&start); // 90° counter-clockwise about the axis
         let ArcPath::Chords(points) = arc
-            .path(&start, &end, CircleSense::CounterClockwiseAboutAxis, 1e-6, 100_000)
+            .path(
+                &start,
+                &end,
+                CircleSense::CounterClockwiseAboutAxis,
+                1e-6,
+                100_000,
+            )
             .unwrap()
         else {
             panic!("expected chords");

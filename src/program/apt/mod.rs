@@ -76,7 +76,6 @@ pub fn parse_apt(
     errors.finish(program)
 }
 
-
 /// Records that do not move the tool, passed over with one warning per kind: what each is.
 const NOT_MOTION: &[(&str, &str)] = &[
     ("MACHIN", "post-processor selection"),
@@ -89,7 +88,10 @@ const NOT_MOTION: &[(&str, &str)] = &[
     ("TURRET", "turret selection"),
     ("TOOLNO", "tool number"),
     ("COOLNT", "coolant"),
-    ("CUTCOM", "cutter compensation, left to the controller: the CL points are followed as written"),
+    (
+        "CUTCOM",
+        "cutter compensation, left to the controller: the CL points are followed as written",
+    ),
     ("END", "program stop"),
     ("STOP", "program stop"),
     ("OPSTOP", "optional stop"),
@@ -423,7 +425,9 @@ impl<'a> AptReader<'a> {
                     return Err(RecordError {
                         start: first.start,
                         end: record_end,
-                        problem: format!("expected a GOTO to end the arc of the CIRCLE before, not {major}"),
+                        problem: format!(
+                            "expected a GOTO to end the arc of the CIRCLE before, not {major}"
+                        ),
                         found: None,
                         hint: None,
                     });
@@ -513,7 +517,9 @@ impl<'a> AptReader<'a> {
                 let x = Vector3::new(values[3], values[4], values[5]);
                 let y = Vector3::new(values[6], values[7], values[8]);
                 let (x_length, y_length) = (x.norm(), y.norm());
-                let orthogonal = x_length > 0.0 && y_length > 0.0 && (x.dot(&y) / (x_length * y_length)).abs() <= 1e-6;
+                let orthogonal = x_length > 0.0
+                    && y_length > 0.0
+                    && (x.dot(&y) / (x_length * y_length)).abs() <= 1e-6;
                 if !orthogonal || (x_length - 1.0).abs() > 1e-4 || (y_length - 1.0).abs() > 1e-4 {
                     return Err(RecordError {
                         start: parameters[3].start,
@@ -543,8 +549,9 @@ impl<'a> AptReader<'a> {
             }
             "TLAXIS" => {
                 let values = numbers(&[3])?;
-                let length = (values[0] * values[0] + values[1] * values[1] + values[2] * values[2]).sqrt();
-                if !(length > 1e-12) {
+                let length =
+                    (values[0] * values[0] + values[1] * values[1] + values[2] * values[2]).sqrt();
+                if length.is_nan() || length <= 1e-12 {
                     return Err(RecordError {
                         start: first.start,
                         end: record_end,
@@ -561,28 +568,68 @@ impl<'a> AptReader<'a> {
                 let seconds = match parameters.as_slice() {
                     [token] => match token.kind {
                         TokenKind::Number(seconds) => seconds,
-                        _ => return Err(RecordError::at(token, "expected DELAY/seconds or DELAY/REV,n")),
+                        _ => {
+                            return Err(RecordError::at(
+                                token,
+                                "expected DELAY/seconds or DELAY/REV,n",
+                            ))
+                        }
                     },
                     [word, count] if word.kind == TokenKind::Word("REV".into()) => {
                         let TokenKind::Number(revolutions) = count.kind else {
-                            return Err(RecordError::at(count, "expected a number of revolutions after DELAY/REV,"));
+                            return Err(RecordError::at(
+                                count,
+                                "expected a number of revolutions after DELAY/REV,",
+                            ));
                         };
                         match self.spindle {
-                            Spindle::Clockwise { rpm } | Spindle::CounterClockwise { rpm } if rpm > 0.0 => revolutions * 60.0 / rpm,
-                            _ => return Err(RecordError { hint: Some("program DELAY in seconds or start the spindle (SPINDL) first"), ..RecordError::at(count, "expected a turning spindle for a delay in revolutions") }),
+                            Spindle::Clockwise { rpm } | Spindle::CounterClockwise { rpm }
+                                if rpm > 0.0 =>
+                            {
+                                revolutions * 60.0 / rpm
+                            }
+                            _ => return Err(RecordError {
+                                hint: Some(
+                                    "program DELAY in seconds or start the spindle (SPINDL) first",
+                                ),
+                                ..RecordError::at(
+                                    count,
+                                    "expected a turning spindle for a delay in revolutions",
+                                )
+                            }),
                         }
                     }
-                    _ => return Err(RecordError { start: first.start, end: record_end, problem: "expected DELAY/seconds or DELAY/REV,n".into(), found: None, hint: None }),
+                    _ => {
+                        return Err(RecordError {
+                            start: first.start,
+                            end: record_end,
+                            problem: "expected DELAY/seconds or DELAY/REV,n".into(),
+                            found: None,
+                            hint: None,
+                        })
+                    }
                 };
                 if !(0.0..=86_400.0).contains(&seconds) {
-                    return Err(RecordError { start: first.start, end: record_end, problem: format!("expected a delay of 0 to 86400 s, not {seconds}"), found: None, hint: None });
+                    return Err(RecordError {
+                        start: first.start,
+                        end: record_end,
+                        problem: format!("expected a delay of 0 to 86400 s, not {seconds}"),
+                        found: None,
+                        hint: None,
+                    });
                 }
                 let end = self.position;
                 self.push_move(Motion::Dwell { seconds }, end, Feed::Rapid, span);
             }
             "GOHOME" => {
                 let Some(home) = self.home else {
-                    return Err(RecordError { start: first.start, end: record_end, problem: "expected a FROM point before GOHOME (it returns there)".into(), found: None, hint: None });
+                    return Err(RecordError {
+                        start: first.start,
+                        end: record_end,
+                        problem: "expected a FROM point before GOHOME (it returns there)".into(),
+                        found: None,
+                        hint: None,
+                    });
                 };
                 self.rapid_next = false;
                 self.push_move(Motion::Linear, home, Feed::Rapid, span);
@@ -701,16 +748,26 @@ impl<'a> AptReader<'a> {
                 TokenKind::Number(value) if times.is_none() => values.push(*value),
                 TokenKind::Word(word) if word == "TIMES" => {
                     let count = parameters.get(index + 1).and_then(|t| match t.kind {
-                        TokenKind::Number(n) if n >= 1.0 && n.fract() == 0.0 && n <= 1e6 => Some(n as u32),
+                        TokenKind::Number(n) if n >= 1.0 && n.fract() == 0.0 && n <= 1e6 => {
+                            Some(n as u32)
+                        }
                         _ => None,
                     });
                     let Some(count) = count else {
-                        return Err(RecordError::at(token, "expected a whole number of turns of 1 or more after TIMES"));
+                        return Err(RecordError::at(
+                            token,
+                            "expected a whole number of turns of 1 or more after TIMES",
+                        ));
                     };
                     times = Some(count);
                     index += 1;
                 }
-                _ => return Err(RecordError::at(token, "expected CIRCLE/x,y,z,i,j,k,r[,tolerance,…][,TIMES,n]")),
+                _ => {
+                    return Err(RecordError::at(
+                        token,
+                        "expected CIRCLE/x,y,z,i,j,k,r[,tolerance,…][,TIMES,n]",
+                    ))
+                }
             }
             index += 1;
         }
@@ -718,17 +775,22 @@ impl<'a> AptReader<'a> {
             return Err(RecordError {
                 start: first.start,
                 end: record_end,
-                problem: format!("expected at least 7 numbers after CIRCLE/ (centre, axis, radius), not {}", values.len()),
+                problem: format!(
+                    "expected at least 7 numbers after CIRCLE/ (centre, axis, radius), not {}",
+                    values.len()
+                ),
                 found: None,
                 hint: None,
             });
         }
         let (rotation, origin) = self.frame_or_identity();
         let metres = |value: f64| self.units.to_metres(value);
-        let centre = rotation * Vector3::new(metres(values[0]), metres(values[1]), metres(values[2])) + origin;
+        let centre = rotation
+            * Vector3::new(metres(values[0]), metres(values[1]), metres(values[2]))
+            + origin;
         let axis = rotation * Vector3::new(values[3], values[4], values[5]);
         let radius = metres(values[6]);
-        if !(axis.norm() > 1e-12) || !(radius > 0.0) {
+        if axis.norm() <= 1e-12 || radius <= 0.0 {
             return Err(RecordError {
                 start: first.start,
                 end: record_end,
@@ -738,7 +800,11 @@ impl<'a> AptReader<'a> {
             });
         }
         // The record's own tolerance (NX: INTOL + OUTTOL), else 0.01 mm.
-        let tolerance = values.get(7).copied().filter(|t| *t > 0.0).map_or(1e-5, metres);
+        let tolerance = values
+            .get(7)
+            .copied()
+            .filter(|t| *t > 0.0)
+            .map_or(1e-5, metres);
         Ok(Circle {
             centre,
             axis: Unit::new_normalize(axis),

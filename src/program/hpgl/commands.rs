@@ -184,7 +184,7 @@ impl Reader<'_> {
                     self.plotter.p1 = [0.0, 0.0];
                     self.plotter.p2 = size;
                 }
-                self.plotter.position = self.plotter.from_page(page, self.options);
+                self.plotter.position = self.plotter.page_to_plotter(page, self.options);
                 self.carriage = self.plotter.position;
                 self.polygon_mode = false;
             }
@@ -208,7 +208,8 @@ impl Reader<'_> {
                     // P2 keeps its distance from P1.
                     let shift = [x1 - self.plotter.p1[0], y1 - self.plotter.p1[1]];
                     self.plotter.p1 = [x1, y1];
-                    self.plotter.p2 = [self.plotter.p2[0] + shift[0], self.plotter.p2[1] + shift[1]];
+                    self.plotter.p2 =
+                        [self.plotter.p2[0] + shift[0], self.plotter.p2[1] + shift[1]];
                 }
                 &[x1, y1, x2, y2] => {
                     self.plotter.p1 = [x1, y1];
@@ -225,7 +226,8 @@ impl Reader<'_> {
                         let p1 = at(x1, y1);
                         let shift = [p1[0] - self.plotter.p1[0], p1[1] - self.plotter.p1[1]];
                         self.plotter.p1 = p1;
-                        self.plotter.p2 = [self.plotter.p2[0] + shift[0], self.plotter.p2[1] + shift[1]];
+                        self.plotter.p2 =
+                            [self.plotter.p2[0] + shift[0], self.plotter.p2[1] + shift[1]];
                     }
                     &[x1, y1, x2, y2] => {
                         self.plotter.p1 = at(x1, y1);
@@ -255,7 +257,7 @@ impl Reader<'_> {
                     page_of(&self.plotter, self.plotter.p2),
                 );
                 self.plotter.rotation = rotation as u32;
-                let back = |point| self.plotter.from_page(point, options);
+                let back = |point| self.plotter.page_to_plotter(point, options);
                 let (position, p1, p2) = (back(position), back(p1), back(p2));
                 self.plotter.position = position;
                 self.plotter.p1 = [p1[0].min(p2[0]), p1[1].min(p2[1])];
@@ -281,11 +283,15 @@ impl Reader<'_> {
                 self.plotter.p1 = [0.0, 0.0];
                 self.plotter.p2 = self.plotter.page_extent(self.options);
             }
-            "WU" => match values.as_slice() {
-                [] | [0.0] => self.plotter.width_relative = false,
-                [1.0] => self.plotter.width_relative = true,
-                _ => return Err(Problem::new("expected WU0 (pen widths in mm) or WU1 (percent of the P1-P2 diagonal)")),
-            },
+            "WU" => {
+                match values.as_slice() {
+                    [] | [0.0] => self.plotter.width_relative = false,
+                    [1.0] => self.plotter.width_relative = true,
+                    _ => return Err(Problem::new(
+                        "expected WU0 (pen widths in mm) or WU1 (percent of the P1-P2 diagonal)",
+                    )),
+                }
+            }
             "PW" => {
                 let width = match *values.as_slice() {
                     [] => FillStyle::default().pen_mm,
@@ -293,7 +299,8 @@ impl Reader<'_> {
                     _ => return count("0, 1 or 2"),
                 };
                 let mm = if self.plotter.width_relative {
-                    let diagonal = (self.plotter.p2[0] - self.plotter.p1[0]).hypot(self.plotter.p2[1] - self.plotter.p1[1]);
+                    let diagonal = (self.plotter.p2[0] - self.plotter.p1[0])
+                        .hypot(self.plotter.p2[1] - self.plotter.p1[1]);
                     width / 100.0 * diagonal / self.options.units_per_mm
                 } else {
                     width
@@ -350,7 +357,11 @@ impl Reader<'_> {
                 self.plotter.chord_mode = match values.as_slice() {
                     [] | [0.0] => ChordMode::Angle,
                     [1.0] => ChordMode::Deviation,
-                    _ => return Err(Problem::new("expected CT, CT0 (chord angle) or CT1 (chord deviation)")),
+                    _ => {
+                        return Err(Problem::new(
+                            "expected CT, CT0 (chord angle) or CT1 (chord deviation)",
+                        ))
+                    }
                 };
             }
             "CI" => {
@@ -398,12 +409,16 @@ impl Reader<'_> {
                 self.three_point_arc(here, through, end, chord, span)?;
             }
             "BZ" | "BR" => {
-                if values.is_empty() || values.len() % 6 != 0 {
+                if values.is_empty() || !values.len().is_multiple_of(6) {
                     return count("a multiple of 6 (control points and end point)");
                 }
                 for curve in values.chunks_exact(6) {
                     let here = self.plotter.to_user(self.plotter.position);
-                    let mut points = [[curve[0], curve[1]], [curve[2], curve[3]], [curve[4], curve[5]]];
+                    let mut points = [
+                        [curve[0], curve[1]],
+                        [curve[2], curve[3]],
+                        [curve[4], curve[5]],
+                    ];
                     if name == "BR" {
                         for point in &mut points {
                             *point = [here[0] + point[0], here[1] + point[1]];
@@ -447,7 +462,16 @@ impl Reader<'_> {
                     ("EP", []) => None,
                     ("FP", [] | [0.0]) => Some(Rule::EvenOdd),
                     ("FP", [1.0]) => Some(Rule::NonZero),
-                    _ => return Err(Problem::new(format!("expected {name} with {}", if name == "EP" { "no parameters" } else { "fill method 0 (even-odd) or 1 (non-zero winding)" }))),
+                    _ => {
+                        return Err(Problem::new(format!(
+                            "expected {name} with {}",
+                            if name == "EP" {
+                                "no parameters"
+                            } else {
+                                "fill method 0 (even-odd) or 1 (non-zero winding)"
+                            }
+                        )))
+                    }
                 };
                 let polygon = self.polygon.clone();
                 let position = self.plotter.position;
@@ -468,13 +492,12 @@ impl Reader<'_> {
                     return count("2");
                 };
                 let here = self.plotter.to_user(self.plotter.position);
-                let corner = if name.ends_with('A') { [x, y] } else { [here[0] + x, here[1] + y] };
-                let corners = [
-                    [corner[0], here[1]],
-                    corner,
-                    [here[0], corner[1]],
-                    here,
-                ];
+                let corner = if name.ends_with('A') {
+                    [x, y]
+                } else {
+                    [here[0] + x, here[1] + y]
+                };
+                let corners = [[corner[0], here[1]], corner, [here[0], corner[1]], here];
                 let polygon = self.user_polygon(&corners);
                 self.shape(name.starts_with('E'), polygon, span)?;
             }
@@ -500,7 +523,10 @@ impl Reader<'_> {
                             ))
                             .hint("raster fill patterns (FT 11, 21, 22) cannot be drawn with a pen"));
                         }
-                        let mut style = FillStyle { kind: kind as u32, ..defaults };
+                        let mut style = FillStyle {
+                            kind: kind as u32,
+                            ..defaults
+                        };
                         if kind == 10.0 {
                             if let Some(&level) = rest.first() {
                                 style.level = level;
@@ -523,7 +549,12 @@ impl Reader<'_> {
             "PT" => match values.as_slice() {
                 [] => self.plotter.fill.pen_mm = FillStyle::default().pen_mm,
                 &[mm] if mm > 0.0 && mm <= 5.0 => self.plotter.fill.pen_mm = mm,
-                &[mm] => return Err(Problem::new(format!("expected a pen thickness of more than 0 and at most 5 mm after PT, not {}", fmt_number(mm)))),
+                &[mm] => {
+                    return Err(Problem::new(format!(
+                        "expected a pen thickness of more than 0 and at most 5 mm after PT, not {}",
+                        fmt_number(mm)
+                    )))
+                }
                 _ => return count("0 or 1"),
             },
             "TL" => {
@@ -542,14 +573,22 @@ impl Reader<'_> {
             }
             "SI" | "SR" => {
                 let size = match (name, values.as_slice()) {
-                    ("SI", []) => Size::Absolute { width_cm: 0.187, height_cm: 0.269 },
+                    ("SI", []) => Size::Absolute {
+                        width_cm: 0.187,
+                        height_cm: 0.269,
+                    },
                     ("SR", []) => LabelStyle::default().size,
                     (_, &[width, height]) => {
                         if width == 0.0 || height == 0.0 {
-                            return Err(Problem::new(format!("expected a non-zero character width and height after {name}")));
+                            return Err(Problem::new(format!(
+                                "expected a non-zero character width and height after {name}"
+                            )));
                         }
                         if name == "SI" {
-                            Size::Absolute { width_cm: width, height_cm: height }
+                            Size::Absolute {
+                                width_cm: width,
+                                height_cm: height,
+                            }
                         } else {
                             Size::Relative { width, height }
                         }
@@ -563,7 +602,9 @@ impl Reader<'_> {
                     [] => LabelStyle::default().direction,
                     &[run, rise] => {
                         if run == 0.0 && rise == 0.0 {
-                            return Err(Problem::new(format!("expected a direction other than 0,0 after {name}")));
+                            return Err(Problem::new(format!(
+                                "expected a direction other than 0,0 after {name}"
+                            )));
                         }
                         if name == "DI" {
                             Direction::Absolute { run, rise }
@@ -591,16 +632,26 @@ impl Reader<'_> {
             }
             "LO" => match values.as_slice() {
                 [] => self.plotter.label.origin = 1,
-                &[origin] if origin.fract() == 0.0 && ((1.0..=9.0).contains(&origin) || (11.0..=19.0).contains(&origin)) => {
+                &[origin]
+                    if origin.fract() == 0.0
+                        && ((1.0..=9.0).contains(&origin) || (11.0..=19.0).contains(&origin)) =>
+                {
                     self.plotter.label.origin = origin as u32;
                 }
-                _ => return Err(Problem::new("expected a label origin of 1 to 9 or 11 to 19 after LO")),
+                _ => {
+                    return Err(Problem::new(
+                        "expected a label origin of 1 to 9 or 11 to 19 after LO",
+                    ))
+                }
             },
             "CP" => {
                 let geometry = self.label_geometry();
                 let target = match values.as_slice() {
                     [] => {
-                        let to = [self.carriage[0] + geometry.line_feed[0], self.carriage[1] + geometry.line_feed[1]];
+                        let to = [
+                            self.carriage[0] + geometry.line_feed[0],
+                            self.carriage[1] + geometry.line_feed[1],
+                        ];
                         self.carriage = to;
                         to
                     }
@@ -639,12 +690,16 @@ impl Reader<'_> {
             },
             "DV" => match values.as_slice() {
                 [] | [0.0] | [0.0, _] => {}
-                _ => return Err(Problem::new("expected DV0: vertical labels (DV1) are not supported")),
+                _ => {
+                    return Err(Problem::new(
+                        "expected DV0: vertical labels (DV1) are not supported",
+                    ))
+                }
             },
-            "UC" => {
-                return Err(Problem::new("expected a command cncsim draws; user-defined characters (UC) are not supported")
-                    .hint("plot text as vectors"))
-            }
+            "UC" => return Err(Problem::new(
+                "expected a command cncsim draws; user-defined characters (UC) are not supported",
+            )
+            .hint("plot text as vectors")),
             _ => {
                 if let Some(what) = description(name) {
                     if matches!(name, "PG" | "FR" | "AF" | "AH") {
@@ -683,7 +738,10 @@ impl Reader<'_> {
                 if degenerate(x0, x1) || degenerate(y0, y1) {
                     return Err(Problem::new(format!("expected SC limits with xmin ≠ xmax and ymin ≠ ymax, not {x0},{x1},{y0},{y1}")));
                 }
-                Some(Scaling::Anisotropic { min: [x0, y0], max: [x1, y1] })
+                Some(Scaling::Anisotropic {
+                    min: [x0, y0],
+                    max: [x1, y1],
+                })
             }
             [x0, x1, y0, y1, 1.0, ref rest @ ..] if rest.len() <= 2 => {
                 if degenerate(x0, x1) || degenerate(y0, y1) {
@@ -691,15 +749,31 @@ impl Reader<'_> {
                 }
                 let left = rest.first().copied().unwrap_or(50.0).clamp(0.0, 100.0);
                 let bottom = rest.get(1).copied().unwrap_or(50.0).clamp(0.0, 100.0);
-                Some(Scaling::Isotropic { min: [x0, y0], max: [x1, y1], left, bottom })
+                Some(Scaling::Isotropic {
+                    min: [x0, y0],
+                    max: [x1, y1],
+                    left,
+                    bottom,
+                })
             }
             [x0, fx, y0, fy, 2.0] => {
                 if fx == 0.0 || fy == 0.0 {
-                    return Err(Problem::new("expected non-zero point factors in SC xmin,xfactor,ymin,yfactor,2"));
+                    return Err(Problem::new(
+                        "expected non-zero point factors in SC xmin,xfactor,ymin,yfactor,2",
+                    ));
                 }
-                Some(Scaling::PointFactor { min: [x0, y0], factor: [fx, fy] })
+                Some(Scaling::PointFactor {
+                    min: [x0, y0],
+                    factor: [fx, fy],
+                })
             }
-            _ => return Err(count_error(name, "0, 4, 5 (type 0, 2), 5 to 7 (type 1)", values.len())),
+            _ => {
+                return Err(count_error(
+                    name,
+                    "0, 4, 5 (type 0, 2), 5 to 7 (type 1)",
+                    values.len(),
+                ))
+            }
         };
         Ok(())
     }
@@ -725,7 +799,13 @@ impl Reader<'_> {
     }
 
     /// PU, PD, PA, PR with their coordinate pairs.
-    fn plot(&mut self, name: &str, parameters: &[Parameter], start: usize, span: Span) -> Result<(), Problem> {
+    fn plot(
+        &mut self,
+        name: &str,
+        parameters: &[Parameter],
+        start: usize,
+        span: Span,
+    ) -> Result<(), Problem> {
         match name {
             "PU" => self.pen_up(span),
             "PD" => self.pen_down(span),
@@ -776,7 +856,12 @@ impl Reader<'_> {
                     let span = self.span(at);
                     self.select_pen(span);
                 }
-                Encoded::Point { xy, absolute, pen_up, at } => {
+                Encoded::Point {
+                    xy,
+                    absolute,
+                    pen_up,
+                    at,
+                } => {
                     let span = self.span(at);
                     if pen_up {
                         self.pen_up(span);
@@ -861,7 +946,11 @@ impl Reader<'_> {
         } else {
             -(a0 - ae).rem_euclid(tau)
         };
-        let sweep_deg = if sweep == 0.0 { 360.0 } else { sweep.to_degrees() };
+        let sweep_deg = if sweep == 0.0 {
+            360.0
+        } else {
+            sweep.to_degrees()
+        };
         self.user_arc(centre, sweep_deg, chord, span)?;
         // Land exactly on the programmed end point.
         if self.plotter.user_map_shape().0 {
@@ -882,7 +971,10 @@ impl Reader<'_> {
             (a[0] - 2.0 * b[0] + c[0]).hypot(a[1] - 2.0 * b[1] + c[1])
         };
         let bend = second(p0, p1, p2).max(second(p1, p2, p3));
-        let segments = (0.75 * 6.0 * bend / 0.25).sqrt().ceil().clamp(1.0, 10_000.0) as u32;
+        let segments = (0.75 * 6.0 * bend / 0.25)
+            .sqrt()
+            .ceil()
+            .clamp(1.0, 10_000.0) as u32;
         for index in 1..=segments {
             let t = f64::from(index) / f64::from(segments);
             let u = 1.0 - t;
@@ -900,14 +992,20 @@ impl Reader<'_> {
 
     /// A closed polygon through user-unit corners, starting and ending at the last corner.
     fn user_polygon(&self, corners: &[[f64; 2]]) -> Polygon {
-        let points: Vec<[f64; 2]> = corners.iter().map(|&c| self.plotter.to_plotter(c)).collect();
+        let points: Vec<[f64; 2]> = corners
+            .iter()
+            .map(|&c| self.plotter.to_plotter(c))
+            .collect();
         let start = *points.last().expect("corners");
         Polygon {
             paths: vec![SubPath {
                 start,
                 edges: points
                     .iter()
-                    .map(|&to| Edge { piece: Piece::Line, to })
+                    .map(|&to| Edge {
+                        piece: Piece::Line,
+                        to,
+                    })
                     .collect(),
             }],
         }
@@ -917,7 +1015,9 @@ impl Reader<'_> {
     /// with its state restored; the shape becomes the polygon buffer, as in HP-GL/2.
     fn shape(&mut self, edged: bool, polygon: Polygon, span: Span) -> Result<(), Problem> {
         if self.polygon_mode {
-            return Err(Problem::new("expected rectangles and wedges outside polygon mode (PM0 … PM2)"));
+            return Err(Problem::new(
+                "expected rectangles and wedges outside polygon mode (PM0 … PM2)",
+            ));
         }
         if edged {
             let position = self.plotter.position;
@@ -935,9 +1035,20 @@ impl Reader<'_> {
     }
 
     /// EW / WG: a wedge about the pen, radius and angles in user units.
-    fn wedge(&mut self, edged: bool, radius: f64, start_deg: f64, sweep: f64, chord: Option<f64>, span: Span) -> Result<(), Problem> {
+    fn wedge(
+        &mut self,
+        edged: bool,
+        radius: f64,
+        start_deg: f64,
+        sweep: f64,
+        chord: Option<f64>,
+        span: Span,
+    ) -> Result<(), Problem> {
         if radius == 0.0 || sweep == 0.0 {
-            self.warn(span, "a wedge with zero radius or sweep draws nothing".to_string());
+            self.warn(
+                span,
+                "a wedge with zero radius or sweep draws nothing".to_string(),
+            );
             return Ok(());
         }
         let sweep = sweep.clamp(-360.0, 360.0);
@@ -946,7 +1057,10 @@ impl Reader<'_> {
         let was_down = self.plotter.pen_down;
         let centre = self.plotter.to_user(centre_plotter);
         let angle = start_deg.to_radians();
-        let on_arc = self.plotter.to_plotter([centre[0] + radius * angle.cos(), centre[1] + radius * angle.sin()]);
+        let on_arc = self.plotter.to_plotter([
+            centre[0] + radius * angle.cos(),
+            centre[1] + radius * angle.sin(),
+        ]);
         let saved = std::mem::take(&mut self.polygon);
         self.polygon_mode = true;
         self.polygon = Polygon {
@@ -996,7 +1110,9 @@ impl Reader<'_> {
 
     fn label_geometry(&self) -> label::Geometry {
         let units_per_cm = self.options.units_per_mm * 10.0;
-        self.plotter.label.geometry(self.plotter.p1, self.plotter.p2, units_per_cm)
+        self.plotter
+            .label
+            .geometry(self.plotter.p1, self.plotter.p2, units_per_cm)
     }
 
     /// LB / PB: the label's strokes from the pen; the pen ends at the next character origin
@@ -1055,7 +1171,9 @@ impl Reader<'_> {
             return Ok(());
         };
         let glyph = super::font::glyph(symbol).ok_or_else(|| {
-            Problem::new(format!("expected a symbol (SM) the stroke font has; 0x{symbol:02x} has none"))
+            Problem::new(format!(
+                "expected a symbol (SM) the stroke font has; 0x{symbol:02x} has none"
+            ))
         })?;
         let strokes = self.label_geometry().symbol_strokes(glyph, point);
         let was_down = self.plotter.pen_down;

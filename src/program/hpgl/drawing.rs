@@ -89,7 +89,6 @@ pub(super) enum Element {
     Barrier,
 }
 
-
 pub(super) fn distance(a: [f64; 2], b: [f64; 2]) -> f64 {
     (b[0] - a[0]).hypot(b[1] - a[1])
 }
@@ -118,9 +117,12 @@ pub(super) fn pen_up_travel(drawing: &[Element], start: [f64; 2]) -> (f64, usize
     (travel, lifts)
 }
 
-
 /// Moves of a drawing: the table starts at (0, 0) with the pen up.
-pub(super) fn generate_moves(drawing: &[Element], hpgl: &HpglOptions, options: &ReadOptions) -> Program {
+pub(super) fn generate_moves(
+    drawing: &[Element],
+    hpgl: &HpglOptions,
+    options: &ReadOptions,
+) -> Program {
     let mut program = Program {
         start: Position {
             linear: [0.0, 0.0, hpgl.pen_up_z],
@@ -216,4 +218,3 @@ pub(super) fn generate_moves(drawing: &[Element], hpgl: &HpglOptions, options: &
     }
     program
 }
-

@@ -38,7 +38,10 @@ pub(super) fn decode(text: &[u8], start: usize, end: usize) -> Result<Vec<Encode
         match byte {
             b':' | b'>' => {
                 if pending.is_some() {
-                    return Err(error(at, "expected the second coordinate of a pair in PE before a flag"));
+                    return Err(error(
+                        at,
+                        "expected the second coordinate of a pair in PE before a flag",
+                    ));
                 }
                 let flag_at = at;
                 let (value, next) = number(text, at + 1, end, base, 0)
@@ -51,14 +54,20 @@ pub(super) fn decode(text: &[u8], start: usize, end: usize) -> Result<Vec<Encode
                     });
                 } else {
                     if !(0.0..=26.0).contains(&value) || value.fract() != 0.0 {
-                        return Err(error(flag_at, "expected 0 to 26 fractional bits after '>' in PE"));
+                        return Err(error(
+                            flag_at,
+                            "expected 0 to 26 fractional bits after '>' in PE",
+                        ));
                     }
                     fraction_bits = value as u32;
                 }
             }
             b'<' | b'=' | b'7' => {
                 if pending.is_some() {
-                    return Err(error(at, "expected the second coordinate of a pair in PE before a flag"));
+                    return Err(error(
+                        at,
+                        "expected the second coordinate of a pair in PE before a flag",
+                    ));
                 }
                 match byte {
                     b'<' => pen_up_next = true,
@@ -88,11 +97,19 @@ pub(super) fn decode(text: &[u8], start: usize, end: usize) -> Result<Vec<Encode
             }
             // Blanks and line breaks inside the data are ignored, as plotters do.
             b' ' | b'\t' | b'\r' | b'\n' => at += 1,
-            _ => return Err(error(at, "expected PE data (a flag : < > = 7, or a digit byte of 63 or more)")),
+            _ => {
+                return Err(error(
+                    at,
+                    "expected PE data (a flag : < > = 7, or a digit byte of 63 or more)",
+                ))
+            }
         }
     }
     if let Some((_, x_at)) = pending {
-        return Err(error(x_at, "expected x,y pairs in PE: an odd number of coordinates"));
+        return Err(error(
+            x_at,
+            "expected x,y pairs in PE: an odd number of coordinates",
+        ));
     }
     Ok(out)
 }
@@ -227,7 +244,7 @@ mod tests {
     fn broken_data_is_an_error() {
         assert!(decode(&[63, 63], 0, 2).is_err());
         assert!(decode(&[200], 0, 1).is_err());
-        assert!(decode(&[b'!'], 0, 1).is_err());
+        assert!(decode(b"!", 0, 1).is_err());
         assert!(decode(&[63; 12], 0, 12).is_err());
     }
 }

@@ -43,7 +43,13 @@ pub(super) struct Polygon {
 
 /// Angle (rad, ≥ 0) an arc sweeps from `from` to `to` about `centre`; a full turn when they
 /// coincide; plus its extra turns.
-pub(super) fn sweep(from: [f64; 2], to: [f64; 2], centre: [f64; 2], clockwise: bool, turns: u32) -> f64 {
+pub(super) fn sweep(
+    from: [f64; 2],
+    to: [f64; 2],
+    centre: [f64; 2],
+    clockwise: bool,
+    turns: u32,
+) -> f64 {
     let a0 = (from[1] - centre[1]).atan2(from[0] - centre[0]);
     let a1 = (to[1] - centre[1]).atan2(to[0] - centre[0]);
     let difference = if clockwise { a0 - a1 } else { a1 - a0 };
@@ -126,7 +132,7 @@ pub(super) fn hatch(
         low = low.min(s);
         high = high.max(s);
     }
-    if rings.is_empty() || !(high > low) {
+    if rings.is_empty() || high <= low {
         return Ok(Vec::new());
     }
     let first = (low / spacing - 0.5).ceil();

@@ -114,7 +114,11 @@ impl Geometry {
     }
 
     /// The strokes of one glyph whose character box has its lower-left corner at `origin`.
-    pub(super) fn glyph_strokes(&self, glyph: &font::Glyph, origin: [f64; 2]) -> Vec<Vec<[f64; 2]>> {
+    pub(super) fn glyph_strokes(
+        &self,
+        glyph: &font::Glyph,
+        origin: [f64; 2],
+    ) -> Vec<Vec<[f64; 2]>> {
         let centre = f64::from(glyph.left + glyph.right) / 2.0;
         let x_scale = self.width / 16.0;
         let y_scale = self.height / f64::from(BASELINE - CAP_TOP);
@@ -135,7 +139,11 @@ impl Geometry {
     }
 
     /// The strokes of a symbol (`SM`) centred on `point`.
-    pub(super) fn symbol_strokes(&self, glyph: &font::Glyph, point: [f64; 2]) -> Vec<Vec<[f64; 2]>> {
+    pub(super) fn symbol_strokes(
+        &self,
+        glyph: &font::Glyph,
+        point: [f64; 2],
+    ) -> Vec<Vec<[f64; 2]>> {
         let origin = self.point(point, -self.width / 2.0, -self.height / 2.0);
         self.glyph_strokes(glyph, origin)
     }
@@ -245,7 +253,8 @@ pub(super) fn lay_out(
             _ => {
                 let glyph = font::glyph(byte).ok_or(index)?;
                 let box_origin = geometry.point(reference, du, dv);
-                laid.strokes.extend(geometry.glyph_strokes(glyph, box_origin));
+                laid.strokes
+                    .extend(geometry.glyph_strokes(glyph, box_origin));
                 reference = add(reference, geometry.advance);
             }
         }
@@ -303,7 +312,10 @@ mod tests {
         assert_eq!(laid.end, [240.0, 0.0]);
         // DI 0,1: the label runs up.
         let style = LabelStyle {
-            direction: Direction::Absolute { run: 0.0, rise: 1.0 },
+            direction: Direction::Absolute {
+                run: 0.0,
+                rise: 1.0,
+            },
             size: Size::Absolute {
                 width_cm: 0.2,
                 height_cm: 0.3,
@@ -317,6 +329,9 @@ mod tests {
 
     #[test]
     fn a_character_without_glyph_is_reported() {
-        assert_eq!(lay_out(b"A\xb0C", [0.0; 2], [0.0; 2], &geometry(), 1), Err(1));
+        assert_eq!(
+            lay_out(b"A\xb0C", [0.0; 2], [0.0; 2], &geometry(), 1),
+            Err(1)
+        );
     }
 }

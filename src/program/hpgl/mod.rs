@@ -188,7 +188,12 @@ impl<'a> Reader<'a> {
                         _ => {
                             let start = self.scan.at;
                             let end = self.scan.char_end(start);
-                            self.error(start, end, "expected an HPGL command (two letters) or ';'", None);
+                            self.error(
+                                start,
+                                end,
+                                "expected an HPGL command (two letters) or ';'",
+                                None,
+                            );
                             self.scan.at = end;
                             self.scan.skip_to_terminator();
                         }
@@ -257,7 +262,10 @@ impl<'a> Reader<'a> {
             );
         } else if self.warned.insert(kind.to_string()) {
             let span = self.span(start);
-            self.warn(span, format!("{message}; further ones are skipped without a warning"));
+            self.warn(
+                span,
+                format!("{message}; further ones are skipped without a warning"),
+            );
         }
     }
 
@@ -267,7 +275,13 @@ impl<'a> Reader<'a> {
             Err(error) => self.scan_error(error),
             Ok(Escape::DeviceControl) => {}
             Ok(Escape::EnterHpgl) => {
-                self.skip("pcl", start, self.scan.at, "PCL/PJL job control around the HP-GL/2 plot is not a pen move and was skipped".into());
+                self.skip(
+                    "pcl",
+                    start,
+                    self.scan.at,
+                    "PCL/PJL job control around the HP-GL/2 plot is not a pen move and was skipped"
+                        .into(),
+                );
                 self.mode = Mode::Hpgl;
             }
             Ok(escape) => {
@@ -300,7 +314,12 @@ impl<'a> Reader<'a> {
             self.mode = Mode::Pcl;
             return;
         }
-        self.skip("pcl", start, end, "PCL/PJL job control around the HP-GL/2 plot is not a pen move and was skipped".into());
+        self.skip(
+            "pcl",
+            start,
+            end,
+            "PCL/PJL job control around the HP-GL/2 plot is not a pen move and was skipped".into(),
+        );
         if let Some(language) = line.split("LANGUAGE").nth(1) {
             let language = language.trim_start_matches([' ', '=']).trim();
             if language.starts_with("HPGL") {

@@ -117,7 +117,6 @@ fn reorder_group(group: &[Element], start: [f64; 2]) -> Vec<Element> {
     result
 }
 
-
 /// An entry point of a stroke: (stroke index, drawn reversed, point).
 type Entry = (usize, bool, [f64; 2]);
 

@@ -61,7 +61,9 @@ impl Reader<'_> {
                 [from[0].max(to[0]), from[1].max(to[1])],
             );
             if let Piece::Arc {
-                centre, clockwise, turns,
+                centre,
+                clockwise,
+                turns,
             } = piece
             {
                 let radius = (from[0] - centre[0]).hypot(from[1] - centre[1]);
@@ -104,7 +106,12 @@ impl Reader<'_> {
     }
 
     /// Moves the pen (drawing if it is down, recording if in polygon mode) to `to`.
-    pub(super) fn move_to(&mut self, to: [f64; 2], piece: Piece, span: Span) -> Result<(), Problem> {
+    pub(super) fn move_to(
+        &mut self,
+        to: [f64; 2],
+        piece: Piece,
+        span: Span,
+    ) -> Result<(), Problem> {
         if self.polygon_mode {
             self.record(to, piece);
         } else if self.plotter.pen_down {
@@ -226,8 +233,7 @@ impl Reader<'_> {
         }
         let count = count as u32;
         for index in 1..=count {
-            let angle = start_angle
-                + sweep_deg.to_radians() * f64::from(index) / f64::from(count);
+            let angle = start_angle + sweep_deg.to_radians() * f64::from(index) / f64::from(count);
             let point = [
                 centre[0] + radius * angle.cos(),
                 centre[1] + radius * angle.sin(),
@@ -294,7 +300,12 @@ impl Reader<'_> {
 
     /// A filled polygon as a pen draws it: the outline, then (unless fills are drawn as
     /// outlines only) the hatch lines the fill type asks for. The pen ends up where it was.
-    pub(super) fn fill(&mut self, polygon: &Polygon, rule: Rule, span: Span) -> Result<(), Problem> {
+    pub(super) fn fill(
+        &mut self,
+        polygon: &Polygon,
+        rule: Rule,
+        span: Span,
+    ) -> Result<(), Problem> {
         let position = self.plotter.position;
         let was_down = self.plotter.pen_down;
         self.outline(polygon, span)?;
@@ -312,11 +323,13 @@ impl Reader<'_> {
                     (style.angle_deg + 90.0, hatch_spacing),
                 ],
                 // Shading: lines dense enough to cover the asked share of the area.
-                _ if style.level > 0.0 => vec![(style.angle_deg, pen * 100.0 / style.level.min(100.0))],
+                _ if style.level > 0.0 => {
+                    vec![(style.angle_deg, pen * 100.0 / style.level.min(100.0))]
+                }
                 _ => Vec::new(),
             };
             for (angle, spacing) in passes {
-                if !(spacing > 0.0) {
+                if spacing.is_nan() || spacing <= 0.0 {
                     return Err(Problem::new(format!(
                         "expected a positive fill line spacing, not {spacing} plotter units"
                     )));

@@ -213,7 +213,7 @@ impl Plotter {
     }
 
     /// The inverse of [`Plotter::to_page`].
-    pub(super) fn from_page(&self, point: [f64; 2], options: &HpglOptions) -> [f64; 2] {
+    pub(super) fn page_to_plotter(&self, point: [f64; 2], options: &HpglOptions) -> [f64; 2] {
         let page = self.page.unwrap_or(options.default_page);
         let [x, y] = point;
         match self.rotation {
@@ -228,8 +228,8 @@ impl Plotter {
     /// circles), and whether the map mirrors (arcs change direction).
     pub(super) fn user_map_shape(&self) -> (bool, bool) {
         let (factor, _) = self.user_map();
-        let similar =
-            (factor[0].abs() - factor[1].abs()).abs() <= 1e-12 * factor[0].abs().max(factor[1].abs());
+        let similar = (factor[0].abs() - factor[1].abs()).abs()
+            <= 1e-12 * factor[0].abs().max(factor[1].abs());
         (similar, factor[0] * factor[1] < 0.0)
     }
 }
@@ -249,7 +249,7 @@ mod tests {
             for corner in [[0.0, 0.0], [extent[0], extent[1]], [extent[0], 0.0]] {
                 let page = plotter.to_page(corner, &options);
                 assert!(page[0] >= 0.0 && page[0] <= 1000.0 && page[1] >= 0.0 && page[1] <= 600.0);
-                assert_eq!(plotter.from_page(page, &options), corner);
+                assert_eq!(plotter.page_to_plotter(page, &options), corner);
             }
         }
         // RO 90: the rotated x axis points up the page.

@@ -92,7 +92,9 @@ impl<'a> Scanner<'a> {
                 Ok([first, b.to_ascii_uppercase()])
             }
             _ => {
-                let end = self.char_end(start + 1).max((start + 2).min(self.text.len()));
+                let end = self
+                    .char_end(start + 1)
+                    .max((start + 2).min(self.text.len()));
                 self.at = start + 1;
                 Err(ScanError {
                     start,
@@ -233,7 +235,8 @@ impl<'a> Scanner<'a> {
             Some(byte) if byte == 0 || byte == b'\n' || byte == ESC => Err(ScanError {
                 start: self.at,
                 end: self.at + 1,
-                problem: "expected a label terminator character after DT (not NUL, LF, ESC or ';')".into(),
+                problem: "expected a label terminator character after DT (not NUL, LF, ESC or ';')"
+                    .into(),
             }),
             Some(byte) => {
                 self.at += 1;
@@ -352,7 +355,11 @@ impl<'a> Scanner<'a> {
                     (Some(_), Some(b'A')) => Ok(Escape::EnterPcl),
                     _ => {
                         let end = self.at;
-                        fail(self, end, "expected a PCL language switch (ESC%-12345X, ESC%nB or ESC%nA)")
+                        fail(
+                            self,
+                            end,
+                            "expected a PCL language switch (ESC%-12345X, ESC%nB or ESC%nA)",
+                        )
                     }
                 }
             }
@@ -364,7 +371,11 @@ impl<'a> Scanner<'a> {
                 let group = self.peek();
                 if !matches!(group, Some(b'`'..=b'~')) {
                     let end = self.char_end(self.at);
-                    return fail(self, end, "expected a PCL group character after ESC and a parameterised character");
+                    return fail(
+                        self,
+                        end,
+                        "expected a PCL group character after ESC and a parameterised character",
+                    );
                 }
                 self.at += 1;
                 let mut raster = false;
@@ -378,7 +389,11 @@ impl<'a> Scanner<'a> {
                         .and_then(|v| v.parse::<f64>().ok())
                         .unwrap_or(0.0);
                     let Some(parameter) = self.peek() else {
-                        return fail(self, self.text.len(), "expected a PCL parameter character, found the end of the file");
+                        return fail(
+                            self,
+                            self.text.len(),
+                            "expected a PCL parameter character, found the end of the file",
+                        );
                     };
                     if !matches!(parameter, b'`'..=b'~' | b'@'..=b'^') {
                         let end = self.char_end(self.at);
@@ -392,7 +407,11 @@ impl<'a> Scanner<'a> {
                         || (kind == b'&' && group == Some(b'p') && upper == b'X');
                     if carries_data {
                         if !(0.0..=1e9).contains(&value) || value.fract() != 0.0 {
-                            return fail(self, self.at, "expected a whole byte count in a PCL data command");
+                            return fail(
+                                self,
+                                self.at,
+                                "expected a whole byte count in a PCL data command",
+                            );
                         }
                         let count = value as usize;
                         if count > self.text.len() - self.at {
