@@ -3,8 +3,8 @@ use cncsim::machine::Machine;
 use cncsim::program::{inspect, FeedRule, InspectOptions, ReadOptions};
 use cncsim::report::metrics_table;
 use cncsim::scenario::{
-    check, folder_name, outcome_text, run_scenario, tune_scenario, Override, RunOutput, Scenario,
-    TuneError, TuneOptions, TunePlant,
+    check, folder_name, outcome_text, run_scenario, tune_scenario, Override, PlantKind, RunOutput,
+    Scenario, TuneError, TuneOptions,
 };
 use indicatif::{ProgressBar, ProgressStyle};
 use std::path::{Path, PathBuf};
@@ -148,9 +148,11 @@ fn run_one(path: &Path, out: Option<PathBuf>) -> ExitCode {
         Ok(s) => s,
         Err(e) => return fail_input(&e),
     };
+    print_warnings(&scenario.warnings);
     let out = out.unwrap_or_else(|| Path::new("out").join(folder_name(&scenario.name)));
     match execute(&scenario, &out) {
         Ok(run) => {
+            print_warnings(&run.warnings);
             print!("{}", metrics_table(&run.metrics));
             for f in &run.files {
                 println!("  wrote {}", f.display());
@@ -363,9 +365,9 @@ fn tune(
         options.step = rotary_step;
     }
     let plant = if analytic {
-        TunePlant::Analytic
+        PlantKind::Analytic
     } else {
-        TunePlant::Physics
+        PlantKind::Physics
     };
     let mut progress = |t: &cncsim::tune::Trial| {
         eprintln!(
@@ -424,15 +426,19 @@ fn check_all(paths: &[PathBuf], out: Option<PathBuf>) -> ExitCode {
     }
     let root = out.unwrap_or_else(|| PathBuf::from("out"));
     let (mut passed, mut failed, mut skipped) = (0, 0, 0);
+    // Bad input anywhere makes the exit status 2 (as for every command), whatever else ran.
+    let mut bad_input = false;
     for f in &files {
         let scenario = match Scenario::load(f) {
             Ok(s) => s,
             Err(e) => {
                 eprintln!("error: {e}");
                 failed += 1;
+                bad_input = true;
                 continue;
             }
         };
+        print_warnings(&scenario.warnings);
         if scenario.actuator.is_none() && scenario.expect.is_empty() {
             println!(
                 "SKIP {} (planning scenario: no [actuator] or [controller] to run)",
@@ -443,6 +449,7 @@ fn check_all(paths: &[PathBuf], out: Option<PathBuf>) -> ExitCode {
         }
         match execute(&scenario, &root.join(folder_name(&scenario.name))) {
             Ok(run) => {
+                print_warnings(&run.warnings);
                 let verdict = check(&scenario, &run.metrics_json);
                 let stopped = run.stop.is_some();
                 if verdict.passed() && !stopped {
@@ -467,14 +474,24 @@ fn check_all(paths: &[PathBuf], out: Option<PathBuf>) -> ExitCode {
             Err(e) => {
                 eprintln!("error: {e}");
                 failed += 1;
+                bad_input = true;
             }
         }
     }
     println!("{passed} passed, {failed} failed, {skipped} skipped");
-    if failed == 0 {
+    if bad_input {
+        ExitCode::from(2)
+    } else if failed == 0 {
         ExitCode::SUCCESS
     } else {
         ExitCode::from(1)
+    }
+}
+
+/// Values that loaded but look wrong, as compilers print warnings.
+fn print_warnings(warnings: &[cncsim::diagnostics::FileError]) {
+    for w in warnings {
+        eprintln!("warning: {w}");
     }
 }
 

@@ -138,9 +138,9 @@ fn a_runaway_is_stopped_with_time_and_axis_and_the_recording_is_kept() {
     let mut scenario = bundled("xyz_circle_5mms.toml");
     // Positive feedback on X: the carriage runs away until the following-error fault trips.
     let gains = scenario.gains.get_mut("x").unwrap();
-    gains.gains.kp = -gains.gains.kp;
-    gains.gains.ki = 0.0;
-    gains.gains.kd = 0.0;
+    gains.settings.kp = -gains.settings.kp;
+    gains.settings.ki = 0.0;
+    gains.settings.kd = 0.0;
     let out = tempfile::tempdir().unwrap();
     let run = run_scenario(&scenario, out.path(), &mut |_, _| true).unwrap();
     let stop = run.stop.expect("the run must stop");
@@ -269,9 +269,9 @@ fn four_millisecond_servo_period_works() {
     scenario.substeps = 16;
     // A slower loop needs lower gains: the same pole placement at ωn = 2π·6 Hz.
     for g in scenario.gains.values_mut() {
-        g.gains.kp /= 17.0;
-        g.gains.ki /= 70.0;
-        g.gains.kd /= 4.0;
+        g.settings.kp /= 17.0;
+        g.settings.ki /= 70.0;
+        g.settings.kd /= 4.0;
     }
     let out = tempfile::tempdir().unwrap();
     let run = run_scenario(&scenario, out.path(), &mut |_, _| true).unwrap();
@@ -327,7 +327,8 @@ fn an_interrupted_run_keeps_what_it_computed() {
     let mut scenario = bundled("xyz_circle_5mms.toml");
     scenario.record_csv = false;
     let out = tempfile::tempdir().unwrap();
-    // Let the first progress report through, stop at the second (tick 1024).
+    // Progress comes every 1024 ticks, the 500 ticks of settling included: let the first
+    // report through, stop at the second (tick 2048, program tick 1547).
     let mut reports = 0;
     let run = run_scenario(&scenario, out.path(), &mut |_, _| {
         reports += 1;
@@ -336,16 +337,16 @@ fn an_interrupted_run_keeps_what_it_computed() {
     .unwrap();
     let stop = run.stop.expect("interrupted");
     assert!(
-        stop.to_string().starts_with("interrupted at t = 1.024"),
+        stop.to_string().starts_with("interrupted at t = 1.547"),
         "{stop}"
     );
-    assert_eq!(run.trace.len(), 1025);
+    assert_eq!(run.trace.len(), 1548);
     assert_eq!(run.metrics_json["completed"], false);
     assert_eq!(
         rrd_rows(&out.path().join("run.rrd"))
             .get("/axes/x/actual")
             .copied(),
-        Some(1025usize.div_ceil(scenario.decimation))
+        Some(1548usize.div_ceil(scenario.decimation))
     );
 }
 
@@ -396,7 +397,7 @@ fn stick_slip_hunting_is_counted() {
     // Its bounds are the calibrated twin's.
     scenario.expect.clear();
     for axis in ["x", "y"] {
-        let pid = &mut scenario.gains.get_mut(axis).unwrap().gains;
+        let pid = &mut scenario.gains.get_mut(axis).unwrap().settings;
         (pid.kp, pid.ki, pid.kd) = (38.72, 110.63, 3.39);
     }
     let mut machine = cncsim::scenario::machine_for(&scenario).unwrap();

@@ -26,5 +26,5 @@ pub use metrics::{finite_difference_extremes, write_setpoints_csv, AxisExtremes}
 pub use path::{AxisKind, AxisLimits, AxisPath, AxisSpec, Blend, Geometry, PathError, PathSegment};
 pub use planner::{plan, Plan, SegmentTiming};
 pub use profile::{Limits, Profile, Regime, VelocityChange};
-pub use setpoints::Setpoints;
+pub use setpoints::{SetpointCursor, SetpointSample, SetpointStream, Setpoints};
 pub use trapezoid::{trapezoid_line, TrapezoidProfile};

@@ -84,3 +84,89 @@ impl Setpoints {
         self.len().saturating_sub(1) as f64 * self.period
     }
 }
+
+/// One setpoint sample per machine axis (SI), as the co-simulation loop reads it.
+#[derive(Debug, Clone, PartialEq, Default)]
+pub struct SetpointSample {
+    pub position: Vec<f64>,
+    pub velocity: Vec<f64>,
+    pub acceleration: Vec<f64>,
+    /// Index of the program move the sample belongs to.
+    pub segment: u32,
+}
+
+impl SetpointSample {
+    /// A sample of `axes` zeros.
+    pub fn zeros(axes: usize) -> Self {
+        SetpointSample {
+            position: vec![0.0; axes],
+            velocity: vec![0.0; axes],
+            acceleration: vec![0.0; axes],
+            segment: 0,
+        }
+    }
+}
+
+/// A setpoint stream at the servo period: what the co-simulation loop consumes, one sample per
+/// tick. Its length is known before the first sample (every move is timed before any is
+/// sampled), so the work of a run is bounded before it starts; the samples themselves may be
+/// computed as they are read, so memory need not grow with the program's duration.
+pub trait SetpointStream {
+    /// Machine axes per sample.
+    fn axes(&self) -> usize;
+    /// Sample period T (s); sample k is at time k·T.
+    fn period(&self) -> f64;
+    /// Number of samples the stream yields in all.
+    fn len(&self) -> usize;
+    fn is_empty(&self) -> bool {
+        self.len() == 0
+    }
+    /// Writes the next sample into `out` (whose vectors have `axes()` entries); `false` once
+    /// all `len()` samples have been read.
+    fn next_sample(&mut self, out: &mut SetpointSample) -> bool;
+}
+
+/// Reads a materialised [`Setpoints`] as a stream.
+#[derive(Debug, Clone)]
+pub struct SetpointCursor<'a> {
+    setpoints: &'a Setpoints,
+    next: usize,
+}
+
+impl Setpoints {
+    /// This setpoint list as a stream, from its first sample.
+    pub fn stream(&self) -> SetpointCursor<'_> {
+        SetpointCursor {
+            setpoints: self,
+            next: 0,
+        }
+    }
+}
+
+impl SetpointStream for SetpointCursor<'_> {
+    fn axes(&self) -> usize {
+        self.setpoints.axes
+    }
+
+    fn period(&self) -> f64 {
+        self.setpoints.period
+    }
+
+    fn len(&self) -> usize {
+        self.setpoints.len()
+    }
+
+    fn next_sample(&mut self, out: &mut SetpointSample) -> bool {
+        let s = self.setpoints;
+        let k = self.next;
+        if k >= s.len() {
+            return false;
+        }
+        out.position.copy_from_slice(s.position(k));
+        out.velocity.copy_from_slice(s.velocity(k));
+        out.acceleration.copy_from_slice(s.acceleration(k));
+        out.segment = s.segment[k];
+        self.next += 1;
+        true
+    }
+}

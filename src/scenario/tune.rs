@@ -7,17 +7,15 @@
 //! scenario's own controller, so they are held as in a real run and couple as they would. The
 //! axis starts at rest at the program's first point and its setpoint steps by `step` at t = 0.
 
-use super::run::{
-    controller_for, keep_mechanics, machine_for, new_plant, prepare_with, Prepared, RunError,
-    GRAVITY,
-};
+use super::assemble::{keep_mechanics, machine_for, Assembly, PlantKind, RunError, GRAVITY};
+use super::file::ControllerType;
 use super::Scenario;
-use crate::control::{Actuator, ActuatorKind, Controller, ControllerInput, Pid, PidForm, PidGains};
+use crate::control::{ActuatorKind, Controller, ControllerInput, Pid, PidForm, PidSettings};
 use crate::diagnostics::FileError;
 use crate::machine::Machine;
 use crate::plan::Setpoints;
-use crate::sim::analytic::{run_reference, AxisModel, ReferenceSettings};
-use crate::sim::{CoSimulation, LoopSettings, Trace};
+use crate::sim::analytic::AxisModel;
+use crate::sim::{self, Lane, LoopSettings, Trace, TraceRecorder};
 use crate::tune::{
     find_ultimate, LinearActuator, LinearAxis, Response, SearchError, SearchSettings, Trial,
     Ultimate, UltimateCycle, ZieglerNichols,
@@ -25,15 +23,6 @@ use crate::tune::{
 use serde::Serialize;
 use std::path::PathBuf;
 use std::time::Instant;
-
-/// Which model the trials run on.
-#[derive(Debug, Clone, Copy, PartialEq)]
-pub enum TunePlant {
-    /// The Rapier co-simulation, as `cncsim run` runs the scenario.
-    Physics,
-    /// The analytic per-axis ODE model (`sim::analytic`) of the same machine.
-    Analytic,
-}
 
 /// What to tune and how (SI units: the step in m or rad).
 #[derive(Debug, Clone, PartialEq)]
@@ -141,7 +130,7 @@ pub struct TuneReport {
 pub fn tune_scenario(
     s: &Scenario,
     options: &TuneOptions,
-    plant: TunePlant,
+    plant: PlantKind,
     progress: &mut dyn FnMut(&Trial),
 ) -> Result<TuneReport, TuneError> {
     tune_scenario_with(s, machine_for(s)?, options, plant, progress)
@@ -152,23 +141,18 @@ pub fn tune_scenario_with(
     s: &Scenario,
     machine: Machine,
     options: &TuneOptions,
-    plant: TunePlant,
+    plant: PlantKind,
     progress: &mut dyn FnMut(&Trial),
 ) -> Result<TuneReport, TuneError> {
     let started = Instant::now();
     let bad = |m: String| TuneError::from(FileError::new(&s.path, None, m));
-    if s.inverse_dynamics.is_some() {
-        return Err(bad("tune designs PID gains for one axis while the scenario's PID holds the others; this scenario's controller is type = \"inverse-dynamics\" (use a scenario with type = \"pid\")".into()));
+    let assembly = Assembly::with_machine(s, machine)?;
+    if let Some(kind) = s.controller.filter(|&c| c != ControllerType::Pid) {
+        return Err(bad(format!("tune designs PID gains for one axis while the scenario's PID holds the others; this scenario's controller is type = \"{}\" (use a scenario with type = \"pid\")", kind.name())));
     }
-    let Prepared {
-        machine,
-        labels,
-        setpoints,
-        encoder_resolution,
-        actuator,
-        cosim,
-        ..
-    } = prepare_with(s, machine)?;
+    let machine = &assembly.machine;
+    let labels = &assembly.labels;
+    let actuator = assembly.actuator;
     let Some(axis) = machine.axis_index(&options.axis) else {
         let names: Vec<&str> = machine.axes.iter().map(|a| a.name.as_str()).collect();
         return Err(bad(format!(
@@ -182,7 +166,7 @@ pub fn tune_scenario_with(
     check_options(s, options, rotary).map_err(bad)?;
 
     let drive = &machine.axes[axis].drive;
-    let output_limit = s.gains[&options.axis].output_limit;
+    let output_limit = s.gains[&options.axis].output_limit();
     let (actuator_limit, actuator_name, output_unit) = match actuator {
         ActuatorKind::DcMotor => (
             drive.supply_voltage_v / drive.amplifier_gain,
@@ -191,13 +175,13 @@ pub fn tune_scenario_with(
         ),
         ActuatorKind::IdealTorque => (drive.peak_torque_nm, "ideal-torque", "N·m"),
     };
-    let resolution = encoder_resolution[axis].unwrap_or(0.0);
+    let resolution = assembly.loop_settings.encoder.resolution[axis].unwrap_or(0.0);
     let settings = SearchSettings {
         servo_period: s.servo_period,
         step: options.step,
         start_gain: options
             .start_gain
-            .unwrap_or(s.gains[&options.axis].gains.kp),
+            .unwrap_or(s.gains[&options.axis].settings.kp),
         growth: 2.0,
         tolerance: options.tolerance,
         saturation: output_limit.min(actuator_limit),
@@ -215,9 +199,8 @@ pub fn tune_scenario_with(
 
     let loop_settings = LoopSettings {
         settle_time: 0.0,
-        ..cosim.settings.clone()
+        ..assembly.loop_settings.clone()
     };
-    drop(cosim);
     // A boundary judged on a handful of peaks is a guess: a slow loop (an ultimate period
     // near the trial time) can look settled or growing by chance. The search is repeated
     // with twice the trial time until the oscillating bound shows enough swings.
@@ -226,22 +209,22 @@ pub fn tune_scenario_with(
     let mut previous = None;
     let (ultimate, ticks) = loop {
         let ticks = (trial_time / s.servo_period).round() as usize;
-        let trial_setpoints = step_setpoints(&setpoints, s.servo_period, axis, options.step, ticks);
+        let trial_setpoints = step_setpoints(
+            &assembly.setpoints,
+            s.servo_period,
+            axis,
+            options.step,
+            ticks,
+        );
         let probe = Probe {
-            s,
-            machine: &machine,
-            actuator,
+            assembly: &assembly,
+            plant,
             axis,
             setpoints: &trial_setpoints,
             loop_settings: &loop_settings,
-            encoder_resolution: &encoder_resolution,
-            start: trial_setpoints.position(0),
             output_limit,
         };
-        let mut simulate = |gain: f64| match plant {
-            TunePlant::Physics => probe.physics(gain),
-            TunePlant::Analytic => probe.analytic(gain),
-        };
+        let mut simulate = |gain: f64| probe.trial(gain);
         // The simulation budget is for the whole tune, retries included.
         let settings = SearchSettings {
             max_simulations: options.max_simulations.saturating_sub(simulations),
@@ -276,7 +259,7 @@ pub fn tune_scenario_with(
     };
 
     let gains = ZieglerNichols::from_ultimate(ultimate.gain, ultimate.period);
-    let linear = linear_model(&machine, axis, actuator).map(|axis_model| {
+    let linear = linear_model(machine, axis, actuator).map(|axis_model| {
         let sampled = axis_model.discrete_ultimate(s.servo_period);
         (axis_model, sampled)
     });
@@ -294,8 +277,8 @@ pub fn tune_scenario_with(
         axis: options.axis.clone(),
         rotary,
         plant: match plant {
-            TunePlant::Physics => "physics",
-            TunePlant::Analytic => "analytic",
+            PlantKind::Physics => "physics",
+            PlantKind::Analytic => "analytic",
         },
         actuator: actuator_name,
         amplifier_mode: match actuator {
@@ -412,71 +395,50 @@ fn linear_model(machine: &Machine, axis: usize, actuator: ActuatorKind) -> Optio
 
 /// Everything a trial needs, shared by all trials.
 struct Probe<'a> {
-    s: &'a Scenario,
-    machine: &'a Machine,
-    actuator: ActuatorKind,
+    assembly: &'a Assembly,
+    plant: PlantKind,
     axis: usize,
     setpoints: &'a Setpoints,
     loop_settings: &'a LoopSettings,
-    encoder_resolution: &'a [Option<f64>],
-    start: &'a [f64],
     output_limit: f64,
 }
 
 impl Probe<'_> {
-    /// The scenario's controller with the tuned axis under P control at `gain`.
-    fn controller(&self, gain: f64) -> Result<ProportionalOn<'static>, String> {
-        let hold =
-            controller_for(self.s, self.machine, self.actuator).map_err(|e| e.to_string())?;
-        let p = PidGains {
-            kp: gain,
-            ki: 0.0,
-            kd: 0.0,
-        };
-        Ok(ProportionalOn {
+    /// One trial: the scenario's loop with the tuned axis under P control at `gain`, on the
+    /// chosen plant, at rest at the trial's start.
+    fn trial(&self, gain: f64) -> Result<Response, String> {
+        let a = self.assembly;
+        let s = &a.scenario;
+        let hold = a.controller().map_err(|e| e.to_string())?;
+        let p = PidSettings::plain(
+            crate::control::PidGains {
+                kp: gain,
+                ki: 0.0,
+                kd: 0.0,
+            },
+            self.output_limit,
+        );
+        let controller = ProportionalOn {
             hold,
             axis: self.axis,
-            pid: Pid::new(
-                p,
-                PidForm::Positional,
-                self.s.servo_period,
-                self.output_limit,
-            ),
-        })
-    }
-
-    fn physics(&self, gain: f64) -> Result<Response, String> {
-        let cosim = CoSimulation {
-            plant: new_plant(self.s, self.machine, self.start).map_err(|e| e.to_string())?,
-            controller: Box::new(self.controller(gain)?),
-            actuators: self
-                .machine
-                .axes
-                .iter()
-                .map(|a| Actuator::new(self.actuator, &a.drive))
-                .collect(),
-            settings: self.loop_settings.clone(),
+            pid: Pid::new(p, PidForm::Positional, s.servo_period),
         };
-        let outcome = cosim.run(self.setpoints, &mut |_, _| true);
-        let mut r = self.response(&outcome.trace);
-        r.stopped = outcome.stop.map(|e| e.to_string());
-        Ok(r)
-    }
-
-    fn analytic(&self, gain: f64) -> Result<Response, String> {
-        let ideal = self.actuator == ActuatorKind::IdealTorque;
-        let mut models = AxisModel::for_machine(self.machine, GRAVITY, ideal)
-            .map_err(|e| format!("the analytic model: {e}"))?;
-        let settings = ReferenceSettings {
-            servo_period: self.s.servo_period,
-            steps_per_period: self.s.analytic_steps.unwrap_or(16),
-            settle_time: 0.0,
-            encoder_resolution: self.encoder_resolution.to_vec(),
-        };
-        let mut controller = self.controller(gain)?;
-        let run = run_reference(&mut models, &mut controller, self.setpoints, &settings);
-        let mut r = self.response(&run.trace);
-        r.stopped = run.diverged.map(|d| d.to_string());
+        let start = self.setpoints.position(0);
+        let mut lanes = [Lane {
+            name: "trial",
+            plant: a.plant(self.plant, start).map_err(|e| e.to_string())?,
+            controller: Box::new(controller),
+        }];
+        let mut recorder = TraceRecorder::new(s.servo_period, start.len(), 1);
+        let outcome = sim::run(
+            self.loop_settings,
+            &mut lanes,
+            &mut self.setpoints.stream(),
+            &mut recorder,
+            &mut |_, _| true,
+        );
+        let mut r = self.response(recorder.lane(0));
+        r.stopped = outcome.stop().map(|e| e.to_string());
         Ok(r)
     }
 
@@ -510,6 +472,11 @@ impl Controller for ProportionalOn<'_> {
         command[i] = self
             .pid
             .update(input.setpoint_position[i] - input.measured_position[i]);
+    }
+
+    fn reset(&mut self) {
+        self.hold.reset();
+        self.pid.reset();
     }
 }
 
