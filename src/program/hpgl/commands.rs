@@ -479,10 +479,7 @@ impl Reader<'_> {
                 match rule {
                     None => {
                         self.outline(&polygon, span)?;
-                        self.move_to(position, Piece::Line, span)?;
-                        if was_down {
-                            self.pen_down(span);
-                        }
+                        self.return_pen(position, was_down, span)?;
                     }
                     Some(rule) => self.fill(&polygon, rule, span)?,
                 }
@@ -664,7 +661,7 @@ impl Reader<'_> {
                     }
                     _ => return count("0 or 2"),
                 };
-                self.move_pen_up(target, span)?;
+                self.return_pen(target, self.plotter.pen_down, span)?;
             }
             "PB" => {
                 if !values.is_empty() {
@@ -787,17 +784,6 @@ impl Reader<'_> {
         }
     }
 
-    /// A pen-up move that restores the pen state afterwards.
-    fn move_pen_up(&mut self, target: [f64; 2], span: Span) -> Result<(), Problem> {
-        let was_down = self.plotter.pen_down;
-        self.pen_up(span);
-        self.move_to(target, Piece::Line, span)?;
-        if was_down {
-            self.pen_down(span);
-        }
-        Ok(())
-    }
-
     /// PU, PD, PA, PR with their coordinate pairs.
     fn plot(
         &mut self,
@@ -906,12 +892,7 @@ impl Reader<'_> {
         if self.polygon_mode {
             self.close_subpolygon();
         }
-        self.pen_up(span);
-        self.move_to(centre_plotter, Piece::Line, span)?;
-        if was_down {
-            self.pen_down(span);
-        }
-        Ok(())
+        self.return_pen(centre_plotter, was_down, span)
     }
 
     /// AT / RT: the arc from the pen through `through` to `end` (user units); a straight
@@ -1023,10 +1004,7 @@ impl Reader<'_> {
             let position = self.plotter.position;
             let was_down = self.plotter.pen_down;
             self.outline(&polygon, span)?;
-            self.move_to(position, Piece::Line, span)?;
-            if was_down {
-                self.pen_down(span);
-            }
+            self.return_pen(position, was_down, span)?;
         } else {
             self.fill(&polygon, Rule::EvenOdd, span)?;
         }
@@ -1156,13 +1134,8 @@ impl Reader<'_> {
         for stroke in &laid.strokes {
             self.polyline(stroke, span)?;
         }
-        self.pen_up(span);
-        self.move_to(laid.end, Piece::Line, span)?;
         self.carriage = laid.carriage;
-        if was_down {
-            self.pen_down(span);
-        }
-        Ok(())
+        self.return_pen(laid.end, was_down, span)
     }
 
     /// Symbol mode: the symbol character centred on a plotted point.
@@ -1180,11 +1153,6 @@ impl Reader<'_> {
         for stroke in &strokes {
             self.polyline(stroke, span)?;
         }
-        self.pen_up(span);
-        self.move_to(point, Piece::Line, span)?;
-        if was_down {
-            self.pen_down(span);
-        }
-        Ok(())
+        self.return_pen(point, was_down, span)
     }
 }

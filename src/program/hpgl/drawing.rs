@@ -4,7 +4,8 @@
 use super::super::options::{HpglOptions, ReadOptions};
 use super::super::types::{Blend, Feed, Motion, Move, Plane, Position, Program, Span, Spindle};
 
-/// One pen-down piece of a stroke (positions in metres on the table).
+/// How a piece of a stroke or an edge of a polygon runs to its end point (the centre in
+/// metres on the table in a stroke, in plotter units in a polygon).
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub(super) enum Segment {
     Line,

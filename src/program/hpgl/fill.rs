@@ -5,16 +5,7 @@
 
 use std::f64::consts::TAU;
 
-/// How an edge of a polygon runs to its end point.
-#[derive(Debug, Clone, Copy, PartialEq)]
-pub(super) enum Piece {
-    Line,
-    Arc {
-        centre: [f64; 2],
-        clockwise: bool,
-        turns: u32,
-    },
-}
+pub(super) use super::drawing::Segment as Piece;
 
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub(super) struct Edge {

@@ -262,6 +262,21 @@ impl Reader<'_> {
         degrees.clamp(0.5, 180.0).to_radians()
     }
 
+    /// Moves the pen up to `to`, then lowers it again if `was_down`.
+    pub(super) fn return_pen(
+        &mut self,
+        to: [f64; 2],
+        was_down: bool,
+        span: Span,
+    ) -> Result<(), Problem> {
+        self.pen_up(span);
+        self.move_to(to, Piece::Line, span)?;
+        if was_down {
+            self.pen_down(span);
+        }
+        Ok(())
+    }
+
     /// Draws a polyline (plotter units) with the pen down, leaving the pen up at its end.
     pub(super) fn polyline(&mut self, points: &[[f64; 2]], span: Span) -> Result<(), Problem> {
         let Some((first, rest)) = points.split_first() else {
@@ -348,11 +363,6 @@ impl Reader<'_> {
                 }
             }
         }
-        self.pen_up(span);
-        self.move_to(position, Piece::Line, span)?;
-        if was_down {
-            self.pen_down(span);
-        }
-        Ok(())
+        self.return_pen(position, was_down, span)
     }
 }
