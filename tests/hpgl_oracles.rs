@@ -393,7 +393,9 @@ fn live(oracle: &str, probe: &[&str]) {
 
 #[test]
 fn live_hp2xx_agrees() {
-    live("hp2xx", &["sh", "-c", "command -v hp2xx"]);
+    // hp2xx, and the Python that runs the script around it.
+    let probe = format!("command -v hp2xx && '{}' -c 'import sys'", python());
+    live("hp2xx", &["sh", "-c", &probe]);
 }
 
 #[test]
