@@ -64,10 +64,10 @@ fn commands_that_do_not_draw_warn_once_per_kind_and_strict_refuses_them() {
     assert_eq!(
         messages,
         [
-            "CO (comment) is not a pen move and was skipped; further ones are skipped without a warning",
-            "NP (number of pens) is not a pen move and was skipped; further ones are skipped without a warning",
-            "EC (enable cutter) is not a pen move and was skipped; further ones are skipped without a warning",
-            "PG (advance page) is not a pen move and was skipped; further ones are skipped without a warning",
+            "CO (comment) is not a pen move and was skipped; further ones without a warning",
+            "NP (number of pens) is not a pen move and was skipped; further ones without a warning",
+            "EC (enable cutter) is not a pen move and was skipped; further ones without a warning",
+            "PG (advance page) is not a pen move and was skipped; further ones without a warning",
         ]
     );
     assert_eq!(drawn(&program).len(), 1);
@@ -75,7 +75,7 @@ fn commands_that_do_not_draw_warn_once_per_kind_and_strict_refuses_them() {
     strict.hpgl.strict = true;
     assert_eq!(
         first_error(text, &strict),
-        "bad.plt:1:16: expected a command that draws; CO (comment) is not a pen move and was skipped (refused with --strict), found 'CO\"made by hand\";'"
+        "bad.plt:1:16: expected a command that draws; CO (comment) is not a pen move (refused with --strict), found 'CO\"made by hand\";'"
     );
 }
 

@@ -681,7 +681,7 @@ impl<'a> AptReader<'a> {
                     self.warn_once(
                         &major,
                         span,
-                        format!("{major} ({what}) does not move the tool and was skipped; further ones are skipped without a warning"),
+                        format!("{major} ({what}) does not move the tool and was skipped; further ones without a warning"),
                     );
                 } else if let Some(what) = lookup(PATH_CHANGING, &major) {
                     return Err(RecordError {

@@ -344,11 +344,9 @@ impl Reader<'_> {
             "LT" => match values.as_slice() {
                 [] => {}
                 [pattern, ..] if values.len() <= 3 => {
-                    let message = format!(
-                        "LT (line type) {} is drawn as a solid line (dashes are not drawn)",
-                        fmt_number(*pattern)
-                    );
-                    self.skip(&format!("LT{pattern}"), start, self.scan.at, message);
+                    let what = format!("LT (line type) {} is a dashed line", fmt_number(*pattern));
+                    let kind = format!("LT{pattern}");
+                    self.skip(&kind, start, self.scan.at, &what, "is drawn solid");
                 }
                 _ => return count("0 to 3"),
             },
@@ -680,8 +678,15 @@ impl Reader<'_> {
             "CS" | "CA" => match values.as_slice() {
                 [] | [0.0] => {}
                 &[set] => {
-                    let message = format!("{name} selects character set {}; labels are drawn with the ASCII stroke font", fmt_number(set));
-                    self.skip(&format!("{name}{set}"), start, self.scan.at, message);
+                    let what = format!("{name} selects character set {}", fmt_number(set));
+                    let kind = format!("{name}{set}");
+                    self.skip(
+                        &kind,
+                        start,
+                        self.scan.at,
+                        &what,
+                        "labels are drawn with the ASCII stroke font",
+                    );
                 }
                 _ => return count("0 or 1"),
             },
@@ -703,8 +708,8 @@ impl Reader<'_> {
                         self.pen_up(span);
                         self.page_advance = Some((span, name.to_string()));
                     }
-                    let message = format!("{name} ({what}) is not a pen move and was skipped");
-                    self.skip(name, start, self.scan.at, message);
+                    let what = format!("{name} ({what}) is not a pen move");
+                    self.skip(name, start, self.scan.at, &what, "was skipped");
                 } else {
                     return Err(Problem::new(format!(
                         "expected an HPGL command; {name} is not one cncsim knows"

@@ -250,23 +250,35 @@ impl<'a> Reader<'a> {
         self.warnings.push(Warning { span, message });
     }
 
-    /// Something that does not move the pen is passed over: one warning per `kind`, or, with
+    /// Something that does not move the pen is passed over: `what` it is, and what is
+    /// `done` with it instead (e.g. "was skipped"). One warning per `kind`, or, with
     /// `strict`, an error for each.
-    fn skip(&mut self, kind: &str, start: usize, end: usize, message: String) {
+    fn skip(&mut self, kind: &str, start: usize, end: usize, what: &str, done: &str) {
         if self.options.strict {
             self.error(
                 start,
                 end,
-                format!("expected a command that draws; {message} (refused with --strict)"),
+                format!("expected a command that draws; {what} (refused with --strict)"),
                 None,
             );
         } else if self.warned.insert(kind.to_string()) {
             let span = self.span(start);
             self.warn(
                 span,
-                format!("{message}; further ones are skipped without a warning"),
+                format!("{what} and {done}; further ones without a warning"),
             );
         }
+    }
+
+    /// The PCL/PJL job around an HP-GL/2 plot.
+    fn skip_job_control(&mut self, start: usize, end: usize) {
+        self.skip(
+            "pcl",
+            start,
+            end,
+            "PCL/PJL job control around the HP-GL/2 plot is not a pen move",
+            "was skipped",
+        );
     }
 
     fn escape(&mut self) {
@@ -275,13 +287,7 @@ impl<'a> Reader<'a> {
             Err(error) => self.scan_error(error),
             Ok(Escape::DeviceControl) => {}
             Ok(Escape::EnterHpgl) => {
-                self.skip(
-                    "pcl",
-                    start,
-                    self.scan.at,
-                    "PCL/PJL job control around the HP-GL/2 plot is not a pen move and was skipped"
-                        .into(),
-                );
+                self.skip_job_control(start, self.scan.at);
                 self.mode = Mode::Hpgl;
             }
             Ok(escape) => {
@@ -298,7 +304,7 @@ impl<'a> Reader<'a> {
                         Some("re-plot the drawing as vectors (HP-GL/2) without raster images"),
                     );
                 } else {
-                    self.skip("pcl", start, self.scan.at, "PCL/PJL job control around the HP-GL/2 plot is not a pen move and was skipped".into());
+                    self.skip_job_control(start, self.scan.at);
                 }
             }
         }
@@ -314,12 +320,7 @@ impl<'a> Reader<'a> {
             self.mode = Mode::Pcl;
             return;
         }
-        self.skip(
-            "pcl",
-            start,
-            end,
-            "PCL/PJL job control around the HP-GL/2 plot is not a pen move and was skipped".into(),
-        );
+        self.skip_job_control(start, end);
         if let Some(language) = line.split("LANGUAGE").nth(1) {
             let language = language.trim_start_matches([' ', '=']).trim();
             if language.starts_with("HPGL") {
