@@ -161,6 +161,15 @@ pub enum Command {
         /// Print the report as JSON (progress still goes to stderr).
         #[arg(long)]
         json: bool,
+        /// Design the cascade (position loop over velocity loop) of the axis instead: the
+        /// velocity loop by the bandwidth its phase budget allows, the position loop at a
+        /// quarter of it, checked by a velocity step on the simulated axis.
+        #[arg(long)]
+        cascade: bool,
+        /// With --cascade: impose the velocity-loop crossover (Hz) instead of the largest with
+        /// 50° of phase margin.
+        #[arg(long, requires = "cascade")]
+        velocity_bandwidth_hz: Option<f64>,
     },
     /// Run scenarios (files, or folders of *.toml) and check their [expect] bounds; exits
     /// non-zero if any bound is breached or any run fails.

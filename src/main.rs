@@ -74,6 +74,23 @@ fn main() -> ExitCode {
         Some(Command::Tune {
             scenario,
             axis,
+            analytic,
+            linear,
+            json,
+            cascade: true,
+            velocity_bandwidth_hz,
+            ..
+        }) => tune_cascade_cli(
+            &scenario,
+            &axis,
+            velocity_bandwidth_hz,
+            analytic,
+            linear,
+            json,
+        ),
+        Some(Command::Tune {
+            scenario,
+            axis,
             step_mm,
             step_deg,
             tolerance,
@@ -83,6 +100,8 @@ fn main() -> ExitCode {
             analytic,
             linear,
             json,
+            cascade: false,
+            ..
         }) => {
             let mut options = TuneOptions::new(&axis, step_mm * 1e-3);
             options.tolerance = tolerance;
@@ -316,14 +335,15 @@ fn ab(
         }
         println!("  wrote {}", path.display());
     }
+    println!("  wrote {}", out.join("ab.rrd").display());
     let plot = out.join("contour_error.png");
     let labels = [format!("A: {}", sa.name), format!("B: {}", sb.name)];
-    let series =
-        [(&labels[0], &ra), (&labels[1], &rb)].map(|(label, r)| cncsim::report::ContourSeries {
-            label,
-            time: &r.trace.time,
-            contour_error: &r.derived.contour_error,
-        });
+    let curves = [&ra, &rb].map(|r| (r.contour_envelope.times(), r.contour_envelope.values()));
+    let series = [0, 1].map(|i| cncsim::report::ContourSeries {
+        label: &labels[i],
+        time: &curves[i].0,
+        contour_error: &curves[i].1,
+    });
     if let Err(e) = cncsim::report::write_contour_error_plot(&plot, &series) {
         return fail_input(&e);
     }
@@ -394,6 +414,47 @@ fn tune(
         Err(e @ TuneError::Search { .. }) => {
             eprintln!("error: {e}");
             ExitCode::from(1)
+        }
+        Err(e) => fail_input(&e),
+    }
+}
+
+fn tune_cascade_cli(
+    path: &Path,
+    axis: &str,
+    bandwidth_hz: Option<f64>,
+    analytic: bool,
+    linear: bool,
+    json: bool,
+) -> ExitCode {
+    let mut scenario = match Scenario::load(path) {
+        Ok(s) => s,
+        Err(e) => return fail_input(&e),
+    };
+    if linear {
+        scenario.friction = false;
+        scenario.backlash = false;
+    }
+    let machine = match cncsim::scenario::machine_for(&scenario) {
+        Ok(m) => m,
+        Err(e) => return fail_input(&e),
+    };
+    let plant = if analytic {
+        PlantKind::Analytic
+    } else {
+        PlantKind::Physics
+    };
+    match cncsim::scenario::tune_cascade(&scenario, machine, axis, bandwidth_hz, plant) {
+        Ok(report) if json => {
+            println!(
+                "{}",
+                serde_json::to_string_pretty(&report).expect("plain values")
+            );
+            ExitCode::SUCCESS
+        }
+        Ok(report) => {
+            print!("{}", report.text());
+            ExitCode::SUCCESS
         }
         Err(e) => fail_input(&e),
     }

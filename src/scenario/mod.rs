@@ -23,10 +23,13 @@ pub use file::{
 };
 pub use overrides::Override;
 pub use plan::{plan_scenario, PlanReport};
-pub use run::{run_assembly, run_scenario, run_scenario_with, RunOutput};
+pub use run::{
+    recording_setup, report_setup, run_assembly, run_assembly_observed, run_scenario,
+    run_scenario_traced, run_scenario_with, summary_markdown, RunOutput,
+};
 pub use tune::{
-    outcome_text, tune_scenario, tune_scenario_with, LinearPrediction, TuneError, TuneOptions,
-    TuneReport,
+    outcome_text, tune_cascade, tune_scenario, tune_scenario_with, CascadeTuneReport,
+    LinearPrediction, TuneError, TuneOptions, TuneReport,
 };
 
 /// A scenario or variant name as a single folder name (no separators, no `..`).

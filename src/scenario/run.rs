@@ -4,15 +4,22 @@
 
 use super::assemble::{Assembly, RunError};
 use super::file::ControllerType;
-use super::Scenario;
+use super::{check, Scenario, Verdict};
 use crate::control::ActuatorKind;
 use crate::diagnostics::FileError;
 use crate::kinematics;
 use crate::machine::Machine;
+use crate::plan::{SetpointSample, SetpointStream};
 use crate::program::PathGeometry;
-use crate::report::{self, AxisLabel, Derived, Metrics, RecordingContent, ReportError};
-use crate::sim::{Stop, Trace, TraceRecorder};
+use crate::report::{
+    self, AxisLabel, Envelope, Metrics, PathTracker, RecordingSetup, ReportError, ReportSetup,
+    RunReport, Thinned,
+};
+use crate::sim::{Observer, Observers, Outcome, Stop, Trace, TraceRecorder};
 use std::path::{Path, PathBuf};
+
+/// Points of the programmed path drawn in a recording (evenly thinned over the program).
+const PROGRAMMED_PATH_POINTS: usize = 50_000;
 
 /// What a run produced.
 #[derive(Debug, Clone)]
@@ -20,12 +27,14 @@ pub struct RunOutput {
     pub metrics: Metrics,
     pub metrics_json: serde_json::Value,
     pub stop: Option<Stop>,
-    /// The physics, tick by tick.
-    pub trace: Trace,
-    /// The analytic reference model, tick by tick, when the scenario runs it.
+    /// The physics, tick by tick, when asked for ([`run_scenario_traced`]).
+    pub trace: Option<Trace>,
+    /// The analytic reference model, tick by tick, when asked for and run.
     pub analytic: Option<Trace>,
-    /// Per-sample figures derived from the trace (contour error, path speed).
-    pub derived: Derived,
+    /// The largest contour error per bin of the run (a fixed-size curve for plots).
+    pub contour_envelope: Envelope,
+    /// The scenario's `[expect]` bounds against the metrics.
+    pub verdict: Verdict,
     /// Files written, in the order written.
     pub files: Vec<PathBuf>,
     /// The machine's plausibility warnings (values that loaded but look wrong).
@@ -37,7 +46,16 @@ pub fn run_scenario(
     out_dir: &Path,
     progress: &mut dyn FnMut(usize, usize) -> bool,
 ) -> Result<RunOutput, RunError> {
-    run_assembly(&Assembly::new(s)?, out_dir, progress)
+    run_assembly(&Assembly::new(s)?, out_dir, progress, false)
+}
+
+/// [`run_scenario`], also keeping every tick in memory (for tests and short studies).
+pub fn run_scenario_traced(
+    s: &Scenario,
+    out_dir: &Path,
+    progress: &mut dyn FnMut(usize, usize) -> bool,
+) -> Result<RunOutput, RunError> {
+    run_assembly(&Assembly::new(s)?, out_dir, progress, true)
 }
 
 /// [`run_scenario`] on a machine given in memory.
@@ -47,105 +65,250 @@ pub fn run_scenario_with(
     out_dir: &Path,
     progress: &mut dyn FnMut(usize, usize) -> bool,
 ) -> Result<RunOutput, RunError> {
-    run_assembly(&Assembly::with_machine(s, machine)?, out_dir, progress)
+    run_assembly(
+        &Assembly::with_machine(s, machine)?,
+        out_dir,
+        progress,
+        false,
+    )
 }
 
-/// Runs an assembled scenario and writes its report into `out_dir`.
+/// What the report of an assembled scenario needs to know before the run: the path to judge
+/// against, each axis's peak commanded speed (one pass over the setpoints), the lanes.
+pub fn report_setup(assembly: &Assembly) -> ReportSetup {
+    let machine = &assembly.machine;
+    let s = &assembly.scenario;
+    let zeros = vec![0.0; machine.axes.len()];
+    let mut peak = vec![0.0f64; machine.axes.len()];
+    let mut stream = assembly.setpoints();
+    let mut sample = SetpointSample::zeros(stream.axes());
+    while stream.next_sample(&mut sample) {
+        for (p, v) in peak.iter_mut().zip(&sample.velocity) {
+            *p = p.max(v.abs());
+        }
+    }
+    ReportSetup {
+        name: s.name.clone(),
+        labels: assembly.labels.clone(),
+        dc_motor: assembly.actuator == ActuatorKind::DcMotor,
+        period: s.servo_period,
+        path: PathTracker {
+            geometry: PathGeometry::of(&assembly.program),
+            program_origin: kinematics::tool_point(machine, &zeros),
+            linear_axes: ["x", "y", "z"].map(|n| machine.axis_index(n)),
+        },
+        peak_velocity: peak,
+        ticks: assembly.setpoints.len(),
+        lanes: lanes_of(s),
+        backlash: machine.axes.iter().map(|a| a.drive.backlash).collect(),
+        move_lines: assembly.program.moves.iter().map(|m| m.span.line).collect(),
+    }
+}
+
+fn lanes_of(s: &Scenario) -> Vec<&'static str> {
+    if s.analytic_steps.is_some() {
+        vec!["physics", "analytic"]
+    } else {
+        vec!["physics"]
+    }
+}
+
+/// The recording's view of an assembled scenario: the programmed tool path on the workpiece
+/// (forward kinematics of the setpoints, evenly thinned to a bounded number of points).
+pub fn recording_setup<'a>(
+    assembly: &'a Assembly,
+    lanes: &'a [&'static str],
+) -> RecordingSetup<'a> {
+    let machine = &assembly.machine;
+    let mut path = Thinned::new(PROGRAMMED_PATH_POINTS);
+    let mut stream = assembly.setpoints();
+    let mut sample = SetpointSample::zeros(stream.axes());
+    let mut last = None;
+    while stream.next_sample(&mut sample) {
+        let p = kinematics::tool_in_workpiece(machine, &sample.position);
+        path.push([p.x, p.y, p.z]);
+        last = Some([p.x, p.y, p.z]);
+    }
+    let mut programmed_path = path.into_items();
+    programmed_path.extend(last.filter(|l| programmed_path.last() != Some(l)));
+    RecordingSetup {
+        name: &assembly.scenario.name,
+        machine,
+        labels: &assembly.labels,
+        dc_motor: assembly.actuator == ActuatorKind::DcMotor,
+        decimation: assembly.scenario.decimation,
+        lanes,
+        programmed_path,
+        variant: None,
+    }
+}
+
+/// Runs an assembled scenario and writes its report into `out_dir`: `metrics.json` (also when
+/// the run stops early: `completed = false` and the stop), and with the scenario's
+/// `[recording]` the CSV trace and the Rerun recording, all written as the run goes.
 pub fn run_assembly(
     assembly: &Assembly,
     out_dir: &Path,
     progress: &mut dyn FnMut(usize, usize) -> bool,
+    keep_trace: bool,
 ) -> Result<RunOutput, RunError> {
+    run_assembly_observed(assembly, out_dir, progress, keep_trace, None).map(|(run, _)| run)
+}
+
+/// [`run_assembly`] with one more observer of the run (e.g. a shared A/B recording); also
+/// returns the loop's outcome.
+pub fn run_assembly_observed(
+    assembly: &Assembly,
+    out_dir: &Path,
+    progress: &mut dyn FnMut(usize, usize) -> bool,
+    keep_trace: bool,
+    extra: Option<&mut dyn Observer>,
+) -> Result<(RunOutput, Outcome), RunError> {
     let s = &assembly.scenario;
-    let machine = &assembly.machine;
-    let labels = &assembly.labels;
-    let mut recorder = TraceRecorder::new(s.servo_period, labels.len(), 1);
-    let outcome = assembly.run(&mut recorder, progress)?;
-    let mut traces = recorder.into_traces().into_iter();
-    let trace = traces.next().unwrap_or_default();
-    let analytic = traces.next();
-    let stop = outcome.stop().cloned();
-
-    // Report: everything computed so far, whether or not the run completed.
-    let zeros = vec![0.0; machine.axes.len()];
-    let program_origin = kinematics::tool_point(machine, &zeros);
-    let linear_axes = ["x", "y", "z"].map(|n| machine.axis_index(n));
-    let derived = Derived::compute(
-        &trace,
-        &PathGeometry::of(&assembly.program),
-        &program_origin,
-        linear_axes,
-    );
-    let dc_motor = assembly.actuator == ActuatorKind::DcMotor;
-    let mut metrics = Metrics::compute(
-        &s.name,
-        &trace,
-        &derived,
-        labels,
-        dc_motor,
-        outcome.lanes[0].steps,
-        outcome.wall_time,
-        stop.as_ref().map(|e| e.to_string()),
-    );
-    if let Some(reference) = &analytic {
-        metrics.add_analytic_comparison(&trace, &reference.actual, labels);
-    }
-    let metrics_json = metrics.to_json();
-
     std::fs::create_dir_all(out_dir).map_err(|source| ReportError::Io {
         path: out_dir.to_path_buf(),
         source,
     })?;
-    let mut files = Vec::new();
+    let lanes = lanes_of(s);
+    let csv = out_dir.join("trace.csv");
+    let rrd = out_dir.join("run.rrd");
+    let mut report = RunReport::new(
+        report_setup(assembly),
+        s.record_csv.then_some(csv.as_path()),
+        s.record_rrd
+            .then(|| (rrd.as_path(), recording_setup(assembly, &lanes))),
+        s.decimation,
+    )?;
+    let mut recorder = TraceRecorder::new(s.servo_period, assembly.labels.len(), lanes.len());
+    let outcome = {
+        let mut observers: Vec<&mut dyn Observer> = vec![&mut report];
+        if keep_trace {
+            observers.push(&mut recorder);
+        }
+        if let Some(extra) = extra {
+            observers.push(extra);
+        }
+        assembly.run(&mut Observers(observers), progress)?
+    };
+    let metrics = report.metrics(&outcome);
+    let metrics_json = metrics.to_json();
+    let verdict = check(s, &metrics_json);
+
+    // Everything computed so far is written, whether or not the run completed.
     let metrics_path = out_dir.join("metrics.json");
     let text = serde_json::to_string_pretty(&metrics_json).expect("JSON of plain values");
     std::fs::write(&metrics_path, text + "\n").map_err(|source| ReportError::Io {
         path: metrics_path.clone(),
         source,
     })?;
-    files.push(metrics_path);
-    if s.record_csv {
-        let p = out_dir.join("trace.csv");
-        report::write_trace_csv(&p, &trace, &derived, labels, s.decimation)?;
-        files.push(p);
-    }
-    if s.record_rrd {
-        let p = out_dir.join("run.rrd");
-        let poses = |k: usize| {
-            kinematics::link_poses(machine, &trace.actual[k * trace.axes..(k + 1) * trace.axes])
-        };
-        let setpoints = &assembly.setpoints;
-        let programmed_path = (0..setpoints.len())
-            .step_by(s.decimation)
-            .chain(setpoints.len().checked_sub(1))
-            .map(|k| {
-                let p = assembly.axis_map.program_position(setpoints.position(k));
-                (program_origin + nalgebra::Vector3::from(p.linear)).into()
-            })
-            .collect();
-        let content = RecordingContent {
-            name: &s.name,
-            machine,
-            labels,
-            link_poses: &poses,
-            programmed_path,
-            dc_motor,
-            decimation: s.decimation,
-            analytic: analytic.as_ref(),
-        };
-        report::write_recording(&p, &trace, &derived, &content)?;
-        files.push(p);
-    }
-    Ok(RunOutput {
+    let contour_envelope = report.contour_envelope().clone();
+    let end = outcome.ticks as f64 * s.servo_period;
+    let notes: Vec<(f64, &'static str, String)> = verdict
+        .breaches
+        .iter()
+        .map(|b| (end, "ERROR", format!("bound breached: {b}")))
+        .collect();
+    let summary = summary_markdown(assembly, &metrics, &verdict);
+    let mut files = vec![metrics_path];
+    files.extend(report.finish(&outcome, &notes, &summary)?);
+    let mut traces = recorder.into_traces().into_iter();
+    let (trace, analytic) = if keep_trace {
+        (traces.next(), traces.next().filter(|_| lanes.len() > 1))
+    } else {
+        (None, None)
+    };
+    let output = RunOutput {
+        stop: outcome.stop().cloned(),
         metrics,
         metrics_json,
-        stop,
         trace,
         analytic,
-        derived,
+        contour_envelope,
+        verdict,
         files,
-        warnings: machine.warnings.clone(),
-    })
+        warnings: assembly.machine.warnings.clone(),
+    };
+    Ok((output, outcome))
+}
+
+/// The summary document of a recording: what ran, its figures, its bounds.
+pub fn summary_markdown(assembly: &Assembly, metrics: &Metrics, verdict: &Verdict) -> String {
+    let s = &assembly.scenario;
+    let m = &assembly.machine;
+    let controller = s.controller.map_or("none", |c| c.name());
+    let mut t = format!("# {}\n\n", s.name);
+    if !s.description.is_empty() {
+        t += &format!("{}\n\n", s.description);
+    }
+    t += &format!(
+        "- machine: **{}** ({} axes: {})\n- controller: **{controller}**; actuator: {:?}; servo period {} ms, physics step {} ms\n- program: {} ({} moves)\n- status: **{}**\n\n",
+        m.name,
+        m.axes.len(),
+        assembly.labels.iter().map(|l| l.name.as_str()).collect::<Vec<_>>().join(", "),
+        assembly.actuator,
+        s.servo_period * 1e3,
+        s.servo_period / s.substeps as f64 * 1e3,
+        assembly.program.source.display(),
+        assembly.program.moves.len(),
+        metrics.stopped.as_deref().unwrap_or("completed"),
+    );
+    t += "| figure | value |\n|---|---:|\n";
+    t += &format!(
+        "| max contour error | {:.3} µm |\n",
+        metrics.max_contour_error_mm * 1e3
+    );
+    t += &format!(
+        "| rms contour error | {:.3} µm |\n",
+        metrics.rms_contour_error_mm * 1e3
+    );
+    t += &format!(
+        "| max path-speed error | {:.3} mm/s |\n",
+        metrics.max_path_speed_error_mm_s
+    );
+    for (name, a) in &metrics.axes {
+        match (a.max_following_error_mm, a.max_following_error_deg) {
+            (Some(e), _) => {
+                t += &format!(
+                    "| {name}: max following error | {:.3} µm at {:.3} s |\n",
+                    e * 1e3,
+                    a.max_following_error_time_s
+                )
+            }
+            (_, Some(e)) => {
+                t += &format!(
+                    "| {name}: max following error | {:.5} deg at {:.3} s |\n",
+                    e, a.max_following_error_time_s
+                )
+            }
+            _ => {}
+        }
+        if let Some(d) = a.max_physics_vs_analytic_mm {
+            t += &format!("| {name}: physics vs analytic | {:.4} µm |\n", d * 1e3);
+        }
+        t += &format!(
+            "| {name}: peak / rms torque | {:.4} / {:.4} N·m |\n",
+            a.peak_torque_nm, a.rms_torque_nm
+        );
+    }
+    t += &format!(
+        "| simulated / wall time | {:.3} s / {:.3} s |\n\n",
+        metrics.sim_time_s, metrics.wall_time_s
+    );
+    if s.expect.is_empty() {
+        t += "No `[expect]` bounds.\n";
+    } else if verdict.passed() {
+        t += &format!("All {} `[expect]` bounds met.\n", verdict.checked);
+    } else {
+        t += &format!(
+            "**{} of {} `[expect]` bounds breached:**\n\n",
+            verdict.breaches.len(),
+            verdict.checked
+        );
+        for b in &verdict.breaches {
+            t += &format!("- {b}\n");
+        }
+    }
+    t
 }
 
 /// Axis names in the scenario must be the machine's; the chosen controller needs settings for
@@ -240,25 +403,15 @@ pub(crate) fn validate_against_machine(
         }
     }
     // The metric names a run of this machine produces.
-    let empty = Trace {
-        period: s.servo_period,
-        axes: labels.len(),
-        ..Default::default()
-    };
-    let mut template = Metrics::compute(
-        &s.name,
-        &empty,
-        &Derived::default(),
+    let template = report::MetricsAccumulator::new(
         labels,
         s.actuator == Some(ActuatorKind::DcMotor),
-        0,
-        0.0,
-        None,
-    );
-    if s.analytic_steps.is_some() {
-        template.add_analytic_comparison(&empty, &[], labels);
-    }
-    let template = template.to_json();
+        s.servo_period,
+        &vec![0.0; labels.len()],
+        s.analytic_steps.is_some(),
+    )
+    .finish(&s.name, &crate::sim::Outcome::default())
+    .to_json();
     let mut known = Vec::new();
     collect_numeric_paths(&template, "", &mut known);
     for e in &s.expect {

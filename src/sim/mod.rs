@@ -150,7 +150,7 @@ pub struct LaneOutcome {
 
 /// The result of a run: how each lane ended and what it cost. The run ends with the end of its
 /// setpoints or when the first lane (the primary plant) stops.
-#[derive(Debug, Clone, PartialEq)]
+#[derive(Debug, Clone, PartialEq, Default)]
 pub struct Outcome {
     /// Program ticks observed on the first lane.
     pub ticks: usize,

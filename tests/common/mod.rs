@@ -175,7 +175,13 @@ pub fn rrd_rows(path: &std::path::Path) -> std::collections::BTreeMap<String, us
     for msg in DecoderApp::decode_lazy(file) {
         if let LogMsg::ArrowMsg(_, arrow) = msg.unwrap() {
             let chunk = Chunk::from_arrow_msg(&arrow).unwrap();
-            *rows.entry(chunk.entity_path().to_string()).or_insert(0) += chunk.num_rows();
+            // Rows on the run's timeline (static rows, e.g. series names, are not ticks); a
+            // static-only entity still shows, with its rows.
+            let timed = chunk.timelines().keys().any(|t| t.as_str() == "sim_time");
+            let entry = rows.entry(chunk.entity_path().to_string()).or_insert(0);
+            if timed || chunk.is_static() {
+                *entry += if timed { chunk.num_rows() } else { 0 };
+            }
         }
     }
     rows
