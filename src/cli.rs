@@ -171,6 +171,28 @@ pub enum Command {
         #[arg(long, requires = "cascade")]
         velocity_bandwidth_hz: Option<f64>,
     },
+    /// Sweep: every variant × grid point × sample of a sweep file over its scenarios, on all
+    /// cores; writes OUT/results.csv, results.json, summary.md, plots and per-run outputs.
+    Sweep {
+        sweep: PathBuf,
+        /// Runs at once (default: the number of cores).
+        #[arg(long)]
+        jobs: Option<usize>,
+        /// Run only shard K of N (every N-th run from the K-th), e.g. 2/4; `cncsim merge`
+        /// combines the shards' output folders.
+        #[arg(long)]
+        shard: Option<String>,
+        /// Output folder (default: out/sweep_<name>, or …_shard_K_of_N).
+        #[arg(long)]
+        out: Option<PathBuf>,
+    },
+    /// Merge the output folders of a sweep's shards into one (results, summary, plots).
+    Merge {
+        #[arg(required = true)]
+        dirs: Vec<PathBuf>,
+        #[arg(long)]
+        out: PathBuf,
+    },
     /// Run scenarios (files, or folders of *.toml) and check their [expect] bounds; exits
     /// non-zero if any bound is breached or any run fails.
     Check {

@@ -49,6 +49,13 @@ fn main() -> ExitCode {
             run_one(&scenario, None)
         }
         Some(Command::Run { scenario, out }) => run_one(&scenario, out),
+        Some(Command::Sweep {
+            sweep,
+            jobs,
+            shard,
+            out,
+        }) => sweep_cli(&sweep, jobs, shard.as_deref(), out),
+        Some(Command::Merge { dirs, out }) => merge_cli(&dirs, &out),
         Some(Command::Check { scenarios, out }) => check_all(&scenarios, out),
         Some(Command::Plan {
             scenario,
@@ -414,6 +421,116 @@ fn tune(
         Err(e @ TuneError::Search { .. }) => {
             eprintln!("error: {e}");
             ExitCode::from(1)
+        }
+        Err(e) => fail_input(&e),
+    }
+}
+
+fn sweep_cli(
+    path: &Path,
+    jobs: Option<usize>,
+    shard: Option<&str>,
+    out: Option<PathBuf>,
+) -> ExitCode {
+    use cncsim::sweep::{
+        execute, parse_shard, run_sweep, write_results, Progress, Sweep, SweepResults,
+    };
+    let sweep = match Sweep::load(path) {
+        Ok(s) => s,
+        Err(e) => return fail_input(&e),
+    };
+    let shard = match shard.map(parse_shard).transpose() {
+        Ok(s) => s,
+        Err(e) => return fail_input(&e),
+    };
+    let threads =
+        jobs.unwrap_or_else(|| std::thread::available_parallelism().map_or(1, |n| n.get()));
+    if threads == 0 {
+        return fail_input(&"--jobs 0: expected at least 1");
+    }
+    let out = out.unwrap_or_else(|| {
+        let mut name = format!("sweep_{}", folder_name(&sweep.name));
+        if let Some((k, n)) = shard {
+            name += &format!("_shard_{k}_of_{n}");
+        }
+        Path::new("out").join(name)
+    });
+    let (runs, jobs) = run_sweep(&sweep, &out, shard);
+    eprintln!(
+        "sweep {}: {} runs ({} scenarios × {} variants × {} points{}) on {threads} threads",
+        sweep.name,
+        jobs.len(),
+        sweep.scenarios.len(),
+        sweep.variants.len(),
+        sweep.points().len(),
+        shard.map_or(String::new(), |(k, n)| format!(", shard {k}/{n}"))
+    );
+    let progress = Progress {
+        total: jobs.len(),
+        ..Default::default()
+    };
+    let bar = ProgressBar::new(jobs.len() as u64).with_style(
+        ProgressStyle::with_template(
+            "{spinner} [{bar:30}] {pos}/{len} runs {msg} {elapsed_precise} eta {eta}",
+        )
+        .expect("valid template")
+        .progress_chars("=> "),
+    );
+    let on_change = |p: &Progress| {
+        bar.set_position(p.done.load(Ordering::Relaxed) as u64);
+        bar.set_message(format!(
+            "({} running, {} failed)",
+            p.running.load(Ordering::Relaxed),
+            p.failed.load(Ordering::Relaxed)
+        ));
+    };
+    let (results, plans) = execute(&jobs, threads, &INTERRUPTED, &progress, &on_change);
+    bar.finish_and_clear();
+    let table = SweepResults::new(&sweep, &runs, &results, shard);
+    match write_results(&table, &out) {
+        Ok(files) => {
+            print!("{}", table.summary());
+            eprintln!("{} plans made for {} runs", plans, results.len());
+            for f in files {
+                println!("  wrote {}", f.display());
+            }
+        }
+        Err(e) => return fail_input(&e),
+    }
+    if INTERRUPTED.load(Ordering::Relaxed) {
+        eprintln!(
+            "interrupted: {} of {} runs done; the files hold them",
+            results.len(),
+            jobs.len()
+        );
+        return ExitCode::from(130);
+    }
+    if results
+        .iter()
+        .any(|r| r.error.is_some() || r.stopped.is_some())
+    {
+        return ExitCode::from(1);
+    }
+    ExitCode::SUCCESS
+}
+
+fn merge_cli(dirs: &[PathBuf], out: &Path) -> ExitCode {
+    let merged = match cncsim::sweep::merge(dirs) {
+        Ok(m) => m,
+        Err(e) => return fail_input(&e),
+    };
+    match cncsim::sweep::write_results(&merged, out) {
+        Ok(files) => {
+            println!(
+                "merged {} folders: {} of {} runs",
+                dirs.len(),
+                merged.rows.len(),
+                merged.total_runs
+            );
+            for f in files {
+                println!("  wrote {}", f.display());
+            }
+            ExitCode::SUCCESS
         }
         Err(e) => fail_input(&e),
     }

@@ -46,6 +46,7 @@ pub struct CascadeAxis {
 struct AxisState {
     position_integral: f64,
     velocity_integral: f64,
+    /// The motor encoder's previous sample, for the velocity estimate.
     previous_position: Option<f64>,
     velocity: f64,
 }
@@ -117,11 +118,12 @@ impl Controller for Cascade {
         }
         for (i, (axis, s)) in self.axes.iter().zip(&mut self.state).enumerate() {
             let x = input.measured_position[i];
+            let motor = input.motor_position[i];
             let raw = match s.previous_position {
-                Some(p) => (x - p) / t,
+                Some(p) => (motor - p) / t,
                 None => 0.0,
             };
-            s.previous_position = Some(x);
+            s.previous_position = Some(motor);
             s.velocity += self.smoothing * (raw - s.velocity);
 
             let position_error = input.setpoint_position[i] - x;

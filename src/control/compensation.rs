@@ -129,6 +129,7 @@ mod tests {
                 setpoint_velocity: &[velocity],
                 setpoint_acceleration: &[0.0],
                 measured_position: &[0.0],
+                motor_position: &[0.0],
             },
             &mut out,
         );

@@ -24,8 +24,13 @@ pub struct ControllerInput<'a> {
     pub setpoint_position: &'a [f64],
     pub setpoint_velocity: &'a [f64],
     pub setpoint_acceleration: &'a [f64],
-    /// Measured position (quantised by the encoder if one is modelled).
+    /// Measured position of the axis's feedback device, the one its position loop closes on:
+    /// the motor encoder, or a linear scale on the carriage (quantised by the encoder if one
+    /// is modelled).
     pub measured_position: &'a [f64],
+    /// The motor encoder's position (the drive side of any backlash, joint units), which a
+    /// drive's velocity loop closes on; equals `measured_position` for a motor-encoder axis.
+    pub motor_position: &'a [f64],
 }
 
 /// A servo controller for all axes of a machine: a block with one input (the setpoints and

@@ -17,7 +17,9 @@ pub use csv::CsvWriter;
 pub use events::{Event, EventDetector, MAX_EVENTS_PER_KIND};
 pub use metrics::{AxisMetrics, Metrics, MetricsAccumulator, StallCounter};
 pub use path::{PathSample, PathTracker};
-pub use plot::{write_contour_error_plot, ContourSeries, PLOT_SIZE};
+pub use plot::{
+    write_bar_plot, write_contour_error_plot, write_line_plot, BarSeries, ContourSeries, PLOT_SIZE,
+};
 pub use recording::{magnification, write_setpoints_recording, RecordingSetup, RrdWriter};
 pub use run_report::{Envelope, ReportSetup, RunReport};
 pub use table::metrics_table;

@@ -75,6 +75,18 @@ impl Assembly {
     /// as it is: [`machine_for`] is the scenario's machine with its `[mechanics]`,
     /// `[feedback]` and `[actuator]` choices applied.
     pub fn with_machine(s: &Scenario, machine: Machine) -> Result<Assembly, RunError> {
+        let (program, setpoints) = plan_for(s, &machine)?;
+        Self::from_plan(s, machine, program, setpoints)
+    }
+
+    /// Wires the scenario on `machine` with a plan made before (e.g. shared by the variants
+    /// of a sweep that all run the same setpoints).
+    pub fn from_plan(
+        s: &Scenario,
+        machine: Machine,
+        program: Program,
+        setpoints: Setpoints,
+    ) -> Result<Assembly, RunError> {
         let Some(actuator) = s.actuator else {
             let message = "running a scenario needs [actuator] and [controller] sections (planning with `cncsim plan` does not)";
             return Err(FileError::new(&s.path, None, message).into());
@@ -87,13 +99,6 @@ impl Assembly {
         super::run::validate_against_machine(s, &machine, &labels)?;
         let axis_map = AxisMap::cartesian(&machine)
             .map_err(|e| FileError::new(&s.machine, None, e.to_string()))?;
-        let program = load_checked_program(s, &machine)?;
-        let settings = plan_settings(s, &machine, s.planner.profile)?;
-        let setpoints =
-            plan_program(&program, &axis_map, &settings).map_err(|source| RunError::Plan {
-                path: program.source.clone(),
-                source,
-            })?;
         check_run_length(s, setpoints.len())?;
         let encoder = Encoder {
             resolution: machine
@@ -275,12 +280,47 @@ fn labels(machine: &Machine) -> Vec<AxisLabel> {
         .collect()
 }
 
+/// The scenario's program on `machine` and its setpoints.
+pub fn plan_for(s: &Scenario, machine: &Machine) -> Result<(Program, Setpoints), RunError> {
+    let axis_map =
+        AxisMap::cartesian(machine).map_err(|e| FileError::new(&s.machine, None, e.to_string()))?;
+    let program = load_checked_program(s, machine)?;
+    let settings = plan_settings(s, machine, s.planner.profile)?;
+    let setpoints =
+        plan_program(&program, &axis_map, &settings).map_err(|source| RunError::Plan {
+            path: program.source.clone(),
+            source,
+        })?;
+    Ok((program, setpoints))
+}
+
+/// What the plan of a scenario on a machine depends on, as a key: runs with equal keys run
+/// the same setpoints (the program and its reading, the planner, the servo period, the
+/// machine's kinematic description and axes).
+pub fn plan_key(s: &Scenario, machine: &Machine) -> String {
+    let settings = plan_settings(s, machine, s.planner.profile).map(|p| format!("{p:?}"));
+    let axes: Vec<(&str, usize)> = machine
+        .axes
+        .iter()
+        .map(|a| (a.name.as_str(), a.joint))
+        .collect();
+    format!(
+        "{:?}|{settings:?}|{}|{axes:?}",
+        s.program,
+        machine.urdf_path.display()
+    )
+}
+
 /// The scenario's machine with its `[mechanics]`, `[feedback]` and `[actuator]` choices
 /// applied.
 pub fn machine_for(s: &Scenario) -> Result<Machine, RunError> {
-    let mut machine = Machine::load(&s.machine)?;
+    Ok(with_choices(s, Machine::load(&s.machine)?))
+}
+
+/// `machine` with the scenario's `[mechanics]`, `[feedback]` and `[actuator]` choices applied.
+pub fn with_choices(s: &Scenario, mut machine: Machine) -> Machine {
     apply_choices(s, &mut machine);
-    Ok(machine)
+    machine
 }
 
 fn apply_choices(s: &Scenario, machine: &mut Machine) {

@@ -12,8 +12,8 @@ mod tune;
 
 pub use ab::{run_ab, AbReport, AbRow};
 pub use assemble::{
-    keep_mechanics, load_checked_program, machine_for, plan_settings, Assembly, PlantKind,
-    RunError, GRAVITY,
+    keep_mechanics, load_checked_program, machine_for, plan_for, plan_key, plan_settings,
+    with_choices, Assembly, PlantKind, RunError, GRAVITY,
 };
 pub use check::{check, Breach, Verdict};
 pub use file::{
@@ -21,7 +21,7 @@ pub use file::{
     DeclaredVariants, Expectation, InverseDynamicsSettings, PlannerSettings, ProfileName,
     ProgramSource, Scenario,
 };
-pub use overrides::Override;
+pub use overrides::{edit_toml, Override};
 pub use plan::{plan_scenario, PlanReport};
 pub use run::{
     recording_setup, report_setup, run_assembly, run_assembly_observed, run_scenario,

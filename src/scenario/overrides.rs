@@ -126,6 +126,17 @@ fn not_a_table(key: &str, item: &Item) -> String {
     format!("`{key}` is a {what}, not a table of keys")
 }
 
+/// `text` (a TOML document) with `overrides` applied, every other line as written.
+pub fn edit_toml(text: &str, overrides: &[Override]) -> Result<String, String> {
+    let mut doc: DocumentMut = text
+        .parse()
+        .map_err(|e: toml_edit::TomlError| e.to_string())?;
+    for o in overrides {
+        o.apply(&mut doc).map_err(|m| format!("{o}: {m}"))?;
+    }
+    Ok(doc.to_string())
+}
+
 impl Scenario {
     /// Loads a scenario with `overrides` applied; `flag` (`--a`, `--b`) names where they came
     /// from in messages. The variant's name is the scenario's name followed by the overrides.

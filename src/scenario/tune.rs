@@ -894,12 +894,20 @@ impl CascadeTuneReport {
                     o * 100.0
                 );
             }
-            _ => t += &format!(
+            _ => {
+                t += &format!(
                 "  check        the velocity step on the {} model did not reach 90 % of the step\n",
                 self.plant
-            ),
+            )
+            }
         }
         t += &format!("  {}\n", self.toml);
+        t += &format!(
+            "  the same model's PID feed-forward (FF1 = c/b, FF2 = m/b): axes.{} ff1 = {}, ff2 = {}\n",
+            self.axis,
+            toml_number(d.damping / d.force_per_command),
+            toml_number(d.mass / d.force_per_command)
+        );
         t
     }
 }

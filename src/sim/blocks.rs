@@ -13,17 +13,16 @@ pub struct Encoder {
 }
 
 impl Encoder {
-    /// The measured positions: the sensors' feedback positions in whole counts.
-    pub fn measure(&self, sensors: &Sensors, measured: &mut [f64]) {
-        for ((m, &p), res) in measured
-            .iter_mut()
-            .zip(&sensors.feedback_position)
-            .zip(&self.resolution)
-        {
-            *m = match res {
-                Some(r) => (p / r).round() * r,
-                None => p,
-            };
+    /// The measured positions: the sensors' feedback positions, and the motor encoder's (the
+    /// drive side), in whole counts.
+    pub fn measure(&self, sensors: &Sensors, measured: &mut [f64], motor: &mut [f64]) {
+        let count = |p: f64, res: &Option<f64>| match res {
+            Some(r) => (p / r).round() * r,
+            None => p,
+        };
+        for (i, res) in self.resolution.iter().enumerate() {
+            measured[i] = count(sensors.feedback_position[i], res);
+            motor[i] = count(sensors.drive_position[i], res);
         }
     }
 }
@@ -74,9 +73,11 @@ mod tests {
         let encoder = Encoder {
             resolution: vec![Some(0.5e-3), None],
         };
-        let mut m = [0.0; 2];
-        encoder.measure(&s, &mut m);
+        s.drive_position = vec![0.74e-3, 0.74e-3];
+        let (mut m, mut motor) = ([0.0; 2], [0.0; 2]);
+        encoder.measure(&s, &mut m, &mut motor);
         assert_eq!(m, [1.5e-3, 1.26e-3]);
+        assert_eq!(motor, [0.5e-3, 0.74e-3]);
     }
 
     #[test]

@@ -100,8 +100,10 @@ pub struct TickRecord<'a> {
     pub time: f64,
     pub setpoint: &'a SetpointSample,
     pub sensors: &'a Sensors,
-    /// Positions the controller saw (after the encoder).
+    /// Positions the controller saw (after the encoder): of the feedback device, and of the
+    /// motor encoder.
     pub measured: &'a [f64],
+    pub motor: &'a [f64],
     /// Controller output (V at the amplifier input, or N·m).
     pub command: &'a [f64],
     pub hold: &'a Hold,
@@ -169,6 +171,7 @@ impl Outcome {
 struct LaneState {
     sensors: Sensors,
     measured: Vec<f64>,
+    motor: Vec<f64>,
     command: Vec<f64>,
     hold: Hold,
     stop: Option<Stop>,
@@ -192,6 +195,7 @@ pub fn run(
         .map(|_| LaneState {
             sensors: Sensors::new(n),
             measured: vec![0.0; n],
+            motor: vec![0.0; n],
             command: vec![0.0; n],
             hold: Hold::new(n),
             stop: None,
@@ -215,7 +219,7 @@ pub fn run(
             }
             done += 1;
             if done % PROGRESS_EVERY == 0 && !progress(done, total) {
-                state[0].stop = Some(Stop::Interrupted { time });
+                interrupt(&mut state, time, observer);
                 break;
             }
         }
@@ -238,7 +242,7 @@ pub fn run(
                 break;
             }
             if done % PROGRESS_EVERY == 0 && !progress(done, total) {
-                state[0].stop = Some(Stop::Interrupted { time });
+                interrupt(&mut state, time, observer);
                 break;
             }
             more = setpoints.next_sample(&mut sample);
@@ -258,6 +262,13 @@ pub fn run(
             .collect(),
         wall_time: started.elapsed().as_secs_f64(),
     }
+}
+
+/// Stops the run as interrupted at `time`: the primary lane stops, observers hear it.
+fn interrupt(state: &mut [LaneState], time: f64, observer: &mut dyn Observer) {
+    let stop = Stop::Interrupted { time };
+    observer.stopped(0, &stop);
+    state[0].stop = Some(stop);
 }
 
 /// One servo period of every lane still running: sample, check, measure, control, hold.
@@ -285,20 +296,25 @@ fn tick_lanes(
                 s.command.iter_mut().for_each(|c| *c = 0.0);
                 s.hold.mean_torque.iter_mut().for_each(|c| *c = 0.0);
                 s.hold.voltage.iter_mut().for_each(|c| *c = 0.0);
-                settings.encoder.measure(&s.sensors, &mut s.measured);
+                settings
+                    .encoder
+                    .measure(&s.sensors, &mut s.measured, &mut s.motor);
                 observer.tick(index, &record(k, time, setpoint, s));
             }
             observer.stopped(index, &stop);
             s.stop = Some(stop);
             continue;
         }
-        settings.encoder.measure(&s.sensors, &mut s.measured);
+        settings
+            .encoder
+            .measure(&s.sensors, &mut s.measured, &mut s.motor);
         let input = ControllerInput {
             time,
             setpoint_position: &setpoint.position,
             setpoint_velocity: &setpoint.velocity,
             setpoint_acceleration: &setpoint.acceleration,
             measured_position: &s.measured,
+            motor_position: &s.motor,
         };
         lane.controller.update(&input, &mut s.command);
         lane.plant.hold(&s.command, &mut s.hold);
@@ -321,6 +337,7 @@ fn record<'a>(
         setpoint,
         sensors: &s.sensors,
         measured: &s.measured,
+        motor: &s.motor,
         command: &s.command,
         hold: &s.hold,
     }
