@@ -113,6 +113,13 @@ pub enum Command {
         /// HPGL: reorder and reverse strokes to shorten pen-up travel; report before/after.
         #[arg(long)]
         optimise_pen_up: bool,
+        /// HPGL and APT: refuse commands and records that do not move the pen or tool
+        /// (instead of skipping them with one warning per kind).
+        #[arg(long)]
+        strict: bool,
+        /// HPGL: draw fills (RA RR WG FP) as outlines only, without hatch lines.
+        #[arg(long)]
+        no_hatch: bool,
         /// List every move, however long the program.
         #[arg(long)]
         all: bool,

@@ -138,6 +138,8 @@ fn main() -> ExitCode {
             euclidean_feed,
             lenient,
             optimise_pen_up,
+            strict,
+            no_hatch,
             all,
             tool_table,
         }) => {
@@ -162,6 +164,9 @@ fn main() -> ExitCode {
             }
             options.hpgl.lenient = lenient;
             options.hpgl.optimise_pen_up = optimise_pen_up;
+            options.hpgl.strict = strict;
+            options.apt.strict = strict;
+            options.hpgl.hatch_fills = !no_hatch;
             let listing = InspectOptions {
                 list_limit: if all {
                     usize::MAX

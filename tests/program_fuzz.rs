@@ -74,11 +74,16 @@ fn run_hpgl(bytes: &[u8]) {
     check(parse_hpgl(bytes, "f.plt", &options), "f.plt");
     options.hpgl.optimise_pen_up = true;
     options.hpgl.lenient = true;
+    options.hpgl.strict = true;
+    options.hpgl.hatch_fills = false;
     check(parse_hpgl(bytes, "f.plt", &options), "f.plt");
 }
 
 fn run_apt(bytes: &[u8]) {
-    check(parse_apt(bytes, "f.apt", &ReadOptions::default()), "f.apt");
+    let mut options = ReadOptions::default();
+    check(parse_apt(bytes, "f.apt", &options), "f.apt");
+    options.apt.strict = true;
+    check(parse_apt(bytes, "f.apt", &options), "f.apt");
 }
 
 /// A number as programs write them, or a broken one.
@@ -254,6 +259,7 @@ const HPGL_WORDS: &[&str] = &[
     "DF",
     "SC",
     "IP",
+    "IR",
     "SP",
     "PU",
     "PD",
@@ -264,18 +270,83 @@ const HPGL_WORDS: &[&str] = &[
     "CI",
     "AA",
     "AR",
+    "AT",
+    "RT",
+    "BZ",
+    "BR",
     "LB",
+    "BL",
+    "PB",
+    "DT",
+    "DI",
+    "DR",
+    "SI",
+    "SR",
+    "SL",
+    "ES",
+    "LO",
+    "CP",
+    "SM",
+    "RA",
+    "RR",
+    "EA",
+    "ER",
+    "EW",
+    "WG",
+    "FT",
+    "PT",
+    "PW",
+    "WU",
+    "PM",
+    "PM0",
+    "PM1",
+    "PM2",
+    "EP",
+    "FP",
+    "RO",
+    "RO90",
+    "PS",
+    "IW",
+    "CT",
+    "XT",
+    "YT",
+    "TL",
+    "PE",
+    "PE<=",
+    "PE>",
+    "PE:",
+    "PG",
+    "EC",
+    "CO\"",
+    "BP",
+    "NP",
+    "SC0,1,0,1,1",
+    "SC0,2,0,2,2",
     ";",
     ";",
     ",",
     ",",
     " ",
     "\n",
+    "\"",
     "\x1b.(",
     "\x1b.I81;;17:",
     "\x1b.N;19:",
     "\x1b",
+    "\x1b%-1B",
+    "\x1b%0A",
+    "\x1b%-12345X",
+    "@PJL ENTER LANGUAGE=HPGL2\r\n",
+    "\x1bE",
+    "\x1b*b4W",
+    "\x1b&l0O",
     "\x03",
+    "\r",
+    "\x08",
+    "\u{bf}",
+    "\u{ff}",
+    "?",
+    "~",
 ];
 const APT_WORDS: &[&str] = &[
     "GOTO/",
@@ -300,6 +371,23 @@ const APT_WORDS: &[&str] = &[
     "IPM",
     "MMPM",
     "/",
+    "CIRCLE/",
+    "TIMES",
+    "MSYS/",
+    "TLAXIS/",
+    "DELAY/",
+    "REV",
+    "GOHOME",
+    "TOOL PATH/",
+    "END-OF-PATH",
+    "TLDATA/MILL",
+    "PAINT/COLOR",
+    "LOAD/TOOL",
+    "CUTCOM/LEFT",
+    "CYCLE/DRILL",
+    "0,0,1",
+    "0,0,-1",
+    "0.7071068,0.7071068,0",
 ];
 
 fn fuzz(cases: u32, strategy: impl Strategy<Value = Vec<u8>>, run: fn(&[u8])) {

@@ -28,7 +28,7 @@ use std::fs::File;
 use std::io::BufReader;
 use std::path::Path;
 
-pub use self::apt::parse_apt;
+pub use self::apt::{parse_apt, CircleSense};
 pub use self::error::{display_text, Found, ProgramError, ProgramErrors};
 pub use self::gcode::{parse_gcode, parse_gcode_reader, parse_tool_table};
 pub use self::geometry::{arc_segment, PathGeometry, Segment};

@@ -1,6 +1,7 @@
 //! Settings that steer the readers: feed rule, G-code defaults, HPGL pen heights and
 //! optimisation, APT feed units, error limits.
 
+use super::apt::CircleSense;
 use super::types::{FeedRule, Position};
 
 /// Length units a G-code program starts in (before any G20/G21).
@@ -163,6 +164,18 @@ pub struct HpglOptions {
     /// P1 and P2 (plotter units) after IN / a bare IP: the HP 7475's A-size defaults.
     pub default_p1: [f64; 2],
     pub default_p2: [f64; 2],
+    /// The page (hard-clip limits, plotter units) until a PS: the HP 7475's A size. RO
+    /// turns the plot about it and IR places P1 and P2 in it.
+    pub default_page: [f64; 2],
+    /// Refuse commands that do not move the pen (PS CO PW NP EC PG …, PCL wrappers) instead
+    /// of skipping them with one warning per kind.
+    pub strict: bool,
+    /// Fills (RA RR WG FP) are outlines plus the hatch lines FT asks for; `false` draws
+    /// the outlines only.
+    pub hatch_fills: bool,
+    /// At most this many fill hatch lines per file: a bound on the work and memory a file
+    /// can ask for (each line is four moves).
+    pub max_fill_lines: usize,
 }
 
 impl Default for HpglOptions {
@@ -176,6 +189,10 @@ impl Default for HpglOptions {
             optimise_pen_up: false,
             default_p1: [250.0, 596.0],
             default_p2: [10250.0, 7796.0],
+            default_page: [10365.0, 7962.0],
+            strict: false,
+            hatch_fills: true,
+            max_fill_lines: 250_000,
         }
     }
 }
@@ -191,12 +208,33 @@ pub enum FeedTimeBase {
 }
 
 /// APT CL settings.
-#[derive(Debug, Clone, PartialEq, Default)]
+#[derive(Debug, Clone, PartialEq)]
 pub struct AptOptions {
     /// Units before the first `UNITS` record.
     pub initial_units: LengthUnit,
     /// How to read a `FEDRAT` value that carries no IPM/MMPM word.
     pub feed_time_base: FeedTimeBase,
+    /// Which way CIRCLE arcs turn about their axis vector (NX: clockwise).
+    pub circle_sense: CircleSense,
+    /// Largest distance (m) of the chords standing for an arc about a tilted axis.
+    pub chord_tolerance: f64,
+    /// At most this many chords for one such arc.
+    pub max_chords: usize,
+    /// Refuse records that do not move the tool instead of skipping them with a warning.
+    pub strict: bool,
+}
+
+impl Default for AptOptions {
+    fn default() -> Self {
+        AptOptions {
+            initial_units: LengthUnit::default(),
+            feed_time_base: FeedTimeBase::default(),
+            circle_sense: CircleSense::default(),
+            chord_tolerance: 1e-6,
+            max_chords: 1_000_000,
+            strict: false,
+        }
+    }
 }
 
 /// Everything the readers can be told.
