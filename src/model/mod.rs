@@ -96,7 +96,10 @@ struct GuidePair {
 /// The simulated machine.
 pub struct Plant {
     world: PhysicsWorld,
+    /// Per link: the body that carries it and the link's pose in that body's frame. Links on
+    /// fixed joints ride on their parent's body (see [`RigidGroups`]).
     link_bodies: Vec<RigidBodyHandle>,
+    link_offsets: Vec<Isometry3<f64>>,
     axes: Vec<AxisBinding>,
     tool_dofs: Vec<ChainDof>,
     guides: Vec<Option<GuidePair>>,
@@ -163,28 +166,31 @@ impl Plant {
         });
         world.integration_parameters.contact_recycling = !stiction;
 
-        // Bodies at their home poses (all joints at zero); the multibody places them.
+        // One body per rigid group (a link and the links fixed to it), at its home pose (all
+        // joints at zero); the multibody places them.
         let home = home_poses(machine);
-        let mut link_bodies = Vec::with_capacity(machine.links.len());
-        for (i, link) in machine.links.iter().enumerate() {
+        let groups = RigidGroups::of(machine);
+        let mut group_bodies = vec![None; machine.links.len()];
+        for (i, mass) in groups.mass_properties(machine).into_iter().enumerate() {
+            let Some(mass) = mass else { continue };
             let body = if i == machine.root {
                 RigidBodyBuilder::fixed()
             } else {
-                if link.mass <= 0.0 {
-                    return Err(ModelError::MasslessMovingLink(link.name.clone()));
+                if mass.mass() <= 0.0 {
+                    return Err(ModelError::MasslessMovingLink(machine.links[i].name.clone()));
                 }
-                let props = MassProperties::with_inertia_matrix(
-                    to_vec(&link.center_of_mass.coords),
-                    link.mass,
-                    convert::to_mat(&link.inertia),
-                );
                 // Machine axes creep at micrometres per second; they must never sleep.
                 RigidBodyBuilder::dynamic()
-                    .additional_mass_properties(props)
+                    .additional_mass_properties(mass)
                     .can_sleep(false)
             };
-            link_bodies.push(world.insert_body(body.pose(to_pose(&home[i]))));
+            group_bodies[i] = Some(world.insert_body(body.pose(to_pose(&home[i]))));
         }
+        let link_bodies: Vec<RigidBodyHandle> = groups
+            .carrier
+            .iter()
+            .map(|&c| group_bodies[c].expect("every carrier has a body"))
+            .collect();
 
         let mut multibody = None;
         // Per URDF joint: the multibody handles of the joint that moves its child link
@@ -194,6 +200,15 @@ impl Plant {
         let mut drive_body = Vec::with_capacity(machine.joints.len());
         let mut guides: Vec<Option<GuidePair>> = (0..machine.axes.len()).map(|_| None).collect();
         for (j, joint) in machine.joints.iter().enumerate() {
+            if joint.kind == JointKind::Fixed {
+                // Part of its parent's rigid group: no joint, no body of its own.
+                child_joint.push(None);
+                drive_joint.push(None);
+                drive_body.push(link_bodies[joint.child]);
+                continue;
+            }
+            // The joint's origin in the frame of the body carrying its parent link.
+            let origin = groups.offset[joint.parent] * joint.origin;
             let axis = machine.axes.iter().position(|a| a.joint == j);
             let drive = axis.map(|a| &machine.axes[a].drive);
             let backlash = drive.map_or(0.0, |d| d.backlash);
@@ -209,9 +224,8 @@ impl Plant {
                 JointAxesMask::empty()
             };
             let locked = match joint.kind {
-                JointKind::Fixed => JointAxesMask::LOCKED_FIXED_AXES,
-                JointKind::Prismatic => JointAxesMask::LOCKED_PRISMATIC_AXES,
                 JointKind::Revolute => JointAxesMask::LOCKED_REVOLUTE_AXES,
+                _ => JointAxesMask::LOCKED_PRISMATIC_AXES,
             };
             let mut insert = |world: &mut PhysicsWorld, a, b, data| {
                 let handle = world
@@ -230,7 +244,7 @@ impl Plant {
                         .pose(to_pose(&home[joint.child])),
                 );
                 let drive_data = GenericJointBuilder::new(locked)
-                    .local_frame1(to_pose(&(joint.origin * frame)))
+                    .local_frame1(to_pose(&(origin * frame)))
                     .local_frame2(to_pose(&frame))
                     .contacts_enabled(false)
                     .build();
@@ -245,17 +259,17 @@ impl Plant {
                     .contacts_enabled(false)
                     .build();
                 drive_joint.push(Some(insert(&mut world, parent, d, drive_data)?));
-                child_joint.push(insert(&mut world, d, child, slack_data)?);
+                child_joint.push(Some(insert(&mut world, d, child, slack_data)?));
                 drive_body.push(d);
             } else {
                 let data = GenericJointBuilder::new(locked & !free_normal)
-                    .local_frame1(to_pose(&(joint.origin * frame)))
+                    .local_frame1(to_pose(&(origin * frame)))
                     .local_frame2(to_pose(&frame))
                     .contacts_enabled(guide.is_some())
                     .build();
                 let handle = insert(&mut world, parent, child, data)?;
                 drive_joint.push(axis.map(|_| handle));
-                child_joint.push(handle);
+                child_joint.push(Some(handle));
                 drive_body.push(child);
             }
             if let (Some(a), Some(g)) = (axis, guide) {
@@ -265,6 +279,7 @@ impl Plant {
                     &mut world,
                     (parent, child),
                     joint,
+                    &groups.offset[joint.parent],
                     &frame,
                     g,
                     &home[joint.parent],
@@ -286,7 +301,8 @@ impl Plant {
             let j = axis.joint;
             let joint = &machine.joints[j];
             let drive = drive_joint[j].expect("every axis has a drive joint");
-            let slack = (drive != child_joint[j]).then(|| link_of(&world, child_joint[j]));
+            let carriage = child_joint[j].expect("axes move their links");
+            let slack = (drive != carriage).then(|| link_of(&world, carriage));
             axes.push(AxisBinding {
                 driven: drive_body[j],
                 parent: link_bodies[joint.parent],
@@ -320,6 +336,7 @@ impl Plant {
                     ))
                 };
                 let drive = drive_joint[j].expect("moving joints have drives");
+                let carriage = child_joint[j].expect("moving joints move their links");
                 let guide = machine
                     .axes
                     .iter()
@@ -331,13 +348,8 @@ impl Plant {
                     joint.kind,
                     dof(link_of(&world, drive)),
                 );
-                if drive != child_joint[j] {
-                    push(
-                        child,
-                        joint.axis,
-                        joint.kind,
-                        dof(link_of(&world, child_joint[j])),
-                    );
+                if drive != carriage {
+                    push(child, joint.axis, joint.kind, dof(link_of(&world, carriage)));
                 }
                 if let Some(g) = guide {
                     // The lift-off DOF follows the travel DOF in the carriage's joint.
@@ -346,7 +358,7 @@ impl Plant {
                         child,
                         normal,
                         JointKind::Prismatic,
-                        (link_of(&world, child_joint[j]), 1),
+                        (link_of(&world, carriage), 1),
                     );
                 }
             }
@@ -356,6 +368,7 @@ impl Plant {
         let mut plant = Plant {
             world,
             link_bodies,
+            link_offsets: groups.offset,
             axes,
             tool_dofs: Vec::new(),
             guides,
@@ -591,14 +604,15 @@ impl Plant {
     pub fn link_poses(&self) -> Vec<Isometry3<f64>> {
         self.link_bodies
             .iter()
-            .map(|h| from_pose(self.world.bodies[*h].position()))
+            .zip(&self.link_offsets)
+            .map(|(h, offset)| from_pose(self.world.bodies[*h].position()) * offset)
             .collect()
     }
 
     /// Tool point in the machine base frame (m).
     pub fn tool_point(&self) -> Point3<f64> {
         let body = &self.world.bodies[self.link_bodies[self.tool_link]];
-        from_pose(body.position()) * self.tool_offset
+        from_pose(body.position()) * self.link_offsets[self.tool_link] * self.tool_offset
     }
 
     /// Velocity of the tool point (m/s), from the joints' generalised velocities along the
@@ -633,6 +647,7 @@ fn insert_guide(
     world: &mut PhysicsWorld,
     (parent, child): (RigidBodyHandle, RigidBodyHandle),
     joint: &crate::machine::Joint,
+    parent_offset: &Isometry3<f64>,
     frame: &Isometry3<f64>,
     guide: Guide,
     parent_home: &Isometry3<f64>,
@@ -658,7 +673,8 @@ fn insert_guide(
             .build()
     };
     let runner_pose = frame * Translation3::new(0.0, 0.0, ht);
-    let guide_pose = joint.origin * frame * Translation3::new((lo + hi) / 2.0, 0.0, -ht);
+    let guide_pose =
+        parent_offset * joint.origin * frame * Translation3::new((lo + hi) / 2.0, 0.0, -ht);
     let runner = world.insert_collider(finish(runner_shape, runner_pose), Some(child));
     let guide_collider = world.insert_collider(finish(guide_shape, guide_pose), Some(parent));
     let normal = (parent_home * joint.origin * frame).rotation * Vector3::z();
@@ -692,6 +708,49 @@ fn x_to_axis(axis: &Vector3<f64>) -> Isometry3<f64> {
             UnitQuaternion::from_axis_angle(&Vector3::z_axis(), std::f64::consts::PI)
         });
     Isometry3::from_parts(Translation3::identity(), rotation)
+}
+
+/// Links joined by fixed joints move as one rigid body: each group is carried by the body of
+/// its topmost link. A fixed joint costs the multibody a link (kinematics, a block of the mass
+/// matrix) and moves nothing, so its child rides on its parent's body instead, with its mass.
+struct RigidGroups {
+    /// Per link: the link whose body carries it (itself, unless it hangs on a fixed joint).
+    carrier: Vec<usize>,
+    /// Per link: its pose in the carrier's frame.
+    offset: Vec<Isometry3<f64>>,
+}
+
+impl RigidGroups {
+    fn of(machine: &Machine) -> RigidGroups {
+        let n = machine.links.len();
+        let mut groups = RigidGroups {
+            carrier: (0..n).collect(),
+            offset: vec![Isometry3::identity(); n],
+        };
+        // Joints are ordered parents first, so a parent's carrier is final before its child's.
+        for joint in machine.joints.iter().filter(|j| j.kind == JointKind::Fixed) {
+            groups.carrier[joint.child] = groups.carrier[joint.parent];
+            groups.offset[joint.child] = groups.offset[joint.parent] * joint.origin;
+        }
+        groups
+    }
+
+    /// The combined mass properties of each group, in its carrier's frame (`None` for links
+    /// that are carried by another).
+    fn mass_properties(&self, machine: &Machine) -> Vec<Option<MassProperties>> {
+        let mut sums: Vec<Option<MassProperties>> = vec![None; machine.links.len()];
+        for (i, link) in machine.links.iter().enumerate() {
+            let own = MassProperties::with_inertia_matrix(
+                to_vec(&link.center_of_mass.coords),
+                link.mass,
+                convert::to_mat(&link.inertia),
+            )
+            .transform_by(&to_pose(&self.offset[i]));
+            let sum = sums[self.carrier[i]].get_or_insert(MassProperties::default());
+            *sum += own;
+        }
+        sums
+    }
 }
 
 /// Pose of every link with all joint coordinates at zero.
