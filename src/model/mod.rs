@@ -110,11 +110,16 @@ pub struct Plant {
 }
 
 /// Natural frequency of the guide contacts' softness (Hz).
-const GUIDE_CONTACT_HZ: f64 = 500.0;
+const GUIDE_CONTACT_HZ: f64 = 1000.0;
 
-/// Half-size of a guide runner: a 40 mm × 40 mm pad, 5 mm thick. Its size does not enter the
-/// friction force (μ·N), only where the contact points sit.
-const RUNNER_HALF: [f64; 3] = [0.02, 0.02, 0.0025];
+/// Radius of a guide runner: a ball under the carriage, so the runner touches its rail at one
+/// point. The carriage cannot tilt (the joint holds its rotation), so where the load sits does
+/// not matter and one contact point carries it as well as four: friction is μ·N either way,
+/// and the solver has three rows per guide instead of twelve (a pad's four corners).
+const RUNNER_RADIUS: f64 = 0.005;
+
+/// Half-width and half-thickness of a guide rail (m).
+const RAIL_HALF: [f64; 2] = [0.02, 0.0025];
 
 impl Plant {
     pub fn new(machine: &Machine, options: &PlantOptions) -> Result<Plant, ModelError> {
@@ -641,8 +646,8 @@ impl Plant {
 }
 
 /// Inserts the guide (on the parent link) and the runner (under the carriage) of a guided
-/// joint. At the home pose the runner's bottom face lies on the guide's top face at the joint
-/// origin; the guide runs the whole travel so the contact never ends.
+/// joint. At the home pose the runner ball touches the guide's top face at the joint origin;
+/// the guide runs the whole travel so the contact never ends.
 fn insert_guide(
     world: &mut PhysicsWorld,
     (parent, child): (RigidBodyHandle, RigidBodyHandle),
@@ -655,10 +660,10 @@ fn insert_guide(
 ) -> GuidePair {
     // URDF prismatic joints carry limits; a limitless one gets a metre of rail each way.
     let [lo, hi] = joint.limits.unwrap_or([-1.0, 1.0]);
-    let [ha, hb, ht] = RUNNER_HALF;
+    let [hb, ht] = RAIL_HALF;
     // In the joint frame `frame`: x along the travel, z along the guide normal.
-    let runner_shape = ColliderBuilder::cuboid(ha, hb, ht);
-    let guide_half_length = (hi - lo) / 2.0 + ha;
+    let runner_shape = ColliderBuilder::ball(RUNNER_RADIUS);
+    let guide_half_length = (hi - lo) / 2.0 + RUNNER_RADIUS;
     let guide_shape = ColliderBuilder::cuboid(guide_half_length, hb, ht);
     let coefficient = guide.coefficient();
     // At rest: a carriage starts stuck, held by the static coefficient.
@@ -672,7 +677,7 @@ fn insert_guide(
             .collision_groups(groups)
             .build()
     };
-    let runner_pose = frame * Translation3::new(0.0, 0.0, ht);
+    let runner_pose = frame * Translation3::new(0.0, 0.0, RUNNER_RADIUS);
     let guide_pose =
         parent_offset * joint.origin * frame * Translation3::new((lo + hi) / 2.0, 0.0, -ht);
     let runner = world.insert_collider(finish(runner_shape, runner_pose), Some(child));
