@@ -1,5 +1,6 @@
-//! Parse time of a generated 1-million-line G-code program (lines, arcs, comments, modes).
-//!     cargo bench --bench gcode_parse
+//! Parse time of generated 1-million-line G-code programs: a plain CAM-style one (lines, arcs,
+//! comments, modes) and one with parameters, expressions and O-word loops.
+//!     cargo bench --bench program_parse
 
 use std::time::Duration;
 
@@ -37,38 +38,73 @@ fn generate_program(lines: usize) -> Vec<u8> {
     text.into_bytes()
 }
 
+/// A program of `lines` lines that computes its coordinates with parameters and expressions
+/// and, every tenth group, runs a three-line body four times in an O-word loop.
+fn generate_parametric_program(lines: usize) -> Vec<u8> {
+    let mut text = String::with_capacity(lines * 40);
+    text.push_str("G21 G90 G17 G94 G64 P0.01\nS12000 M3\nG0 X0 Y0 Z5\n#<pitch> = 0.1\n#<depth> = -1\nG1 Z#<depth> F1200\n");
+    let mut line = 6;
+    let mut step = 0u64;
+    while line < lines - 6 {
+        if step % 10 == 9 {
+            text.push_str(&format!(
+                "o{step} repeat [4]\n  #1 = [#1 + #<pitch>]\n  G1 X[#1 MOD 100] Y[#2 + #<pitch> * 2]\n  G1 Z[#<depth> - 0.5]\no{step} endrepeat\n"
+            ));
+            line += 5;
+        } else {
+            text.push_str(&format!(
+                "#1 = [{} * #<pitch>] #2 = [{} * #<pitch>]\nG1 X#1 Y[#2 + SIN[#1 * 3.6]]\n",
+                step % 1000,
+                (step / 1000) % 1000
+            ));
+            line += 2;
+        }
+        step += 1;
+    }
+    text.push_str("M2\n");
+    text.into_bytes()
+}
+
 fn bench(c: &mut Criterion) {
-    let program = generate_program(1_000_000);
     let options = ReadOptions::default();
-    // Sanity: the generated program parses.
-    let parsed = parse_gcode(&program, "bench.ngc", &options).expect("generated program parses");
-    assert!(parsed.moves.len() > 990_000);
+    let programs = [
+        ("plain", generate_program(1_000_000)),
+        (
+            "parameters_and_loops",
+            generate_parametric_program(1_000_000),
+        ),
+    ];
     let mut group = c.benchmark_group("gcode");
     group
         .sample_size(10)
-        .measurement_time(Duration::from_secs(20))
-        .throughput(Throughput::Bytes(program.len() as u64));
-    group.bench_function("parse_1M_lines_in_memory", |b| {
-        b.iter(|| {
-            parse_gcode(&program, "bench.ngc", &options)
-                .unwrap()
-                .moves
-                .len()
-        })
-    });
-    // From a file on disk, streamed line by line as read_program does.
-    let directory = tempfile::tempdir().unwrap();
-    let path = directory.path().join("bench.ngc");
-    std::fs::write(&path, &program).unwrap();
-    group.bench_function("parse_1M_lines_from_file", |b| {
-        b.iter(|| {
-            let file = std::io::BufReader::new(std::fs::File::open(&path).unwrap());
-            parse_gcode_reader(file, &path, &options)
-                .unwrap()
-                .moves
-                .len()
-        })
-    });
+        .measurement_time(Duration::from_secs(20));
+    for (name, program) in &programs {
+        // Sanity: the generated program parses.
+        let parsed = parse_gcode(program, "bench.ngc", &options).expect("generated program parses");
+        assert!(parsed.moves.len() > 700_000);
+        group.throughput(Throughput::Bytes(program.len() as u64));
+        group.bench_function(format!("parse_1M_lines_{name}_in_memory"), |b| {
+            b.iter(|| {
+                parse_gcode(program, "bench.ngc", &options)
+                    .unwrap()
+                    .moves
+                    .len()
+            })
+        });
+        // From a file on disk, streamed line by line as read_program does.
+        let directory = tempfile::tempdir().unwrap();
+        let path = directory.path().join("bench.ngc");
+        std::fs::write(&path, program).unwrap();
+        group.bench_function(format!("parse_1M_lines_{name}_from_file"), |b| {
+            b.iter(|| {
+                let file = std::io::BufReader::new(std::fs::File::open(&path).unwrap());
+                parse_gcode_reader(file, &path, &options)
+                    .unwrap()
+                    .moves
+                    .len()
+            })
+        });
+    }
     group.finish();
 }
 

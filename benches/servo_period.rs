@@ -2,11 +2,13 @@
 //! 0.25 ms (T = 1 ms), and of one bare physics step; each with rigid joints, with the table's
 //! guide contacts (friction) and backlash joints, and with stiction on the guides.
 
-use cncsim::control::{Actuator, ActuatorKind, Pid, PidBank, PidForm, PidGains};
+use cncsim::control::{Actuator, ActuatorKind, Pid, PidBank, PidForm, PidGains, PidSettings};
 use cncsim::machine::Machine;
 use cncsim::model::{Plant, PlantOptions};
 use cncsim::plan::Setpoints;
-use cncsim::sim::{CoSimulation, LoopSettings};
+use cncsim::sim::{
+    self, Encoder, FollowingErrorTrip, Lane, LoopSettings, PhysicsPlant, Unobserved,
+};
 use criterion::{criterion_group, criterion_main, BatchSize, Criterion};
 use std::path::Path;
 
@@ -82,6 +84,18 @@ fn benches(c: &mut Criterion) {
     group.throughput(criterion::Throughput::Elements(ticks as u64));
     for (label, machine) in variants() {
         group.bench_function(format!("xyz table, {label}, per 1000 ticks"), |b| {
+            let settings = LoopSettings {
+                servo_period: 1e-3,
+                approach: Setpoints::default(),
+                settle_time: 0.0,
+                encoder: Encoder {
+                    resolution: vec![None; 3],
+                },
+                trip: FollowingErrorTrip {
+                    limit: vec![1.0; 3],
+                    axis_names: vec!["x".into(), "y".into(), "z".into()],
+                },
+            };
             b.iter_batched(
                 || {
                     let gains = PidGains {
@@ -89,30 +103,32 @@ fn benches(c: &mut Criterion) {
                         ki: 6.1e5,
                         kd: 146.0,
                     };
-                    CoSimulation {
-                        plant: plant(&machine, 2.5e-4),
-                        controller: Box::new(PidBank::new(
-                            (0..3)
-                                .map(|_| Pid::new(gains, PidForm::Positional, 1e-3, 6.0))
-                                .collect(),
-                        )),
-                        actuators: machine
+                    let pid = Pid::new(PidSettings::plain(gains, 6.0), PidForm::Positional, 1e-3);
+                    let plant = PhysicsPlant::new(
+                        plant(&machine, 2.5e-4),
+                        machine
                             .axes
                             .iter()
                             .map(|a| Actuator::new(ActuatorKind::DcMotor, &a.drive))
                             .collect(),
-                        settings: LoopSettings {
-                            servo_period: 1e-3,
-                            substeps: 4,
-                            settle_time: 0.0,
-                            ratios: machine.axes.iter().map(|a| a.drive.ratio()).collect(),
-                            encoder_resolution: vec![None; 3],
-                            following_error_limit: vec![1.0; 3],
-                            axis_names: vec!["x".into(), "y".into(), "z".into()],
-                        },
-                    }
+                        machine.axes.iter().map(|a| a.drive.ratio()).collect(),
+                        4,
+                    );
+                    [Lane {
+                        name: "physics",
+                        plant: Box::new(plant),
+                        controller: Box::new(PidBank::new(vec![pid; 3])),
+                    }]
                 },
-                |sim| sim.run(&setpoints, &mut |_, _| true),
+                |mut lanes| {
+                    sim::run(
+                        &settings,
+                        &mut lanes,
+                        &mut setpoints.stream(),
+                        &mut Unobserved,
+                        &mut |_, _| true,
+                    )
+                },
                 BatchSize::LargeInput,
             )
         });
@@ -143,24 +159,33 @@ fn mill(c: &mut Criterion) {
         )
         .unwrap();
         group.bench_function(format!("{}, per 1000 ticks", scenario.name), |b| {
+            let assembly = cncsim::scenario::Assembly::new(&scenario).unwrap();
+            let full = &assembly.setpoints;
+            let mut first = Setpoints::new(full.period, full.axes);
+            for k in 0..1000.min(full.len()) {
+                first.push(
+                    full.position(k),
+                    full.velocity(k),
+                    full.acceleration(k),
+                    full.segment[k],
+                );
+            }
+            let settings = LoopSettings {
+                settle_time: 0.0,
+                approach: Setpoints::default(),
+                ..assembly.loop_settings.clone()
+            };
             b.iter_batched(
-                || {
-                    let prepared = cncsim::scenario::prepare(&scenario).unwrap();
-                    let full = &prepared.setpoints;
-                    let mut first = Setpoints::new(full.period, full.axes);
-                    for k in 0..1000.min(full.len()) {
-                        first.push(
-                            full.position(k),
-                            full.velocity(k),
-                            full.acceleration(k),
-                            full.segment[k],
-                        );
-                    }
-                    let mut cosim = prepared.cosim;
-                    cosim.settings.settle_time = 0.0;
-                    (cosim, first)
+                || assembly.lanes().unwrap(),
+                |mut lanes| {
+                    sim::run(
+                        &settings,
+                        &mut lanes,
+                        &mut first.stream(),
+                        &mut Unobserved,
+                        &mut |_, _| true,
+                    )
                 },
-                |(cosim, first)| cosim.run(&first, &mut |_, _| true),
                 BatchSize::LargeInput,
             )
         });

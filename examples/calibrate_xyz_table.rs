@@ -40,8 +40,8 @@
 
 use cncsim::machine::{AmplifierMode, Machine};
 use cncsim::scenario::{
-    keep_mechanics, machine_for, run_scenario_with, tune_scenario_with, Scenario, TuneOptions,
-    TunePlant,
+    keep_mechanics, machine_for, run_scenario_with, tune_scenario_with, PlantKind as TunePlant,
+    Scenario, TuneOptions,
 };
 use cncsim::tune::ZieglerNichols;
 use std::path::{Path, PathBuf};
@@ -235,9 +235,9 @@ fn run(s: &Scenario, machine: Machine, gains: &[AxisGains]) -> Result<Figures, S
             .gains
             .get_mut(g.axis)
             .expect("paper scenarios have PID gains");
-        axis.gains.kp = g.kp;
-        axis.gains.ki = g.ki;
-        axis.gains.kd = g.kd;
+        axis.settings.kp = g.kp;
+        axis.settings.ki = g.ki;
+        axis.settings.kd = g.kd;
     }
     let out = std::env::temp_dir().join("cncsim_calibration");
     s.record_rrd = false;

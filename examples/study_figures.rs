@@ -74,6 +74,7 @@ fn main() {
             axes: axes.clone(),
             start: vec![0.0; 5],
             segments,
+            tool_lever_arms: Vec::new(),
         };
         let planned = plan(&path).expect("the study's program plans");
         println!("{label}: total {:.6} s", planned.duration());

@@ -113,9 +113,20 @@ pub enum Command {
         /// HPGL: reorder and reverse strokes to shorten pen-up travel; report before/after.
         #[arg(long)]
         optimise_pen_up: bool,
+        /// HPGL and APT: refuse commands and records that do not move the pen or tool
+        /// (instead of skipping them with one warning per kind).
+        #[arg(long)]
+        strict: bool,
+        /// HPGL: draw fills (RA RR WG FP) as outlines only, without hatch lines.
+        #[arg(long)]
+        no_hatch: bool,
         /// List every move, however long the program.
         #[arg(long)]
         all: bool,
+        /// G-code: a LinuxCNC tool table file (`T1 P1 Z50 D6`, lengths in mm) for T, M6,
+        /// G43 and cutter compensation.
+        #[arg(long)]
+        tool_table: Option<PathBuf>,
     },
     /// Ziegler–Nichols gains for one axis: find the ultimate gain K_cr and period P_cr of the
     /// scenario's simulated axis (P only, raised until sustained oscillation), print Kp, Ki, Kd
@@ -154,6 +165,53 @@ pub enum Command {
         /// Print the report as JSON (progress still goes to stderr).
         #[arg(long)]
         json: bool,
+        /// Design the cascade (position loop over velocity loop) of the axis instead: the
+        /// velocity loop by the bandwidth its phase budget allows, the position loop at a
+        /// quarter of it, checked by a velocity step on the simulated axis.
+        #[arg(long)]
+        cascade: bool,
+        /// With --cascade: impose the velocity-loop crossover (Hz) instead of the largest with
+        /// 50° of phase margin.
+        #[arg(long, requires = "cascade")]
+        velocity_bandwidth_hz: Option<f64>,
+    },
+    /// Sweep: every variant × grid point × sample of a sweep file over its scenarios, on all
+    /// cores; writes OUT/results.csv, results.json, summary.md, plots and per-run outputs.
+    Sweep {
+        sweep: PathBuf,
+        /// Runs at once (default: the number of cores).
+        #[arg(long)]
+        jobs: Option<usize>,
+        /// Run only shard K of N (every N-th run from the K-th), e.g. 2/4; `cncsim merge`
+        /// combines the shards' output folders.
+        #[arg(long)]
+        shard: Option<String>,
+        /// Output folder (default: out/sweep_<name>, or …_shard_K_of_N).
+        #[arg(long)]
+        out: Option<PathBuf>,
+    },
+    /// Calibrate: fit machine and scenario keys to measured figures or traces (CMA-ES, seeded,
+    /// candidates in parallel); writes OUT/report.md, evaluations.csv/json, convergence.png,
+    /// and runs the target and [predict] scenarios with the best values into OUT/predictions/.
+    Calibrate {
+        spec: PathBuf,
+        /// Runs at once (default: the number of cores).
+        #[arg(long)]
+        jobs: Option<usize>,
+        /// Output folder (default: out/calibration_<name>).
+        #[arg(long)]
+        out: Option<PathBuf>,
+        /// Write the best values into the drives files, URDFs and scenarios they came from
+        /// (comments kept).
+        #[arg(long)]
+        write: bool,
+    },
+    /// Merge the output folders of a sweep's shards into one (results, summary, plots).
+    Merge {
+        #[arg(required = true)]
+        dirs: Vec<PathBuf>,
+        #[arg(long)]
+        out: PathBuf,
     },
     /// Run scenarios (files, or folders of *.toml) and check their [expect] bounds; exits
     /// non-zero if any bound is breached or any run fails.

@@ -84,15 +84,55 @@ pub fn toml_error(path: &Path, text: &str, err: &toml::de::Error) -> FileError {
     FileError::new(path, at, err.message().trim().to_string())
 }
 
+/// Largest description file (scenario, URDF, drives) read: far above any real one, and a bound
+/// on the memory a mistaken path (a log, a disk image) can take.
+pub const MAX_DESCRIPTION_BYTES: u64 = 64 << 20;
+
 /// Reads a file to a string, naming the file in the error.
 pub fn read_text(path: &Path, what: &str) -> Result<String, FileError> {
-    std::fs::read_to_string(path)
-        .map_err(|e| FileError::new(path, None, format!("cannot read {what}: {e}")))
+    let fail = |e: String| FileError::new(path, None, format!("cannot read {what}: {e}"));
+    let size = std::fs::metadata(path)
+        .map_err(|e| fail(e.to_string()))?
+        .len();
+    if size > MAX_DESCRIPTION_BYTES {
+        return Err(fail(format!(
+            "it has {size} bytes, more than the {} MiB a {what} may have",
+            MAX_DESCRIPTION_BYTES >> 20
+        )));
+    }
+    std::fs::read_to_string(path).map_err(|e| fail(e.to_string()))
+}
+
+/// Checks that `value` (named `name`, in `unit`) lies in `[min, max]`; the message says what was
+/// expected and what was found. Numbers print in their shortest exact form (`1e300`, not 301
+/// digits).
+pub fn check_range(name: &str, value: f64, unit: &str, min: f64, max: f64) -> Result<(), String> {
+    if value.is_finite() && value >= min && value <= max {
+        return Ok(());
+    }
+    let unit = if unit.is_empty() {
+        String::new()
+    } else {
+        format!(" {unit}")
+    };
+    Err(format!(
+        "{name} = {value:?}{unit}: expected a value from {min:?} to {max:?}{unit}"
+    ))
 }
 
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn ranges_print_numbers_short() {
+        assert_eq!(
+            check_range("step", 1e300, "ms", 1e-3, 1e3).unwrap_err(),
+            "step = 1e300 ms: expected a value from 0.001 to 1000.0 ms"
+        );
+        assert!(check_range("x", f64::NAN, "", 0.0, 1.0).is_err());
+        assert!(check_range("x", 1.0, "", 0.0, 1.0).is_ok());
+    }
 
     #[test]
     fn offsets_map_to_lines_and_columns() {

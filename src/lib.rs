@@ -17,4 +17,5 @@ pub mod program;
 pub mod report;
 pub mod scenario;
 pub mod sim;
+pub mod sweep;
 pub mod tune;

@@ -1,10 +1,13 @@
 use clap::Parser;
 use cncsim::machine::Machine;
-use cncsim::program::{inspect, FeedRule, InspectOptions, ReadOptions};
+use cncsim::program::{
+    inspect, parse_tool_table, FeedRule, InspectOptions, LengthUnit, ProgramError, ProgramErrors,
+    ReadOptions,
+};
 use cncsim::report::metrics_table;
 use cncsim::scenario::{
-    check, folder_name, outcome_text, run_scenario, tune_scenario, Override, RunOutput, Scenario,
-    TuneError, TuneOptions, TunePlant,
+    check, folder_name, outcome_text, run_scenario, tune_scenario, Override, PlantKind, RunOutput,
+    Scenario, TuneError, TuneOptions,
 };
 use indicatif::{ProgressBar, ProgressStyle};
 use std::path::{Path, PathBuf};
@@ -49,6 +52,19 @@ fn main() -> ExitCode {
             run_one(&scenario, None)
         }
         Some(Command::Run { scenario, out }) => run_one(&scenario, out),
+        Some(Command::Sweep {
+            sweep,
+            jobs,
+            shard,
+            out,
+        }) => sweep_cli(&sweep, jobs, shard.as_deref(), out),
+        Some(Command::Merge { dirs, out }) => merge_cli(&dirs, &out),
+        Some(Command::Calibrate {
+            spec,
+            jobs,
+            out,
+            write,
+        }) => calibrate_cli(&spec, jobs, out, write),
         Some(Command::Check { scenarios, out }) => check_all(&scenarios, out),
         Some(Command::Plan {
             scenario,
@@ -74,6 +90,23 @@ fn main() -> ExitCode {
         Some(Command::Tune {
             scenario,
             axis,
+            analytic,
+            linear,
+            json,
+            cascade: true,
+            velocity_bandwidth_hz,
+            ..
+        }) => tune_cascade_cli(
+            &scenario,
+            &axis,
+            velocity_bandwidth_hz,
+            analytic,
+            linear,
+            json,
+        ),
+        Some(Command::Tune {
+            scenario,
+            axis,
             step_mm,
             step_deg,
             tolerance,
@@ -83,6 +116,8 @@ fn main() -> ExitCode {
             analytic,
             linear,
             json,
+            cascade: false,
+            ..
         }) => {
             let mut options = TuneOptions::new(&axis, step_mm * 1e-3);
             options.tolerance = tolerance;
@@ -103,14 +138,35 @@ fn main() -> ExitCode {
             euclidean_feed,
             lenient,
             optimise_pen_up,
+            strict,
+            no_hatch,
             all,
+            tool_table,
         }) => {
             let mut options = ReadOptions::default();
+            if let Some(table) = tool_table {
+                let tools = std::fs::read_to_string(&table)
+                    .map_err(|error| {
+                        ProgramErrors::single(ProgramError::new(
+                            &table,
+                            None,
+                            format!("could not read the tool table: {error}"),
+                        ))
+                    })
+                    .and_then(|text| parse_tool_table(&text, &table, LengthUnit::Millimetre));
+                match tools {
+                    Ok(tools) => options.gcode.tools = tools,
+                    Err(e) => return fail_input(&e),
+                }
+            }
             if euclidean_feed {
                 options.feed_rule = FeedRule::EuclideanAllAxes;
             }
             options.hpgl.lenient = lenient;
             options.hpgl.optimise_pen_up = optimise_pen_up;
+            options.hpgl.strict = strict;
+            options.apt.strict = strict;
+            options.hpgl.hatch_fills = !no_hatch;
             let listing = InspectOptions {
                 list_limit: if all {
                     usize::MAX
@@ -143,9 +199,11 @@ fn run_one(path: &Path, out: Option<PathBuf>) -> ExitCode {
         Ok(s) => s,
         Err(e) => return fail_input(&e),
     };
+    print_warnings(&scenario.warnings);
     let out = out.unwrap_or_else(|| Path::new("out").join(folder_name(&scenario.name)));
     match execute(&scenario, &out) {
         Ok(run) => {
+            print_warnings(&run.warnings);
             print!("{}", metrics_table(&run.metrics));
             for f in &run.files {
                 println!("  wrote {}", f.display());
@@ -309,14 +367,15 @@ fn ab(
         }
         println!("  wrote {}", path.display());
     }
+    println!("  wrote {}", out.join("ab.rrd").display());
     let plot = out.join("contour_error.png");
     let labels = [format!("A: {}", sa.name), format!("B: {}", sb.name)];
-    let series =
-        [(&labels[0], &ra), (&labels[1], &rb)].map(|(label, r)| cncsim::report::ContourSeries {
-            label,
-            time: &r.trace.time,
-            contour_error: &r.derived.contour_error,
-        });
+    let curves = [&ra, &rb].map(|r| (r.contour_envelope.times(), r.contour_envelope.values()));
+    let series = [0, 1].map(|i| cncsim::report::ContourSeries {
+        label: &labels[i],
+        time: &curves[i].0,
+        contour_error: &curves[i].1,
+    });
     if let Err(e) = cncsim::report::write_contour_error_plot(&plot, &series) {
         return fail_input(&e);
     }
@@ -358,9 +417,9 @@ fn tune(
         options.step = rotary_step;
     }
     let plant = if analytic {
-        TunePlant::Analytic
+        PlantKind::Analytic
     } else {
-        TunePlant::Physics
+        PlantKind::Physics
     };
     let mut progress = |t: &cncsim::tune::Trial| {
         eprintln!(
@@ -387,6 +446,256 @@ fn tune(
         Err(e @ TuneError::Search { .. }) => {
             eprintln!("error: {e}");
             ExitCode::from(1)
+        }
+        Err(e) => fail_input(&e),
+    }
+}
+
+fn sweep_cli(
+    path: &Path,
+    jobs: Option<usize>,
+    shard: Option<&str>,
+    out: Option<PathBuf>,
+) -> ExitCode {
+    use cncsim::sweep::{
+        execute, parse_shard, run_sweep, write_results, Progress, Sweep, SweepResults,
+    };
+    let sweep = match Sweep::load(path) {
+        Ok(s) => s,
+        Err(e) => return fail_input(&e),
+    };
+    let shard = match shard.map(parse_shard).transpose() {
+        Ok(s) => s,
+        Err(e) => return fail_input(&e),
+    };
+    let threads =
+        jobs.unwrap_or_else(|| std::thread::available_parallelism().map_or(1, |n| n.get()));
+    if threads == 0 {
+        return fail_input(&"--jobs 0: expected at least 1");
+    }
+    let out = out.unwrap_or_else(|| {
+        let mut name = format!("sweep_{}", folder_name(&sweep.name));
+        if let Some((k, n)) = shard {
+            name += &format!("_shard_{k}_of_{n}");
+        }
+        Path::new("out").join(name)
+    });
+    let (runs, jobs) = run_sweep(&sweep, &out, shard);
+    eprintln!(
+        "sweep {}: {} runs ({} scenarios × {} variants × {} points{}) on {threads} threads",
+        sweep.name,
+        jobs.len(),
+        sweep.scenarios.len(),
+        sweep.variants.len(),
+        sweep.points().len(),
+        shard.map_or(String::new(), |(k, n)| format!(", shard {k}/{n}"))
+    );
+    let progress = Progress {
+        total: jobs.len(),
+        ..Default::default()
+    };
+    let bar = ProgressBar::new(jobs.len() as u64).with_style(
+        ProgressStyle::with_template(
+            "{spinner} [{bar:30}] {pos}/{len} runs {msg} {elapsed_precise} eta {eta}",
+        )
+        .expect("valid template")
+        .progress_chars("=> "),
+    );
+    let on_change = |p: &Progress| {
+        bar.set_position(p.done.load(Ordering::Relaxed) as u64);
+        bar.set_message(format!(
+            "({} running, {} failed)",
+            p.running.load(Ordering::Relaxed),
+            p.failed.load(Ordering::Relaxed)
+        ));
+    };
+    let (results, plans) = execute(&jobs, threads, &INTERRUPTED, &progress, &on_change);
+    bar.finish_and_clear();
+    let table = SweepResults::new(&sweep, &runs, &results, shard);
+    match write_results(&table, &out) {
+        Ok(files) => {
+            print!("{}", table.summary());
+            eprintln!("{} plans made for {} runs", plans, results.len());
+            for f in files {
+                println!("  wrote {}", f.display());
+            }
+        }
+        Err(e) => return fail_input(&e),
+    }
+    if INTERRUPTED.load(Ordering::Relaxed) {
+        eprintln!(
+            "interrupted: {} of {} runs done; the files hold them",
+            results.len(),
+            jobs.len()
+        );
+        return ExitCode::from(130);
+    }
+    if results
+        .iter()
+        .any(|r| r.error.is_some() || r.stopped.is_some())
+    {
+        return ExitCode::from(1);
+    }
+    ExitCode::SUCCESS
+}
+
+fn calibrate_cli(path: &Path, jobs: Option<usize>, out: Option<PathBuf>, write: bool) -> ExitCode {
+    use cncsim::sweep::calibrate::{
+        calibrate, predict, predictions_markdown, write_back, Calibration, CalibrationProgress,
+    };
+    let cal = match Calibration::load(path) {
+        Ok(c) => c,
+        Err(e) => return fail_input(&e),
+    };
+    let threads =
+        jobs.unwrap_or_else(|| std::thread::available_parallelism().map_or(1, |n| n.get()));
+    if threads == 0 {
+        return fail_input(&"--jobs 0: expected at least 1");
+    }
+    let out = out.unwrap_or_else(|| {
+        Path::new("out").join(format!("calibration_{}", folder_name(&cal.name)))
+    });
+    eprintln!(
+        "calibration {}: {} parameters, {} targets, CMA-ES population {}, up to {} candidates on {threads} threads",
+        cal.name,
+        cal.parameters.len(),
+        cal.targets.len(),
+        cal.population,
+        cal.max_evaluations
+    );
+    let bar = ProgressBar::new(cal.max_evaluations as u64 + 1).with_style(
+        ProgressStyle::with_template(
+            "{spinner} [{bar:30}] {pos}/{len} candidates {msg} {elapsed_precise} eta {eta}",
+        )
+        .expect("valid template")
+        .progress_chars("=> "),
+    );
+    let on_change = |p: &CalibrationProgress| {
+        bar.set_position(p.evaluations.load(Ordering::Relaxed) as u64 + 1);
+        if let Some(b) = *p.best.lock().expect("no panics while held") {
+            bar.set_message(format!("(best cost {b:.4})"));
+        }
+    };
+    let progress = CalibrationProgress::default();
+    let result = match calibrate(&cal, &out, threads, &INTERRUPTED, &progress, &on_change) {
+        Ok(r) => r,
+        Err(e) => {
+            bar.finish_and_clear();
+            return fail_input(&e);
+        }
+    };
+    bar.finish_and_clear();
+    let mut report = result.markdown(&cal);
+    let mut files = Vec::new();
+    let written = (|| -> std::io::Result<()> {
+        std::fs::create_dir_all(&out)?;
+        let json = serde_json::to_string_pretty(&result).map_err(std::io::Error::other)?;
+        for (name, text) in [
+            ("evaluations.json", json),
+            ("evaluations.csv", result.csv()),
+        ] {
+            std::fs::write(out.join(name), text)?;
+            files.push(out.join(name));
+        }
+        Ok(())
+    })();
+    if let Err(e) = written {
+        return fail_input(&format!("{}: {e}", out.display()));
+    }
+    if result.plot(&out.join("convergence.png")).is_ok() {
+        files.push(out.join("convergence.png"));
+    }
+    let mut status = ExitCode::SUCCESS;
+    match &result.best {
+        Some(best) if !INTERRUPTED.load(Ordering::Relaxed) => {
+            eprintln!("running the scenarios with the best values …");
+            let runs = predict(&cal, &best.values, &out.join("predictions"), threads, &INTERRUPTED);
+            report += &format!(
+                "\n## With the best values\n\nRecordings in `predictions/<scenario>/`. Where the largest error occurs: start (before the axis first caught up with its command), reversal (after the command slowed and turned), stop, or moving.\n\n{}",
+                predictions_markdown(&cal, &runs)
+            );
+            if write {
+                match write_back(&cal, &best.values) {
+                    Ok(paths) => {
+                        for p in paths {
+                            eprintln!("  updated {}", p.display());
+                        }
+                    }
+                    Err(e) => return fail_input(&e),
+                }
+            }
+        }
+        Some(_) => status = ExitCode::from(130),
+        None => status = ExitCode::from(1),
+    }
+    if std::fs::write(out.join("report.md"), &report).is_ok() {
+        files.insert(0, out.join("report.md"));
+    }
+    print!("{report}");
+    for f in files {
+        println!("  wrote {}", f.display());
+    }
+    status
+}
+
+fn merge_cli(dirs: &[PathBuf], out: &Path) -> ExitCode {
+    let merged = match cncsim::sweep::merge(dirs) {
+        Ok(m) => m,
+        Err(e) => return fail_input(&e),
+    };
+    match cncsim::sweep::write_results(&merged, out) {
+        Ok(files) => {
+            println!(
+                "merged {} folders: {} of {} runs",
+                dirs.len(),
+                merged.rows.len(),
+                merged.total_runs
+            );
+            for f in files {
+                println!("  wrote {}", f.display());
+            }
+            ExitCode::SUCCESS
+        }
+        Err(e) => fail_input(&e),
+    }
+}
+
+fn tune_cascade_cli(
+    path: &Path,
+    axis: &str,
+    bandwidth_hz: Option<f64>,
+    analytic: bool,
+    linear: bool,
+    json: bool,
+) -> ExitCode {
+    let mut scenario = match Scenario::load(path) {
+        Ok(s) => s,
+        Err(e) => return fail_input(&e),
+    };
+    if linear {
+        scenario.friction = false;
+        scenario.backlash = false;
+    }
+    let machine = match cncsim::scenario::machine_for(&scenario) {
+        Ok(m) => m,
+        Err(e) => return fail_input(&e),
+    };
+    let plant = if analytic {
+        PlantKind::Analytic
+    } else {
+        PlantKind::Physics
+    };
+    match cncsim::scenario::tune_cascade(&scenario, machine, axis, bandwidth_hz, plant) {
+        Ok(report) if json => {
+            println!(
+                "{}",
+                serde_json::to_string_pretty(&report).expect("plain values")
+            );
+            ExitCode::SUCCESS
+        }
+        Ok(report) => {
+            print!("{}", report.text());
+            ExitCode::SUCCESS
         }
         Err(e) => fail_input(&e),
     }
@@ -419,15 +728,19 @@ fn check_all(paths: &[PathBuf], out: Option<PathBuf>) -> ExitCode {
     }
     let root = out.unwrap_or_else(|| PathBuf::from("out"));
     let (mut passed, mut failed, mut skipped) = (0, 0, 0);
+    // Bad input anywhere makes the exit status 2 (as for every command), whatever else ran.
+    let mut bad_input = false;
     for f in &files {
         let scenario = match Scenario::load(f) {
             Ok(s) => s,
             Err(e) => {
                 eprintln!("error: {e}");
                 failed += 1;
+                bad_input = true;
                 continue;
             }
         };
+        print_warnings(&scenario.warnings);
         if scenario.actuator.is_none() && scenario.expect.is_empty() {
             println!(
                 "SKIP {} (planning scenario: no [actuator] or [controller] to run)",
@@ -438,6 +751,7 @@ fn check_all(paths: &[PathBuf], out: Option<PathBuf>) -> ExitCode {
         }
         match execute(&scenario, &root.join(folder_name(&scenario.name))) {
             Ok(run) => {
+                print_warnings(&run.warnings);
                 let verdict = check(&scenario, &run.metrics_json);
                 let stopped = run.stop.is_some();
                 if verdict.passed() && !stopped {
@@ -462,14 +776,24 @@ fn check_all(paths: &[PathBuf], out: Option<PathBuf>) -> ExitCode {
             Err(e) => {
                 eprintln!("error: {e}");
                 failed += 1;
+                bad_input = true;
             }
         }
     }
     println!("{passed} passed, {failed} failed, {skipped} skipped");
-    if failed == 0 {
+    if bad_input {
+        ExitCode::from(2)
+    } else if failed == 0 {
         ExitCode::SUCCESS
     } else {
         ExitCode::from(1)
+    }
+}
+
+/// Values that loaded but look wrong, as compilers print warnings.
+fn print_warnings(warnings: &[cncsim::diagnostics::FileError]) {
+    for w in warnings {
+        eprintln!("warning: {w}");
     }
 }
 

@@ -177,7 +177,7 @@ fn bad_overrides_name_the_override_and_exit_2() {
         ),
         (
             vec!["--a", "controller.natural_frequency_hz=-3"],
-            "--a controller.natural_frequency_hz=-3: natural_frequency_hz = -3: expected a number > 0",
+            "--a controller.natural_frequency_hz=-3: natural_frequency_hz = -3.0 Hz: expected a value from 0.001 to 10000.0 Hz",
         ),
         (
             vec!["--a", "controller=stepper"],

@@ -65,19 +65,19 @@ fn bad_scenarios_are_reported_with_file_and_line() {
             "NaN",
             scenario_text(|s| s.replace("servo_period_ms = 1.0", "servo_period_ms = nan")),
             7,
-            "servo_period_ms = NaN: expected a finite number",
+            "servo_period_ms = NaN ms: expected a value from 0.01 to 100.0 ms",
         ),
         (
             "negative period",
             scenario_text(|s| s.replace("servo_period_ms = 1.0", "servo_period_ms = -1.0")),
             7,
-            "servo_period_ms = -1: expected a number > 0",
+            "servo_period_ms = -1.0 ms: expected a value from 0.01 to 100.0 ms",
         ),
         (
             "zero period",
             scenario_text(|s| s.replace("servo_period_ms = 1.0", "servo_period_ms = 0.0")),
             7,
-            "servo_period_ms = 0: expected a number > 0",
+            "servo_period_ms = 0.0 ms: expected a value from 0.01 to 100.0 ms",
         ),
         (
             "step longer than period",
@@ -107,13 +107,13 @@ fn bad_scenarios_are_reported_with_file_and_line() {
             "negative gain",
             scenario_text(|s| s.replace("kp = 9700.0", "kp = -1.0")),
             15,
-            "gains must be finite and ≥ 0",
+            "gains must be from 0 to 1000000000000.0",
         ),
         (
             "zero feed",
             scenario_text(|s| s.replace("feed_mm_s = 5.0", "feed_mm_s = 0.0")),
             5,
-            "feed_mm_s = 0: expected a number > 0",
+            "feed_mm_s = 0.0 mm/s: expected a value from 0.001 to 20000.0 mm/s",
         ),
         (
             "two programs",
@@ -216,7 +216,7 @@ fn bad_machine_files_name_the_element() {
         (
             "negative mass",
             src.replace("<mass value=\"8.0\"/>", "<mass value=\"-8.0\"/>"),
-            "link 'x_carriage': mass -8 kg",
+            "link 'x_carriage': mass -8.0 kg: expected a finite mass ≥ 0",
         ),
         (
             "bad inertia",
@@ -231,7 +231,7 @@ fn bad_machine_files_name_the_element() {
         (
             "not xml",
             "<robot name=".to_string(),
-            "not a valid URDF document",
+            "not well-formed XML: syntax error: tag not closed",
         ),
     ];
     for (what, text, words) in cases {
@@ -282,7 +282,7 @@ fn bad_guides_and_feedback_name_the_axis() {
                 "guide = { friction_coefficient = 0.1, static_friction_coefficient = 0.05, stribeck_velocity_m_s = 1e-3 }",
                 1,
             ),
-            "axis 'x': guide.static_friction_coefficient = 0.05: expected a finite value ≥ the kinetic friction_coefficient (0.1)",
+            "axis 'x': guide.static_friction_coefficient = 0.05: expected a value from the kinetic friction_coefficient (0.1) to 2.0",
         ),
         (
             drives.replacen(
@@ -298,11 +298,11 @@ fn bad_guides_and_feedback_name_the_axis() {
                 "guide = { friction_coefficient = 0.1, static_friction_coefficient = 0.2, stribeck_velocity_m_s = 0.0 }",
                 1,
             ),
-            "axis 'x': guide.stribeck_velocity_m_s = 0: expected a finite value > 0",
+            "axis 'x': guide.stribeck_velocity_m_s = 0.0 m/s: expected a value from 1e-7 to 1.0 m/s",
         ),
         (
             drives.replacen(x_guide, "guide = { friction_coefficient = -0.1 }", 1),
-            "axis 'x': guide.friction_coefficient = -0.1: expected a finite value ≥ 0",
+            "axis 'x': guide.friction_coefficient = -0.1: expected a value from 0.0 to 2.0",
         ),
         (
             drives.replacen(

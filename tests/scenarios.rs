@@ -2,7 +2,7 @@
 
 mod common;
 
-use cncsim::scenario::{check, run_scenario, Scenario};
+use cncsim::scenario::{check, run_scenario_traced as run_scenario, Scenario};
 use common::rrd_rows;
 use std::path::Path;
 
@@ -63,25 +63,34 @@ fn circle_scenario_meets_its_bounds_and_writes_a_readable_recording() {
     );
     assert_eq!(
         json["physics_steps"].as_u64().unwrap(),
-        (run.trace.len() as u64 + 500) * 4
+        (run.trace.as_ref().unwrap().len() as u64 + 500) * 4
     );
 
     // The recording: expected entities with one row per recorded tick.
     let rows = rrd_rows(&out.path().join("run.rrd"));
-    let recorded = run.trace.len().div_ceil(scenario.decimation);
+    let recorded = run
+        .trace
+        .as_ref()
+        .unwrap()
+        .len()
+        .div_ceil(scenario.decimation);
     for axis in ["x", "y", "z"] {
         for series in [
-            "commanded",
-            "actual",
-            "following_error",
-            "torque",
-            "voltage",
+            "position/commanded",
+            "position/physics",
+            "position/analytic",
+            "following_error/physics",
+            "following_error/analytic",
+            "physics_minus_analytic",
+            "torque/physics",
+            "torque/analytic",
+            "voltage/physics",
         ] {
             let path = format!("/axes/{axis}/{series}");
             assert_eq!(rows.get(&path).copied(), Some(recorded), "{path}: {rows:?}");
         }
     }
-    for link in ["x_carriage", "y_carriage", "z_slide", "base"] {
+    for link in ["x_carriage", "y_carriage", "z_slide"] {
         assert_eq!(
             rows.get(&format!("/world/machine/{link}")).copied(),
             Some(recorded),
@@ -89,23 +98,27 @@ fn circle_scenario_meets_its_bounds_and_writes_a_readable_recording() {
         );
     }
     for path in [
-        "/world/tool",
-        "/path/contour_error",
-        "/path/speed/actual",
-        "/analytic/axes/x/actual",
-        "/analytic/axes/y/following_error",
+        "/world/machine/base/paths/tool",
+        "/path/contour_error/physics",
+        "/path/contour_error/analytic",
+        "/path/speed/commanded",
+        "/path/speed/physics",
     ] {
         assert_eq!(rows.get(path).copied(), Some(recorded), "{path}");
     }
     for path in [
-        "/world/path/programmed",
-        "/world/path/actual",
+        "/world/machine/base/paths/programmed",
+        "/world/machine/base/paths/actual/00000",
         "/world/machine/z_slide/visual_0",
+        "/magnified/programmed",
+        "/magnified/actual",
+        "/summary",
+        "/events",
     ] {
         assert!(rows.contains_key(path), "{path} missing: {rows:?}");
     }
     // No backlash in this scenario: no drive-side series.
-    assert!(!rows.keys().any(|p| p.ends_with("/drive")), "{rows:?}");
+    assert!(!rows.keys().any(|p| p.ends_with("_drive")), "{rows:?}");
 
     // The CSV has the same ticks.
     let csv = std::fs::read_to_string(out.path().join("trace.csv")).unwrap();
@@ -131,6 +144,7 @@ fn same_scenario_same_numbers() {
     let ra = run_scenario(&scenario, a.path(), &mut |_, _| true).unwrap();
     let rb = run_scenario(&scenario, b.path(), &mut |_, _| true).unwrap();
     assert_eq!(ra.trace, rb.trace, "two runs of one scenario differ");
+    assert!(ra.trace.is_some());
 }
 
 #[test]
@@ -138,9 +152,9 @@ fn a_runaway_is_stopped_with_time_and_axis_and_the_recording_is_kept() {
     let mut scenario = bundled("xyz_circle_5mms.toml");
     // Positive feedback on X: the carriage runs away until the following-error fault trips.
     let gains = scenario.gains.get_mut("x").unwrap();
-    gains.gains.kp = -gains.gains.kp;
-    gains.gains.ki = 0.0;
-    gains.gains.kd = 0.0;
+    gains.settings.kp = -gains.settings.kp;
+    gains.settings.ki = 0.0;
+    gains.settings.kd = 0.0;
     let out = tempfile::tempdir().unwrap();
     let run = run_scenario(&scenario, out.path(), &mut |_, _| true).unwrap();
     let stop = run.stop.expect("the run must stop");
@@ -269,22 +283,24 @@ fn four_millisecond_servo_period_works() {
     scenario.substeps = 16;
     // A slower loop needs lower gains: the same pole placement at ωn = 2π·6 Hz.
     for g in scenario.gains.values_mut() {
-        g.gains.kp /= 17.0;
-        g.gains.ki /= 70.0;
-        g.gains.kd /= 4.0;
+        g.settings.kp /= 17.0;
+        g.settings.ki /= 70.0;
+        g.settings.kd /= 4.0;
     }
     let out = tempfile::tempdir().unwrap();
     let run = run_scenario(&scenario, out.path(), &mut |_, _| true).unwrap();
     assert!(run.stop.is_none(), "{:?}", run.stop);
     assert_eq!(
         run.metrics.physics_steps,
-        (run.trace.len() as u64 + 125) * 16
+        (run.trace.as_ref().unwrap().len() as u64 + 125) * 16
     );
     let x = run.metrics.axes["x"].max_following_error_mm.unwrap();
     assert!(x < 0.2, "x following error {x} mm");
     // Every tick is 4 ms apart.
     assert!(run
         .trace
+        .as_ref()
+        .unwrap()
         .time
         .windows(2)
         .all(|w| (w[1] - w[0] - 4e-3).abs() < 1e-12));
@@ -310,7 +326,10 @@ fn encoder_quantisation_shows_in_the_following_error() {
             .map(|k| (t.commanded[k * t.axes] - t.actual[k * t.axes]).abs() * 1e3)
             .fold(0.0, f64::max)
     };
-    let (e_ideal, e_quant) = (steady(&ideal.trace), steady(&quantised.trace));
+    let (e_ideal, e_quant) = (
+        steady(ideal.trace.as_ref().unwrap()),
+        steady(quantised.trace.as_ref().unwrap()),
+    );
     assert!(
         e_ideal < 0.1 * resolution_mm,
         "ideal feedback: {e_ideal} mm"
@@ -327,7 +346,8 @@ fn an_interrupted_run_keeps_what_it_computed() {
     let mut scenario = bundled("xyz_circle_5mms.toml");
     scenario.record_csv = false;
     let out = tempfile::tempdir().unwrap();
-    // Let the first progress report through, stop at the second (tick 1024).
+    // Progress comes every 1024 ticks, the 500 ticks of settling included: let the first
+    // report through, stop at the second (tick 2048, program tick 1547).
     let mut reports = 0;
     let run = run_scenario(&scenario, out.path(), &mut |_, _| {
         reports += 1;
@@ -336,16 +356,16 @@ fn an_interrupted_run_keeps_what_it_computed() {
     .unwrap();
     let stop = run.stop.expect("interrupted");
     assert!(
-        stop.to_string().starts_with("interrupted at t = 1.024"),
+        stop.to_string().starts_with("interrupted at t = 1.547"),
         "{stop}"
     );
-    assert_eq!(run.trace.len(), 1025);
+    assert_eq!(run.trace.as_ref().unwrap().len(), 1548);
     assert_eq!(run.metrics_json["completed"], false);
     assert_eq!(
         rrd_rows(&out.path().join("run.rrd"))
-            .get("/axes/x/actual")
+            .get("/axes/x/position/physics")
             .copied(),
-        Some(1025usize.div_ceil(scenario.decimation))
+        Some(1548usize.div_ceil(scenario.decimation))
     );
 }
 
@@ -363,17 +383,25 @@ fn backlash_shows_the_drive_side_in_the_recording() {
     let out = tempfile::tempdir().unwrap();
     let run = run_scenario(&scenario, out.path(), &mut |_, _| true).unwrap();
     let rows = rrd_rows(&out.path().join("run.rrd"));
-    let recorded = run.trace.len().div_ceil(scenario.decimation);
+    let recorded = run
+        .trace
+        .as_ref()
+        .unwrap()
+        .len()
+        .div_ceil(scenario.decimation);
     for path in [
-        "/axes/x/drive",
-        "/axes/y/drive",
-        "/analytic/axes/x/drive",
-        "/analytic/axes/y/drive",
+        "/axes/x/position/physics_drive",
+        "/axes/y/position/physics_drive",
+        "/axes/x/position/analytic_drive",
+        "/axes/y/position/analytic_drive",
     ] {
         assert_eq!(rows.get(path).copied(), Some(recorded), "{path}: {rows:?}");
     }
-    assert!(!rows.contains_key("/axes/z/drive"), "Z has no backlash");
-    let t = &run.trace;
+    assert!(
+        !rows.contains_key("/axes/z/position/physics_drive"),
+        "Z has no backlash"
+    );
+    let t = run.trace.as_ref().unwrap();
     for k in 0..t.len() {
         for (i, b) in [(0, 0.32e-3), (1, 0.45e-3)] {
             let slack = (t.drive[k * t.axes + i] - t.actual[k * t.axes + i]).abs();
@@ -396,7 +424,7 @@ fn stick_slip_hunting_is_counted() {
     // Its bounds are the calibrated twin's.
     scenario.expect.clear();
     for axis in ["x", "y"] {
-        let pid = &mut scenario.gains.get_mut(axis).unwrap().gains;
+        let pid = &mut scenario.gains.get_mut(axis).unwrap().settings;
         (pid.kp, pid.ki, pid.kd) = (38.72, 110.63, 3.39);
     }
     let mut machine = cncsim::scenario::machine_for(&scenario).unwrap();

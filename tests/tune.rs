@@ -13,7 +13,8 @@
 
 use cncsim::machine::{Feedback, Guide};
 use cncsim::scenario::{
-    machine_for, tune_scenario, tune_scenario_with, Scenario, TuneOptions, TunePlant, TuneReport,
+    machine_for, tune_scenario, tune_scenario_with, PlantKind as TunePlant, Scenario, TuneOptions,
+    TuneReport,
 };
 use std::path::Path;
 use std::process::Command;

@@ -14,6 +14,28 @@ pub enum ActuatorKind {
     DcMotor,
 }
 
+/// The command that makes the actuator of `drive` deliver `motor_torque` (N·m) with the joint
+/// moving at `joint_velocity`: the torque itself for the ideal actuator; for the DC motor the
+/// amplifier input whose armature voltage drives that current against the back-EMF the
+/// amplifier leaves (inductance neglected: a servo loop is far slower than L/R).
+pub fn command_for_torque(
+    kind: ActuatorKind,
+    drive: &Drive,
+    motor_torque: f64,
+    joint_velocity: f64,
+) -> f64 {
+    match kind {
+        ActuatorKind::IdealTorque => motor_torque,
+        ActuatorKind::DcMotor => {
+            let m = &drive.motor;
+            let current = motor_torque / m.torque_constant_nm_per_a;
+            (m.resistance_ohm * current
+                + drive.effective_back_emf() * drive.ratio() * joint_velocity)
+                / drive.amplifier_gain
+        }
+    }
+}
+
 /// One axis's actuator with its electrical state.
 #[derive(Debug, Clone, PartialEq)]
 pub struct Actuator {

@@ -12,7 +12,7 @@
 //! With a [`TaskSpace`] the acceleration ν is instead resolved at the tool tip (see
 //! `task_space.rs`); the conversion to torque and to the actuator is the same.
 
-use super::{ActuatorKind, Controller, ControllerInput, TaskSpace};
+use super::{command_for_torque, ActuatorKind, Controller, ControllerInput, TaskSpace};
 use crate::dynamics::{DynamicsModel, DynamicsWorkspace};
 use crate::machine::Drive;
 
@@ -115,20 +115,15 @@ impl Controller for ComputedTorque {
             &mut self.tau,
         );
         for (i, drive) in self.drives.iter().enumerate() {
-            // Joint force → motor torque through the transmission.
-            let k = drive.ratio();
-            let motor_torque = self.tau[i] / k;
-            command[i] = match self.actuator {
-                ActuatorKind::IdealTorque => motor_torque,
-                // The armature voltage that drives this torque at the present speed
-                // (inductance neglected: the loop is far slower than L/R), as amplifier input.
-                ActuatorKind::DcMotor => {
-                    let m = &drive.motor;
-                    let current = motor_torque / m.torque_constant_nm_per_a;
-                    (m.resistance_ohm * current + drive.effective_back_emf() * k * self.velocity[i])
-                        / drive.amplifier_gain
-                }
-            };
+            // Joint force → motor torque through the transmission → actuator command.
+            let motor_torque = self.tau[i] / drive.ratio();
+            command[i] = command_for_torque(self.actuator, drive, motor_torque, self.velocity[i]);
         }
+    }
+
+    fn reset(&mut self) {
+        self.previous_position = None;
+        self.velocity.iter_mut().for_each(|v| *v = 0.0);
+        self.nu.iter_mut().for_each(|v| *v = 0.0);
     }
 }

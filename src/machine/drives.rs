@@ -1,11 +1,44 @@
 //! The drive sidecar `<machine>.drives.toml`: motor, amplifier and transmission data per axis,
 //! which URDF has no element for, and the tool point.
+//!
+//! Every number is checked against the range a machine-tool drive can have ([`DRIVE_RANGES`]
+//! and the guide and backlash limits below); values outside are refused with the file, the
+//! axis and the range, suspect ones load with a warning.
 
 use super::{Axis, JointKind, KinematicTree, Machine};
-use crate::diagnostics::{read_text, toml_error, FileError, LineColumn};
+use crate::diagnostics::{check_range, read_text, toml_error, FileError, LineColumn};
 use serde::Deserialize;
 use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};
+
+/// Plausible range of each drive constant (SI): from a miniature positioning stage to the
+/// largest machine-tool axis, with margin. Outside it a value is a typo or a unit mistake
+/// (a radius in mm, an inductance in mH), and the simulation would be meaningless.
+pub const DRIVE_RANGES: &[(&str, &str, f64, f64)] = &[
+    ("gear_ratio", "", 1e-3, 1e4),
+    ("ratio", "", 1e-3, 1e5),
+    ("pulley_radius_m", "m", 1e-4, 1.0),
+    ("lead_m", "m", 1e-5, 0.5),
+    ("rotor_inertia_kg_m2", "kg·m²", 1e-10, 10.0),
+    ("transmission_inertia_kg_m2", "kg·m²", 0.0, 100.0),
+    ("viscous_damping_nm_s_per_rad", "N·m·s/rad", 0.0, 100.0),
+    ("motor.torque_constant_nm_per_a", "N·m/A", 1e-4, 100.0),
+    ("motor.back_emf_v_s_per_rad", "V·s/rad", 0.0, 100.0),
+    ("motor.resistance_ohm", "Ω", 1e-4, 1e3),
+    ("motor.inductance_h", "H", 1e-7, 10.0),
+    ("amplifier_gain", "V/V", 1e-3, 1e4),
+    ("supply_voltage_v", "V", 0.1, 1e4),
+    ("peak_torque_nm", "N·m", 1e-4, 1e5),
+];
+
+/// Largest friction coefficient of a guide (static or kinetic); dry steel on steel is about 0.8.
+pub const MAX_FRICTION_COEFFICIENT: f64 = 2.0;
+/// Above this a guide's kinetic coefficient loads with a warning (machine guides: 0.001–0.2).
+pub const SUSPECT_FRICTION_COEFFICIENT: f64 = 0.5;
+/// Range of the Stribeck velocity (m/s).
+pub const STRIBECK_VELOCITY_RANGE_M_S: (f64, f64) = (1e-7, 1.0);
+/// Backlash above this loads with a warning (m at a linear joint, rad at a rotary one).
+pub const SUSPECT_BACKLASH: f64 = 2e-3;
 
 /// How motor rotation becomes joint motion.
 #[derive(Debug, Clone, Copy, PartialEq, Deserialize)]
@@ -177,34 +210,35 @@ impl Guide {
 
     fn validate(&self) -> Result<(), String> {
         let mu = self.friction_coefficient;
-        if !(mu.is_finite() && mu >= 0.0) {
-            return Err(format!(
-                "guide.friction_coefficient = {mu}: expected a finite value ≥ 0"
-            ));
-        }
+        check_range(
+            "guide.friction_coefficient",
+            mu,
+            "",
+            0.0,
+            MAX_FRICTION_COEFFICIENT,
+        )?;
         if let Some(mu_s) = self.static_friction_coefficient {
-            if !(mu_s.is_finite() && mu_s >= mu) {
+            if !(mu_s.is_finite() && mu_s >= mu && mu_s <= MAX_FRICTION_COEFFICIENT) {
                 return Err(format!(
-                    "guide.static_friction_coefficient = {mu_s}: expected a finite value ≥ \
-                     the kinetic friction_coefficient ({mu})"
+                    "guide.static_friction_coefficient = {mu_s:?}: expected a value from \
+                     the kinetic friction_coefficient ({mu:?}) to {MAX_FRICTION_COEFFICIENT:?}"
                 ));
             }
         }
         let curve = self.coefficient();
         match self.stribeck_velocity_m_s {
-            Some(v) if !(v.is_finite() && v > 0.0) => {
-                return Err(format!(
-                    "guide.stribeck_velocity_m_s = {v}: expected a finite value > 0"
-                ));
+            Some(v) => {
+                let (lo, hi) = STRIBECK_VELOCITY_RANGE_M_S;
+                check_range("guide.stribeck_velocity_m_s", v, "m/s", lo, hi)?;
             }
             None if curve.has_stiction() => {
                 return Err(format!(
-                    "guide.static_friction_coefficient = {} exceeds the kinetic {}: expected \
+                    "guide.static_friction_coefficient = {:?} exceeds the kinetic {:?}: expected \
                      stribeck_velocity_m_s, the speed over which the coefficient falls",
                     curve.breakaway, curve.kinetic
                 ));
             }
-            _ => {}
+            None => {}
         }
         let n = self.normal;
         if !(n.iter().all(|v| v.is_finite()) && n.iter().any(|v| *v != 0.0)) {
@@ -353,22 +387,6 @@ impl Drive {
         named.extend([
             ("rotor_inertia_kg_m2", self.rotor_inertia_kg_m2),
             (
-                "motor.torque_constant_nm_per_a",
-                self.motor.torque_constant_nm_per_a,
-            ),
-            ("motor.resistance_ohm", self.motor.resistance_ohm),
-            ("motor.inductance_h", self.motor.inductance_h),
-            ("amplifier_gain", self.amplifier_gain),
-            ("supply_voltage_v", self.supply_voltage_v),
-            ("peak_torque_nm", self.peak_torque_nm),
-        ]);
-        for (name, v) in named {
-            if !(v.is_finite() && v > 0.0) {
-                return Err(format!("{name} = {v}: expected a finite value > 0"));
-            }
-        }
-        for (name, v) in [
-            (
                 "transmission_inertia_kg_m2",
                 self.transmission_inertia_kg_m2,
             ),
@@ -377,14 +395,31 @@ impl Drive {
                 self.viscous_damping_nm_s_per_rad,
             ),
             (
+                "motor.torque_constant_nm_per_a",
+                self.motor.torque_constant_nm_per_a,
+            ),
+            (
                 "motor.back_emf_v_s_per_rad",
                 self.motor.back_emf_v_s_per_rad,
             ),
-            ("backlash", self.backlash),
-        ] {
-            if !(v.is_finite() && v >= 0.0) {
-                return Err(format!("{name} = {v}: expected a finite value ≥ 0"));
-            }
+            ("motor.resistance_ohm", self.motor.resistance_ohm),
+            ("motor.inductance_h", self.motor.inductance_h),
+            ("amplifier_gain", self.amplifier_gain),
+            ("supply_voltage_v", self.supply_voltage_v),
+            ("peak_torque_nm", self.peak_torque_nm),
+        ]);
+        for (name, v) in named {
+            let &(_, unit, lo, hi) = DRIVE_RANGES
+                .iter()
+                .find(|r| r.0 == name)
+                .expect("every drive constant has a range");
+            check_range(name, v, unit, lo, hi)?;
+        }
+        if !(self.backlash.is_finite() && self.backlash >= 0.0) {
+            return Err(format!(
+                "backlash = {:?}: expected a finite value ≥ 0",
+                self.backlash
+            ));
         }
         if let Some(guide) = &self.guide {
             guide.validate()?;
@@ -442,9 +477,13 @@ impl DrivesFile {
 
     pub fn load(path: &Path) -> Result<DrivesFile, FileError> {
         let text = read_text(path, "drive data (the .drives.toml next to the URDF)")?;
-        let mut file: DrivesFile =
-            toml::from_str(&text).map_err(|e| toml_error(path, &text, &e))?;
-        file.text = text;
+        Self::parse(path, &text)
+    }
+
+    /// Reads the contents of a drives file (`path` names it in errors).
+    pub fn parse(path: &Path, text: &str) -> Result<DrivesFile, FileError> {
+        let mut file: DrivesFile = toml::from_str(text).map_err(|e| toml_error(path, text, &e))?;
+        file.text = text.to_string();
         Ok(file)
     }
 
@@ -487,14 +526,24 @@ impl DrivesFile {
                     )
                 })?,
         };
-        if !self.tool.offset_m.iter().all(|v| v.is_finite()) {
+        if !self
+            .tool
+            .offset_m
+            .iter()
+            .all(|v| v.is_finite() && v.abs() <= super::MAX_MACHINE_SIZE_M)
+        {
             return Err(FileError::new(
                 path,
                 at("offset_m"),
-                "tool offset_m has a non-finite value",
+                format!(
+                    "tool offset_m = {:?}: expected finite offsets within ±{:?} m",
+                    self.tool.offset_m,
+                    super::MAX_MACHINE_SIZE_M
+                ),
             ));
         }
         let mut axes = Vec::new();
+        let mut warnings = tree.warnings;
         for (name, spanned) in &self.axes {
             let place = Some(LineColumn::of_offset(text, spanned.span().start));
             let drive = spanned.get_ref();
@@ -529,6 +578,32 @@ impl DrivesFile {
             if axes.iter().any(|a: &Axis| a.joint == joint) {
                 return Err(fail(format!("joint '{}' is driven twice", drive.joint)));
             }
+            // The dead band must fit in the travel, or the carriage never engages.
+            let travel = match (kind, tree.joints[joint].limits) {
+                (_, Some([lo, hi])) => hi - lo,
+                (JointKind::Revolute, None) => std::f64::consts::TAU,
+                _ => f64::INFINITY,
+            };
+            if drive.backlash >= travel {
+                return Err(fail(format!(
+                    "backlash = {:?} is not smaller than the travel {travel:?} of joint '{}': the carriage would never engage",
+                    drive.backlash, drive.joint
+                )));
+            }
+            if drive.backlash > SUSPECT_BACKLASH {
+                warnings.push(fail(format!(
+                    "backlash = {:?} is more than {SUSPECT_BACKLASH:?} (2 mm or 0.11°): a worn machine, or a unit mistake?",
+                    drive.backlash
+                )));
+            }
+            if let Some(g) = &drive.guide {
+                if g.friction_coefficient > SUSPECT_FRICTION_COEFFICIENT {
+                    warnings.push(fail(format!(
+                        "guide.friction_coefficient = {:?} is more than {SUSPECT_FRICTION_COEFFICIENT:?}: machine guides slide at 0.001–0.2",
+                        g.friction_coefficient
+                    )));
+                }
+            }
             axes.push(Axis {
                 name: name.clone(),
                 joint,
@@ -559,6 +634,7 @@ impl DrivesFile {
             tool: self.tool,
             tool_link,
             workpiece_link,
+            warnings,
         })
     }
 }

@@ -5,12 +5,17 @@
 
 mod drives;
 mod urdf;
+mod xml_outline;
 
 pub use drives::{
     AmplifierMode, DcMotor, Drive, DrivesFile, Feedback, Guide, StribeckCurve, Tool, Transmission,
     Workpiece,
 };
-pub use urdf::load_urdf;
+pub use urdf::{
+    load_urdf, MAX_LINK_MASS_KG, MAX_MACHINE_SIZE_M, MAX_RADIUS_OF_GYRATION_M, MIN_LINK_MASS_KG,
+    SUSPECT_LINK_MASS_KG,
+};
+pub use xml_outline::{MAX_XML_DEPTH, MAX_XML_ELEMENTS};
 
 use crate::diagnostics::FileError;
 use nalgebra::{Isometry3, Matrix3, Point3, Vector3};
@@ -93,6 +98,8 @@ pub struct Machine {
     pub tool_link: usize,
     /// Index of the link carrying the workpiece (the root unless the sidecar names one).
     pub workpiece_link: usize,
+    /// Values of the URDF and drives file that load but look wrong, located in their file.
+    pub warnings: Vec<FileError>,
 }
 
 impl Machine {
@@ -102,6 +109,13 @@ impl Machine {
         let drives_path = DrivesFile::path_for(path);
         let drives = DrivesFile::load(&drives_path)?;
         drives.attach(tree, &drives_path)
+    }
+
+    /// [`Machine::load`] on texts in memory, reported as if read from `path` and its sidecar.
+    pub fn parse(path: &Path, urdf: &str, drives: &str) -> Result<Machine, FileError> {
+        let tree = urdf::parse_urdf(path, urdf)?;
+        let drives_path = DrivesFile::path_for(path);
+        DrivesFile::parse(&drives_path, drives)?.attach(tree, &drives_path)
     }
 
     pub fn axis_index(&self, name: &str) -> Option<usize> {
@@ -127,4 +141,6 @@ pub struct KinematicTree {
     pub links: Vec<Link>,
     pub joints: Vec<Joint>,
     pub root: usize,
+    /// Values that load but look wrong (e.g. a 10 t carriage), located in the file.
+    pub warnings: Vec<FileError>,
 }

@@ -1,10 +1,32 @@
 //! URDF → [`KinematicTree`], with the checks a physics model needs (positive masses,
 //! physical inertias, one root, supported joint types) reported against the file.
+//!
+//! Plausibility limits (a machine tool, not a planet or a dust grain); values outside are
+//! refused, values in the suspect band load with a warning:
+//!
+//! | quantity | refused | warned |
+//! |---|---|---|
+//! | link mass | < 1 mg or > 100 t | > 5 t |
+//! | radius of gyration √(I_max/m) | > 10 m | |
+//! | joint origin, prismatic travel limits | beyond 100 m | |
 
+use super::xml_outline::outline;
 use super::{BoxShape, Joint, JointKind, KinematicTree, Link};
 use crate::diagnostics::{read_text, FileError, LineColumn};
 use nalgebra::{Isometry3, Matrix3, Point3, Translation3, UnitQuaternion, Vector3};
 use std::path::Path;
+
+/// Lightest mass a link may have (kg), unless it is a massless frame (mass 0).
+pub const MIN_LINK_MASS_KG: f64 = 1e-6;
+/// Heaviest mass a link may have (kg).
+pub const MAX_LINK_MASS_KG: f64 = 1e5;
+/// Above this a link loads with a warning (kg).
+pub const SUSPECT_LINK_MASS_KG: f64 = 5e3;
+/// Largest radius of gyration of a link (m): inertia and mass must describe a body of machine
+/// size.
+pub const MAX_RADIUS_OF_GYRATION_M: f64 = 10.0;
+/// Largest distance a joint origin or a prismatic limit may give (m).
+pub const MAX_MACHINE_SIZE_M: f64 = 100.0;
 
 /// Reads and validates a URDF file.
 pub fn load_urdf(path: &Path) -> Result<KinematicTree, FileError> {
@@ -13,6 +35,9 @@ pub fn load_urdf(path: &Path) -> Result<KinematicTree, FileError> {
 }
 
 pub(crate) fn parse_urdf(path: &Path, text: &str) -> Result<KinematicTree, FileError> {
+    // Bounded, located checks first: the recursive reader behind urdf-rs must never see an
+    // unbounded nesting, and its messages carry no position.
+    let places = outline(path, text)?;
     let robot = urdf_rs::read_from_string(text).map_err(|e| {
         FileError::new(
             path,
@@ -20,19 +45,33 @@ pub(crate) fn parse_urdf(path: &Path, text: &str) -> Result<KinematicTree, FileE
             format!("not a valid URDF document: {}", one_line(&e.to_string())),
         )
     })?;
-    let element =
-        |kind: &str, name: &str| LineColumn::of_first(text, &format!("<{kind} name=\"{name}\""));
+    let element = |kind: &str, name: &str| -> Option<LineColumn> {
+        match kind {
+            "link" => places.links.get(name).copied(),
+            _ => places.joints.get(name).copied(),
+        }
+    };
     let err = |kind: &str, name: &str, msg: String| FileError::new(path, element(kind, name), msg);
+    let mut warnings = Vec::new();
 
     if robot.links.is_empty() {
         return Err(FileError::new(path, None, "the URDF has no <link>"));
     }
     let mut links = Vec::with_capacity(robot.links.len());
     for l in &robot.links {
-        links.push(
-            link_from_urdf(l)
-                .map_err(|m| err("link", &l.name, format!("link '{}': {m}", l.name)))?,
-        );
+        let link = link_from_urdf(l, &robot.materials)
+            .map_err(|m| err("link", &l.name, format!("link '{}': {m}", l.name)))?;
+        if link.mass > SUSPECT_LINK_MASS_KG {
+            warnings.push(err(
+                "link",
+                &l.name,
+                format!(
+                    "link '{}': mass {:?} kg is more than {SUSPECT_LINK_MASS_KG:?} kg: is it in kg?",
+                    l.name, link.mass
+                ),
+            ));
+        }
+        links.push(link);
     }
     for (i, l) in links.iter().enumerate() {
         if links[..i].iter().any(|o| o.name == l.name) {
@@ -72,7 +111,12 @@ pub(crate) fn parse_urdf(path: &Path, text: &str) -> Result<KinematicTree, FileE
                 let (lo, hi) = (j.limit.lower, j.limit.upper);
                 if !(lo.is_finite() && hi.is_finite() && lo < hi) {
                     return Err(e(format!(
-                        "limits lower={lo} upper={hi}: expected finite lower < upper"
+                        "limits lower={lo:?} upper={hi:?}: expected finite lower < upper"
+                    )));
+                }
+                if kind == JointKind::Prismatic && lo.abs().max(hi.abs()) > MAX_MACHINE_SIZE_M {
+                    return Err(e(format!(
+                        "limits lower={lo:?} upper={hi:?} m: expected a travel within ±{MAX_MACHINE_SIZE_M:?} m"
                     )));
                 }
                 Some([lo, hi])
@@ -80,7 +124,9 @@ pub(crate) fn parse_urdf(path: &Path, text: &str) -> Result<KinematicTree, FileE
         };
         let damping = j.dynamics.as_ref().map_or(0.0, |d| d.damping);
         if !(damping.is_finite() && damping >= 0.0) {
-            return Err(e(format!("damping {damping}: expected a finite value ≥ 0")));
+            return Err(e(format!(
+                "damping {damping:?}: expected a finite value ≥ 0"
+            )));
         }
         joints.push(Joint {
             name: j.name.clone(),
@@ -123,11 +169,16 @@ pub(crate) fn parse_urdf(path: &Path, text: &str) -> Result<KinematicTree, FileE
         ));
     }
     let root = roots[0];
-    let ordered = order_parents_first(&joints, root, links.len()).ok_or_else(|| {
-        FileError::new(
-            path,
-            None,
-            "the joints form a cycle; a machine must be a tree of links",
+    let ordered = order_parents_first(&joints, root, links.len()).map_err(|cycle| {
+        let names: Vec<String> = cycle.iter().map(|&i| format!("'{}'", joints[i].name)).collect();
+        let first = &joints[cycle[0]].name;
+        err(
+            "joint",
+            first,
+            format!(
+                "the joints {} form a cycle (each link's parent joint leads back to the first): a machine must be a tree of links",
+                names.join(" → ")
+            ),
         )
     })?;
     let joints = ordered.into_iter().map(|i| joints[i].clone()).collect();
@@ -139,13 +190,19 @@ pub(crate) fn parse_urdf(path: &Path, text: &str) -> Result<KinematicTree, FileE
         links,
         joints,
         root,
+        warnings,
     })
 }
 
 /// Joint indices with every parent link placed before its children, keeping the file's order
-/// wherever it already is (so axes come out in the order the URDF lists them); `None` if some
-/// link cannot be reached from the root.
-fn order_parents_first(joints: &[Joint], root: usize, n_links: usize) -> Option<Vec<usize>> {
+/// wherever it already is (so axes come out in the order the URDF lists them). With one root
+/// and one parent joint per link, a link the root cannot reach lies on a cycle: the error is
+/// that cycle's joints.
+fn order_parents_first(
+    joints: &[Joint],
+    root: usize,
+    n_links: usize,
+) -> Result<Vec<usize>, Vec<usize>> {
     let mut placed = vec![false; n_links];
     placed[root] = true;
     let mut taken = vec![false; joints.len()];
@@ -160,13 +217,38 @@ fn order_parents_first(joints: &[Joint], root: usize, n_links: usize) -> Option<
             }
         }
         if order.len() == before {
-            return None;
+            let stuck = (0..joints.len())
+                .find(|&i| !taken[i])
+                .expect("some joint is left");
+            return Err(cycle_through(joints, stuck));
         }
     }
-    Some(order)
+    Ok(order)
 }
 
-fn link_from_urdf(l: &urdf_rs::Link) -> Result<Link, String> {
+/// The cycle reached by walking up parent joints from joint `start` (every link has at most one
+/// parent joint, so the walk ends on a cycle or at the root; here the root is out of reach).
+fn cycle_through(joints: &[Joint], start: usize) -> Vec<usize> {
+    let parent_joint = |link: usize| joints.iter().position(|j| j.child == link);
+    let mut path = vec![start];
+    let mut current = start;
+    // At most one step per joint before a joint repeats.
+    for _ in 0..joints.len() {
+        let Some(up) = parent_joint(joints[current].parent) else {
+            break;
+        };
+        if let Some(at) = path.iter().position(|&j| j == up) {
+            let mut cycle = path.split_off(at);
+            cycle.reverse();
+            return cycle;
+        }
+        path.push(up);
+        current = up;
+    }
+    path
+}
+
+fn link_from_urdf(l: &urdf_rs::Link, materials: &[urdf_rs::Material]) -> Result<Link, String> {
     let m = l.inertial.mass.value;
     let i = &l.inertial.inertia;
     let frame = pose(&l.inertial.origin)?;
@@ -174,13 +256,25 @@ fn link_from_urdf(l: &urdf_rs::Link) -> Result<Link, String> {
         i.ixx, i.ixy, i.ixz, i.ixy, i.iyy, i.iyz, i.ixz, i.iyz, i.izz,
     );
     if !(m.is_finite() && m >= 0.0) {
-        return Err(format!("mass {m} kg: expected a finite mass ≥ 0"));
+        return Err(format!("mass {m:?} kg: expected a finite mass ≥ 0"));
+    }
+    if m > 0.0 && !(MIN_LINK_MASS_KG..=MAX_LINK_MASS_KG).contains(&m) {
+        return Err(format!(
+            "mass {m:?} kg: expected 0 (a massless frame) or a mass from {MIN_LINK_MASS_KG:?} to {MAX_LINK_MASS_KG:?} kg"
+        ));
     }
     if !local.iter().all(|v| v.is_finite()) {
         return Err("inertia has a non-finite entry".into());
     }
     if m > 0.0 {
         check_physical_inertia(&local)?;
+        let largest = local.symmetric_eigenvalues().max();
+        let gyration = (largest / m).sqrt();
+        if gyration > MAX_RADIUS_OF_GYRATION_M {
+            return Err(format!(
+                "inertia {largest:.4e} kg·m² on a mass of {m:?} kg is a radius of gyration of {gyration:.3e} m: expected at most {MAX_RADIUS_OF_GYRATION_M:?} m (are mass and inertia in kg and kg·m²?)"
+            ));
+        }
     } else if local.norm() > 0.0 {
         return Err("has inertia but zero mass".into());
     }
@@ -194,11 +288,24 @@ fn link_from_urdf(l: &urdf_rs::Link) -> Result<Link, String> {
             if !s.iter().all(|v| v.is_finite() && *v > 0.0) {
                 return Err(format!("box size {:?}: expected positive sizes", size.0));
             }
+            // A visual's material gives its colour inline or names a robot-level material.
             let color = v
                 .material
                 .as_ref()
-                .and_then(|m| m.color.as_ref())
+                .and_then(|m| {
+                    m.color.as_ref().or_else(|| {
+                        materials
+                            .iter()
+                            .find(|d| d.name == m.name)
+                            .and_then(|d| d.color.as_ref())
+                    })
+                })
                 .map(|c| c.rgba.0.map(|x| x as f32));
+            if let Some(c) = color {
+                if !c.iter().all(|x| (0.0..=1.0).contains(x)) {
+                    return Err(format!("colour rgba {c:?}: expected values from 0 to 1"));
+                }
+            }
             boxes.push(BoxShape {
                 pose: pose(&v.origin)?,
                 half_extents: s / 2.0,
@@ -240,6 +347,12 @@ fn pose(p: &urdf_rs::Pose) -> Result<Isometry3<f64>, String> {
         return Err(format!(
             "origin xyz={:?} rpy={:?} has a non-finite value",
             p.xyz.0, p.rpy.0
+        ));
+    }
+    if [x, y, z].iter().any(|v| v.abs() > MAX_MACHINE_SIZE_M) {
+        return Err(format!(
+            "origin xyz={:?} m: expected offsets within ±{MAX_MACHINE_SIZE_M:?} m",
+            p.xyz.0
         ));
     }
     // URDF: R = Rz(yaw)·Ry(pitch)·Rx(roll), which is nalgebra's Euler convention.

@@ -26,6 +26,11 @@ pub enum Segment {
 impl Segment {
     /// Shortest distance from `p` to this piece of path.
     pub fn distance(&self, p: &Point3<f64>) -> f64 {
+        (p - self.closest(p)).norm()
+    }
+
+    /// The point of this piece of path nearest to `p`.
+    pub fn closest(&self, p: &Point3<f64>) -> Point3<f64> {
         match *self {
             Segment::Line { start, end } => {
                 let d = end - start;
@@ -35,7 +40,7 @@ impl Segment {
                 } else {
                     0.0
                 };
-                (p - (start + d * t)).norm()
+                start + d * t
             }
             Segment::Arc {
                 center,
@@ -52,7 +57,7 @@ impl Segment {
                 let angle = rel.dot(&v).atan2(rel.dot(&u));
                 // Candidate angles along the sweep: the projection's angle (and its turns), and
                 // both ends; the arc is short enough in turns that this is exact for circles.
-                let mut best = f64::INFINITY;
+                let (mut best, mut nearest) = (f64::INFINITY, start);
                 let (lo, hi) = if sweep >= 0.0 {
                     (0.0, sweep)
                 } else {
@@ -69,9 +74,12 @@ impl Segment {
                 for a in candidates {
                     let along = if sweep != 0.0 { a / sweep } else { 0.0 };
                     let q = center + (u * a.cos() + v * a.sin()) * radius + normal * (rise * along);
-                    best = best.min((p - q).norm());
+                    let d = (p - q).norm();
+                    if d < best {
+                        (best, nearest) = (d, q);
+                    }
                 }
-                best
+                nearest
             }
         }
     }
@@ -125,15 +133,18 @@ impl PathGeometry {
     /// Distance from `p` to the path, searching the segments within `window` of `near`
     /// (the segment the tool is expected to be on).
     pub fn distance_near(&self, p: &Point3<f64>, near: usize, window: usize) -> f64 {
-        if self.segments.is_empty() {
-            return f64::NAN;
-        }
-        let lo = near.saturating_sub(window);
+        self.closest_near(p, near, window)
+            .map_or(f64::NAN, |q| (p - q).norm())
+    }
+
+    /// The point of the path nearest to `p` among the segments within `window` of `near`.
+    pub fn closest_near(&self, p: &Point3<f64>, near: usize, window: usize) -> Option<Point3<f64>> {
+        let lo = near.saturating_sub(window).min(self.segments.len());
         let hi = (near + window + 1).min(self.segments.len());
         self.segments[lo..hi]
             .iter()
-            .map(|s| s.distance(p))
-            .fold(f64::INFINITY, f64::min)
+            .map(|s| s.closest(p))
+            .min_by(|a, b| (p - a).norm().total_cmp(&(p - b).norm()))
     }
 }
 

@@ -28,13 +28,14 @@ use std::fs::File;
 use std::io::BufReader;
 use std::path::Path;
 
-pub use self::apt::parse_apt;
+pub use self::apt::{parse_apt, CircleSense};
 pub use self::error::{display_text, Found, ProgramError, ProgramErrors};
-pub use self::gcode::{parse_gcode, parse_gcode_reader};
+pub use self::gcode::{parse_gcode, parse_gcode_reader, parse_tool_table};
 pub use self::geometry::{arc_segment, PathGeometry, Segment};
 pub use self::hpgl::{parse_hpgl, parse_hpgl_detailed, HpglOutput};
 pub use self::options::{
     AptOptions, ArcTolerance, FeedTimeBase, GcodeOptions, HpglOptions, LengthUnit, ReadOptions,
+    ToolSpec,
 };
 pub use self::reference::{circle, polyline, CircleSpec, PolylineSpec};
 pub use self::report::{

@@ -1,7 +1,8 @@
 //! Settings that steer the readers: feed rule, G-code defaults, HPGL pen heights and
 //! optimisation, APT feed units, error limits.
 
-use super::types::FeedRule;
+use super::apt::CircleSense;
+use super::types::{FeedRule, Position};
 
 /// Length units a G-code program starts in (before any G20/G21).
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
@@ -93,6 +94,17 @@ impl ArcTolerance {
     }
 }
 
+/// One tool of the tool table G43 and M6 read (SI: metres, radians).
+#[derive(Debug, Clone, Copy, PartialEq, Default)]
+pub struct ToolSpec {
+    /// The T number.
+    pub number: u32,
+    /// Tool length offset (Z, and X Y A B C where a machine needs them).
+    pub offset: Position,
+    /// Cutter diameter, for cutter radius compensation with `D`.
+    pub diameter: f64,
+}
+
 /// G-code (RS274/NGC) settings.
 #[derive(Debug, Clone, PartialEq)]
 pub struct GcodeOptions {
@@ -101,6 +113,20 @@ pub struct GcodeOptions {
     /// The block-delete switch: when on, blocks starting with `/` are skipped.
     pub block_delete: bool,
     pub arc_tolerance: ArcTolerance,
+    /// The machine's own length units (LinuxCNC `LINEAR_UNITS`): the units of the numbered
+    /// parameters that hold offsets (#5161…, #5211…, #5221…, #5401…), as a program reads them.
+    pub user_units: LengthUnit,
+    /// Machine positions G28 and G30 go to (LinuxCNC #5161–#5166 and #5181–#5186).
+    pub g28_home: Position,
+    pub g30_home: Position,
+    /// The tool table: T words must name a tool in it (or 0 for none).
+    pub tools: Vec<ToolSpec>,
+    /// At most this many blocks are executed (loops and subroutines count every pass): an
+    /// endless loop stops with an error instead of hanging.
+    pub max_blocks: u64,
+    /// At most this many moves are produced: an endless loop that moves stops with an error
+    /// instead of filling memory.
+    pub max_moves: usize,
 }
 
 impl Default for GcodeOptions {
@@ -109,6 +135,12 @@ impl Default for GcodeOptions {
             initial_units: LengthUnit::Millimetre,
             block_delete: true,
             arc_tolerance: ArcTolerance::default(),
+            user_units: LengthUnit::Millimetre,
+            g28_home: Position::default(),
+            g30_home: Position::default(),
+            tools: Vec::new(),
+            max_blocks: 20_000_000,
+            max_moves: 10_000_000,
         }
     }
 }
@@ -132,6 +164,18 @@ pub struct HpglOptions {
     /// P1 and P2 (plotter units) after IN / a bare IP: the HP 7475's A-size defaults.
     pub default_p1: [f64; 2],
     pub default_p2: [f64; 2],
+    /// The page (hard-clip limits, plotter units) until a PS: the HP 7475's A size. RO
+    /// turns the plot about it and IR places P1 and P2 in it.
+    pub default_page: [f64; 2],
+    /// Refuse commands that do not move the pen (PS CO PW NP EC PG …, PCL wrappers) instead
+    /// of skipping them with one warning per kind.
+    pub strict: bool,
+    /// Fills (RA RR WG FP) are outlines plus the hatch lines FT asks for; `false` draws
+    /// the outlines only.
+    pub hatch_fills: bool,
+    /// At most this many fill hatch lines per file: a bound on the work and memory a file
+    /// can ask for (each line is four moves).
+    pub max_fill_lines: usize,
 }
 
 impl Default for HpglOptions {
@@ -145,6 +189,10 @@ impl Default for HpglOptions {
             optimise_pen_up: false,
             default_p1: [250.0, 596.0],
             default_p2: [10250.0, 7796.0],
+            default_page: [10365.0, 7962.0],
+            strict: false,
+            hatch_fills: true,
+            max_fill_lines: 250_000,
         }
     }
 }
@@ -160,12 +208,33 @@ pub enum FeedTimeBase {
 }
 
 /// APT CL settings.
-#[derive(Debug, Clone, PartialEq, Default)]
+#[derive(Debug, Clone, PartialEq)]
 pub struct AptOptions {
     /// Units before the first `UNITS` record.
     pub initial_units: LengthUnit,
     /// How to read a `FEDRAT` value that carries no IPM/MMPM word.
     pub feed_time_base: FeedTimeBase,
+    /// Which way CIRCLE arcs turn about their axis vector (NX: clockwise).
+    pub circle_sense: CircleSense,
+    /// Largest distance (m) of the chords standing for an arc about a tilted axis.
+    pub chord_tolerance: f64,
+    /// At most this many chords for one such arc.
+    pub max_chords: usize,
+    /// Refuse records that do not move the tool instead of skipping them with a warning.
+    pub strict: bool,
+}
+
+impl Default for AptOptions {
+    fn default() -> Self {
+        AptOptions {
+            initial_units: LengthUnit::default(),
+            feed_time_base: FeedTimeBase::default(),
+            circle_sense: CircleSense::default(),
+            chord_tolerance: 1e-6,
+            max_chords: 1_000_000,
+            strict: false,
+        }
+    }
 }
 
 /// Everything the readers can be told.

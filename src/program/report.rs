@@ -257,7 +257,7 @@ pub fn inspect_report(
             let time =
                 move_duration(&position, mv).map_or_else(|| "-".to_string(), |t| format!("{t:.3}"));
             let location = format!("{}:{}", mv.span.line, mv.span.column);
-            let _ = writeln!(
+            let _ = write!(
                 out,
                 "{:>7}  {:>10}  {:<6} {:>10.4} {:>10.4} {:>10.4} {:>9.4} {:>9.4} {:>9.4}  {:>10}  {:>9}",
                 index + 1,
@@ -272,6 +272,20 @@ pub fn inspect_report(
                 feed,
                 time
             );
+            // Arcs also show their centre, so the listing is the whole decoded geometry.
+            if let Motion::Arc { center, turns, .. } = mv.motion {
+                let _ = write!(
+                    out,
+                    "  centre {:.4} {:.4} {:.4}",
+                    center[0] * 1000.0,
+                    center[1] * 1000.0,
+                    center[2] * 1000.0
+                );
+                if turns > 0 {
+                    let _ = write!(out, " +{turns} turns");
+                }
+            }
+            let _ = writeln!(out);
         }
         position = mv.end;
     }

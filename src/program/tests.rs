@@ -3,7 +3,7 @@
 
 use std::path::PathBuf;
 
-use super::types::{Blend, Feed, FeedRule, Motion, Plane, Program, Spindle};
+use super::types::{Blend, Feed, FeedRule, Motion, Plane, Position, Program, Spindle};
 use super::*;
 
 /// The sample programs of the source documents (copies of `shared/reference/programs`).
@@ -254,7 +254,7 @@ fn arc_end_point_tolerance_follows_linuxcnc() {
 #[test]
 fn path_control_dwell_spindle_and_feed_modes() {
     let program = gcode(
-        "G61 G1 X1 F60\nG64 P0.02 X2\nG64 X3\nG4 P1.5\nS1200 M3\nG1 X4\nM4\nG93 G1 X5 F2\nM5 G94 G1 X6",
+        "G61 G1 X1 F60\nG64 P0.02 X2\nG64 X3\nG4 P1.5\nS1200 M3\nG1 X4\nM4\nG93 G1 X5 F2\nM5 G94 G1 X6 F60",
     );
     let moves = &program.moves;
     assert_eq!(moves[0].blend, Blend::ExactStop);
@@ -275,6 +275,13 @@ fn path_control_dwell_spindle_and_feed_modes() {
     assert_eq!(moves[6].spindle, Spindle::Off);
     assert_eq!(moves[6].feed, Feed::PathSpeed(0.001));
     assert_eq!(durations(&program)[3], Some(1.5));
+    // LinuxCNC clears the feed rate on every G94: a G1 after it needs a new F.
+    let errors = errors_of(parse_gcode(
+        "G1 X1 F60\nG94\nG1 X2",
+        "t.ngc",
+        &ReadOptions::default(),
+    ));
+    assert_eq!(errors, vec!["t.ngc:3:1: expected a non-zero feed rate (F word) before a G1/G2/G3 move, found 'G1 X2'; hint: add e.g. F300 (mm per minute in G94)"]);
 }
 
 #[test]
@@ -855,19 +862,20 @@ fn bad_inputs_give_exact_messages() {
         (Gcode, "M3 M5", "bad.ngc:1:4: expected one M code of the spindle group per block, but M3 and M5 are both in it, found 'M5'; hint: LinuxCNC refuses two codes of one modal group in a block; split the block"),
         (Gcode, "G0 X1 X2", "bad.ngc:1:7: expected one X word per block, but X2 is the second, found 'X2'; hint: the first is 'X1'"),
         (Gcode, "G12 X1", "bad.ngc:1:1: expected a G code LinuxCNC knows; G12 is not one, found 'G12'"),
-        (Gcode, "G81 X1 Y1 Z-1 R1", "bad.ngc:1:1: expected a supported G code; G81 is not supported, found 'G81'; hint: canned cycles are not supported; expand the cycle into G0/G1 moves in the CAM post"),
-        (Gcode, "M99", "bad.ngc:1:1: expected an M code LinuxCNC knows; M99 is not one, found 'M99'"),
-        (Gcode, "X1", "bad.ngc:1:1: expected a motion mode (G0, G1, G2 or G3) for the axis words, found 'X1'; hint: no motion mode is active (at program start or after G80); add G0 or G1"),
+        (Gcode, "F100 G81 X1 Y1 Z-1", "bad.ngc:1:6: expected an R word (retract plane) with G81, found 'G81'"),
+        (Gcode, "M99", "bad.ngc:1:1: expected a supported M code; M99 is not supported, found 'M99'; hint: Fanuc-style subprograms (M98/M99) are not supported; use o<name> sub / call"),
+        (Gcode, "M97", "bad.ngc:1:1: expected an M code LinuxCNC knows; M97 is not one, found 'M97'"),
+        (Gcode, "X1", "bad.ngc:1:1: expected a motion mode (G0, G1, G2, G3 or a canned cycle) for the axis words, found 'X1'; hint: no motion mode is active (at program start or after G80); add G0 or G1"),
         (Gcode, "G1 X1", "bad.ngc:1:1: expected a non-zero feed rate (F word) before a G1/G2/G3 move, found 'G1 X1'; hint: add e.g. F300 (mm per minute in G94)"),
         (Gcode, "G93 G1 X1", "bad.ngc:1:1: expected an F word on every G1/G2/G3 block in inverse-time mode (G93), found 'G93 G1 X1'; hint: in G93 the F word is 1 / (move time in minutes) and is not modal"),
         (Gcode, "G0 X1 (unclosed", "bad.ngc:1:7: expected ')' to close the comment, found end of line; hint: comments in parentheses end on the line they start"),
         (Gcode, "G0 X1 (a (b) c)", "bad.ngc:1:10: expected ')' before another '(' (comments do not nest), found '('"),
-        (Gcode, "G0 X#1", "bad.ngc:1:5: expected a number after 'X'; parameters and expressions are not supported, found '#'; hint: post the program with numeric values"),
+        (Gcode, "G0 X#<depth>", "bad.ngc:1:5: expected a defined parameter; #<depth> is not defined, found '#<depth>'; hint: assign it first, e.g. #<name> = 0 (names without '_' are local to their subroutine)"),
         (Gcode, "G0 U1", "bad.ngc:1:4: expected an axis of X Y Z A B C; U V W axes are not supported, found 'U'"),
         (Gcode, "G0 X1 N5", "bad.ngc:1:7: expected the line number (N word) at the start of the block, found 'N'"),
-        (Gcode, "G0 X1 E5", "bad.ngc:1:7: expected a word letter (G, M, X, Y, Z, …), found 'E'"),
+        (Gcode, "G0 X1 E5", "bad.ngc:1:7: expected a word letter cncsim supports; E words (G76 threading, M66 inputs) are not supported, found 'E'"),
         (Gcode, "G0 X1 \u{e9}", "bad.ngc:1:7: expected a G-code word, comment or blank, found '\u{e9}'"),
-        (Gcode, "G1 X1 I2 F100", "bad.ngc:1:7: expected I to come with an arc (G2/G3), found 'I2'; hint: no code in this block uses the I word"),
+        (Gcode, "G1 X1 I2 F100", "bad.ngc:1:7: expected I to come with an arc (G2/G3), G87 or G10, found 'I2'; hint: no code in this block uses the I word"),
         (Gcode, "G4", "bad.ngc:1:1: expected a P word (dwell time in seconds) with G4, found 'G4'; hint: write e.g. G4 P0.5 for half a second"),
         (Gcode, "G2 X10 Y0 F100", "bad.ngc:1:1: expected an R word or centre offsets I J on an arc, found 'G2 X10 Y0 F100'"),
         (Gcode, "G2 X10 Y0 I5 R5 F100", "bad.ngc:1:14: expected either R or centre offsets on an arc, not both, found 'G2 X10 Y0 I5 R5 F100'"),
@@ -879,21 +887,42 @@ fn bad_inputs_give_exact_messages() {
         (Gcode, "G2 X1 Y1 I1 P1.5 F100", "bad.ngc:1:13: expected a whole number of turns of 1 or more after P on an arc, found 'P1.5'"),
         (Gcode, "G1 X1 F-5", "bad.ngc:1:7: expected a feed rate of zero or more, found 'F-5'"),
         (Gcode, "%\nG0 X1", "bad.ngc:3:1: expected a closing '%' line (the program opened with '%'), found end of file; hint: end the program with M2/M30 or a '%' line"),
-        (Gcode, "O100 sub", "bad.ngc:1:1: expected a G-code word; O-words (subroutines, loops) are not supported, found 'O'"),
+        (Gcode, "O100 sub", "bad.ngc:1:1: expected 'o100 endsub' to end the subroutine defined here, found end of file"),
+        (Gcode, "G0 X[1 + ]", "bad.ngc:1:10: expected a number, parameter or expression, found ']'"),
+        (Gcode, "#1 = [1 / 0]", "bad.ngc:1:9: expected a non-zero divisor, found '1 / 0'"),
+        (Gcode, "G0 X[SQRT[-1]]", "bad.ngc:1:6: expected a SQRT argument of zero or more, found 'SQRT[-1]'"),
+        (Gcode, "G0 X[[0 - 2] ** 0.5]", "bad.ngc:1:14: expected a whole-number power of a negative number, found '-2 ** 0.5'"),
+        (Gcode, "G0 X[1 FOO 2]", "bad.ngc:1:8: expected ']' or an operator (+ - * / ** MOD AND OR XOR EQ NE GT GE LT LE), found 'F'"),
+        (Gcode, "G0 X#6000", "bad.ngc:1:5: expected a parameter number from 1 to 5601, not 6000, found '#6000'"),
+        (Gcode, "#<a = 1", "bad.ngc:1:2: expected '>' to close the parameter name, found '<a = 1'"),
+        (Gcode, "o1 endwhile", "bad.ngc:1:1: expected an open 'o1 while' before this 'endwhile', found 'o1 endwhile'"),
+        (Gcode, "o<missing> call", "bad.ngc:1:1: expected a definition of subroutine o<missing> (o<missing> sub … o<missing> endsub) in this file, found 'o<missing> call'; hint: cncsim reads one file; LinuxCNC would also look for a file of that name in its subroutine path"),
+        (Gcode, "o1 if", "bad.ngc:1:1: expected one bracketed condition after 'if', e.g. o1 if [#1 LT 3], found 'o1 if'"),
+        (Gcode, "o1 sub\no2 sub\no2 endsub\no1 endsub", "bad.ngc:1:1: expected 'o1 endsub' before another subroutine definition (line 2); definitions do not nest, found 'o2 sub'"),
+        (Gcode, "G43 H5", "bad.ngc:1:5: expected a tool of the tool table; tool 5 is not in it, found 'H5'; hint: the tool table is empty: name a LinuxCNC tool table with the scenario's [program] tool_table (or inspect --tool-table)"),
+        (Gcode, "T3 M6", "bad.ngc:1:1: expected a tool of the tool table; tool 3 is not in it, found 'T3'; hint: the tool table is empty: name a LinuxCNC tool table with the scenario's [program] tool_table (or inspect --tool-table)"),
+        (Gcode, "G80 X1", "bad.ngc:1:5: expected no axis words with G80, found 'X1'; hint: G80 cancels the motion mode; put the move in its own block"),
+        (Gcode, "G10 L2 P10 X1", "bad.ngc:1:8: expected P0 to P9 with G10 L2/L20 (0 = the active system, 1 = G54 … 9 = G59.3), found 'P10'"),
+        (Gcode, "F100 G83 X1 Y1 Z-5 R1", "bad.ngc:1:6: expected a Q word (peck depth) with G83, found 'G83'"),
+        (Gcode, "G92", "bad.ngc:1:1: expected axis words with G92, found 'G92'"),
+        (Gcode, "G53 G91 G0 X1", "bad.ngc:1:1: expected absolute distance mode (G90) with G53, found 'G53'"),
+        (Gcode, "G41.1 D2 G1 X0.5 F100", "bad.ngc:1:1: expected a cutter compensation entry move longer than the tool radius (1.0000); it is 0.5000, found 'G41.1 D2 G1 X0.5 F100'"),
+        (Gcode, "(ABORT, tool broken)", "bad.ngc:1:8: expected no (ABORT,…) comment: the program aborts here (tool broken), found ' tool broken'"),
+        (Gcode, "G0 X1\n%", "bad.ngc:2:1: expected '%' only on the first line, or to close a program that opened with '%', found '%'"),
         (Hpgl, "IN;PA10;", "bad.plt:1:4: expected x,y pairs after PA: an even number of coordinates, not 1 (byte offset 3), found 'PA10'; hint: the file may be damaged; the lenient option drops the dangling coordinate"),
         (Hpgl, "IN;PA10,20,30;", "bad.plt:1:4: expected x,y pairs after PA: an even number of coordinates, not 3 (byte offset 3), found 'PA10,20,30'; hint: the file may be damaged; the lenient option drops the dangling coordinate"),
         (Hpgl, "IN;PA10,,20;", "bad.plt:1:9: expected a number after ',' in the parameters of PA, found ','"),
         (Hpgl, "IN;PA10,x;", "bad.plt:1:9: expected a number after ',' in the parameters of PA, found 'x'"),
         (Hpgl, "IN;PA10*20;", "bad.plt:1:8: expected ',', ';' or a number in the parameters of PA, found '*'"),
-        (Hpgl, "IN;ZZ;", "bad.plt:1:4: expected an HPGL command cncsim supports (IN DF SC IP SP PU PD PA PR VS LT CI AA AR); ZZ is not, found 'ZZ'; hint: re-plot from the CAD package for an HP 7475 with lines only"),
+        (Hpgl, "IN;ZZ;", "bad.plt:1:4: expected an HPGL command; ZZ is not one cncsim knows, found 'ZZ'; hint: HP-GL/1 and HP-GL/2 commands are read; check the file is a plot file"),
         (Hpgl, "IN;\n  5;", "bad.plt:2:3: expected an HPGL command (two letters) or ';', found '5'"),
         (Hpgl, "P", "bad.plt:1:1: expected a two-letter HPGL command, found 'P'"),
-        (Hpgl, "\x1b.(;\x1bXIN;", "bad.plt:1:5: expected '.' after ESC (an HP device-control sequence), found '\\x1bX'"),
+        (Hpgl, "\x1b.(;\x1b\x01IN;", "bad.plt:1:5: expected '.' (HP device control), '%' (PCL language switch) or a PCL command after ESC, found '\\x1b\\x01'"),
         (Hpgl, "\x1b.!", "bad.plt:1:1: expected a known HP device-control sequence (ESC . followed by ( ) @ A B E H I J K L M N O P Q R S T U Y Z), found '\\x1b.!'"),
         (Hpgl, "SC0,0,0,10;", "bad.plt:1:1: expected SC limits with xmin ≠ xmax and ymin ≠ ymax, not 0,0,0,10, found 'SC0,0,0,10'"),
         (Hpgl, "VS0;", "bad.plt:1:1: expected a positive pen speed (cm/s) after VS, not 0, found 'VS0'"),
         (Hpgl, "CI;", "bad.plt:1:1: expected 1 or 2 parameters after CI, not 0, found 'CI'"),
-        (Hpgl, "LBHELLO\x03;", "bad.plt:1:1: expected a drawing command; labels (LB) are not supported, found 'LB'; hint: plot text as vectors (AutoCAD does this by default)"),
+        (Hpgl, "LBCAF\u{e9}\x03;", "bad.plt:1:6: expected label characters the stroke font has (ASCII 32–126), found '\u{e9}'; hint: the Hershey stroke font draws ASCII only"),
         (Apt, "GOTO/1,2", "bad.apt:1:1: expected 3 or 6 numbers after GOTO/, not 2, found 'GOTO/1,2'"),
         (Apt, "FEDRAT/100\nGOTO/1,2,x", "bad.apt:2:10: expected a number in GOTO, found 'x'"),
         (Apt, "GOTO/1,2,3", "bad.apt:1:1: expected a FEDRAT (or RAPID) before the first GOTO, found 'GOTO/1,2,3'; hint: add e.g. FEDRAT/100 before the motion records"),
@@ -1069,4 +1098,73 @@ fn line_index_columns_count_characters_and_stay_right_when_looked_up_out_of_orde
     let y = index.span(7);
     assert_eq!((y.line, y.column, y.byte_offset), (2, 2, 7));
     assert_eq!(index.span(100).byte_offset, text.len() as u32);
+}
+
+#[test]
+fn endless_loops_stop_at_the_block_and_move_limits() {
+    let mut options = ReadOptions::default();
+    options.gcode.max_blocks = 10_000;
+    let errors = errors_of(parse_gcode(
+        "G0 X0\no1 while [1]\no1 endwhile",
+        "t.ngc",
+        &options,
+    ));
+    assert_eq!(errors, vec!["t.ngc:3:1: expected the program to end within 10000 executed blocks; it runs on (an endless loop?), found 'o1 endwhile'; hint: check the loop conditions; the limit is GcodeOptions::max_blocks"]);
+    options.gcode.max_moves = 1000;
+    let errors = errors_of(parse_gcode(
+        "o1 while [1]\nG0 X1\nG0 X0\no1 endwhile",
+        "t.ngc",
+        &options,
+    ));
+    assert_eq!(errors.len(), 1, "{errors:?}");
+    assert!(
+        errors[0].starts_with("t.ngc:2:1: expected at most 1000 moves from one program"),
+        "{errors:?}"
+    );
+}
+
+#[test]
+fn full_circle_from_centre_offsets_alone_and_g80_with_g0_as_linuxcnc() {
+    // `G2 I20 J0`: no axis words, a full circle about (20, 0) back to the start.
+    let program = gcode("G0 X0 Y0\nG2 I20 J0 F100\nG80 G0 X5\nG0 G80 Y5");
+    assert_eq!(program.moves.len(), 4);
+    match program.moves[1].motion {
+        Motion::Arc {
+            center,
+            clockwise: true,
+            turns: 0,
+            ..
+        } => assert_eq!(center[..2], [0.02, 0.0]),
+        other => panic!("{other:?}"),
+    }
+    assert_eq!(program.moves[1].end.linear, [0.0, 0.0, 0.0]);
+    assert_close(
+        summarize(&program).cut_length,
+        std::f64::consts::TAU * 0.02,
+        1e-15,
+    );
+    // G80 gives way to a motion code in the same block, in either order.
+    assert_eq!(program.moves[2].end.linear[0], 0.005);
+    assert_eq!(program.moves[3].end.linear[1], 0.005);
+}
+
+#[test]
+fn offsets_tools_and_subroutines_reach_the_machine_position() {
+    let mut options = ReadOptions::default();
+    options.gcode.tools = vec![ToolSpec {
+        number: 1,
+        offset: Position {
+            linear: [0.0, 0.0, 0.05],
+            rotary: [0.0; 3],
+        },
+        diameter: 0.006,
+    }];
+    let program = gcode_with(
+        "o<hole> sub\nG0 X#1 Y#2\no<hole> endsub\nG10 L2 P1 X100 Y50\nT1 M6 G43 H1\nG0 Z10\no<hole> call [1] [2]",
+        &options,
+    );
+    // Machine position = program position + G54 origin + tool length; a new origin does not
+    // move the tool, so X and Y stay where they were until programmed.
+    assert_eq!(program.moves[0].end.linear, [0.0, 0.0, 0.06]);
+    assert_eq!(program.moves[1].end.linear, [0.101, 0.052, 0.06]);
 }

@@ -1,58 +1,11 @@
-//! Accuracy and cost figures of a run.
+//! Accuracy and cost figures of a run, accumulated tick by tick as the loop runs (memory does
+//! not grow with the run's length).
 
+use super::path::PathSample;
 use super::AxisLabel;
-use crate::program::PathGeometry;
-use crate::sim::Trace;
-use nalgebra::{Point3, Vector3};
+use crate::sim::{Outcome, TickRecord};
 use serde::Serialize;
 use std::collections::BTreeMap;
-
-/// Per-tick quantities derived from the trace and the programmed path.
-#[derive(Debug, Clone, PartialEq, Default)]
-pub struct Derived {
-    /// Distance of the actual tool point from the programmed path (m).
-    pub contour_error: Vec<f64>,
-    /// Commanded and actual path speed of the tool (m/s).
-    pub commanded_speed: Vec<f64>,
-    pub actual_speed: Vec<f64>,
-}
-
-impl Derived {
-    /// `program_origin` is the tool point (machine frame) at program zero; `linear_axes` the
-    /// machine-axis index of program X, Y, Z where the machine has them.
-    pub fn compute(
-        trace: &Trace,
-        path: &PathGeometry,
-        program_origin: &Point3<f64>,
-        linear_axes: [Option<usize>; 3],
-    ) -> Derived {
-        let n = trace.len();
-        let mut d = Derived {
-            contour_error: Vec::with_capacity(n),
-            commanded_speed: Vec::with_capacity(n),
-            actual_speed: Vec::with_capacity(n),
-        };
-        for k in 0..n {
-            let tool = Point3::from(trace.tool_point[k]) - program_origin.coords;
-            let near = path
-                .segment_of_move
-                .get(trace.segment[k] as usize)
-                .copied()
-                .unwrap_or(0);
-            d.contour_error.push(path.distance_near(&tool, near, 2));
-            let mut v = Vector3::zeros();
-            for (c, axis) in linear_axes.iter().enumerate() {
-                if let Some(i) = axis {
-                    v[c] = Trace::at(&trace.commanded_velocity, trace.axes, k, *i);
-                }
-            }
-            d.commanded_speed.push(v.norm());
-            d.actual_speed
-                .push(Vector3::from(trace.tool_velocity[k]).norm());
-        }
-        d
-    }
-}
 
 #[derive(Debug, Clone, PartialEq, Serialize)]
 pub struct AxisMetrics {
@@ -67,6 +20,11 @@ pub struct AxisMetrics {
     pub rms_following_error_deg: Option<f64>,
     /// Time of the largest following error (s).
     pub max_following_error_time_s: f64,
+    /// Where in the motion the largest following error came: `start` (before the axis first
+    /// caught up with its command), `reversal` (its command slowed through zero and came back
+    /// the other way, until the axis caught up again), `stop` (its command slowed and came
+    /// back the same way, or stayed stopped), or `moving`.
+    pub max_following_error_at: &'static str,
     /// Largest difference between the physics and the analytic reference model (when run).
     #[serde(skip_serializing_if = "Option::is_none")]
     pub max_physics_vs_analytic_mm: Option<f64>,
@@ -89,31 +47,43 @@ const STALL_MOVING: f64 = 0.2;
 /// ... and has stalled below this one.
 const STALL_STOPPED: f64 = 0.02;
 
-/// How often axis `axis` stalled (speed below 2 % of its peak commanded speed) after it had got
-/// going (above 20 %), while its commanded speed stayed above 20 % of that peak: stick-slip
-/// hunting. An axis that stands at a reversal while the drive takes up the backlash, or at the
-/// start while friction holds it, is not counted: there the command itself is slow.
-pub fn stick_slip_stalls(trace: &Trace, axis: usize) -> usize {
-    let at = |v: &[f64], k: usize| Trace::at(v, trace.axes, k, axis).abs();
-    let peak = (0..trace.len())
-        .map(|k| at(&trace.commanded_velocity, k))
-        .fold(0.0, f64::max);
-    if peak <= 0.0 || trace.actual_velocity.len() < trace.commanded_velocity.len() {
-        return 0;
-    }
-    let (mut moving, mut stalls) = (false, 0);
-    for k in 0..trace.len() {
-        let actual = at(&trace.actual_velocity, k);
-        if at(&trace.commanded_velocity, k) <= STALL_COMMAND_FLOOR * peak {
-            moving = false;
-        } else if actual > STALL_MOVING * peak {
-            moving = true;
-        } else if moving && actual < STALL_STOPPED * peak {
-            stalls += 1;
-            moving = false;
+/// Counts stick-slip stalls of one axis: how often it stalled (below 2 % of its peak
+/// commanded speed) after it had got going (above 20 %), while its commanded speed stayed above
+/// 20 % of that peak. An axis that stands at a reversal while the drive takes up the backlash,
+/// or at the start while friction holds it, is not counted: there the command itself is slow.
+#[derive(Debug, Clone, Copy, PartialEq, Default)]
+pub struct StallCounter {
+    /// Peak commanded speed of the axis over the whole program.
+    peak: f64,
+    moving: bool,
+    pub stalls: usize,
+}
+
+impl StallCounter {
+    pub fn new(peak_commanded_speed: f64) -> StallCounter {
+        StallCounter {
+            peak: peak_commanded_speed.abs(),
+            ..Default::default()
         }
     }
-    stalls
+
+    /// Adds a tick; true when the axis stalls on it.
+    pub fn observe(&mut self, commanded_velocity: f64, actual_velocity: f64) -> bool {
+        if self.peak <= 0.0 {
+            return false;
+        }
+        let actual = actual_velocity.abs();
+        if commanded_velocity.abs() <= STALL_COMMAND_FLOOR * self.peak {
+            self.moving = false;
+        } else if actual > STALL_MOVING * self.peak {
+            self.moving = true;
+        } else if self.moving && actual < STALL_STOPPED * self.peak {
+            self.stalls += 1;
+            self.moving = false;
+            return true;
+        }
+        false
+    }
 }
 
 #[derive(Debug, Clone, PartialEq, Serialize)]
@@ -125,6 +95,8 @@ pub struct Metrics {
     pub stopped: Option<String>,
     pub max_contour_error_mm: f64,
     pub rms_contour_error_mm: f64,
+    /// Largest |commanded − actual| path speed, leaving out the ticks at which the command
+    /// steps between rest and motion (there the difference is the step, not the machine).
     pub max_path_speed_error_mm_s: f64,
     pub sim_time_s: f64,
     pub wall_time_s: f64,
@@ -135,121 +107,6 @@ pub struct Metrics {
 }
 
 impl Metrics {
-    #[allow(clippy::too_many_arguments)]
-    pub fn compute(
-        scenario: &str,
-        trace: &Trace,
-        derived: &Derived,
-        labels: &[AxisLabel],
-        dc_motor: bool,
-        physics_steps: u64,
-        wall_time: f64,
-        stopped: Option<String>,
-    ) -> Metrics {
-        let n = trace.len();
-        let max = |v: &mut dyn Iterator<Item = f64>| {
-            v.fold(0.0f64, |m, x| if x.is_nan() { f64::NAN } else { m.max(x) })
-        };
-        let rms = |v: &mut dyn Iterator<Item = f64>| {
-            if n == 0 {
-                0.0
-            } else {
-                (v.map(|x| x * x).sum::<f64>() / n as f64).sqrt()
-            }
-        };
-        let mut axes = BTreeMap::new();
-        for (i, label) in labels.iter().enumerate() {
-            let err = |k: usize| {
-                (Trace::at(&trace.commanded, trace.axes, k, i)
-                    - Trace::at(&trace.actual, trace.axes, k, i))
-                .abs()
-            };
-            let (mut worst, mut worst_k) = (0.0f64, 0usize);
-            for k in 0..n {
-                if err(k) > worst || err(k).is_nan() {
-                    worst = err(k);
-                    worst_k = k;
-                }
-            }
-            let rms_err = rms(&mut (0..n).map(err));
-            let torque = |k: usize| Trace::at(&trace.torque, trace.axes, k, i);
-            let s = label.scale();
-            let (mm, deg) = if label.rotary {
-                (None, Some((worst * s, rms_err * s)))
-            } else {
-                (Some((worst * s, rms_err * s)), None)
-            };
-            axes.insert(
-                label.name.clone(),
-                AxisMetrics {
-                    max_following_error_mm: mm.map(|v| v.0),
-                    rms_following_error_mm: mm.map(|v| v.1),
-                    max_following_error_deg: deg.map(|v| v.0),
-                    rms_following_error_deg: deg.map(|v| v.1),
-                    max_following_error_time_s: trace.time.get(worst_k).copied().unwrap_or(0.0),
-                    max_physics_vs_analytic_mm: None,
-                    max_physics_vs_analytic_deg: None,
-                    peak_torque_nm: max(&mut (0..n).map(|k| torque(k).abs())),
-                    rms_torque_nm: rms(&mut (0..n).map(torque)),
-                    peak_voltage_v: dc_motor.then(|| {
-                        max(&mut (0..n).map(|k| Trace::at(&trace.voltage, trace.axes, k, i).abs()))
-                    }),
-                    stick_slip_stalls: stick_slip_stalls(trace, i),
-                },
-            );
-        }
-        let sim_time = n as f64 * trace.period;
-        Metrics {
-            scenario: scenario.to_string(),
-            completed: stopped.is_none(),
-            stopped,
-            max_contour_error_mm: max(&mut derived.contour_error.iter().copied()) * 1e3,
-            rms_contour_error_mm: rms(&mut derived.contour_error.iter().copied()) * 1e3,
-            max_path_speed_error_mm_s: max(&mut derived
-                .commanded_speed
-                .iter()
-                .zip(&derived.actual_speed)
-                .map(|(c, a)| (c - a).abs()))
-                * 1e3,
-            sim_time_s: sim_time,
-            wall_time_s: wall_time,
-            real_time_factor: if wall_time > 0.0 {
-                sim_time / wall_time
-            } else {
-                f64::INFINITY
-            },
-            physics_steps,
-            servo_ticks: n,
-            axes,
-        }
-    }
-
-    /// Records, per axis, the largest |physics − analytic| position difference; `analytic`
-    /// holds the reference model's positions in the trace's layout.
-    pub fn add_analytic_comparison(
-        &mut self,
-        trace: &Trace,
-        analytic: &[f64],
-        labels: &[AxisLabel],
-    ) {
-        for (i, label) in labels.iter().enumerate() {
-            let worst = (0..trace.len().min(analytic.len() / trace.axes.max(1)))
-                .map(|k| {
-                    (Trace::at(&trace.actual, trace.axes, k, i) - analytic[k * trace.axes + i])
-                        .abs()
-                })
-                .fold(0.0f64, f64::max)
-                * label.scale();
-            if let Some(m) = self.axes.get_mut(&label.name) {
-                if label.rotary {
-                    m.max_physics_vs_analytic_deg = Some(worst);
-                } else {
-                    m.max_physics_vs_analytic_mm = Some(worst);
-                }
-            }
-        }
-    }
-
     /// The metrics as JSON (what `metrics.json` holds and `[expect]` bounds refer to).
     pub fn to_json(&self) -> serde_json::Value {
         serde_json::to_value(self).expect("metrics are plain numbers and strings")
@@ -263,20 +120,309 @@ impl Metrics {
     }
 }
 
+/// Where an axis is in its motion, for placing its largest error (see
+/// [`AxisMetrics::max_following_error_at`]). Thresholds are shares of the axis's peak commanded
+/// speed: the command is slow below 20 %; the axis has caught up when its speed is within 10 %
+/// of the command's while the command is not slow.
+#[derive(Debug, Clone, Copy, PartialEq, Default)]
+enum Phase {
+    #[default]
+    Start,
+    /// The command slowed down while moving in direction `before` (±1; 0 = not yet moving).
+    Slow { before: f64 },
+    /// The command is back to speed after a slow phase, the axis not yet caught up; `label` is
+    /// what that slow phase was.
+    CatchingUp { label: &'static str },
+    Moving,
+}
+
+const SLOW: f64 = 0.2;
+const CAUGHT_UP: f64 = 0.1;
+
+/// Follows an axis through its phases; says which phase a time belongs to.
+#[derive(Debug, Clone, Copy, Default)]
+struct PhaseTracker {
+    peak: f64,
+    phase: Phase,
+    direction: f64,
+    /// Serial number of the current phase, and the label the largest error's phase got once
+    /// it was known.
+    serial: u32,
+}
+
+impl PhaseTracker {
+    /// Moves on by one tick; returns a label for the phase just left, if a slow phase now
+    /// knows whether it was a reversal or a stop.
+    fn observe(&mut self, commanded: f64, actual: f64) -> Option<(u32, &'static str)> {
+        if self.peak <= 0.0 {
+            return None;
+        }
+        let slow = commanded.abs() < SLOW * self.peak;
+        let caught_up = !slow && (actual - commanded).abs() <= CAUGHT_UP * self.peak;
+        let sign = if slow { 0.0 } else { commanded.signum() };
+        let (next, resolved) = match self.phase {
+            Phase::Start if caught_up => (Phase::Moving, Some("start")),
+            Phase::Start => (Phase::Start, None),
+            Phase::Moving if slow => (Phase::Slow { before: self.direction }, Some("moving")),
+            Phase::Moving => (Phase::Moving, None),
+            Phase::Slow { before } if !slow => {
+                let label = if before != 0.0 && sign != before { "reversal" } else { "stop" };
+                (Phase::CatchingUp { label }, Some(label))
+            }
+            Phase::Slow { .. } => (self.phase, None),
+            Phase::CatchingUp { label } if caught_up => (Phase::Moving, Some(label)),
+            Phase::CatchingUp { label } if slow => (Phase::Slow { before: self.direction }, Some(label)),
+            Phase::CatchingUp { .. } => (self.phase, None),
+        };
+        if sign != 0.0 {
+            self.direction = sign;
+        }
+        let changed = std::mem::discriminant(&next) != std::mem::discriminant(&self.phase);
+        let done = resolved.filter(|_| changed).map(|l| (self.serial, l));
+        if changed {
+            self.serial += 1;
+        }
+        self.phase = next;
+        done
+    }
+
+    /// The label of the current phase as far as it is known at the end of the run.
+    fn final_label(&self) -> &'static str {
+        match self.phase {
+            Phase::Start => "start",
+            Phase::Slow { .. } => "stop",
+            Phase::CatchingUp { label } => label,
+            Phase::Moving => "moving",
+        }
+    }
+}
+
+/// Running figures of one axis.
+#[derive(Debug, Clone, Copy, Default)]
+struct AxisSums {
+    max_error: f64,
+    max_error_time: f64,
+    /// The phase the largest error came in: its serial, and its label once known.
+    max_error_phase: u32,
+    max_error_at: Option<&'static str>,
+    phases: PhaseTracker,
+    sum_error2: f64,
+    peak_torque: f64,
+    sum_torque2: f64,
+    peak_voltage: f64,
+    stalls: StallCounter,
+    /// Largest |physics − analytic| position (when the analytic lane runs).
+    max_vs_analytic: Option<f64>,
+}
+
+/// Largest of `m` and `x`, NaN once any value was NaN (a NaN must show, not vanish in a max).
+fn nan_max(m: f64, x: f64) -> f64 {
+    if x.is_nan() || m.is_nan() {
+        f64::NAN
+    } else {
+        m.max(x)
+    }
+}
+
+/// The metrics of a run, tick by tick: lane 0 (the physics) gives every figure; a second lane
+/// (the analytic reference model) is compared with it position by position.
+#[derive(Debug, Clone)]
+pub struct MetricsAccumulator {
+    labels: Vec<AxisLabel>,
+    dc_motor: bool,
+    period: f64,
+    axes: Vec<AxisSums>,
+    ticks: usize,
+    max_contour: f64,
+    sum_contour2: f64,
+    max_speed_error: f64,
+    /// The commanded path speed of the previous tick (0: at rest before the first).
+    commanded_speed_before: f64,
+    /// Lane 0's positions at tick `primary_tick`, for the comparison with lane 1.
+    primary: Vec<f64>,
+    primary_tick: Option<usize>,
+}
+
+impl MetricsAccumulator {
+    /// `peak_velocity`: the largest |commanded velocity| of each axis over the program (for
+    /// the stick-slip count); `compare_analytic`: whether a second lane will be compared.
+    pub fn new(
+        labels: &[AxisLabel],
+        dc_motor: bool,
+        period: f64,
+        peak_velocity: &[f64],
+        compare_analytic: bool,
+    ) -> MetricsAccumulator {
+        MetricsAccumulator {
+            labels: labels.to_vec(),
+            dc_motor,
+            period,
+            axes: peak_velocity
+                .iter()
+                .map(|&peak| AxisSums {
+                    stalls: StallCounter::new(peak),
+                    phases: PhaseTracker {
+                        peak: peak.abs(),
+                        ..Default::default()
+                    },
+                    max_vs_analytic: compare_analytic.then_some(0.0),
+                    ..Default::default()
+                })
+                .collect(),
+            ticks: 0,
+            max_contour: 0.0,
+            sum_contour2: 0.0,
+            max_speed_error: 0.0,
+            commanded_speed_before: 0.0,
+            primary: vec![0.0; labels.len()],
+            primary_tick: None,
+        }
+    }
+
+    /// Adds a tick of lane `lane` with its path figures; returns a bit per axis that stalled
+    /// (stick-slip) on this tick.
+    pub fn observe(&mut self, lane: usize, r: &TickRecord<'_>, path: &PathSample) -> u64 {
+        let s = r.sensors;
+        if lane != 0 {
+            if self.primary_tick == Some(r.k) {
+                for (a, (p, q)) in self
+                    .axes
+                    .iter_mut()
+                    .zip(self.primary.iter().zip(&s.position))
+                {
+                    if let Some(m) = &mut a.max_vs_analytic {
+                        *m = nan_max(*m, (p - q).abs());
+                    }
+                }
+            }
+            return 0;
+        }
+        let mut stalled = 0;
+        self.ticks += 1;
+        self.primary.copy_from_slice(&s.position);
+        self.primary_tick = Some(r.k);
+        let sp = r.setpoint;
+        for (i, a) in self.axes.iter_mut().enumerate() {
+            if let Some((serial, label)) = a.phases.observe(sp.velocity[i], s.velocity[i]) {
+                if serial == a.max_error_phase && a.max_error_at.is_none() {
+                    a.max_error_at = Some(label);
+                }
+            }
+            let error = (sp.position[i] - s.position[i]).abs();
+            if error > a.max_error || error.is_nan() {
+                a.max_error = error;
+                a.max_error_time = r.time;
+                a.max_error_phase = a.phases.serial;
+                a.max_error_at = None;
+            }
+            a.sum_error2 += error * error;
+            let torque = r.hold.mean_torque[i];
+            a.peak_torque = nan_max(a.peak_torque, torque.abs());
+            a.sum_torque2 += torque * torque;
+            a.peak_voltage = nan_max(a.peak_voltage, r.hold.voltage[i].abs());
+            if a.stalls.observe(sp.velocity[i], s.velocity[i]) && i < 64 {
+                stalled |= 1 << i;
+            }
+        }
+        self.max_contour = nan_max(self.max_contour, path.contour_error);
+        self.sum_contour2 += path.contour_error * path.contour_error;
+        // A tick at which the command steps between rest and motion (the stream's first sample
+        // at feed, its last at rest, an exact stop) compares a command that starts now with a
+        // speed measured before it could act: that difference is the step itself, whatever
+        // the machine does, so it is not counted. The ticks after it are.
+        let moving = path.commanded_speed > 0.0;
+        if moving == (self.commanded_speed_before > 0.0) {
+            self.max_speed_error = nan_max(
+                self.max_speed_error,
+                (path.commanded_speed - path.actual_speed).abs(),
+            );
+        }
+        self.commanded_speed_before = path.commanded_speed;
+        stalled
+    }
+
+    /// Per axis: the time and size of the largest following error so far (joint units).
+    pub fn largest_errors(&self) -> Vec<(f64, f64)> {
+        self.axes
+            .iter()
+            .map(|a| (a.max_error_time, a.max_error))
+            .collect()
+    }
+
+    /// The figures of the run, in display units.
+    pub fn finish(&self, scenario: &str, outcome: &Outcome) -> Metrics {
+        let n = self.ticks;
+        let rms = |sum: f64| if n == 0 { 0.0 } else { (sum / n as f64).sqrt() };
+        let mut axes = BTreeMap::new();
+        for (label, a) in self.labels.iter().zip(&self.axes) {
+            let s = label.scale();
+            let (worst, rms_error) = (a.max_error * s, rms(a.sum_error2) * s);
+            let (mm, deg) = if label.rotary {
+                (None, Some((worst, rms_error)))
+            } else {
+                (Some((worst, rms_error)), None)
+            };
+            let vs = a.max_vs_analytic.map(|m| m * s);
+            axes.insert(
+                label.name.clone(),
+                AxisMetrics {
+                    max_following_error_mm: mm.map(|v| v.0),
+                    rms_following_error_mm: mm.map(|v| v.1),
+                    max_following_error_deg: deg.map(|v| v.0),
+                    rms_following_error_deg: deg.map(|v| v.1),
+                    max_following_error_time_s: a.max_error_time,
+                    max_following_error_at: a.max_error_at.unwrap_or_else(|| {
+                        if a.max_error_phase == a.phases.serial {
+                            a.phases.final_label()
+                        } else {
+                            "moving"
+                        }
+                    }),
+                    max_physics_vs_analytic_mm: vs.filter(|_| !label.rotary),
+                    max_physics_vs_analytic_deg: vs.filter(|_| label.rotary),
+                    peak_torque_nm: a.peak_torque,
+                    rms_torque_nm: rms(a.sum_torque2),
+                    peak_voltage_v: self.dc_motor.then_some(a.peak_voltage),
+                    stick_slip_stalls: a.stalls.stalls,
+                },
+            );
+        }
+        let sim_time = n as f64 * self.period;
+        let wall_time = outcome.wall_time;
+        let stopped = outcome.stop().map(|s| s.to_string());
+        Metrics {
+            scenario: scenario.to_string(),
+            completed: stopped.is_none(),
+            stopped,
+            max_contour_error_mm: self.max_contour * 1e3,
+            rms_contour_error_mm: rms(self.sum_contour2) * 1e3,
+            max_path_speed_error_mm_s: self.max_speed_error * 1e3,
+            sim_time_s: sim_time,
+            wall_time_s: wall_time,
+            real_time_factor: if wall_time > 0.0 {
+                sim_time / wall_time
+            } else {
+                f64::INFINITY
+            },
+            physics_steps: outcome.lanes.first().map_or(0, |l| l.steps),
+            servo_ticks: n,
+            axes,
+        }
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
 
-    /// A one-axis trace at 10 ms with the given commanded and actual velocities (m/s).
-    fn trace(commanded: &[f64], actual: &[f64]) -> Trace {
-        Trace {
-            period: 0.01,
-            axes: 1,
-            time: (0..commanded.len()).map(|k| k as f64 * 0.01).collect(),
-            commanded_velocity: commanded.to_vec(),
-            actual_velocity: actual.to_vec(),
-            ..Default::default()
+    /// Stalls counted on commanded and actual velocity series (peak from the commands).
+    fn stalls(commanded: &[f64], actual: &[f64]) -> usize {
+        let peak = commanded.iter().fold(0.0f64, |m, v| m.max(v.abs()));
+        let mut counter = StallCounter::new(peak);
+        for (c, a) in commanded.iter().zip(actual) {
+            counter.observe(*c, *a);
         }
+        counter.stalls
     }
 
     #[test]
@@ -287,7 +433,7 @@ mod tests {
         for k in (0..10).chain(20..25).chain(40..42) {
             actual[k] = 0.0;
         }
-        assert_eq!(stick_slip_stalls(&trace(&commanded, &actual), 0), 2);
+        assert_eq!(stalls(&commanded, &actual), 2);
     }
 
     #[test]
@@ -303,12 +449,53 @@ mod tests {
             .map(|(k, &v)| if (45..60).contains(&k) { 0.0 } else { v })
             .collect();
         assert!(commanded[59].abs() > 0.25 * 5e-3);
-        assert_eq!(stick_slip_stalls(&trace(&commanded, &actual), 0), 0);
+        assert_eq!(stalls(&commanded, &actual), 0);
+    }
+
+    /// Where the largest error of a velocity series came: errors peak where `error` says.
+    fn place(commanded: &[f64], actual: &[f64], peak_at: usize) -> &'static str {
+        let peak = commanded.iter().fold(0.0f64, |m, v| m.max(v.abs()));
+        let mut a = AxisSums {
+            phases: PhaseTracker { peak, ..Default::default() },
+            ..Default::default()
+        };
+        for (k, (c, v)) in commanded.iter().zip(actual).enumerate() {
+            if let Some((serial, label)) = a.phases.observe(*c, *v) {
+                if serial == a.max_error_phase && a.max_error_at.is_none() {
+                    a.max_error_at = Some(label);
+                }
+            }
+            if k == peak_at {
+                a.max_error_phase = a.phases.serial;
+                a.max_error_at = None;
+            }
+        }
+        a.max_error_at.unwrap_or(if a.max_error_phase == a.phases.serial { a.phases.final_label() } else { "moving" })
+    }
+
+    #[test]
+    fn largest_errors_are_placed_at_start_reversal_stop_or_moving() {
+        // Forward at 1, through zero, backward at 1; the axis lags 5 ticks behind each change.
+        let mut commanded = vec![1.0; 20];
+        commanded.extend((0..10).map(|k| 1.0 - 0.2 * k as f64));
+        commanded.extend(vec![-1.0; 30]);
+        let mut actual = vec![0.0; 5];
+        actual.extend(commanded[..commanded.len() - 5].iter().copied());
+        assert_eq!(place(&commanded, &actual, 2), "start");
+        assert_eq!(place(&commanded, &actual, 12), "moving");
+        assert_eq!(place(&commanded, &actual, 27), "reversal");
+        assert_eq!(place(&commanded, &actual, 33), "reversal");
+        assert_eq!(place(&commanded, &actual, 55), "moving");
+        // A command that slows and goes on the same way: a stop.
+        let mut same: Vec<f64> = vec![1.0; 20];
+        same.extend(vec![0.0; 10]);
+        same.extend(vec![1.0; 20]);
+        assert_eq!(place(&same, &same, 25), "stop");
     }
 
     #[test]
     fn an_axis_that_never_moves_has_no_stalls() {
-        assert_eq!(stick_slip_stalls(&trace(&[0.0; 10], &[0.0; 10]), 0), 0);
-        assert_eq!(stick_slip_stalls(&trace(&[], &[]), 0), 0);
+        assert_eq!(stalls(&[0.0; 10], &[0.0; 10]), 0);
+        assert_eq!(stalls(&[], &[]), 0);
     }
 }

@@ -1,17 +1,29 @@
 //! Everything a run leaves behind: metrics (terminal table and `metrics.json`), the trace as
 //! CSV, and the Rerun recording. Units turn into mm, µm and degrees here, at the edge.
 
+mod blueprint;
 mod csv;
+mod events;
 mod metrics;
+mod path;
 mod plot;
 mod recording;
+mod run_report;
 mod table;
+mod thin;
 
-pub use csv::write_trace_csv;
-pub use metrics::{AxisMetrics, Derived, Metrics};
-pub use plot::{write_contour_error_plot, ContourSeries, PLOT_SIZE};
-pub use recording::{write_recording, write_setpoints_recording, RecordingContent};
+pub use blueprint::{ab_blueprint, run_blueprint};
+pub use csv::CsvWriter;
+pub use events::{Event, EventDetector, MAX_EVENTS_PER_KIND};
+pub use metrics::{AxisMetrics, Metrics, MetricsAccumulator, StallCounter};
+pub use path::{PathSample, PathTracker};
+pub use plot::{
+    write_bar_plot, write_contour_error_plot, write_line_plot, BarSeries, ContourSeries, PLOT_SIZE,
+};
+pub use recording::{magnification, write_setpoints_recording, RecordingSetup, RrdWriter};
+pub use run_report::{Envelope, ReportSetup, RunReport};
 pub use table::metrics_table;
+pub use thin::Thinned;
 
 /// Report errors: only I/O and the recorder can fail here.
 #[derive(Debug, thiserror::Error)]

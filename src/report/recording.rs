@@ -1,233 +1,672 @@
-//! The Rerun recording of a run: the machine moving in 3D, commanded and actual tool paths,
-//! and per-axis time series on the `sim_time` timeline.
+//! The Rerun recording of a run, written as the run goes and made to be reviewed: it carries
+//! its own blueprint (see `blueprint.rs`), named series in display units with fixed colours,
+//! an event log and a summary document.
 //!
-//! Entity paths (stable; tests and users rely on them):
+//! Entity paths (stable; tests and users rely on them), under an optional variant prefix
+//! (`a/`, `b/` in an A/B recording):
 //! - `world/machine/<link>`: link pose per recorded tick; `…/<link>/visual_<i>` its boxes
-//! - `world/path/programmed`, `world/path/actual`: tool paths (m), `world/tool`: tool point
-//! - `axes/<axis>/{commanded,actual}` (mm or deg), `axes/<axis>/following_error` (µm or deg),
-//!   `axes/<axis>/torque` (N·m), `axes/<axis>/voltage` (V, DC-motor model only),
-//!   `axes/<axis>/drive` (mm or deg: the drive side of the backlash, for axes that have one)
-//! - `path/contour_error` (µm), `path/speed/{commanded,actual}` (mm/s)
+//! - `world/machine/<workpiece link>/paths/programmed` (static) and `…/paths/actual/<chunk>`:
+//!   the tool path on the workpiece, in its frame, growing with time; `…/paths/tool`: the tool
+//! - `magnified/programmed`, `magnified/actual`: the path with the contour error magnified
+//!   (nearest programmed point + k·deviation, coloured by the error), program frame
+//! - `axes/<axis>/position/{commanded,physics,analytic,physics_drive,analytic_drive}` (mm, deg)
+//! - `axes/<axis>/following_error/{physics,analytic}` (µm or deg), `…/max` (marker)
+//! - `axes/<axis>/physics_minus_analytic` (µm or deg)
+//! - `axes/<axis>/torque/{physics,analytic}` (N·m), `axes/<axis>/voltage/{…}` (V)
+//! - `path/contour_error/{physics,analytic}` (µm), `path/speed/{commanded,physics,analytic}`
+//!   (mm/s)
+//! - `events` (text log), `summary` (text document)
 
-use super::{AxisLabel, Derived, ReportError};
+use super::path::PathSample;
+use super::thin::Thinned;
+use super::{AxisLabel, ReportError};
 use crate::machine::Machine;
-use crate::sim::Trace;
-use nalgebra::Isometry3;
+use crate::sim::TickRecord;
+use nalgebra::{Isometry3, Point3};
 use rerun::{RecordingStream, TimeColumn};
-use std::path::Path;
+use std::path::{Path, PathBuf};
 
-/// What goes into a recording besides the trace.
-pub struct RecordingContent<'a> {
+/// Recorded rows buffered before they are sent: bounds the writer's memory.
+const CHUNK_ROWS: usize = 1024;
+/// Points kept for the magnified path (evenly thinned over the run).
+const MAGNIFIED_POINTS: usize = 20_000;
+/// Colours: commanded grey-blue, physics orange, analytic green, drive side purple.
+pub const COMMANDED: [u8; 3] = [90, 140, 230];
+pub const PHYSICS: [u8; 3] = [255, 120, 40];
+pub const ANALYTIC: [u8; 3] = [40, 180, 90];
+pub const DRIVE: [u8; 3] = [170, 90, 220];
+pub const DIFFERENCE: [u8; 3] = [220, 40, 120];
+/// Machine boxes are see-through, so no path hides inside the machine's own geometry.
+const MACHINE_ALPHA: f32 = 0.3;
+
+/// What a recording shows besides the ticks: plain data the caller prepares.
+pub struct RecordingSetup<'a> {
     pub name: &'a str,
     pub machine: &'a Machine,
     pub labels: &'a [AxisLabel],
-    /// Link poses at each recorded tick (from the kinematics of the actual joint positions).
-    pub link_poses: &'a dyn Fn(usize) -> Vec<Isometry3<f64>>,
-    /// Programmed tool path in the machine frame (m).
-    pub programmed_path: Vec<[f64; 3]>,
     pub dc_motor: bool,
+    /// Record every k-th tick.
     pub decimation: usize,
-    /// Positions of the analytic reference model in the trace's layout, when it was run.
-    pub analytic: Option<&'a Trace>,
+    /// Lanes of the run ("physics", and "analytic" where it runs).
+    pub lanes: &'a [&'static str],
+    /// The programmed tool path on the workpiece, in the workpiece link's frame (m).
+    pub programmed_path: Vec<[f64; 3]>,
+    /// In an A/B recording: the variant's name (legends start with it) and its colour.
+    pub variant: Option<(String, [u8; 3])>,
 }
 
-pub fn write_recording(
-    path: &Path,
-    trace: &Trace,
-    derived: &Derived,
-    content: &RecordingContent<'_>,
-) -> Result<(), ReportError> {
-    let fail = |e: &dyn std::fmt::Display| ReportError::Recording {
-        path: path.to_path_buf(),
-        message: e.to_string(),
-    };
-    let rec = rerun::RecordingStreamBuilder::new("cncsim")
-        .recording_name(content.name)
-        .save(path)
-        .map_err(|e| fail(&e))?;
-    log_all(&rec, trace, derived, content).map_err(|e| fail(&e))?;
-    rec.flush_blocking().map_err(|e| fail(&e))?;
-    Ok(())
+/// Columns of one lane's recorded rows, sent every [`CHUNK_ROWS`] rows.
+#[derive(Default)]
+struct Columns {
+    time: Vec<f64>,
+    /// (entity, values) in a fixed order, one value per row.
+    series: Vec<(String, Vec<f64>)>,
+    /// Link poses per row (physics lane only).
+    poses: Vec<Vec<Isometry3<f64>>>,
+    /// Tool point on the workpiece per row (physics lane only).
+    tool: Vec<[f32; 3]>,
 }
 
-fn log_all(
-    rec: &RecordingStream,
-    trace: &Trace,
-    derived: &Derived,
-    c: &RecordingContent<'_>,
-) -> rerun::RecordingStreamResult<()> {
-    let ticks: Vec<usize> = (0..trace.len()).step_by(c.decimation.max(1)).collect();
-    let times = || TimeColumn::new_duration_secs("sim_time", ticks.iter().map(|&k| trace.time[k]));
-    let n = trace.axes;
+impl Columns {
+    fn clear(&mut self) {
+        self.time.clear();
+        self.poses.clear();
+        self.tool.clear();
+        for (_, v) in &mut self.series {
+            v.clear();
+        }
+    }
+}
 
-    rec.log_static("world", &rerun::ViewCoordinates::RIGHT_HAND_Z_UP())?;
+/// One magnified-path sample: nearest programmed point, actual tool point (program frame, m),
+/// contour error (m).
+type Deviation = ([f64; 3], [f64; 3], f64);
 
-    // Machine links: static boxes in link frames, link poses over time.
-    let poses: Vec<Vec<Isometry3<f64>>> = ticks.iter().map(|&k| (c.link_poses)(k)).collect();
-    for (li, link) in c.machine.links.iter().enumerate() {
-        let entity = format!("world/machine/{}", link.name);
-        for (bi, b) in link.boxes.iter().enumerate() {
-            let child = format!("{entity}/visual_{bi}");
-            rec.log_static(child.as_str(), &transform(&b.pose))?;
-            let mut boxes = rerun::Boxes3D::from_half_sizes([[
-                b.half_extents.x as f32,
-                b.half_extents.y as f32,
-                b.half_extents.z as f32,
-            ]])
-            .with_fill_mode(rerun::FillMode::Solid);
-            if let Some([r, g, bl, a]) = b.color {
-                boxes = boxes.with_colors([rerun::Color::from_unmultiplied_rgba(
+/// Writes a run into a recording stream (its own file, or a shared A/B stream under a prefix).
+pub struct RrdWriter {
+    rec: RecordingStream,
+    path: PathBuf,
+    prefix: String,
+    machine: Machine,
+    labels: Vec<AxisLabel>,
+    lanes: Vec<&'static str>,
+    decimation: usize,
+    dc_motor: bool,
+    variant: Option<(String, [u8; 3])>,
+    /// Axes whose drive side can part from the carriage (backlash).
+    slack: Vec<bool>,
+    columns: Vec<Columns>,
+    /// Lane 0's positions at the current tick, for the physics − analytic series.
+    primary: Vec<f64>,
+    primary_tick: Option<usize>,
+    chunks: usize,
+    /// Last tool point sent, so consecutive path chunks join.
+    last_tool: Option<[f32; 3]>,
+    magnified: Thinned<Deviation>,
+    /// The first error; the loop does not stop for it, `finish` reports it.
+    error: Option<String>,
+}
+
+fn rgb(c: [u8; 3]) -> rerun::Color {
+    rerun::Color::from_rgb(c[0], c[1], c[2])
+}
+
+impl RrdWriter {
+    /// A recording of its own in `path`, with the run's blueprint.
+    pub fn create(path: &Path, setup: &RecordingSetup<'_>) -> Result<RrdWriter, ReportError> {
+        let rec = rerun::RecordingStreamBuilder::new("cncsim")
+            .recording_name(setup.name)
+            .save(path)
+            .map_err(|e| recording_error(path, &e))?;
+        super::blueprint::run_blueprint(setup)
+            .send(&rec, rerun::blueprint::BlueprintActivation::default())
+            .map_err(|e| recording_error(path, &e))?;
+        Self::on_stream(rec, path, "", setup)
+    }
+
+    /// A variant's part of a shared recording, its entities under `prefix` (e.g. `a/`).
+    pub fn on_stream(
+        rec: RecordingStream,
+        path: &Path,
+        prefix: &str,
+        setup: &RecordingSetup<'_>,
+    ) -> Result<RrdWriter, ReportError> {
+        let mut w = RrdWriter {
+            rec,
+            path: path.to_path_buf(),
+            prefix: prefix.to_string(),
+            machine: setup.machine.clone(),
+            labels: setup.labels.to_vec(),
+            lanes: setup.lanes.to_vec(),
+            decimation: setup.decimation.max(1),
+            dc_motor: setup.dc_motor,
+            variant: setup.variant.clone(),
+            slack: setup
+                .machine
+                .axes
+                .iter()
+                .map(|a| a.drive.backlash > 0.0)
+                .collect(),
+            columns: Vec::new(),
+            primary: vec![0.0; setup.labels.len()],
+            primary_tick: None,
+            chunks: 0,
+            last_tool: None,
+            magnified: Thinned::new(MAGNIFIED_POINTS),
+            error: None,
+        };
+        w.columns = (0..w.lanes.len())
+            .map(|lane| w.lane_columns(lane))
+            .collect();
+        let header = w.log_static_content(setup);
+        w.keep(header);
+        Ok(w)
+    }
+
+    fn entity(&self, path: &str) -> String {
+        format!("{}{path}", self.prefix)
+    }
+
+    /// The path of the workpiece link's entity, under which the paths are drawn.
+    fn workpiece_entity(&self) -> String {
+        let link = &self.machine.links[self.machine.workpiece_link].name;
+        self.entity(&format!("world/machine/{link}"))
+    }
+
+    /// The series a lane records, in the order its rows fill them.
+    fn lane_columns(&self, lane: usize) -> Columns {
+        let name = self.lanes[lane];
+        let mut series = Vec::new();
+        for (i, l) in self.labels.iter().enumerate() {
+            let a = &l.name;
+            if lane == 0 {
+                series.push(format!("axes/{a}/position/commanded"));
+            }
+            series.push(format!("axes/{a}/position/{name}"));
+            if self.slack[i] {
+                series.push(format!("axes/{a}/position/{name}_drive"));
+            }
+            series.push(format!("axes/{a}/following_error/{name}"));
+            if lane > 0 {
+                series.push(format!("axes/{a}/physics_minus_analytic"));
+            }
+            series.push(format!("axes/{a}/torque/{name}"));
+            if self.dc_motor {
+                series.push(format!("axes/{a}/voltage/{name}"));
+            }
+        }
+        series.push(format!("path/contour_error/{name}"));
+        if lane == 0 {
+            series.push("path/speed/commanded".into());
+        }
+        series.push(format!("path/speed/{name}"));
+        Columns {
+            series: series
+                .into_iter()
+                .map(|e| (self.entity(&e), Vec::new()))
+                .collect(),
+            ..Default::default()
+        }
+    }
+
+    /// Names, units and colours of every series, the machine's boxes and the programmed path.
+    fn log_static_content(&self, setup: &RecordingSetup<'_>) -> rerun::RecordingStreamResult<()> {
+        let rec = &self.rec;
+        rec.log_static(
+            self.entity("world"),
+            &rerun::ViewCoordinates::RIGHT_HAND_Z_UP(),
+        )?;
+        for (li, link) in self.machine.links.iter().enumerate() {
+            let entity = self.entity(&format!("world/machine/{}", link.name));
+            for (bi, b) in link.boxes.iter().enumerate() {
+                let child = format!("{entity}/visual_{bi}");
+                rec.log_static(child.as_str(), &transform(&b.pose))?;
+                let [r, g, bl, _] = b.color.unwrap_or([0.6, 0.6, 0.65, 1.0]);
+                let colour = rerun::Color::from_unmultiplied_rgba(
                     (r * 255.0) as u8,
                     (g * 255.0) as u8,
                     (bl * 255.0) as u8,
-                    (a * 255.0) as u8,
-                )]);
+                    (MACHINE_ALPHA * 255.0) as u8,
+                );
+                let boxes = rerun::Boxes3D::from_half_sizes([[
+                    b.half_extents.x as f32,
+                    b.half_extents.y as f32,
+                    b.half_extents.z as f32,
+                ]])
+                .with_fill_mode(rerun::FillMode::Solid)
+                .with_colors([colour]);
+                rec.log_static(child.as_str(), &boxes)?;
             }
-            rec.log_static(child.as_str(), &boxes)?;
+            if li == self.machine.root {
+                rec.log_static(entity.as_str(), &rerun::Transform3D::IDENTITY)?;
+            }
         }
-        let translations: Vec<[f32; 3]> = poses
-            .iter()
-            .map(|p| f32x3(&p[li].translation.vector))
-            .collect();
-        let rotations: Vec<rerun::Quaternion> = poses
-            .iter()
-            .map(|p| {
-                let q = p[li].rotation.quaternion();
-                rerun::Quaternion::from_xyzw([q.i as f32, q.j as f32, q.k as f32, q.w as f32])
-            })
-            .collect();
-        let t = rerun::Transform3D::new()
-            .with_many_translation(translations)
-            .with_many_quaternion(rotations);
-        rec.send_columns(entity.as_str(), [times()], t.columns_of_unit_batches()?)?;
-    }
-
-    // Tool paths and the moving tool point.
-    let strip = |pts: &[[f64; 3]]| {
-        pts.iter()
-            .map(|p| [p[0] as f32, p[1] as f32, p[2] as f32])
-            .collect::<Vec<_>>()
-    };
-    rec.log_static(
-        "world/path/programmed",
-        &rerun::LineStrips3D::new([strip(&c.programmed_path)])
-            .with_colors([rerun::Color::from_rgb(90, 160, 255)]),
-    )?;
-    let actual: Vec<[f64; 3]> = ticks.iter().map(|&k| trace.tool_point[k]).collect();
-    rec.log_static(
-        "world/path/actual",
-        &rerun::LineStrips3D::new([strip(&actual)])
-            .with_colors([rerun::Color::from_rgb(255, 120, 60)]),
-    )?;
-    rec.send_columns(
-        "world/tool",
-        [times()],
-        rerun::Points3D::new(strip(&actual)).columns_of_unit_batches()?,
-    )?;
-
-    // Per-axis time series.
-    let series = |entity: String, values: Vec<f64>| -> rerun::RecordingStreamResult<()> {
-        rec.send_columns(
-            entity.as_str(),
-            [times()],
-            rerun::Scalars::new(values).columns_of_unit_batches()?,
-        )
-    };
-    for (i, l) in c.labels.iter().enumerate() {
-        let s = l.scale();
-        let err_scale = if l.rotary { s } else { 1e6 };
-        let at = |v: &[f64], k: usize| Trace::at(v, n, k, i);
-        let base = format!("axes/{}", l.name);
-        series(
-            format!("{base}/commanded"),
-            ticks.iter().map(|&k| at(&trace.commanded, k) * s).collect(),
+        let paths = format!("{}/paths", self.workpiece_entity());
+        rec.log_static(
+            format!("{paths}/tool"),
+            &rerun::Points3D::update_fields()
+                .with_radii([rerun::Radius::new_ui_points(6.0)])
+                .with_colors([rgb([230, 30, 30])]),
         )?;
-        series(
-            format!("{base}/actual"),
-            ticks.iter().map(|&k| at(&trace.actual, k) * s).collect(),
+        rec.log_static(
+            format!("{paths}/programmed"),
+            &rerun::LineStrips3D::new([f32_points(&setup.programmed_path)])
+                .with_colors([rgb(COMMANDED)])
+                .with_radii([rerun::Radius::new_ui_points(1.5)]),
         )?;
-        series(
-            format!("{base}/following_error"),
-            ticks
-                .iter()
-                .map(|&k| (at(&trace.commanded, k) - at(&trace.actual, k)) * err_scale)
-                .collect(),
-        )?;
-        if has_slack(trace, i) {
-            series(
-                format!("{base}/drive"),
-                ticks.iter().map(|&k| at(&trace.drive, k) * s).collect(),
+        let lead = self
+            .variant
+            .as_ref()
+            .map_or(String::new(), |(name, _)| format!("{name}: "));
+        let named = |entity: String, name: String, colour: [u8; 3]| {
+            rec.log_static(
+                self.entity(&entity),
+                &rerun::SeriesLines::new()
+                    .with_names([format!("{lead}{name}")])
+                    .with_colors([rgb(colour)]),
+            )
+        };
+        for (i, l) in self.labels.iter().enumerate() {
+            let (a, u) = (&l.name, l.unit());
+            let e = error_unit(l);
+            named(
+                format!("axes/{a}/position/commanded"),
+                format!("{a} commanded ({u})"),
+                COMMANDED,
             )?;
-        }
-        series(
-            format!("{base}/torque"),
-            ticks.iter().map(|&k| at(&trace.torque, k)).collect(),
-        )?;
-        if c.dc_motor {
-            series(
-                format!("{base}/voltage"),
-                ticks.iter().map(|&k| at(&trace.voltage, k)).collect(),
-            )?;
-        }
-    }
-    if let Some(analytic) = c.analytic {
-        // The reference model under its own entity paths, beside the physics in the viewer.
-        for (i, l) in c.labels.iter().enumerate() {
-            let s = l.scale();
-            let err_scale = if l.rotary { s } else { 1e6 };
-            let at = |k: usize| analytic.actual[k * n + i];
-            if has_slack(analytic, i) {
-                series(
-                    format!("analytic/axes/{}/drive", l.name),
-                    ticks
-                        .iter()
-                        .map(|&k| Trace::at(&analytic.drive, n, k, i) * s)
-                        .collect(),
+            for lane in &self.lanes {
+                let colour = self.colour(lane);
+                named(
+                    format!("axes/{a}/position/{lane}"),
+                    format!("{a} {lane} ({u})"),
+                    colour,
+                )?;
+                if self.slack[i] {
+                    named(
+                        format!("axes/{a}/position/{lane}_drive"),
+                        format!("{a} {lane} drive side ({u})"),
+                        if *lane == "physics" {
+                            DRIVE
+                        } else {
+                            [120, 200, 220]
+                        },
+                    )?;
+                }
+                named(
+                    format!("axes/{a}/following_error/{lane}"),
+                    format!("{a} following error, {lane} ({e})"),
+                    colour,
+                )?;
+                named(
+                    format!("axes/{a}/torque/{lane}"),
+                    format!("{a} torque, {lane} (N·m)"),
+                    colour,
+                )?;
+                if self.dc_motor {
+                    named(
+                        format!("axes/{a}/voltage/{lane}"),
+                        format!("{a} voltage, {lane} (V)"),
+                        colour,
+                    )?;
+                }
+            }
+            if self.lanes.len() > 1 {
+                named(
+                    format!("axes/{a}/physics_minus_analytic"),
+                    format!("{a} physics − analytic ({e})"),
+                    DIFFERENCE,
                 )?;
             }
-            let base = format!("analytic/axes/{}", l.name);
-            series(
-                format!("{base}/actual"),
-                ticks.iter().map(|&k| at(k) * s).collect(),
-            )?;
-            series(
-                format!("{base}/following_error"),
-                ticks
-                    .iter()
-                    .map(|&k| (Trace::at(&trace.commanded, n, k, i) - at(k)) * err_scale)
-                    .collect(),
+            rec.log_static(
+                self.entity(&format!("axes/{a}/following_error/max")),
+                &rerun::SeriesPoints::new()
+                    .with_names([format!("{a} largest error ({e})")])
+                    .with_colors([rgb([200, 0, 0])])
+                    .with_marker_sizes([6.0]),
             )?;
         }
+        named(
+            "path/speed/commanded".into(),
+            "commanded (mm/s)".into(),
+            COMMANDED,
+        )?;
+        for lane in &self.lanes {
+            let colour = self.colour(lane);
+            named(
+                format!("path/contour_error/{lane}"),
+                format!("contour error, {lane} (µm)"),
+                colour,
+            )?;
+            named(
+                format!("path/speed/{lane}"),
+                format!("{lane} (mm/s)"),
+                colour,
+            )?;
+        }
+        Ok(())
     }
-    series(
-        "path/contour_error".into(),
-        ticks
+
+    /// Adds a tick of lane `lane` with its path figures; every `decimation`-th tick is kept.
+    pub fn tick(&mut self, lane: usize, r: &TickRecord<'_>, path: &PathSample) {
+        if lane == 0 {
+            self.primary.copy_from_slice(&r.sensors.position);
+            self.primary_tick = Some(r.k);
+            if let Some(q) = path.nearest {
+                self.magnified.push((q, path.tool, path.contour_error));
+            }
+        }
+        if !r.k.is_multiple_of(self.decimation) || self.error.is_some() {
+            return;
+        }
+        let compare = lane > 0 && self.primary_tick == Some(r.k);
+        let poses =
+            (lane == 0).then(|| crate::kinematics::link_poses(&self.machine, &r.sensors.position));
+        let c = &mut self.columns[lane];
+        c.time.push(r.time);
+        let mut values = c.series.iter_mut().map(|(_, v)| v);
+        let mut put = |x: f64| values.next().expect("one column per value").push(x);
+        for (i, l) in self.labels.iter().enumerate() {
+            let (s, es) = (l.scale(), error_scale(l));
+            let (q, d) = (r.sensors.position[i], r.sensors.drive_position[i]);
+            if lane == 0 {
+                put(r.setpoint.position[i] * s);
+            }
+            put(q * s);
+            if self.slack[i] {
+                put(d * s);
+            }
+            put((r.setpoint.position[i] - q) * es);
+            if lane > 0 {
+                put(if compare {
+                    (self.primary[i] - q) * es
+                } else {
+                    f64::NAN
+                });
+            }
+            put(r.hold.mean_torque[i]);
+            if self.dc_motor {
+                put(r.hold.voltage[i]);
+            }
+        }
+        put(path.contour_error * 1e6);
+        if lane == 0 {
+            put(path.commanded_speed * 1e3);
+        }
+        put(path.actual_speed * 1e3);
+        if let Some(poses) = poses {
+            let workpiece = poses[self.machine.workpiece_link];
+            let tool = poses[self.machine.tool_link] * Point3::from(self.machine.tool.offset_m);
+            let on_workpiece = workpiece.inverse_transform_point(&tool);
+            c.tool.push([
+                on_workpiece.x as f32,
+                on_workpiece.y as f32,
+                on_workpiece.z as f32,
+            ]);
+            c.poses.push(poses);
+        }
+        if c.time.len() >= CHUNK_ROWS {
+            let sent = self.send(lane);
+            self.keep(sent);
+        }
+    }
+
+    /// An entry of the event log at program time `time`.
+    pub fn event(&mut self, time: f64, level: &str, text: &str) {
+        self.rec.set_duration_secs("sim_time", time);
+        let logged = self.rec.log(
+            self.entity("events"),
+            &rerun::TextLog::new(text).with_level(level),
+        );
+        self.rec.disable_timeline("sim_time");
+        self.keep(logged);
+    }
+
+    /// A marker on axis `axis`'s following-error plot at its largest error.
+    pub fn mark_largest_error(&mut self, axis: usize, time: f64, error: f64) {
+        let l = &self.labels[axis];
+        self.rec.set_duration_secs("sim_time", time);
+        let logged = self.rec.log(
+            self.entity(&format!("axes/{}/following_error/max", l.name)),
+            &rerun::Scalars::new([error * error_scale(l)]),
+        );
+        self.rec.disable_timeline("sim_time");
+        self.keep(logged);
+    }
+
+    fn keep(&mut self, result: rerun::RecordingStreamResult<()>) {
+        if let (Err(e), None) = (result, &self.error) {
+            self.error = Some(e.to_string());
+        }
+    }
+
+    /// Sends lane `lane`'s buffered rows.
+    fn send(&mut self, lane: usize) -> rerun::RecordingStreamResult<()> {
+        let c = &self.columns[lane];
+        if c.time.is_empty() {
+            return Ok(());
+        }
+        let times = || TimeColumn::new_duration_secs("sim_time", c.time.iter().copied());
+        for (entity, values) in &c.series {
+            self.rec.send_columns(
+                entity.as_str(),
+                [times()],
+                rerun::Scalars::new(values.iter().copied()).columns_of_unit_batches()?,
+            )?;
+        }
+        if lane == 0 {
+            for (li, link) in self.machine.links.iter().enumerate() {
+                if li == self.machine.root {
+                    continue;
+                }
+                let t = rerun::Transform3D::new()
+                    .with_many_translation(c.poses.iter().map(|p| f32x3(&p[li].translation.vector)))
+                    .with_many_quaternion(c.poses.iter().map(|p| quaternion(&p[li])));
+                self.rec.send_columns(
+                    self.entity(&format!("world/machine/{}", link.name))
+                        .as_str(),
+                    [times()],
+                    t.columns_of_unit_batches()?,
+                )?;
+            }
+            let paths = format!("{}/paths", self.workpiece_entity());
+            self.rec.send_columns(
+                format!("{paths}/tool").as_str(),
+                [times()],
+                rerun::Points3D::new(c.tool.iter().copied()).columns_of_unit_batches()?,
+            )?;
+            // This chunk of the actual path, from the last point sent: the path grows with
+            // the time cursor (each chunk is an entity of its own, shown once logged).
+            let strip: Vec<[f32; 3]> = self
+                .last_tool
+                .into_iter()
+                .chain(c.tool.iter().copied())
+                .collect();
+            self.rec
+                .set_duration_secs("sim_time", *c.time.last().expect("not empty"));
+            self.rec.log(
+                format!("{paths}/actual/{:05}", self.chunks),
+                &rerun::LineStrips3D::new([strip])
+                    .with_colors([rgb(self.colour("physics"))])
+                    .with_radii([rerun::Radius::new_ui_points(1.5)]),
+            )?;
+            self.rec.disable_timeline("sim_time");
+            self.last_tool = c.tool.last().copied();
+            self.chunks += 1;
+        }
+        self.columns[lane].clear();
+        Ok(())
+    }
+
+    /// Sends what is buffered, the magnified path and the summary, and closes the stream.
+    pub fn finish(mut self, summary_markdown: &str) -> Result<PathBuf, ReportError> {
+        for lane in 0..self.columns.len() {
+            let sent = self.send(lane);
+            self.keep(sent);
+        }
+        let magnified = self.log_magnified();
+        let note = match &magnified {
+            Ok(Some(note)) => format!("\n\n{note}"),
+            _ => String::new(),
+        };
+        self.keep(magnified.map(|_| ()));
+        let summary = self.rec.log_static(
+            self.entity("summary"),
+            &rerun::TextDocument::new(format!("{summary_markdown}{note}"))
+                .with_media_type(rerun::MediaType::markdown()),
+        );
+        self.keep(summary);
+        if let (Err(e), None) = (self.rec.flush_blocking(), &self.error) {
+            self.error = Some(e.to_string());
+        }
+        match self.error {
+            None => Ok(self.path),
+            Some(message) => Err(ReportError::Recording {
+                path: self.path,
+                message,
+            }),
+        }
+    }
+
+    /// The path with its deviation from the program magnified k times (k a round number that
+    /// makes the largest deviation a tenth of the path's extent), coloured by the error.
+    /// Returns a sentence saying how the view is magnified.
+    fn log_magnified(&self) -> rerun::RecordingStreamResult<Option<String>> {
+        let samples = self.magnified.items();
+        if samples.len() < 2 {
+            return Ok(None);
+        }
+        let extent = samples.iter().fold(
+            (
+                Point3::from([f64::INFINITY; 3]),
+                Point3::from([f64::NEG_INFINITY; 3]),
+            ),
+            |(lo, hi), (q, _, _)| (lo.inf(&Point3::from(*q)), hi.sup(&Point3::from(*q))),
+        );
+        let size = (extent.1 - extent.0).norm();
+        let worst = samples
             .iter()
-            .map(|&k| derived.contour_error[k] * 1e6)
-            .collect(),
-    )?;
-    series(
-        "path/speed/commanded".into(),
-        ticks
+            .map(|s| s.2)
+            .filter(|e| e.is_finite())
+            .fold(0.0, f64::max);
+        let k = magnification(size, worst);
+        let programmed: Vec<[f64; 3]> = samples.iter().map(|s| s.0).collect();
+        let actual: Vec<[f64; 3]> = samples
             .iter()
-            .map(|&k| derived.commanded_speed[k] * 1e3)
-            .collect(),
-    )?;
-    series(
-        "path/speed/actual".into(),
-        ticks
-            .iter()
-            .map(|&k| derived.actual_speed[k] * 1e3)
-            .collect(),
-    )?;
-    Ok(())
+            .map(|(q, p, _)| std::array::from_fn(|i| q[i] + k * (p[i] - q[i])))
+            .collect();
+        self.rec.log_static(
+            self.entity("magnified/programmed"),
+            &rerun::LineStrips3D::new([f32_points(&programmed)])
+                .with_colors([rgb(COMMANDED)])
+                .with_radii([rerun::Radius::new_ui_points(1.0)]),
+        )?;
+        // Short strips, each coloured by its largest error on a blue → red scale.
+        let pieces: Vec<(Vec<[f32; 3]>, rerun::Color)> = (0..actual.len() - 1)
+            .step_by(8)
+            .map(|start| {
+                let end = (start + 9).min(actual.len());
+                let e = samples[start..end].iter().map(|s| s.2).fold(0.0, f64::max);
+                (
+                    f32_points(&actual[start..end]),
+                    heat(if worst > 0.0 { e / worst } else { 0.0 }),
+                )
+            })
+            .collect();
+        self.rec.log_static(
+            self.entity("magnified/actual"),
+            &rerun::LineStrips3D::new(pieces.iter().map(|p| p.0.clone()))
+                .with_colors(pieces.iter().map(|p| p.1))
+                .with_radii([rerun::Radius::new_ui_points(2.0)])
+                .with_labels([format!("deviation ×{k} (largest {:.3} µm)", worst * 1e6)])
+                .with_show_labels(false),
+        )?;
+        Ok(Some(format!(
+            "*Path error, magnified*: the tool drawn at its nearest programmed point + {k} × its deviation from it; colour blue (no error) → red (the largest contour error, {:.3} µm).",
+            worst * 1e6
+        )))
+    }
+}
+
+/// A round magnification (1, 2 or 5 × 10ⁿ) that draws the largest deviation at about a tenth
+/// of the path's size; 1 when there is nothing to magnify.
+pub fn magnification(path_size: f64, largest_deviation: f64) -> f64 {
+    if !(largest_deviation > 0.0 && path_size > 0.0) {
+        return 1.0;
+    }
+    let wanted = (0.1 * path_size / largest_deviation).max(1.0);
+    let decade = 10f64.powf(wanted.log10().floor());
+    let mantissa = wanted / decade;
+    let round = if mantissa >= 5.0 {
+        5.0
+    } else if mantissa >= 2.0 {
+        2.0
+    } else {
+        1.0
+    };
+    round * decade
+}
+
+/// Blue (0) through yellow to red (1).
+fn heat(x: f64) -> rerun::Color {
+    let x = x.clamp(0.0, 1.0);
+    let (r, g, b) = if x < 0.5 {
+        (2.0 * x, 2.0 * x, 1.0 - 2.0 * x)
+    } else {
+        (1.0, 2.0 - 2.0 * x, 0.0)
+    };
+    rerun::Color::from_rgb((r * 255.0) as u8, (g * 255.0) as u8, (b * 255.0) as u8)
+}
+
+impl RrdWriter {
+    /// A lane's colour: physics orange and analytic green, or the variant's own colour.
+    fn colour(&self, lane: &str) -> [u8; 3] {
+        match (lane, &self.variant) {
+            ("analytic", _) => ANALYTIC,
+            (_, Some((_, colour))) => *colour,
+            _ => PHYSICS,
+        }
+    }
+}
+
+/// Errors in µm on linear axes, degrees on rotary ones (as the CLI prints them).
+fn error_scale(l: &AxisLabel) -> f64 {
+    if l.rotary {
+        l.scale()
+    } else {
+        1e6
+    }
+}
+
+pub(super) fn error_unit(l: &AxisLabel) -> &'static str {
+    if l.rotary {
+        "deg"
+    } else {
+        "µm"
+    }
+}
+
+fn recording_error(path: &Path, e: &dyn std::fmt::Display) -> ReportError {
+    ReportError::Recording {
+        path: path.to_path_buf(),
+        message: e.to_string(),
+    }
+}
+
+fn f32_points(points: &[[f64; 3]]) -> Vec<[f32; 3]> {
+    points
+        .iter()
+        .map(|p| [p[0] as f32, p[1] as f32, p[2] as f32])
+        .collect()
+}
+
+fn quaternion(p: &Isometry3<f64>) -> rerun::Quaternion {
+    let q = p.rotation.quaternion();
+    rerun::Quaternion::from_xyzw([q.i as f32, q.j as f32, q.k as f32, q.w as f32])
 }
 
 fn transform(p: &Isometry3<f64>) -> rerun::Transform3D {
-    let q = p.rotation.quaternion();
-    rerun::Transform3D::from_translation(f32x3(&p.translation.vector)).with_quaternion(
-        rerun::Quaternion::from_xyzw([q.i as f32, q.j as f32, q.k as f32, q.w as f32]),
-    )
+    rerun::Transform3D::from_translation(f32x3(&p.translation.vector))
+        .with_quaternion(quaternion(p))
 }
 
 fn f32x3(v: &nalgebra::Vector3<f64>) -> [f32; 3] {
@@ -244,10 +683,7 @@ pub fn write_setpoints_recording(
     labels: &[AxisLabel],
     tool_on_workpiece: &[[f64; 3]],
 ) -> Result<(), ReportError> {
-    let fail = |e: &dyn std::fmt::Display| ReportError::Recording {
-        path: path.to_path_buf(),
-        message: e.to_string(),
-    };
+    let fail = |e: &dyn std::fmt::Display| recording_error(path, e);
     let rec = rerun::RecordingStreamBuilder::new("cncsim")
         .recording_name(name)
         .save(path)
@@ -262,28 +698,34 @@ pub fn write_setpoints_recording(
         };
         for (i, l) in labels.iter().enumerate() {
             let s = l.scale();
-            for (series, values) in [
-                ("position", &setpoints.position),
-                ("velocity", &setpoints.velocity),
-                ("acceleration", &setpoints.acceleration),
+            let u = l.unit();
+            for (series, values, unit) in [
+                ("position", &setpoints.position, u.to_string()),
+                ("velocity", &setpoints.velocity, format!("{u}/s")),
+                ("acceleration", &setpoints.acceleration, format!("{u}/s²")),
             ] {
+                let entity = format!("setpoints/{}/{series}", l.name);
+                rec.log_static(
+                    entity.as_str(),
+                    &rerun::SeriesLines::new()
+                        .with_names([format!("{} {series} ({unit})", l.name)]),
+                )?;
                 let column: Vec<f64> = (0..setpoints.len())
                     .map(|k| values[k * n + i] * s)
                     .collect();
                 rec.send_columns(
-                    format!("setpoints/{}/{series}", l.name).as_str(),
+                    entity.as_str(),
                     [times()],
                     rerun::Scalars::new(column).columns_of_unit_batches()?,
                 )?;
             }
         }
         if !tool_on_workpiece.is_empty() {
-            let strip: Vec<[f32; 3]> = tool_on_workpiece
-                .iter()
-                .map(|p| [p[0] as f32, p[1] as f32, p[2] as f32])
-                .collect();
             rec.log_static("workpiece", &rerun::ViewCoordinates::RIGHT_HAND_Z_UP())?;
-            rec.log_static("workpiece/tool_path", &rerun::LineStrips3D::new([strip]))?;
+            rec.log_static(
+                "workpiece/tool_path",
+                &rerun::LineStrips3D::new([f32_points(tool_on_workpiece)]),
+            )?;
         }
         Ok(())
     };
@@ -292,11 +734,16 @@ pub fn write_setpoints_recording(
     Ok(())
 }
 
-/// Whether axis `i` ever had its drive side apart from its carriage (backlash): only then is
-/// the drive position worth a series of its own.
-fn has_slack(trace: &Trace, i: usize) -> bool {
-    let n = trace.axes;
-    trace.drive.len() == trace.actual.len()
-        && (0..trace.len())
-            .any(|k| Trace::at(&trace.drive, n, k, i) != Trace::at(&trace.actual, n, k, i))
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn magnification_is_a_round_number_showing_the_error_at_a_tenth() {
+        // 0.6 mm on a 60 mm circle: ×10; 0.08 µm on 85 mm: ×100 000.
+        assert_eq!(magnification(0.085, 0.6e-3), 10.0);
+        assert_eq!(magnification(0.085, 0.076e-6), 100_000.0);
+        assert_eq!(magnification(0.085, 0.0), 1.0);
+        assert_eq!(magnification(0.01, 0.01), 1.0);
+    }
 }

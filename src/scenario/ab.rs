@@ -1,9 +1,15 @@
 //! Controller A/B comparisons: two scenarios that differ only in the loop (controller, gains,
 //! actuator, timing of the physics) run on the same setpoints, compared side by side.
 
-use super::{folder_name, run_scenario, RunError, RunOutput, Scenario};
+use super::assemble::{Assembly, RunError};
+use super::run::{recording_setup, report_setup, run_assembly_observed};
+use super::{folder_name, RunOutput, Scenario};
+use crate::report::{ab_blueprint, ReportError, RrdWriter, RunReport};
 use serde::Serialize;
 use std::path::Path;
+
+/// Colours of variants A and B in the shared recording.
+const VARIANT_COLOURS: [[u8; 3]; 2] = [[40, 110, 230], [230, 50, 50]];
 
 /// One compared figure.
 #[derive(Debug, Clone, PartialEq, Serialize)]
@@ -25,28 +31,67 @@ pub struct AbReport {
     pub rows: Vec<AbRow>,
 }
 
-/// Runs both variants (outputs under `out/a_<name>` and `out/b_<name>`) and compares them.
+/// Runs both variants (outputs under `out/a_<name>` and `out/b_<name>`), writes both into one
+/// recording `out/ab.rrd` (entities under `a/` and `b/`, a blueprint overlaying them) and
+/// compares them. The variants must run the same setpoints; that is checked before either runs.
 pub fn run_ab(
     a: &Scenario,
     b: &Scenario,
     out: &Path,
     progress: &mut dyn FnMut(usize, usize) -> bool,
 ) -> Result<(AbReport, RunOutput, RunOutput), RunError> {
-    let ra = run_scenario(
-        a,
-        &out.join(format!("a_{}", folder_name(&a.name))),
-        progress,
-    )?;
-    let rb = run_scenario(
-        b,
-        &out.join(format!("b_{}", folder_name(&b.name))),
-        progress,
-    )?;
-    if ra.trace.commanded != rb.trace.commanded && ra.stop.is_none() && rb.stop.is_none() {
+    let (aa, ab) = (Assembly::new(a)?, Assembly::new(b)?);
+    if !aa.same_setpoints(&ab) {
         let message = "the two variants do not run the same setpoints (program, planner and servo period must match for an A/B comparison)";
         return Err(crate::diagnostics::FileError::new(&b.path, None, message).into());
     }
-    Ok((compare(a, &ra, b, &rb), ra, rb))
+    std::fs::create_dir_all(out).map_err(|source| ReportError::Io {
+        path: out.to_path_buf(),
+        source,
+    })?;
+    let path = out.join("ab.rrd");
+    let fail = |e: &dyn std::fmt::Display| -> RunError {
+        ReportError::Recording {
+            path: path.clone(),
+            message: e.to_string(),
+        }
+        .into()
+    };
+    let rec = rerun::RecordingStreamBuilder::new("cncsim")
+        .recording_name(format!("A/B: {} vs {}", a.name, b.name))
+        .save(&path)
+        .map_err(|e| fail(&e))?;
+    let workpiece = &aa.machine.links[aa.machine.workpiece_link].name;
+    ab_blueprint(&aa.labels, workpiece, &[("a", &a.name), ("b", &b.name)])
+        .send(&rec, rerun::blueprint::BlueprintActivation::default())
+        .map_err(|e| fail(&e))?;
+    let mut outputs = Vec::new();
+    for (i, (assembly, prefix)) in [(&aa, "a"), (&ab, "b")].into_iter().enumerate() {
+        let s = &assembly.scenario;
+        let lanes = ["physics"];
+        let mut setup = recording_setup(assembly, &lanes);
+        setup.variant = Some((
+            format!("{}: {}", prefix.to_uppercase(), s.name),
+            VARIANT_COLOURS[i],
+        ));
+        let writer = RrdWriter::on_stream(rec.clone(), &path, &format!("{prefix}/"), &setup)?;
+        let mut shared = RunReport::with_recording(report_setup(assembly), writer);
+        let folder = out.join(format!("{prefix}_{}", folder_name(&s.name)));
+        let (run, outcome) =
+            run_assembly_observed(assembly, &folder, progress, false, Some(&mut shared))?;
+        shared.finish(&outcome, &[], "")?;
+        outputs.push(run);
+    }
+    let rb = outputs.pop().expect("two runs");
+    let ra = outputs.pop().expect("two runs");
+    let report = compare(a, &ra, b, &rb);
+    rec.log_static(
+        "ab_summary",
+        &rerun::TextDocument::new(report.markdown()).with_media_type(rerun::MediaType::markdown()),
+    )
+    .map_err(|e| fail(&e))?;
+    rec.flush_blocking().map_err(|e| fail(&e))?;
+    Ok((report, ra, rb))
 }
 
 fn compare(a: &Scenario, ra: &RunOutput, b: &Scenario, rb: &RunOutput) -> AbReport {

@@ -1,17 +1,70 @@
 //! The scenario file format (TOML). Unknown keys are rejected; every value that can be wrong
-//! is checked here and reported with the file, line and column it came from.
+//! is checked here and reported with the file, line and column it came from. Numbers must lie
+//! in the ranges of [`limits`], which keep a run physically meaningful and its work bounded.
 
-use crate::control::{ActuatorKind, PidForm, PidGains};
-use crate::diagnostics::{read_text, toml_error, FileError, LineColumn};
+use crate::control::{ActuatorKind, AxisCompensation, CascadeAxis, PidForm, PidGains, PidSettings};
+use crate::diagnostics::{check_range, read_text, toml_error, FileError, LineColumn};
 use crate::machine::{AmplifierMode, Feedback};
 use crate::plan::BlendChoice;
-use crate::program::{CircleSpec, FeedRule, PolylineSpec, ReadOptions};
+use crate::program::{
+    parse_tool_table, CircleSpec, FeedRule, LengthUnit, PolylineSpec, ReadOptions,
+};
 use serde::Deserialize;
 use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};
 use toml::Spanned;
 
 type Num = Spanned<f64>;
+
+/// Ranges of a scenario's numbers, in the units of their keys (inclusive). Outside them a value
+/// is refused with its place in the file; a run's length is bounded besides by
+/// [`crate::sim::MAX_SERVO_TICKS`] and [`crate::sim::MAX_PHYSICS_STEPS`].
+pub mod limits {
+    /// Servo period (ms): from 100 kHz drives to the slowest seed document (20 ms) with margin.
+    pub const SERVO_PERIOD_MS: (f64, f64) = (0.01, 100.0);
+    /// Physics step (ms); it must also divide the servo period.
+    pub const PHYSICS_STEP_MS: (f64, f64) = (0.001, 100.0);
+    /// Most physics steps per servo period.
+    pub const MAX_SUBSTEPS: usize = 10_000;
+    /// Settle time before the program (s).
+    pub const SETTLE_S: (f64, f64) = (0.0, 3600.0);
+    /// Path speeds: built-in path feed, rapid speed (mm/s). No machine tool moves 20 m/s.
+    pub const SPEED_MM_S: (f64, f64) = (1e-3, 2e4);
+    /// Above this a feed loads with a warning (mm/s).
+    pub const SUSPECT_SPEED_MM_S: f64 = 5e3;
+    /// Trapezoid path acceleration (mm/s²).
+    pub const ACCELERATION_MM_S2: (f64, f64) = (1e-3, 1e7);
+    /// Jerk-limited planner limits per axis, mm or deg per s, s², s³.
+    pub const LIMIT_VELOCITY: (f64, f64) = (1e-3, 1e5);
+    pub const LIMIT_ACCELERATION: (f64, f64) = (1e-3, 1e8);
+    pub const LIMIT_JERK: (f64, f64) = (1e-3, 1e11);
+    /// Corner tolerance (mm).
+    pub const TOLERANCE_MM: (f64, f64) = (1e-6, 100.0);
+    /// Coordinates and radii of built-in paths and pen heights (|value| ≤, mm): 100 m.
+    pub const COORDINATE_MM: f64 = 1e5;
+    /// Following-error fault limits.
+    pub const FOLLOWING_ERROR_LIMIT_MM: (f64, f64) = (1e-6, 1e3);
+    pub const FOLLOWING_ERROR_LIMIT_DEG: (f64, f64) = (1e-6, 360.0);
+    /// PID gains (≥ 0) and output limits.
+    pub const MAX_GAIN: f64 = 1e12;
+    /// Inverse dynamics: closed-loop natural frequency (Hz), damping ratio, model mass scale,
+    /// task-space least-squares damping.
+    pub const NATURAL_FREQUENCY_HZ: (f64, f64) = (1e-3, 1e4);
+    pub const DAMPING_RATIO: (f64, f64) = (1e-3, 100.0);
+    pub const MODEL_MASS_SCALE: (f64, f64) = (1e-3, 100.0);
+    pub const TASK_DAMPING: (f64, f64) = (1e-9, 10.0);
+    /// Recording decimation (record every k-th tick).
+    pub const MAX_DECIMATION: i64 = 1_000_000;
+    /// PID error limits and deadband (m or rad).
+    pub const MAX_ERROR: f64 = 1.0;
+    /// Cascade feed-forward shares (1 = the whole setpoint velocity or inertia torque).
+    pub const MAX_FEED_FORWARD_SHARE: f64 = 2.0;
+    /// Cut-off of the cascade's velocity estimate (Hz).
+    pub const VELOCITY_FILTER_HZ: (f64, f64) = (0.0, 1e6);
+    /// Compensated backlash.
+    pub const MAX_BACKLASH_MM: f64 = 100.0;
+    pub const MAX_BACKLASH_DEG: f64 = 90.0;
+}
 
 #[derive(Deserialize)]
 #[serde(deny_unknown_fields)]
@@ -33,6 +86,9 @@ struct RawScenario {
     mechanics: RawMechanics,
     #[serde(default)]
     recording: RawRecording,
+    /// Backlash and friction compensation per axis.
+    #[serde(default)]
+    compensation: BTreeMap<String, Spanned<RawCompensation>>,
     /// Run the analytic reference model beside the physics.
     analytic: Option<RawAnalytic>,
     #[serde(default)]
@@ -76,6 +132,15 @@ struct RawProgram {
     lenient: bool,
     #[serde(default)]
     optimise_pen_up: bool,
+    /// Where the machine is before the program: it reaches the program's first point by an
+    /// untraced straight move from here (mm), as a real machine comes from home.
+    approach_from_mm: Option<Spanned<[f64; 3]>>,
+    /// Speed of that move (mm/s); default: the planner's rapid speed.
+    approach_feed_mm_s: Option<Num>,
+    /// G-code: a LinuxCNC tool table file (lengths in mm) and the G28/G30 positions (mm).
+    tool_table: Option<Spanned<String>>,
+    g28_home_mm: Option<[f64; 3]>,
+    g30_home_mm: Option<[f64; 3]>,
 }
 
 #[derive(Deserialize, Default, Clone, Copy)]
@@ -232,8 +297,12 @@ struct RawController {
     kind: ControllerType,
     #[serde(default)]
     form: RawPidForm,
-    /// PID gains per axis (`type = "pid"`).
+    /// PID settings per axis (`type = "pid"`).
     axes: Option<Spanned<BTreeMap<String, Spanned<RawGains>>>>,
+    /// Cascade loop settings per axis (`type = "cascade"`).
+    cascade: Option<Spanned<BTreeMap<String, Spanned<RawCascade>>>>,
+    /// Cascade: cut-off of the velocity estimate's low-pass (Hz; 0 = none).
+    velocity_filter_hz: Option<Num>,
     /// Inverse dynamics: closed-loop natural frequency (Hz) and damping ratio of every axis.
     natural_frequency_hz: Option<Num>,
     damping_ratio: Option<Num>,
@@ -275,11 +344,26 @@ pub enum ControlSpace {
     Task,
 }
 
-#[derive(Deserialize, Clone, Copy)]
+/// Which controller runs.
+#[derive(Deserialize, Debug, Clone, Copy, PartialEq, Eq)]
 #[serde(rename_all = "kebab-case")]
-enum ControllerType {
+pub enum ControllerType {
+    /// PID per axis with LinuxCNC's feed-forward terms.
     Pid,
+    /// Position loop over velocity loop per axis, with velocity and acceleration feed-forward.
+    Cascade,
+    /// Computed torque from the machine's rigid-body model.
     InverseDynamics,
+}
+
+impl ControllerType {
+    pub fn name(self) -> &'static str {
+        match self {
+            ControllerType::Pid => "pid",
+            ControllerType::Cascade => "cascade",
+            ControllerType::InverseDynamics => "inverse-dynamics",
+        }
+    }
 }
 
 #[derive(Deserialize, Default, Clone, Copy)]
@@ -290,6 +374,7 @@ enum RawPidForm {
     Incremental,
 }
 
+/// One axis's PID, LinuxCNC's terms; joint units (m or rad), output in V or N·m.
 #[derive(Deserialize)]
 #[serde(deny_unknown_fields)]
 struct RawGains {
@@ -298,8 +383,53 @@ struct RawGains {
     ki: f64,
     #[serde(default)]
     kd: f64,
-    /// |output| limit (N·m or V); default: none beyond the actuator's own saturation.
+    #[serde(default)]
+    ff0: f64,
+    #[serde(default)]
+    ff1: f64,
+    #[serde(default)]
+    ff2: f64,
+    #[serde(default)]
+    bias: f64,
+    #[serde(default)]
+    deadband: f64,
+    max_error: Option<f64>,
+    max_error_i: Option<f64>,
+    max_error_d: Option<f64>,
+    /// |output| limit (N·m or V; LinuxCNC's maxoutput); default: none beyond the actuator's
+    /// own saturation.
     output_limit: Option<f64>,
+}
+
+/// One axis's cascade, joint units (m or rad): Kpp 1/s, Kip 1/s², Kpv and Kiv output per
+/// m/s and per m, the velocity limit in m/s.
+#[derive(Deserialize)]
+#[serde(deny_unknown_fields)]
+struct RawCascade {
+    position_kp: f64,
+    #[serde(default)]
+    position_ki: f64,
+    velocity_kp: f64,
+    #[serde(default)]
+    velocity_ki: f64,
+    #[serde(default)]
+    velocity_ff: f64,
+    #[serde(default)]
+    acceleration_ff: f64,
+    velocity_limit: Option<f64>,
+    output_limit: Option<f64>,
+}
+
+/// One axis's compensation at reversals, in the units of the keys.
+#[derive(Deserialize)]
+#[serde(deny_unknown_fields)]
+struct RawCompensation {
+    backlash_mm: Option<f64>,
+    backlash_deg: Option<f64>,
+    backlash_rate_mm_s: Option<f64>,
+    backlash_rate_deg_s: Option<f64>,
+    friction_pulse: Option<f64>,
+    friction_decay_ms: Option<f64>,
 }
 
 /// Which of the machine's nonlinear mechanics the run keeps (both on by default): turning one
@@ -381,14 +511,53 @@ impl Default for RawRecording {
 pub enum ProgramSource {
     Circle(CircleSpec),
     Polyline(PolylineSpec),
-    File { path: PathBuf, options: ReadOptions },
+    /// The reader settings are boxed: with the G-code tool table they outweigh the others.
+    File {
+        path: PathBuf,
+        options: Box<ReadOptions>,
+    },
+}
+
+/// The machine's way to the program: a straight move from `from` at `speed`, run before the
+/// settle and not traced, identically in the physics and the analytic model.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Approach {
+    /// Start point in program coordinates (m).
+    pub from: [f64; 3],
+    /// Path speed (m/s).
+    pub speed: f64,
 }
 
 /// PID settings of one axis.
 #[derive(Debug, Clone, PartialEq)]
 pub struct AxisGains {
-    pub gains: PidGains,
-    pub output_limit: f64,
+    pub settings: PidSettings,
+    pub at: Option<LineColumn>,
+}
+
+impl AxisGains {
+    pub fn gains(&self) -> PidGains {
+        self.settings.gains()
+    }
+
+    pub fn output_limit(&self) -> f64 {
+        self.settings.output_limit
+    }
+}
+
+/// Cascade settings of one axis.
+#[derive(Debug, Clone, PartialEq)]
+pub struct AxisCascade {
+    pub settings: CascadeAxis,
+    pub at: Option<LineColumn>,
+}
+
+/// Compensation of one axis, SI; `rotary_units` says which unit family the backlash keys used
+/// (`None` when none was given), checked against the axis kind when the machine is known.
+#[derive(Debug, Clone, PartialEq)]
+pub struct CompensationEntry {
+    pub compensation: AxisCompensation,
+    pub rotary_units: Option<bool>,
     pub at: Option<LineColumn>,
 }
 
@@ -411,6 +580,8 @@ pub struct Scenario {
     pub machine: PathBuf,
     pub machine_at: Option<LineColumn>,
     pub program: ProgramSource,
+    /// The untraced approach to the program's first point: from where (m), at what speed (m/s).
+    pub approach: Option<Approach>,
     pub planner: PlannerSettings,
     pub blend: BlendChoice,
     pub rapid_speed: f64,
@@ -420,11 +591,20 @@ pub struct Scenario {
     pub settle_time: f64,
     /// `None`: the scenario has no `[actuator]` (it can be planned, not run).
     pub actuator: Option<ActuatorKind>,
+    /// The controller that runs; `None` without a `[controller]` (plan only). The settings of
+    /// every type given stand side by side below (each checked), so an override of `type`
+    /// switches between them.
+    pub controller: Option<ControllerType>,
     pub pid_form: PidForm,
     pub gains: BTreeMap<String, AxisGains>,
+    pub cascade: BTreeMap<String, AxisCascade>,
+    /// Cut-off of the cascade's velocity estimate (Hz; 0 = unfiltered).
+    pub velocity_filter_hz: f64,
     pub controller_at: Option<LineColumn>,
-    /// `Some` when the controller is the computed-torque one (then `gains` is empty).
+    /// The computed-torque settings, where given (natural_frequency_hz).
     pub inverse_dynamics: Option<InverseDynamicsSettings>,
+    /// Backlash and friction compensation per axis.
+    pub compensation: BTreeMap<String, CompensationEntry>,
     pub encoder_counts_per_rev: BTreeMap<String, (u32, Option<LineColumn>)>,
     /// Feedback position for every axis, overriding the drive file; `None` = the drive's.
     pub feedback_position: Option<Feedback>,
@@ -444,6 +624,8 @@ pub struct Scenario {
     pub expect: Vec<Expectation>,
     /// `[ab]`: the variants `cncsim ab` runs on this file alone.
     pub ab: Option<DeclaredVariants>,
+    /// Values that are legal but look wrong, located in the file.
+    pub warnings: Vec<FileError>,
 }
 
 impl Scenario {
@@ -462,28 +644,14 @@ impl Scenario {
                 msg,
             )
         };
-        let finite = |v: &Num, what: &str| -> Result<f64, FileError> {
+        // A number within its range (limits), or an error at its place.
+        let ranged = |v: &Num, what: &str, unit: &str, (lo, hi): (f64, f64)| {
             let x = *v.get_ref();
-            if x.is_finite() {
-                Ok(x)
-            } else {
-                Err(err(
-                    v.span(),
-                    format!("{what} = {x}: expected a finite number"),
-                ))
-            }
+            check_range(what, x, unit, lo, hi)
+                .map(|()| x)
+                .map_err(|m| err(v.span(), m))
         };
-        let positive = |v: &Num, what: &str| -> Result<f64, FileError> {
-            let x = finite(v, what)?;
-            if x > 0.0 {
-                Ok(x)
-            } else {
-                Err(err(
-                    v.span(),
-                    format!("{what} = {x}: expected a number > 0"),
-                ))
-            }
-        };
+        let mut warnings = Vec::new();
         let dir = path.parent().unwrap_or(Path::new("."));
         let resolve = |p: &str| dir.join(p);
 
@@ -524,7 +692,7 @@ impl Scenario {
         }
         let feed = || -> Result<f64, FileError> {
             match &p.feed_mm_s {
-                Some(v) => Ok(positive(v, "feed_mm_s")? * 1e-3),
+                Some(v) => Ok(ranged(v, "feed_mm_s", "mm/s", limits::SPEED_MM_S)? * 1e-3),
                 None => Err(FileError::new(
                     path,
                     program_at,
@@ -563,21 +731,43 @@ impl Scenario {
                 (p.pen_down_z_mm, &mut options.hpgl.pen_down_z),
             ] {
                 if let Some(v) = value {
-                    if !v.is_finite() {
-                        return Err(FileError::new(
-                            path,
-                            program_at,
-                            format!("pen height {v} mm: expected a finite number"),
-                        ));
-                    }
+                    let c = limits::COORDINATE_MM;
+                    check_range("pen height", v, "mm", -c, c)
+                        .map_err(|m| FileError::new(path, program_at, m))?;
                     *target = v * 1e-3;
                 }
             }
             options.hpgl.lenient = p.lenient;
             options.hpgl.optimise_pen_up = p.optimise_pen_up;
+            if let Some(table) = &p.tool_table {
+                let table_path = resolve(table.get_ref());
+                let text = std::fs::read_to_string(&table_path).map_err(|error| {
+                    err(
+                        table.span(),
+                        format!("tool table '{}': {error}", table_path.display()),
+                    )
+                })?;
+                options.gcode.tools = parse_tool_table(&text, &table_path, LengthUnit::Millimetre)
+                    .map_err(|errors| err(table.span(), errors.to_string()))?;
+            }
+            for (value, target, key) in [
+                (p.g28_home_mm, &mut options.gcode.g28_home, "g28_home_mm"),
+                (p.g30_home_mm, &mut options.gcode.g30_home, "g30_home_mm"),
+            ] {
+                if let Some(home) = value {
+                    if !home.iter().all(|v| v.is_finite()) {
+                        return Err(FileError::new(
+                            path,
+                            program_at,
+                            format!("{key}: expected finite numbers"),
+                        ));
+                    }
+                    target.linear = home.map(|v| v * 1e-3);
+                }
+            }
             ProgramSource::File {
                 path: file,
-                options,
+                options: Box::new(options),
             }
         } else if let Some(c) = &p.circle {
             let v = c.get_ref();
@@ -588,10 +778,12 @@ impl Scenario {
                 v.start_angle_deg,
                 v.z_mm,
             ];
-            if !nums.iter().all(|x| x.is_finite()) || v.radius_mm <= 0.0 {
+            let c_mm = limits::COORDINATE_MM;
+            let in_reach = nums.iter().all(|x| x.is_finite() && x.abs() <= c_mm);
+            if !in_reach || v.radius_mm <= 0.0 {
                 return Err(err(
                     c.span(),
-                    "circle: expected finite numbers and radius_mm > 0".into(),
+                    format!("circle: expected numbers within ±{c_mm:?} mm and radius_mm > 0, found center_mm = {:?}, radius_mm = {:?}, start_angle_deg = {:?}, z_mm = {:?}", v.center_mm, v.radius_mm, v.start_angle_deg, v.z_mm),
                 ));
             }
             ProgramSource::Circle(CircleSpec {
@@ -605,11 +797,17 @@ impl Scenario {
         } else {
             let pl = p.polyline.as_ref().expect("counted above");
             let pts = &pl.get_ref().points_mm;
-            if pts.len() < 2 || !pts.iter().flatten().all(|x| x.is_finite()) {
+            let c_mm = limits::COORDINATE_MM;
+            if pts.len() < 2
+                || !pts
+                    .iter()
+                    .flatten()
+                    .all(|x| x.is_finite() && x.abs() <= c_mm)
+            {
                 return Err(err(
                     pl.span(),
                     format!(
-                        "polyline: expected at least 2 points of finite numbers, found {}",
+                        "polyline: expected at least 2 points with coordinates within ±{c_mm:?} mm, found {} points",
                         pts.len()
                     ),
                 ));
@@ -620,30 +818,81 @@ impl Scenario {
             })
         };
 
+        let approach = match &p.approach_from_mm {
+            None => {
+                if let Some(f) = &p.approach_feed_mm_s {
+                    return Err(err(f.span(), "approach_feed_mm_s applies with approach_from_mm".into()));
+                }
+                None
+            }
+            Some(from) => {
+                let c = limits::COORDINATE_MM;
+                let v = from.get_ref();
+                if !v.iter().all(|x| x.is_finite() && x.abs() <= c) {
+                    return Err(err(from.span(), format!("approach_from_mm = {v:?}: expected coordinates within ±{c:?} mm")));
+                }
+                let speed = match &p.approach_feed_mm_s {
+                    Some(f) => ranged(f, "approach_feed_mm_s", "mm/s", limits::SPEED_MM_S)?,
+                    None => *raw.planner.rapid_mm_s.get_ref(),
+                };
+                Some(Approach {
+                    from: v.map(|x| x * 1e-3),
+                    speed: speed * 1e-3,
+                })
+            }
+        };
+        for (key, value) in [
+            ("feed_mm_s", p.feed_mm_s.as_ref()),
+            ("rapid_mm_s", Some(&raw.planner.rapid_mm_s)),
+        ] {
+            if let Some(v) = value.filter(|v| *v.get_ref() > limits::SUSPECT_SPEED_MM_S) {
+                warnings.push(err(
+                    v.span(),
+                    format!(
+                        "{key} = {:?} mm/s is more than {:?} mm/s: few machines move that fast",
+                        v.get_ref(),
+                        limits::SUSPECT_SPEED_MM_S
+                    ),
+                ));
+            }
+        }
+
         // Timing: physics step ≤ servo period, and a whole number of steps per period.
-        let servo_period = positive(&raw.timing.servo_period_ms, "servo_period_ms")? * 1e-3;
-        let physics_step = positive(&raw.timing.physics_step_ms, "physics_step_ms")? * 1e-3;
+        let t = &raw.timing;
+        let servo_period_ms = ranged(
+            &t.servo_period_ms,
+            "servo_period_ms",
+            "ms",
+            limits::SERVO_PERIOD_MS,
+        )?;
+        let physics_step_ms = ranged(
+            &t.physics_step_ms,
+            "physics_step_ms",
+            "ms",
+            limits::PHYSICS_STEP_MS,
+        )?;
+        let (servo_period, physics_step) = (servo_period_ms * 1e-3, physics_step_ms * 1e-3);
         if physics_step > servo_period * (1.0 + 1e-12) {
             return Err(err(
-                raw.timing.physics_step_ms.span(),
-                format!("physics_step_ms = {} is longer than servo_period_ms = {}: the physics must step at least once per servo period", physics_step * 1e3, servo_period * 1e3),
+                t.physics_step_ms.span(),
+                format!("physics_step_ms = {physics_step_ms:?} is longer than servo_period_ms = {servo_period_ms:?}: the physics must step at least once per servo period"),
             ));
         }
         let ratio = servo_period / physics_step;
         let substeps = ratio.round();
         if (ratio - substeps).abs() > 1e-9 * ratio {
             return Err(err(
-                raw.timing.physics_step_ms.span(),
-                format!("physics_step_ms = {} does not divide servo_period_ms = {} into whole steps (ratio {ratio:.6})", physics_step * 1e3, servo_period * 1e3),
+                t.physics_step_ms.span(),
+                format!("physics_step_ms = {physics_step_ms:?} does not divide servo_period_ms = {servo_period_ms:?} into whole steps (ratio {ratio:.6})"),
             ));
         }
-        let settle_time = finite(&raw.timing.settle_s, "settle_s")?;
-        if settle_time < 0.0 {
+        if substeps as usize > limits::MAX_SUBSTEPS {
             return Err(err(
-                raw.timing.settle_s.span(),
-                format!("settle_s = {settle_time}: expected a number ≥ 0"),
+                t.physics_step_ms.span(),
+                format!("physics_step_ms = {physics_step_ms:?} makes {substeps} physics steps per servo period: expected at most {}", limits::MAX_SUBSTEPS),
             ));
         }
+        let settle_time = ranged(&t.settle_s, "settle_s", "s", limits::SETTLE_S)?;
 
         let solver_iterations = *raw.timing.solver_iterations.get_ref();
         if !(1..=64).contains(&solver_iterations) {
@@ -655,51 +904,65 @@ impl Scenario {
             ));
         }
 
-        // The `[controller]` table may carry PID gains and inverse-dynamics parameters side by
-        // side (so `ab --a controller=pid --b controller=inverse-dynamics` compares them on one
-        // file); `type` chooses, and whatever is given is checked either way.
+        // The `[controller]` table may carry the settings of every controller type side by
+        // side (so `ab --a controller=pid --b controller=cascade` compares them on one file);
+        // `type` chooses, and whatever is given is checked either way.
         let controller_table = LineColumn::of_first(text, "[controller]");
         let inverse_dynamics = match &raw.controller {
             Some(c) => {
-                let is_id = matches!(c.kind, ControllerType::InverseDynamics);
                 let omega_n = match &c.natural_frequency_hz {
-                    Some(f) => Some(positive(f, "natural_frequency_hz")? * std::f64::consts::TAU),
+                    Some(f) => Some(
+                        ranged(
+                            f,
+                            "natural_frequency_hz",
+                            "Hz",
+                            limits::NATURAL_FREQUENCY_HZ,
+                        )? * std::f64::consts::TAU,
+                    ),
                     None => None,
                 };
                 let damping_ratio = match &c.damping_ratio {
-                    Some(z) => positive(z, "damping_ratio")?,
+                    Some(z) => ranged(z, "damping_ratio", "", limits::DAMPING_RATIO)?,
                     None => 1.0,
                 };
                 let model_mass_scale = match &c.model_mass_scale {
-                    Some(m) => positive(m, "model_mass_scale")?,
+                    Some(m) => ranged(m, "model_mass_scale", "", limits::MODEL_MASS_SCALE)?,
                     None => 1.0,
                 };
                 let task_damping = match &c.task_damping {
-                    Some(l) => positive(l, "task_damping")?,
+                    Some(l) => ranged(l, "task_damping", "", limits::TASK_DAMPING)?,
                     None => DEFAULT_TASK_DAMPING,
                 };
-                match (is_id, omega_n) {
-                    (true, Some(omega_n)) => Some(InverseDynamicsSettings {
-                        omega_n,
-                        damping_ratio,
-                        model_mass_scale,
-                        space: c.space,
-                        task_damping,
-                    }),
-                    (true, None) => {
-                        return Err(FileError::new(
-                            path,
-                            controller_table,
-                            "type = \"inverse-dynamics\" needs natural_frequency_hz",
-                        ))
-                    }
-                    (false, _) if c.axes.is_none() => {
-                        return Err(FileError::new(path, controller_table, "type = \"pid\" needs gains per axis: axes.<name> = { kp = …, ki = …, kd = … }"));
-                    }
-                    (false, _) => None,
-                }
+                omega_n.map(|omega_n| InverseDynamicsSettings {
+                    omega_n,
+                    damping_ratio,
+                    model_mass_scale,
+                    space: c.space,
+                    task_damping,
+                })
             }
             None => None,
+        };
+        if let Some(c) = &raw.controller {
+            let needs = match c.kind {
+                ControllerType::InverseDynamics if inverse_dynamics.is_none() => {
+                    Some("type = \"inverse-dynamics\" needs natural_frequency_hz")
+                }
+                ControllerType::Pid if c.axes.is_none() => Some(
+                    "type = \"pid\" needs gains per axis: axes.<name> = { kp = …, ki = …, kd = … }",
+                ),
+                ControllerType::Cascade if c.cascade.is_none() => Some(
+                    "type = \"cascade\" needs loop settings per axis: cascade.<name> = { position_kp = …, velocity_kp = …, velocity_ki = … }",
+                ),
+                _ => None,
+            };
+            if let Some(message) = needs {
+                return Err(FileError::new(path, controller_table, message));
+            }
+        }
+        let pid_form = match raw.controller.as_ref().map(|c| c.form) {
+            Some(RawPidForm::Incremental) => PidForm::Incremental,
+            _ => PidForm::Positional,
         };
 
         let mut gains = BTreeMap::new();
@@ -711,25 +974,168 @@ impl Scenario {
             .map_or(&no_axes, |a| a.get_ref());
         for (axis, g) in controller_axes {
             let v = g.get_ref();
+            let fail = |m: String| err(g.span(), format!("controller.axes.{axis}: {m}"));
             let limit = v.output_limit.unwrap_or(f64::INFINITY);
             let ok = [v.kp, v.ki, v.kd]
                 .iter()
-                .all(|x| x.is_finite() && *x >= 0.0)
+                .all(|x| (0.0..=limits::MAX_GAIN).contains(x))
                 && limit > 0.0
                 && !limit.is_nan();
             if !ok {
-                return Err(err(g.span(), format!("controller.axes.{axis}: gains must be finite and ≥ 0, output_limit > 0 (kp={}, ki={}, kd={}, output_limit={limit})", v.kp, v.ki, v.kd)));
+                return Err(fail(format!("gains must be from 0 to {:?}, output_limit > 0 (kp = {:?}, ki = {:?}, kd = {:?}, output_limit = {limit:?})", limits::MAX_GAIN, v.kp, v.ki, v.kd)));
+            }
+            let g_max = limits::MAX_GAIN;
+            for (name, value, lo, hi) in [
+                ("ff0", v.ff0, -g_max, g_max),
+                ("ff1", v.ff1, -g_max, g_max),
+                ("ff2", v.ff2, -g_max, g_max),
+                ("bias", v.bias, -g_max, g_max),
+                ("deadband", v.deadband, 0.0, limits::MAX_ERROR),
+            ] {
+                check_range(name, value, "", lo, hi).map_err(&fail)?;
+            }
+            for (name, value) in [
+                ("max_error", v.max_error),
+                ("max_error_i", v.max_error_i),
+                ("max_error_d", v.max_error_d),
+            ] {
+                if let Some(x) = value {
+                    check_range(name, x, "", f64::MIN_POSITIVE, g_max).map_err(&fail)?;
+                }
+            }
+            if let (PidForm::Incremental, Some(_)) = (pid_form, v.max_error_i) {
+                return Err(fail("max_error_i limits the integral of the positional form; the incremental form has none (its accumulated output stays within output_limit)".into()));
             }
             gains.insert(
                 axis.clone(),
                 AxisGains {
-                    gains: PidGains {
+                    settings: PidSettings {
                         kp: v.kp,
                         ki: v.ki,
                         kd: v.kd,
+                        ff0: v.ff0,
+                        ff1: v.ff1,
+                        ff2: v.ff2,
+                        bias: v.bias,
+                        deadband: v.deadband,
+                        max_error: v.max_error,
+                        max_error_i: v.max_error_i,
+                        max_error_d: v.max_error_d,
+                        output_limit: limit,
                     },
-                    output_limit: limit,
                     at: at(g.span().start),
+                },
+            );
+        }
+
+        let mut cascade = BTreeMap::new();
+        let no_cascade = BTreeMap::new();
+        let cascade_axes = raw
+            .controller
+            .as_ref()
+            .and_then(|c| c.cascade.as_ref())
+            .map_or(&no_cascade, |a| a.get_ref());
+        for (axis, entry) in cascade_axes {
+            let v = entry.get_ref();
+            let fail = |m: String| err(entry.span(), format!("controller.cascade.{axis}: {m}"));
+            let g_max = limits::MAX_GAIN;
+            for (name, value, lo, hi) in [
+                ("position_kp", v.position_kp, 0.0, g_max),
+                ("position_ki", v.position_ki, 0.0, g_max),
+                ("velocity_kp", v.velocity_kp, 0.0, g_max),
+                ("velocity_ki", v.velocity_ki, 0.0, g_max),
+                (
+                    "velocity_ff",
+                    v.velocity_ff,
+                    0.0,
+                    limits::MAX_FEED_FORWARD_SHARE,
+                ),
+                (
+                    "acceleration_ff",
+                    v.acceleration_ff,
+                    0.0,
+                    limits::MAX_FEED_FORWARD_SHARE,
+                ),
+            ] {
+                check_range(name, value, "", lo, hi).map_err(&fail)?;
+            }
+            for (name, value) in [
+                ("velocity_limit", v.velocity_limit),
+                ("output_limit", v.output_limit),
+            ] {
+                if let Some(x) = value {
+                    check_range(name, x, "", f64::MIN_POSITIVE, g_max).map_err(&fail)?;
+                }
+            }
+            cascade.insert(
+                axis.clone(),
+                AxisCascade {
+                    settings: CascadeAxis {
+                        position_kp: v.position_kp,
+                        position_ki: v.position_ki,
+                        velocity_kp: v.velocity_kp,
+                        velocity_ki: v.velocity_ki,
+                        velocity_ff: v.velocity_ff,
+                        acceleration_ff: v.acceleration_ff,
+                        velocity_limit: v.velocity_limit.unwrap_or(f64::INFINITY),
+                        output_limit: v.output_limit.unwrap_or(f64::INFINITY),
+                    },
+                    at: at(entry.span().start),
+                },
+            );
+        }
+        let velocity_filter_hz = match raw
+            .controller
+            .as_ref()
+            .and_then(|c| c.velocity_filter_hz.as_ref())
+        {
+            Some(f) => ranged(f, "velocity_filter_hz", "Hz", limits::VELOCITY_FILTER_HZ)?,
+            None => 0.0,
+        };
+
+        let mut compensation = BTreeMap::new();
+        for (axis, entry) in &raw.compensation {
+            let v = entry.get_ref();
+            let fail = |m: String| err(entry.span(), format!("compensation.{axis}: {m}"));
+            let (backlash, rate, rotary_units) = match (
+                v.backlash_mm,
+                v.backlash_deg,
+                v.backlash_rate_mm_s,
+                v.backlash_rate_deg_s,
+            ) {
+                (None, None, None, None) => (0.0, 0.0, None),
+                (Some(b), None, Some(r), None) => {
+                    check_range("backlash_mm", b, "mm", 0.0, limits::MAX_BACKLASH_MM).map_err(&fail)?;
+                    check_range("backlash_rate_mm_s", r, "mm/s", 1e-6, limits::SPEED_MM_S.1).map_err(&fail)?;
+                    (b * 1e-3, r * 1e-3, Some(false))
+                }
+                (None, Some(b), None, Some(r)) => {
+                    check_range("backlash_deg", b, "deg", 0.0, limits::MAX_BACKLASH_DEG).map_err(&fail)?;
+                    check_range("backlash_rate_deg_s", r, "deg/s", 1e-6, limits::LIMIT_VELOCITY.1).map_err(&fail)?;
+                    (b.to_radians(), r.to_radians(), Some(true))
+                }
+                _ => return Err(fail("backlash compensation takes backlash_mm with backlash_rate_mm_s (linear axes) or backlash_deg with backlash_rate_deg_s (rotary axes)".into())),
+            };
+            let (pulse, decay) = match (v.friction_pulse, v.friction_decay_ms) {
+                (None, None) => (0.0, 1.0),
+                (Some(a), Some(d)) => {
+                    check_range("friction_pulse", a, "", -limits::MAX_GAIN, limits::MAX_GAIN).map_err(&fail)?;
+                    check_range("friction_decay_ms", d, "ms", 1e-3, 1e5).map_err(&fail)?;
+                    (a, d * 1e-3)
+                }
+                _ => return Err(fail("friction compensation takes friction_pulse (in controller output units: V or N·m) with friction_decay_ms".into())),
+            };
+            compensation.insert(
+                axis.clone(),
+                CompensationEntry {
+                    compensation: AxisCompensation {
+                        backlash,
+                        backlash_rate: rate,
+                        friction_pulse: pulse,
+                        friction_decay: decay,
+                    },
+                    rotary_units,
+                    at: at(entry.span().start),
                 },
             );
         }
@@ -747,40 +1153,71 @@ impl Scenario {
         }
         // Defaults trip well beyond any sane tracking error but long before a runaway.
         let following_error_limit_linear = match &raw.feedback.following_error_limit_mm {
-            Some(v) => positive(v, "following_error_limit_mm")? * 1e-3,
+            Some(v) => {
+                ranged(
+                    v,
+                    "following_error_limit_mm",
+                    "mm",
+                    limits::FOLLOWING_ERROR_LIMIT_MM,
+                )? * 1e-3
+            }
             None => 10e-3,
         };
         let following_error_limit_rotary = match &raw.feedback.following_error_limit_deg {
-            Some(v) => positive(v, "following_error_limit_deg")?.to_radians(),
+            Some(v) => ranged(
+                v,
+                "following_error_limit_deg",
+                "deg",
+                limits::FOLLOWING_ERROR_LIMIT_DEG,
+            )?
+            .to_radians(),
             None => 10f64.to_radians(),
         };
         let decimation = *raw.recording.decimation.get_ref();
-        if decimation < 1 {
-            return Err(err(raw.recording.decimation.span(), format!("decimation = {decimation}: expected a whole number ≥ 1 (record every k-th tick)")));
+        if !(1..=limits::MAX_DECIMATION).contains(&decimation) {
+            return Err(err(raw.recording.decimation.span(), format!("decimation = {decimation}: expected a whole number from 1 to {} (record every k-th tick)", limits::MAX_DECIMATION)));
         }
 
         let rp = &raw.planner;
         let acceleration = match &rp.acceleration_mm_s2 {
-            Some(a) => Some(positive(a, "acceleration_mm_s2")? * 1e-3),
+            Some(a) => {
+                Some(ranged(a, "acceleration_mm_s2", "mm/s²", limits::ACCELERATION_MM_S2)? * 1e-3)
+            }
             None => None,
         };
-        let mut limits = BTreeMap::new();
+        let mut axis_limits = BTreeMap::new();
         for (axis, l) in &rp.limits {
             let v = l.get_ref();
             let values = [v.velocity, v.acceleration, v.jerk];
-            if !values.iter().all(|x| x.is_finite() && *x > 0.0) {
-                return Err(err(l.span(), format!("planner.limits.{axis}: velocity, acceleration and jerk must be finite and > 0, found {values:?}")));
+            let ranges = [
+                ("velocity", "mm/s or deg/s", limits::LIMIT_VELOCITY),
+                (
+                    "acceleration",
+                    "mm/s² or deg/s²",
+                    limits::LIMIT_ACCELERATION,
+                ),
+                ("jerk", "mm/s³ or deg/s³", limits::LIMIT_JERK),
+            ];
+            for (value, (name, unit, (lo, hi))) in values.iter().zip(ranges) {
+                check_range(
+                    &format!("planner.limits.{axis}.{name}"),
+                    *value,
+                    unit,
+                    lo,
+                    hi,
+                )
+                .map_err(|m| err(l.span(), m))?;
             }
-            limits.insert(axis.clone(), (values, at(l.span().start)));
+            axis_limits.insert(axis.clone(), (values, at(l.span().start)));
         }
         let planner = PlannerSettings {
             profile: rp.profile,
             acceleration,
-            limits,
+            limits: axis_limits,
             at: LineColumn::of_first(text, "[planner]"),
         };
         let tolerance = match &rp.tolerance_mm {
-            Some(t) => Some(positive(t, "tolerance_mm")? * 1e-3),
+            Some(t) => Some(ranged(t, "tolerance_mm", "mm", limits::TOLERANCE_MM)? * 1e-3),
             None => None,
         };
         let blend = match rp.blend {
@@ -859,9 +1296,15 @@ impl Scenario {
             machine,
             machine_at: at(raw.machine.span().start),
             program,
+            approach,
             planner,
             blend,
-            rapid_speed: positive(&raw.planner.rapid_mm_s, "rapid_mm_s")? * 1e-3,
+            rapid_speed: ranged(
+                &raw.planner.rapid_mm_s,
+                "rapid_mm_s",
+                "mm/s",
+                limits::SPEED_MM_S,
+            )? * 1e-3,
             servo_period,
             substeps: substeps as usize,
             solver_iterations: solver_iterations as usize,
@@ -870,18 +1313,18 @@ impl Scenario {
                 ActuatorModel::IdealTorque => ActuatorKind::IdealTorque,
                 ActuatorModel::DcMotor => ActuatorKind::DcMotor,
             }),
-            // Only PID so far: the `type` enum rejects other names.
-            pid_form: match raw.controller.as_ref().map(|c| (c.kind, c.form)) {
-                Some((ControllerType::Pid, RawPidForm::Incremental)) => PidForm::Incremental,
-                _ => PidForm::Positional,
-            },
+            controller: raw.controller.as_ref().map(|c| c.kind),
+            pid_form,
             gains,
+            cascade,
+            velocity_filter_hz,
             controller_at: raw
                 .controller
                 .as_ref()
                 .and_then(|c| c.axes.as_ref())
                 .and_then(|a| at(a.span().start)),
             inverse_dynamics,
+            compensation,
             encoder_counts_per_rev,
             feedback_position: raw.feedback.position,
             amplifier_mode: raw
@@ -898,6 +1341,7 @@ impl Scenario {
             analytic_steps,
             expect,
             ab,
+            warnings,
         })
     }
 }
@@ -910,11 +1354,20 @@ impl Scenario {
         map(&mut self.machine_at);
         map(&mut self.planner.at);
         map(&mut self.controller_at);
+        for w in &mut self.warnings {
+            map(&mut w.at);
+        }
         for (_, at) in self.planner.limits.values_mut() {
             map(at);
         }
         for g in self.gains.values_mut() {
             map(&mut g.at);
+        }
+        for c in self.cascade.values_mut() {
+            map(&mut c.at);
+        }
+        for c in self.compensation.values_mut() {
+            map(&mut c.at);
         }
         for (_, at) in self.encoder_counts_per_rev.values_mut() {
             map(at);
@@ -969,9 +1422,9 @@ fn flatten_expectations(
                             v.type_str()
                         ))
                     })?;
-                if x.is_nan() {
+                if !x.is_finite() {
                     return Err(fail(format!(
-                        "expect.{prefix}.{k} = nan: expected a number"
+                        "expect.{prefix}.{k} = {x:?}: expected a finite number"
                     )));
                 }
                 Ok(Some(x))

@@ -2,6 +2,7 @@
 //! and the bounds the result must meet. Running one is the whole data flow end to end.
 
 mod ab;
+mod assemble;
 mod check;
 mod file;
 mod overrides;
@@ -10,20 +11,25 @@ mod run;
 mod tune;
 
 pub use ab::{run_ab, AbReport, AbRow};
+pub use assemble::{
+    keep_mechanics, load_checked_program, machine_for, plan_for, plan_key, plan_settings,
+    with_choices, Assembly, PlantKind, RunError, GRAVITY,
+};
 pub use check::{check, Breach, Verdict};
 pub use file::{
-    AxisGains, ControlSpace, DeclaredVariants, Expectation, InverseDynamicsSettings,
-    PlannerSettings, ProfileName, ProgramSource, Scenario,
+    limits, Approach, AxisCascade, AxisGains, CompensationEntry, ControlSpace, ControllerType,
+    DeclaredVariants, Expectation, InverseDynamicsSettings, PlannerSettings, ProfileName,
+    ProgramSource, Scenario,
 };
-pub use overrides::Override;
+pub use overrides::{edit_toml, Override};
 pub use plan::{plan_scenario, PlanReport};
 pub use run::{
-    keep_mechanics, load_checked_program, machine_for, plan_settings, prepare, prepare_with,
-    run_scenario, run_scenario_with, Prepared, RunError, RunOutput,
+    recording_setup, report_setup, run_assembly, run_assembly_observed, run_scenario,
+    run_scenario_traced, run_scenario_with, summary_markdown, RunOutput,
 };
 pub use tune::{
-    outcome_text, tune_scenario, tune_scenario_with, LinearPrediction, TuneError, TuneOptions,
-    TunePlant, TuneReport,
+    outcome_text, tune_cascade, tune_scenario, tune_scenario_with, CascadeTuneReport,
+    LinearPrediction, TuneError, TuneOptions, TuneReport,
 };
 
 /// A scenario or variant name as a single folder name (no separators, no `..`).

@@ -126,6 +126,17 @@ fn not_a_table(key: &str, item: &Item) -> String {
     format!("`{key}` is a {what}, not a table of keys")
 }
 
+/// `text` (a TOML document) with `overrides` applied, every other line as written.
+pub fn edit_toml(text: &str, overrides: &[Override]) -> Result<String, String> {
+    let mut doc: DocumentMut = text
+        .parse()
+        .map_err(|e: toml_edit::TomlError| e.to_string())?;
+    for o in overrides {
+        o.apply(&mut doc).map_err(|m| format!("{o}: {m}"))?;
+    }
+    Ok(doc.to_string())
+}
+
 impl Scenario {
     /// Loads a scenario with `overrides` applied; `flag` (`--a`, `--b`) names where they came
     /// from in messages. The variant's name is the scenario's name followed by the overrides.
@@ -357,7 +368,7 @@ mod file_tests {
             "{e}"
         );
         assert!(
-            e.message.starts_with("settle_s = -0.5: expected a number ≥ 0 (with --b controller.task_damping=0.1 analytic.enabled=false)"),
+            e.message.starts_with("settle_s = -0.5 s: expected a value from 0.0 to 3600.0 s (with --b controller.task_damping=0.1 analytic.enabled=false)"),
             "{e}"
         );
     }
@@ -395,7 +406,7 @@ mod file_tests {
         let e = Scenario::load_with_overrides(&path, &[], "--a").unwrap_err();
         assert!(
             e.message
-                .contains("controller.axes.x: gains must be finite and ≥ 0"),
+                .contains("controller.axes.x: gains must be from 0 to 1000000000000.0"),
             "{e}"
         );
         let (_dir, path, _) = scenario(|t| t.to_string());
@@ -406,10 +417,13 @@ mod file_tests {
         let e = Scenario::load_with_overrides(&path, &pid, "--a").unwrap_err();
         assert_eq!(
             e.message,
-            "--a controller.damping_ratio=0: damping_ratio = 0: expected a number > 0"
+            "--a controller.damping_ratio=0: damping_ratio = 0.0: expected a value from 0.001 to 100.0"
         );
         // Chosen PID: no inverse-dynamics settings, the file's gains.
         let s = Scenario::load_with_overrides(&path, &pid[..1], "--a").unwrap();
-        assert!(s.inverse_dynamics.is_none() && s.gains["c"].gains.kp == 196.5);
+        assert!(
+            s.controller == Some(super::super::ControllerType::Pid)
+                && s.gains["c"].settings.kp == 196.5
+        );
     }
 }

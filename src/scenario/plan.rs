@@ -34,7 +34,9 @@ pub fn plan_scenario(s: &Scenario, profile: Option<ProfileName>) -> Result<PlanR
         .map_err(|e| FileError::new(&s.machine, None, e.to_string()))?;
     let program = load_checked_program(s, &machine)?;
     let profile = profile.unwrap_or(s.planner.profile);
-    let settings = plan_settings(s, &machine, profile)?;
+    let mut settings = plan_settings(s, &machine, profile)?;
+    // Corner tolerances at the tool tip, as the program's author reads them.
+    settings.tool_lever_arms = crate::plan::tool_lever_arms(&machine, &program, &axis_map);
     let setpoints =
         plan_program(&program, &axis_map, &settings).map_err(|source| RunError::Plan {
             path: program.source.clone(),

@@ -7,33 +7,22 @@
 //! scenario's own controller, so they are held as in a real run and couple as they would. The
 //! axis starts at rest at the program's first point and its setpoint steps by `step` at t = 0.
 
-use super::run::{
-    controller_for, keep_mechanics, machine_for, new_plant, prepare_with, Prepared, RunError,
-    GRAVITY,
-};
+use super::assemble::{keep_mechanics, machine_for, Assembly, PlantKind, RunError, GRAVITY};
+use super::file::ControllerType;
 use super::Scenario;
-use crate::control::{Actuator, ActuatorKind, Controller, ControllerInput, Pid, PidForm, PidGains};
+use crate::control::{ActuatorKind, Controller, ControllerInput, Pid, PidForm, PidSettings};
 use crate::diagnostics::FileError;
 use crate::machine::Machine;
 use crate::plan::Setpoints;
-use crate::sim::analytic::{run_reference, AxisModel, ReferenceSettings};
-use crate::sim::{CoSimulation, LoopSettings, Trace};
+use crate::sim::analytic::AxisModel;
+use crate::sim::{self, Lane, LoopSettings, Trace, TraceRecorder};
 use crate::tune::{
-    find_ultimate, LinearActuator, LinearAxis, Response, SearchError, SearchSettings, Trial,
-    Ultimate, UltimateCycle, ZieglerNichols,
+    design_cascade, find_ultimate, CascadeDesign, LinearActuator, LinearAxis, Response,
+    SearchError, SearchSettings, Trial, Ultimate, UltimateCycle, ZieglerNichols,
 };
 use serde::Serialize;
 use std::path::PathBuf;
 use std::time::Instant;
-
-/// Which model the trials run on.
-#[derive(Debug, Clone, Copy, PartialEq)]
-pub enum TunePlant {
-    /// The Rapier co-simulation, as `cncsim run` runs the scenario.
-    Physics,
-    /// The analytic per-axis ODE model (`sim::analytic`) of the same machine.
-    Analytic,
-}
 
 /// What to tune and how (SI units: the step in m or rad).
 #[derive(Debug, Clone, PartialEq)]
@@ -141,7 +130,7 @@ pub struct TuneReport {
 pub fn tune_scenario(
     s: &Scenario,
     options: &TuneOptions,
-    plant: TunePlant,
+    plant: PlantKind,
     progress: &mut dyn FnMut(&Trial),
 ) -> Result<TuneReport, TuneError> {
     tune_scenario_with(s, machine_for(s)?, options, plant, progress)
@@ -152,23 +141,18 @@ pub fn tune_scenario_with(
     s: &Scenario,
     machine: Machine,
     options: &TuneOptions,
-    plant: TunePlant,
+    plant: PlantKind,
     progress: &mut dyn FnMut(&Trial),
 ) -> Result<TuneReport, TuneError> {
     let started = Instant::now();
     let bad = |m: String| TuneError::from(FileError::new(&s.path, None, m));
-    if s.inverse_dynamics.is_some() {
-        return Err(bad("tune designs PID gains for one axis while the scenario's PID holds the others; this scenario's controller is type = \"inverse-dynamics\" (use a scenario with type = \"pid\")".into()));
+    let assembly = Assembly::with_machine(s, machine)?;
+    if let Some(kind) = s.controller.filter(|&c| c != ControllerType::Pid) {
+        return Err(bad(format!("tune designs PID gains for one axis while the scenario's PID holds the others; this scenario's controller is type = \"{}\" (use a scenario with type = \"pid\")", kind.name())));
     }
-    let Prepared {
-        machine,
-        labels,
-        setpoints,
-        encoder_resolution,
-        actuator,
-        cosim,
-        ..
-    } = prepare_with(s, machine)?;
+    let machine = &assembly.machine;
+    let labels = &assembly.labels;
+    let actuator = assembly.actuator;
     let Some(axis) = machine.axis_index(&options.axis) else {
         let names: Vec<&str> = machine.axes.iter().map(|a| a.name.as_str()).collect();
         return Err(bad(format!(
@@ -182,7 +166,7 @@ pub fn tune_scenario_with(
     check_options(s, options, rotary).map_err(bad)?;
 
     let drive = &machine.axes[axis].drive;
-    let output_limit = s.gains[&options.axis].output_limit;
+    let output_limit = s.gains[&options.axis].output_limit();
     let (actuator_limit, actuator_name, output_unit) = match actuator {
         ActuatorKind::DcMotor => (
             drive.supply_voltage_v / drive.amplifier_gain,
@@ -191,13 +175,13 @@ pub fn tune_scenario_with(
         ),
         ActuatorKind::IdealTorque => (drive.peak_torque_nm, "ideal-torque", "N·m"),
     };
-    let resolution = encoder_resolution[axis].unwrap_or(0.0);
+    let resolution = assembly.loop_settings.encoder.resolution[axis].unwrap_or(0.0);
     let settings = SearchSettings {
         servo_period: s.servo_period,
         step: options.step,
         start_gain: options
             .start_gain
-            .unwrap_or(s.gains[&options.axis].gains.kp),
+            .unwrap_or(s.gains[&options.axis].settings.kp),
         growth: 2.0,
         tolerance: options.tolerance,
         saturation: output_limit.min(actuator_limit),
@@ -215,9 +199,9 @@ pub fn tune_scenario_with(
 
     let loop_settings = LoopSettings {
         settle_time: 0.0,
-        ..cosim.settings.clone()
+        approach: Setpoints::default(),
+        ..assembly.loop_settings.clone()
     };
-    drop(cosim);
     // A boundary judged on a handful of peaks is a guess: a slow loop (an ultimate period
     // near the trial time) can look settled or growing by chance. The search is repeated
     // with twice the trial time until the oscillating bound shows enough swings.
@@ -226,22 +210,22 @@ pub fn tune_scenario_with(
     let mut previous = None;
     let (ultimate, ticks) = loop {
         let ticks = (trial_time / s.servo_period).round() as usize;
-        let trial_setpoints = step_setpoints(&setpoints, s.servo_period, axis, options.step, ticks);
+        let trial_setpoints = step_setpoints(
+            &assembly.setpoints,
+            s.servo_period,
+            axis,
+            options.step,
+            ticks,
+        );
         let probe = Probe {
-            s,
-            machine: &machine,
-            actuator,
+            assembly: &assembly,
+            plant,
             axis,
             setpoints: &trial_setpoints,
             loop_settings: &loop_settings,
-            encoder_resolution: &encoder_resolution,
-            start: trial_setpoints.position(0),
             output_limit,
         };
-        let mut simulate = |gain: f64| match plant {
-            TunePlant::Physics => probe.physics(gain),
-            TunePlant::Analytic => probe.analytic(gain),
-        };
+        let mut simulate = |gain: f64| probe.trial(gain);
         // The simulation budget is for the whole tune, retries included.
         let settings = SearchSettings {
             max_simulations: options.max_simulations.saturating_sub(simulations),
@@ -276,7 +260,7 @@ pub fn tune_scenario_with(
     };
 
     let gains = ZieglerNichols::from_ultimate(ultimate.gain, ultimate.period);
-    let linear = linear_model(&machine, axis, actuator).map(|axis_model| {
+    let linear = linear_model(machine, axis, actuator).map(|axis_model| {
         let sampled = axis_model.discrete_ultimate(s.servo_period);
         (axis_model, sampled)
     });
@@ -294,8 +278,8 @@ pub fn tune_scenario_with(
         axis: options.axis.clone(),
         rotary,
         plant: match plant {
-            TunePlant::Physics => "physics",
-            TunePlant::Analytic => "analytic",
+            PlantKind::Physics => "physics",
+            PlantKind::Analytic => "analytic",
         },
         actuator: actuator_name,
         amplifier_mode: match actuator {
@@ -412,71 +396,50 @@ fn linear_model(machine: &Machine, axis: usize, actuator: ActuatorKind) -> Optio
 
 /// Everything a trial needs, shared by all trials.
 struct Probe<'a> {
-    s: &'a Scenario,
-    machine: &'a Machine,
-    actuator: ActuatorKind,
+    assembly: &'a Assembly,
+    plant: PlantKind,
     axis: usize,
     setpoints: &'a Setpoints,
     loop_settings: &'a LoopSettings,
-    encoder_resolution: &'a [Option<f64>],
-    start: &'a [f64],
     output_limit: f64,
 }
 
 impl Probe<'_> {
-    /// The scenario's controller with the tuned axis under P control at `gain`.
-    fn controller(&self, gain: f64) -> Result<ProportionalOn<'static>, String> {
-        let hold =
-            controller_for(self.s, self.machine, self.actuator).map_err(|e| e.to_string())?;
-        let p = PidGains {
-            kp: gain,
-            ki: 0.0,
-            kd: 0.0,
-        };
-        Ok(ProportionalOn {
+    /// One trial: the scenario's loop with the tuned axis under P control at `gain`, on the
+    /// chosen plant, at rest at the trial's start.
+    fn trial(&self, gain: f64) -> Result<Response, String> {
+        let a = self.assembly;
+        let s = &a.scenario;
+        let hold = a.controller().map_err(|e| e.to_string())?;
+        let p = PidSettings::plain(
+            crate::control::PidGains {
+                kp: gain,
+                ki: 0.0,
+                kd: 0.0,
+            },
+            self.output_limit,
+        );
+        let controller = ProportionalOn {
             hold,
             axis: self.axis,
-            pid: Pid::new(
-                p,
-                PidForm::Positional,
-                self.s.servo_period,
-                self.output_limit,
-            ),
-        })
-    }
-
-    fn physics(&self, gain: f64) -> Result<Response, String> {
-        let cosim = CoSimulation {
-            plant: new_plant(self.s, self.machine, self.start).map_err(|e| e.to_string())?,
-            controller: Box::new(self.controller(gain)?),
-            actuators: self
-                .machine
-                .axes
-                .iter()
-                .map(|a| Actuator::new(self.actuator, &a.drive))
-                .collect(),
-            settings: self.loop_settings.clone(),
+            pid: Pid::new(p, PidForm::Positional, s.servo_period),
         };
-        let outcome = cosim.run(self.setpoints, &mut |_, _| true);
-        let mut r = self.response(&outcome.trace);
-        r.stopped = outcome.stop.map(|e| e.to_string());
-        Ok(r)
-    }
-
-    fn analytic(&self, gain: f64) -> Result<Response, String> {
-        let ideal = self.actuator == ActuatorKind::IdealTorque;
-        let mut models = AxisModel::for_machine(self.machine, GRAVITY, ideal)
-            .map_err(|e| format!("the analytic model: {e}"))?;
-        let settings = ReferenceSettings {
-            servo_period: self.s.servo_period,
-            steps_per_period: self.s.analytic_steps.unwrap_or(16),
-            settle_time: 0.0,
-            encoder_resolution: self.encoder_resolution.to_vec(),
-        };
-        let mut controller = self.controller(gain)?;
-        let run = run_reference(&mut models, &mut controller, self.setpoints, &settings);
-        let mut r = self.response(&run.trace);
-        r.stopped = run.diverged.map(|d| d.to_string());
+        let start = self.setpoints.position(0);
+        let mut lanes = [Lane {
+            name: "trial",
+            plant: a.plant(self.plant, start).map_err(|e| e.to_string())?,
+            controller: Box::new(controller),
+        }];
+        let mut recorder = TraceRecorder::new(s.servo_period, start.len(), 1);
+        let outcome = sim::run(
+            self.loop_settings,
+            &mut lanes,
+            &mut self.setpoints.stream(),
+            &mut recorder,
+            &mut |_, _| true,
+        );
+        let mut r = self.response(recorder.lane(0));
+        r.stopped = outcome.stop().map(|e| e.to_string());
         Ok(r)
     }
 
@@ -510,6 +473,11 @@ impl Controller for ProportionalOn<'_> {
         command[i] = self
             .pid
             .update(input.setpoint_position[i] - input.measured_position[i]);
+    }
+
+    fn reset(&mut self) {
+        self.hold.reset();
+        self.pid.reset();
     }
 }
 
@@ -685,5 +653,263 @@ mod tests {
         assert_eq!(toml_number(0.0012345), "0.001235");
         assert_eq!(toml_number(6.1e5), "610000.0");
         assert!(toml_number(1.2345e-9).parse::<f64>().unwrap() == 1.235e-9);
+    }
+}
+
+/// What `cncsim tune --cascade` found for one axis: the design from the axis's linear model,
+/// and a check on the simulated plant (a velocity step through the velocity loop alone).
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct CascadeTuneReport {
+    pub scenario: String,
+    pub axis: String,
+    pub rotary: bool,
+    pub plant: &'static str,
+    pub servo_period_s: f64,
+    pub velocity_filter_hz: f64,
+    pub design: CascadeDesign,
+    /// Velocity step response of the simulated axis under the designed velocity loop: rise
+    /// time 10–90 % (s) and overshoot (fraction of the step).
+    pub step_rise_time_s: Option<f64>,
+    pub step_overshoot: Option<f64>,
+    /// `cascade.<axis> = { … }`
+    pub toml: String,
+}
+
+/// Designs the cascade of `axis` (see [`crate::tune::cascade`]) on the scenario's machine and
+/// checks it on the simulated plant. The axis's inertia is the rigid-body model's at the
+/// program's first point (armature included), its damping the drive's and the joint's.
+pub fn tune_cascade(
+    s: &Scenario,
+    machine: Machine,
+    axis_name: &str,
+    bandwidth_hz: Option<f64>,
+    plant: PlantKind,
+) -> Result<CascadeTuneReport, TuneError> {
+    let bad = |m: String| TuneError::from(FileError::new(&s.path, None, m));
+    let assembly = Assembly::with_machine(s, machine)?;
+    let machine = &assembly.machine;
+    let Some(axis) = machine.axis_index(axis_name) else {
+        let names: Vec<&str> = machine.axes.iter().map(|a| a.name.as_str()).collect();
+        return Err(bad(format!(
+            "--axis {axis_name}: the machine '{}' has no such axis (its axes: {})",
+            machine.name,
+            names.join(", ")
+        )));
+    };
+    let start = assembly.start();
+    let linear = linear_axis_at(machine, axis, &start, assembly.actuator).map_err(bad)?;
+    let design = design_cascade(&linear, s.servo_period, s.velocity_filter_hz, bandwidth_hz)
+        .map_err(|m| bad(format!("--axis {axis_name}: {m}")))?;
+
+    // The check: the velocity loop alone (no position loop) on a setpoint that ramps from rest
+    // at a modest speed: its velocity feed-forward is a velocity step.
+    let rotary = assembly.labels[axis].rotary;
+    let speed = if rotary { 0.05 } else { 0.005 };
+    let ticks = ((10.0 / design.velocity_bandwidth_hz.max(0.1)) / s.servo_period).ceil() as usize;
+    let ticks = ticks.clamp(20, 200_000);
+    let n = start.len();
+    let mut setpoints = Setpoints::new(s.servo_period, n);
+    let zeros = vec![0.0; n];
+    setpoints.push(&start, &zeros, &zeros, 0);
+    let mut velocity = zeros.clone();
+    velocity[axis] = speed;
+    for k in 1..=ticks {
+        let mut p = start.clone();
+        p[axis] += speed * k as f64 * s.servo_period;
+        setpoints.push(&p, &velocity, &zeros, 0);
+    }
+    let mut loop_axis = design.axis;
+    loop_axis.position_kp = 0.0;
+    let hold = assembly.controller().map_err(|e| bad(e.to_string()))?;
+    let drives: Vec<_> = machine.axes.iter().map(|a| a.drive.clone()).collect();
+    let model =
+        crate::dynamics::DynamicsModel::from_machine(machine, nalgebra::Vector3::from(GRAVITY))
+            .and_then(|m| m.with_drive_armature(machine))
+            .map_err(|e| bad(format!("the machine's rigid-body model: {e}")))?;
+    let cascade = crate::control::Cascade::new(
+        vec![loop_axis; n],
+        s.velocity_filter_hz,
+        model,
+        &drives,
+        assembly.actuator,
+        s.servo_period,
+    );
+    let controller = OneAxis {
+        hold,
+        axis,
+        on_axis: Box::new(cascade),
+        scratch: vec![0.0; n],
+    };
+    let loop_settings = LoopSettings {
+        settle_time: 0.0,
+        approach: Setpoints::default(),
+        ..assembly.loop_settings.clone()
+    };
+    let mut lanes = [Lane {
+        name: "check",
+        plant: assembly.plant(plant, &start)?,
+        controller: Box::new(controller),
+    }];
+    let mut recorder = TraceRecorder::new(s.servo_period, n, 1);
+    sim::run(
+        &loop_settings,
+        &mut lanes,
+        &mut setpoints.stream(),
+        &mut recorder,
+        &mut |_, _| true,
+    );
+    let trace = recorder.lane(0);
+    let v: Vec<f64> = (0..trace.len())
+        .map(|k| Trace::at(&trace.actual_velocity, n, k, axis))
+        .collect();
+    let (rise, overshoot) = step_figures(&v, speed, s.servo_period);
+    let a = &design.axis;
+    let toml = format!(
+        "cascade.{axis_name} = {{ position_kp = {}, velocity_kp = {}, velocity_ki = {}, velocity_ff = 1.0, acceleration_ff = 1.0 }}",
+        toml_number(a.position_kp),
+        toml_number(a.velocity_kp),
+        toml_number(a.velocity_ki)
+    );
+    Ok(CascadeTuneReport {
+        scenario: s.name.clone(),
+        axis: axis_name.to_string(),
+        rotary,
+        plant: match plant {
+            PlantKind::Physics => "physics",
+            PlantKind::Analytic => "analytic",
+        },
+        servo_period_s: s.servo_period,
+        velocity_filter_hz: s.velocity_filter_hz,
+        design,
+        step_rise_time_s: rise,
+        step_overshoot: overshoot,
+        toml,
+    })
+}
+
+/// Rise time 10–90 % and overshoot of a step response `v` to `target`, sampled every `t`.
+fn step_figures(v: &[f64], target: f64, t: f64) -> (Option<f64>, Option<f64>) {
+    let first = |level: f64| v.iter().position(|x| *x >= level * target);
+    let rise = match (first(0.1), first(0.9)) {
+        (Some(a), Some(b)) => Some((b - a) as f64 * t),
+        _ => None,
+    };
+    let peak = v.iter().copied().fold(f64::NEG_INFINITY, f64::max);
+    let overshoot = (peak.is_finite() && rise.is_some()).then(|| (peak / target - 1.0).max(0.0));
+    (rise, overshoot)
+}
+
+/// The linear model of `axis` at joint position `q`: the rigid-body inertia (armature
+/// included) on its diagonal, the drive's reflected and the joint's own damping.
+fn linear_axis_at(
+    machine: &Machine,
+    axis: usize,
+    q: &[f64],
+    actuator: ActuatorKind,
+) -> Result<LinearAxis, String> {
+    let model =
+        crate::dynamics::DynamicsModel::from_machine(machine, nalgebra::Vector3::from(GRAVITY))
+            .and_then(|m| m.with_drive_armature(machine))
+            .map_err(|e| format!("the machine's rigid-body model: {e}"))?;
+    let n = model.dof();
+    let mut ws = model.workspace();
+    let mut mass = nalgebra::DMatrix::zeros(n, n);
+    model.mass_matrix(&mut ws, q, &mut mass);
+    let a = &machine.axes[axis];
+    let drive = &a.drive;
+    Ok(LinearAxis {
+        mass: mass[(axis, axis)],
+        damping: drive.reflected_damping() + machine.joints[a.joint].damping,
+        ratio: drive.ratio(),
+        actuator: match actuator {
+            ActuatorKind::IdealTorque => LinearActuator::IdealTorque,
+            ActuatorKind::DcMotor => LinearActuator::DcMotor {
+                amplifier_gain: drive.amplifier_gain,
+                torque_constant: drive.motor.torque_constant_nm_per_a,
+                back_emf_constant: drive.effective_back_emf(),
+                resistance: drive.motor.resistance_ohm,
+                inductance: drive.motor.inductance_h,
+            },
+        },
+    })
+}
+
+/// The scenario's controller on every axis but one, which another controller drives.
+struct OneAxis {
+    hold: Box<dyn Controller>,
+    axis: usize,
+    on_axis: Box<dyn Controller>,
+    scratch: Vec<f64>,
+}
+
+impl Controller for OneAxis {
+    fn update(&mut self, input: &ControllerInput<'_>, command: &mut [f64]) {
+        self.hold.update(input, command);
+        self.on_axis.update(input, &mut self.scratch);
+        command[self.axis] = self.scratch[self.axis];
+    }
+
+    fn reset(&mut self) {
+        self.hold.reset();
+        self.on_axis.reset();
+    }
+}
+
+impl CascadeTuneReport {
+    /// The report for the terminal.
+    pub fn text(&self) -> String {
+        let d = &self.design;
+        let (unit, speed) = if self.rotary {
+            ("rad", "rad/s")
+        } else {
+            ("m", "m/s")
+        };
+        let mut t = format!(
+            "Cascade design: {} axis {}, servo period {} ms, velocity filter {}\n",
+            self.scenario,
+            self.axis,
+            self.servo_period_s * 1e3,
+            if self.velocity_filter_hz > 0.0 {
+                format!("{} Hz", self.velocity_filter_hz)
+            } else {
+                "none".into()
+            }
+        );
+        t += &format!(
+            "  plant        velocity loop: m·v̇ = b·u − c·v with m = {:.5e} kg, b = {:.5e} N per command unit, c = {:.5e} N·s/{unit}\n",
+            d.mass, d.force_per_command, d.damping
+        );
+        t += &format!(
+            "  velocity     PI, crossover {:.2} Hz with {:.1}° phase margin (servo period, current lag, filter and PI zero counted): Kpv = {:.5e} per {speed}, Kiv = {:.5e} per {unit}\n",
+            d.velocity_bandwidth_hz, d.phase_margin_deg, d.axis.velocity_kp, d.axis.velocity_ki
+        );
+        t += &format!(
+            "  position     P at a quarter of it: Kpp = {:.4} 1/s ({:.2} Hz), velocity and acceleration feed-forward 1\n",
+            d.axis.position_kp, d.position_bandwidth_hz
+        );
+        match (self.step_rise_time_s, self.step_overshoot) {
+            (Some(r), Some(o)) => {
+                t += &format!(
+                    "  check        velocity step through the velocity loop alone on the {} model: rise 10–90 % {:.2} ms, overshoot {:.1} %\n",
+                    self.plant,
+                    r * 1e3,
+                    o * 100.0
+                );
+            }
+            _ => {
+                t += &format!(
+                "  check        the velocity step on the {} model did not reach 90 % of the step\n",
+                self.plant
+            )
+            }
+        }
+        t += &format!("  {}\n", self.toml);
+        t += &format!(
+            "  the same model's PID feed-forward (FF1 = c/b, FF2 = m/b): axes.{} ff1 = {}, ff2 = {}\n",
+            self.axis,
+            toml_number(d.damping / d.force_per_command),
+            toml_number(d.mass / d.force_per_command)
+        );
+        t
     }
 }

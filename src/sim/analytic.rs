@@ -1,6 +1,6 @@
-//! Analytic reference model of the machine axes: the same discrete controller and setpoints as
-//! [`CoSimulation`](super), driving an ODE model of each axis instead of Rapier, so that the
-//! physics can be checked against a plant whose equations are written down (seed digest §2.1).
+//! Analytic reference model of the machine axes: an ODE model of each axis, run by the same
+//! loop, controller and setpoints as the Rapier machine, so that the physics can be checked
+//! against a plant whose equations are written down (see `docs/sources.md`, the XYZ table).
 //!
 //! # The plant, per axis (joint units: m, N, kg; motor units where the name says so)
 //!
@@ -44,13 +44,12 @@
 //!
 //! Classical RK4 at a fixed step (the servo period over `steps_per_period`), restarted at every
 //! event; the mean motor torque over a hold interval is the integral of the current (a
-//! quadrature state), so it is exact to the integrator's order. [`run_reference`] is
-//! `CoSimulation::run` with the plant swapped: the same settle phase, the same sampling at the
-//! start of each tick, the same encoder rounding, the controller once per tick, its output held.
+//! quadrature state), so it is exact to the integrator's order. [`AnalyticPlant`] puts the
+//! models behind the loop's plant interface: the loop, the encoder, the trip and the
+//! controller are the very ones the physics runs with.
 
-use crate::control::{Controller, ControllerInput};
+use super::{Hold, Plant, Sensors};
 use crate::machine::{AmplifierMode, Drive, Feedback, JointKind, Machine, StribeckCurve};
-use crate::plan::Setpoints;
 use nalgebra::{UnitQuaternion, Vector3};
 
 /// Per-axis effects and actuator choice; all off by default.
@@ -134,18 +133,6 @@ impl AxisState {
             current: self.current + h * rate.current,
             charge: self.charge + h * rate.charge,
         }
-    }
-
-    fn is_finite(&self) -> bool {
-        [
-            self.drive_position,
-            self.drive_velocity,
-            self.carriage_position,
-            self.carriage_velocity,
-            self.current,
-        ]
-        .iter()
-        .all(|v| v.is_finite())
     }
 }
 
@@ -771,199 +758,103 @@ fn gravity_component(
     (rotation * axis).dot(&Vector3::from(gravity))
 }
 
-/// How [`run_reference`] runs the loop.
-#[derive(Debug, Clone, PartialEq)]
-pub struct ReferenceSettings {
-    /// Servo period T (s).
-    pub servo_period: f64,
-    /// RK4 steps per servo period.
-    pub steps_per_period: usize,
-    /// Time the first setpoint is held before the program starts (s); not traced.
-    pub settle_time: f64,
-    /// Encoder resolution in joint units per axis; `None` = ideal feedback.
-    pub encoder_resolution: Vec<Option<f64>>,
+/// The analytic axis models of a machine as a [`Plant`]: the same loop, controller and
+/// setpoints as the Rapier machine, with a plant whose equations are written down. The tool
+/// point follows from the axis positions (these models take Cartesian prismatic chains only,
+/// where the tool point is affine in the joint coordinates).
+pub struct AnalyticPlant {
+    models: Vec<AxisModel>,
+    period: f64,
+    steps_per_period: usize,
+    /// Tool point at zero joint coordinates and its displacement per joint unit of each axis.
+    tool_origin: Vector3<f64>,
+    tool_directions: Vec<Vector3<f64>>,
+    steps: u64,
 }
 
-/// The state of an axis stopped being finite.
-#[derive(Debug, Clone, PartialEq, thiserror::Error)]
-#[error("reference model diverged at t = {time:.6} s on axis {axis}")]
-pub struct Diverged {
-    pub time: f64,
-    pub axis: usize,
-}
-
-/// A reference run: everything traced, and where it diverged if it did.
-#[derive(Debug, Clone)]
-pub struct ReferenceRun {
-    /// The same record as the physics run's (without the tool point, which needs the
-    /// kinematics): carriage positions and velocities, commands, torque, voltage.
-    pub trace: super::Trace,
-    /// Armature current at the start of each tick, per axis (A).
-    pub current: Vec<f64>,
-    pub diverged: Option<Diverged>,
-}
-
-/// Runs `setpoints` through `controller` and the axis models, with the servo-loop structure of
-/// `CoSimulation::run`. Each model is first put at rest at the first setpoint.
-///
-/// Panics if the numbers of models, setpoint axes and encoder entries differ, or if
-/// `steps_per_period` is 0.
-pub fn run_reference(
-    models: &mut [AxisModel],
-    controller: &mut dyn Controller,
-    setpoints: &Setpoints,
-    settings: &ReferenceSettings,
-) -> ReferenceRun {
-    let n = setpoints.axes;
-    assert_eq!(models.len(), n, "one axis model per setpoint axis");
-    assert_eq!(
-        settings.encoder_resolution.len(),
-        n,
-        "one encoder entry per axis"
-    );
-    assert!(
-        settings.steps_per_period > 0,
-        "steps_per_period must be ≥ 1"
-    );
-    let t = settings.servo_period;
-    let mut current = Vec::new();
-    let mut trace = super::Trace {
-        period: t,
-        axes: n,
-        ..Default::default()
-    };
-    if setpoints.is_empty() {
-        return ReferenceRun {
-            trace,
-            current,
-            diverged: None,
-        };
+impl AnalyticPlant {
+    /// One axis model per machine axis (see [`AxisModel::for_machine`]), each at rest at
+    /// `initial` (joint units), integrated in `steps_per_period` RK4 steps per servo period.
+    pub fn new(
+        machine: &Machine,
+        gravity: [f64; 3],
+        ideal_actuator: bool,
+        period: f64,
+        steps_per_period: usize,
+        initial: &[f64],
+    ) -> Result<AnalyticPlant, AxisModelError> {
+        let mut models = AxisModel::for_machine(machine, gravity, ideal_actuator)?;
+        for (model, &p) in models.iter_mut().zip(initial) {
+            model.rest_at(p);
+        }
+        Ok(Self::from_models(models, machine, period, steps_per_period))
     }
-    for (model, &p) in models.iter_mut().zip(setpoints.position(0)) {
-        model.rest_at(p);
-    }
-    let zeros = vec![0.0; n];
-    let mut tick = TickBuffers::new(n);
-    let settle_ticks = (settings.settle_time / t).round() as usize;
-    for k in 0..settle_ticks {
-        let time = (k as f64 - settle_ticks as f64) * t;
-        let input = ControllerInput {
-            setpoint_position: setpoints.position(0),
-            setpoint_velocity: &zeros,
-            setpoint_acceleration: &zeros,
-            measured_position: &[],
-        };
-        if let Err(d) = servo_tick(models, controller, settings, input, time, &mut tick) {
-            return ReferenceRun {
-                trace,
-                current,
-                diverged: Some(d),
-            };
+
+    /// A plant of given axis models (already placed), with the machine's tool kinematics.
+    pub fn from_models(
+        models: Vec<AxisModel>,
+        machine: &Machine,
+        period: f64,
+        steps_per_period: usize,
+    ) -> AnalyticPlant {
+        let n = models.len();
+        let zeros = vec![0.0; n];
+        let origin = crate::kinematics::tool_point(machine, &zeros).coords;
+        let tool_directions = (0..n)
+            .map(|i| {
+                let mut unit = zeros.clone();
+                unit[i] = 1.0;
+                crate::kinematics::tool_point(machine, &unit).coords - origin
+            })
+            .collect();
+        AnalyticPlant {
+            models,
+            period,
+            steps_per_period: steps_per_period.max(1),
+            tool_origin: origin,
+            tool_directions,
+            steps: 0,
         }
     }
-    for k in 0..setpoints.len() {
-        let time = k as f64 * t;
-        let input = ControllerInput {
-            setpoint_position: setpoints.position(k),
-            setpoint_velocity: setpoints.velocity(k),
-            setpoint_acceleration: setpoints.acceleration(k),
-            measured_position: &[],
-        };
-        let result = servo_tick(models, controller, settings, input, time, &mut tick);
-        trace.time.push(time);
-        trace.commanded.extend_from_slice(input.setpoint_position);
-        trace
-            .commanded_velocity
-            .extend_from_slice(input.setpoint_velocity);
-        trace.actual.extend_from_slice(&tick.position);
-        trace.actual_velocity.extend_from_slice(&tick.velocity);
-        trace.drive.extend_from_slice(&tick.drive_position);
-        trace.command.extend_from_slice(&tick.command);
-        trace.torque.extend_from_slice(&tick.torque);
-        trace.voltage.extend_from_slice(&tick.voltage);
-        current.extend_from_slice(&tick.current);
-        trace.segment.push(setpoints.segment[k]);
-        if let Err(d) = result {
-            return ReferenceRun {
-                trace,
-                current,
-                diverged: Some(d),
-            };
-        }
-    }
-    ReferenceRun {
-        trace,
-        current,
-        diverged: None,
+
+    pub fn models(&self) -> &[AxisModel] {
+        &self.models
     }
 }
 
-/// Per-tick values, reused (the loop allocates nothing but the trace).
-struct TickBuffers {
-    position: Vec<f64>,
-    velocity: Vec<f64>,
-    drive_position: Vec<f64>,
-    current: Vec<f64>,
-    measured: Vec<f64>,
-    command: Vec<f64>,
-    torque: Vec<f64>,
-    voltage: Vec<f64>,
-}
+impl Plant for AnalyticPlant {
+    fn axes(&self) -> usize {
+        self.models.len()
+    }
 
-impl TickBuffers {
-    fn new(n: usize) -> Self {
-        let z = || vec![0.0; n];
-        TickBuffers {
-            position: z(),
-            velocity: z(),
-            drive_position: z(),
-            current: z(),
-            measured: z(),
-            command: z(),
-            torque: z(),
-            voltage: z(),
+    fn sample(&mut self, out: &mut Sensors) {
+        let mut tool = self.tool_origin;
+        let mut tool_velocity = Vector3::zeros();
+        for (i, m) in self.models.iter().enumerate() {
+            out.position[i] = m.position();
+            out.velocity[i] = m.velocity();
+            out.drive_position[i] = m.drive_position();
+            out.feedback_position[i] = m.feedback_position();
+            out.current[i] = m.current();
+            tool += self.tool_directions[i] * m.position();
+            tool_velocity += self.tool_directions[i] * m.velocity();
         }
+        out.tool_point = tool.into();
+        out.tool_velocity = tool_velocity.into();
     }
-}
 
-/// One servo period: sample, control, hold. `input.measured_position` is filled in here.
-fn servo_tick(
-    models: &mut [AxisModel],
-    controller: &mut dyn Controller,
-    settings: &ReferenceSettings,
-    input: ControllerInput<'_>,
-    time: f64,
-    b: &mut TickBuffers,
-) -> Result<(), Diverged> {
-    for (i, model) in models.iter().enumerate() {
-        if !model.state.is_finite() {
-            return Err(Diverged { time, axis: i });
+    fn hold(&mut self, command: &[f64], out: &mut Hold) {
+        for (i, model) in self.models.iter_mut().enumerate() {
+            let h = model.advance(command[i], self.period, self.steps_per_period);
+            out.mean_torque[i] = h.mean_torque;
+            out.voltage[i] = h.voltage;
         }
-        b.position[i] = model.position();
-        b.velocity[i] = model.velocity();
-        b.drive_position[i] = model.drive_position();
-        b.current[i] = model.current();
-        let sensed = model.feedback_position();
-        b.measured[i] = match settings.encoder_resolution[i] {
-            Some(res) => (sensed / res).round() * res,
-            None => sensed,
-        };
+        self.steps += self.steps_per_period as u64;
     }
-    let input = ControllerInput {
-        measured_position: &b.measured,
-        ..input
-    };
-    controller.update(&input, &mut b.command);
-    for (i, model) in models.iter_mut().enumerate() {
-        let hold = model.advance(
-            b.command[i],
-            settings.servo_period,
-            settings.steps_per_period,
-        );
-        b.torque[i] = hold.mean_torque;
-        b.voltage[i] = hold.voltage;
+
+    fn steps(&self) -> u64 {
+        self.steps
     }
-    Ok(())
 }
 
 #[cfg(test)]

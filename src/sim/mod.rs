@@ -1,79 +1,70 @@
-//! The co-simulation loop. Read it as a block diagram sampled at the servo period T:
+//! The co-simulation loop, written once. Read it as a block diagram sampled at the servo
+//! period T:
 //!
-//!   setpoints ─▶ (+) ─▶ controller ─▶ hold ─▶ actuator ─▶ transmission ─▶ plant (Rapier)
-//!                 ▲ −                                                         │
-//!                 └──────────────────── encoder ◀─────────────────────────────┘
+//!   setpoints ─▶ (+) ─▶ controller ─▶ hold ─▶ plant ─┐
+//!                 ▲ −                                │
+//!                 └── encoder ◀── trip ◀── sensors ◀─┘
 //!
-//! The controller runs once per T on sampled (optionally quantised) positions; its output is
-//! held while the actuator and the physics advance in `substeps` steps of T/substeps.
+//! Every period each lane samples its plant's sensors, checks them (divergence, the drive's
+//! following-error trip), quantises the feedback (encoder), runs its controller once and holds
+//! the command over the period while the plant advances. A run has one or more lanes on the
+//! same setpoint stream in lockstep: the Rapier machine ([`PhysicsPlant`]) and, beside it, the
+//! analytic reference model ([`AnalyticPlant`]), each with its own controller instance, so the
+//! two are compared sample by sample. What happens is handed, tick by tick, to an
+//! [`Observer`] (metrics, CSV, recording, an in-memory [`Trace`]): nothing per tick is kept
+//! here, so memory does not grow with the program's length.
 
 pub mod analytic;
+mod blocks;
+mod physics;
+mod plant;
+mod trace;
 
-use crate::control::{Actuator, Controller, ControllerInput};
-use crate::model::Plant;
-use crate::plan::Setpoints;
+pub use analytic::AnalyticPlant;
+pub use blocks::{Encoder, FollowingErrorTrip};
+pub use physics::PhysicsPlant;
+pub use plant::{Hold, Plant, Sensors};
+pub use trace::{Trace, TraceRecorder};
+
+use crate::control::{Controller, ControllerInput};
+use crate::plan::{SetpointSample, SetpointStream, Setpoints};
 use std::time::Instant;
 
-/// How the loop runs, per machine axis where it says so.
+/// Most servo ticks one run may take (settle included): a four-hour program at a 1 ms servo
+/// period is 1.44·10⁷; beyond 10⁸ a run is a mistake (a feed or a period off by orders of
+/// magnitude), and is refused before it starts with the number it would need.
+pub const MAX_SERVO_TICKS: u64 = 100_000_000;
+/// Most physics steps one run may take (ticks × steps per tick).
+pub const MAX_PHYSICS_STEPS: u64 = 1_000_000_000;
+
+/// Ticks between two progress reports (and checks for an interruption).
+const PROGRESS_EVERY: usize = 1024;
+
+/// How the loop runs; the same for every lane.
 #[derive(Debug, Clone, PartialEq)]
 pub struct LoopSettings {
     pub servo_period: f64,
-    /// Physics steps per servo period.
-    pub substeps: usize,
-    /// Time the loop holds the first setpoint before the program starts (s): the machine is
-    /// enabled and in position before cycle start. Not traced.
+    /// The way the machine comes to the program's first point, run after the settle and not
+    /// observed; the plants start at rest at its first sample. Empty: they start at the first
+    /// setpoint.
+    pub approach: Setpoints,
+    /// Time the loop holds the machine at rest where it starts (the approach's first sample,
+    /// or the program's) before it moves (s): the machine is enabled and in position before
+    /// cycle start. Not observed.
     pub settle_time: f64,
-    /// Motor radians per joint unit, per axis (to turn torque into joint force, and joint
-    /// speed into motor speed for the back-EMF).
-    pub ratios: Vec<f64>,
-    /// Encoder resolution in joint units, per axis; `None` = ideal feedback.
-    pub encoder_resolution: Vec<Option<f64>>,
-    /// Following-error fault limit per axis (joint units), like a drive's following-error trip.
-    pub following_error_limit: Vec<f64>,
-    pub axis_names: Vec<String>,
+    pub encoder: Encoder,
+    pub trip: FollowingErrorTrip,
 }
 
-/// Per-tick record of a run; sample k of axis i at `k * axes + i`. Joint units (SI).
-#[derive(Debug, Clone, PartialEq, Default)]
-pub struct Trace {
-    pub period: f64,
-    pub axes: usize,
-    pub time: Vec<f64>,
-    pub commanded: Vec<f64>,
-    pub commanded_velocity: Vec<f64>,
-    pub actual: Vec<f64>,
-    pub actual_velocity: Vec<f64>,
-    /// Drive-side position (motor angle over the ratio); equals `actual` without backlash.
-    pub drive: Vec<f64>,
-    /// Controller output (N·m or V).
-    pub command: Vec<f64>,
-    /// Mean motor torque over the hold interval that follows the sample (N·m).
-    pub torque: Vec<f64>,
-    /// Armature voltage (V), zero with the ideal actuator.
-    pub voltage: Vec<f64>,
-    /// Tool point and its velocity from the physics (m, m/s).
-    pub tool_point: Vec<[f64; 3]>,
-    pub tool_velocity: Vec<[f64; 3]>,
-    /// Program move of the setpoint.
-    pub segment: Vec<u32>,
+/// One plant with its own controller.
+pub struct Lane<'a> {
+    /// What the lane simulates, for reports: "physics" or "analytic".
+    pub name: &'static str,
+    pub plant: Box<dyn Plant + 'a>,
+    pub controller: Box<dyn Controller + 'a>,
 }
 
-impl Trace {
-    pub fn len(&self) -> usize {
-        self.time.len()
-    }
-
-    pub fn is_empty(&self) -> bool {
-        self.time.is_empty()
-    }
-
-    /// Value of axis `i` at sample `k` of one of the per-axis series.
-    pub fn at(series: &[f64], axes: usize, k: usize, i: usize) -> f64 {
-        series[k * axes + i]
-    }
-}
-
-/// Why a run stopped before the end of its setpoints.
+/// Why a lane stopped before the end of its setpoints.
 #[derive(Debug, Clone, PartialEq, thiserror::Error)]
 pub enum Stop {
     #[error("simulation diverged at t = {time:.6} s on axis '{axis}': {what}")]
@@ -93,201 +84,281 @@ pub enum Stop {
     },
 }
 
-/// The result of a run: everything traced up to where it ended, and why it ended early.
-#[derive(Debug, Clone)]
-pub struct Outcome {
-    pub trace: Trace,
+impl Stop {
+    /// When the stop happened (s, program time).
+    pub fn time(&self) -> f64 {
+        match self {
+            Stop::Diverged { time, .. }
+            | Stop::Interrupted { time }
+            | Stop::FollowingError { time, .. } => *time,
+        }
+    }
+}
+
+/// One tick of one lane, as observers see it: the setpoint and the sensors sampled at the start
+/// of the period, what the controller commanded and what the actuators did over the period.
+#[derive(Debug, Clone, Copy)]
+pub struct TickRecord<'a> {
+    /// Tick index from program start (0 = the first setpoint).
+    pub k: usize,
+    /// Program time (s).
+    pub time: f64,
+    pub setpoint: &'a SetpointSample,
+    pub sensors: &'a Sensors,
+    /// Positions the controller saw (after the encoder): of the feedback device, and of the
+    /// motor encoder.
+    pub measured: &'a [f64],
+    pub motor: &'a [f64],
+    /// Controller output (V at the amplifier input, or N·m).
+    pub command: &'a [f64],
+    pub hold: &'a Hold,
+}
+
+/// Receives what the loop does, tick by tick (lanes in order within a tick).
+pub trait Observer {
+    fn tick(&mut self, lane: usize, record: &TickRecord<'_>);
+    /// Lane `lane` stopped early (the tick it stopped on was not observed when its state was
+    /// not finite, and was observed with zero command after a following-error trip).
+    fn stopped(&mut self, _lane: usize, _stop: &Stop) {}
+}
+
+/// Observes nothing (benchmarks, runs judged by their outcome alone).
+pub struct Unobserved;
+
+impl Observer for Unobserved {
+    fn tick(&mut self, _lane: usize, _record: &TickRecord<'_>) {}
+}
+
+/// Several observers as one.
+pub struct Observers<'o>(pub Vec<&'o mut dyn Observer>);
+
+impl Observer for Observers<'_> {
+    fn tick(&mut self, lane: usize, record: &TickRecord<'_>) {
+        for o in &mut self.0 {
+            o.tick(lane, record);
+        }
+    }
+
+    fn stopped(&mut self, lane: usize, stop: &Stop) {
+        for o in &mut self.0 {
+            o.stopped(lane, stop);
+        }
+    }
+}
+
+/// How one lane ended.
+#[derive(Debug, Clone, PartialEq)]
+pub struct LaneOutcome {
+    pub name: &'static str,
     pub stop: Option<Stop>,
-    pub physics_steps: u64,
+    /// Integration steps the plant took (physics steps for Rapier).
+    pub steps: u64,
+}
+
+/// The result of a run: how each lane ended and what it cost. The run ends with the end of its
+/// setpoints or when the first lane (the primary plant) stops.
+#[derive(Debug, Clone, PartialEq, Default)]
+pub struct Outcome {
+    /// Program ticks observed on the first lane.
+    pub ticks: usize,
+    pub lanes: Vec<LaneOutcome>,
     pub wall_time: f64,
 }
 
-/// The wired blocks of one run.
-pub struct CoSimulation<'a> {
-    pub plant: Plant,
-    pub controller: Box<dyn Controller + 'a>,
-    pub actuators: Vec<Actuator>,
-    pub settings: LoopSettings,
-}
-
-impl CoSimulation<'_> {
-    /// Runs the setpoints through the loop. `progress(done, total)` is called now and then; when
-    /// it returns `false` the run stops there (the user interrupted it), keeping what it traced.
-    pub fn run(
-        mut self,
-        setpoints: &Setpoints,
-        progress: &mut dyn FnMut(usize, usize) -> bool,
-    ) -> Outcome {
-        let started = Instant::now();
-        let n = setpoints.axes;
-        let t = self.settings.servo_period;
-        let dt = t / self.settings.substeps as f64;
-        let mut trace = Trace {
-            period: t,
-            axes: n,
-            ..Default::default()
-        };
-        let total = setpoints.len();
-        let zeros = vec![0.0; n];
-        let mut buffers = Buffers::new(n);
-
-        let mut stop = None;
-        if !setpoints.is_empty() {
-            let settle_ticks = (self.settings.settle_time / t).round() as usize;
-            let hold = setpoints.position(0);
-            for k in 0..settle_ticks {
-                let time = (k as f64 - settle_ticks as f64) * t;
-                let tick = Tick {
-                    time,
-                    position: hold,
-                    velocity: &zeros,
-                    acceleration: &zeros,
-                };
-                if let Err(s) = self.tick(&tick, &mut buffers, dt) {
-                    stop = Some(s);
-                    break;
-                }
-            }
-        }
-        if stop.is_none() {
-            for k in 0..total {
-                let tick = Tick {
-                    time: k as f64 * t,
-                    position: setpoints.position(k),
-                    velocity: setpoints.velocity(k),
-                    acceleration: setpoints.acceleration(k),
-                };
-                let result = self.tick(&tick, &mut buffers, dt);
-                record(&mut trace, &tick, &buffers, setpoints.segment[k]);
-                if let Err(s) = result {
-                    stop = Some(s);
-                    break;
-                }
-                if k % 1024 == 0 && !progress(k, total) {
-                    stop = Some(Stop::Interrupted { time: tick.time });
-                    break;
-                }
-            }
-        }
-        progress(trace.len(), total);
-        Outcome {
-            trace,
-            stop,
-            physics_steps: self.plant.steps(),
-            wall_time: started.elapsed().as_secs_f64(),
-        }
-    }
-
-    /// One servo period: sample, check, control, then hold the command over the substeps.
-    fn tick(&mut self, tick: &Tick<'_>, b: &mut Buffers, dt: f64) -> Result<(), Stop> {
-        let s = &self.settings;
-        self.plant.positions(&mut b.q);
-        self.plant.velocities(&mut b.qd);
-        self.plant.drive_positions(&mut b.drive);
-        self.plant.feedback_positions(&mut b.measured);
-        b.tool = self.plant.tool_point().into();
-        b.tool_velocity = self.plant.tool_velocity().into();
-        for i in 0..b.q.len() {
-            let axis = || s.axis_names[i].clone();
-            if !b.q[i].is_finite() || !b.qd[i].is_finite() {
-                return Err(Stop::Diverged {
-                    time: tick.time,
-                    axis: axis(),
-                    what: format!("position {} / velocity {} is not finite", b.q[i], b.qd[i]),
-                });
-            }
-            let error = tick.position[i] - b.q[i];
-            if error.abs() > s.following_error_limit[i] {
-                return Err(Stop::FollowingError {
-                    time: tick.time,
-                    axis: axis(),
-                    error: error.abs(),
-                    limit: s.following_error_limit[i],
-                });
-            }
-            if let Some(res) = s.encoder_resolution[i] {
-                b.measured[i] = (b.measured[i] / res).round() * res;
-            }
-        }
-        let input = ControllerInput {
-            setpoint_position: tick.position,
-            setpoint_velocity: tick.velocity,
-            setpoint_acceleration: tick.acceleration,
-            measured_position: &b.measured,
-        };
-        self.controller.update(&input, &mut b.command);
-        b.torque.iter_mut().for_each(|v| *v = 0.0);
-        for _ in 0..s.substeps {
-            // The motor turns with the drive side of the transmission (back-EMF).
-            self.plant.drive_velocities(&mut b.qd_live);
-            for i in 0..b.q.len() {
-                let out = self.actuators[i].step(b.command[i], s.ratios[i] * b.qd_live[i], dt);
-                b.force[i] = out.torque * s.ratios[i];
-                b.torque[i] += out.torque / s.substeps as f64;
-                b.voltage[i] = out.voltage;
-            }
-            self.plant.set_joint_forces(&b.force);
-            self.plant.step();
-        }
-        Ok(())
+impl Outcome {
+    /// Why the primary lane stopped early, if it did.
+    pub fn stop(&self) -> Option<&Stop> {
+        self.lanes.first().and_then(|l| l.stop.as_ref())
     }
 }
 
-struct Tick<'a> {
-    time: f64,
-    position: &'a [f64],
-    velocity: &'a [f64],
-    acceleration: &'a [f64],
-}
-
-/// Scratch vectors reused every tick (the loop allocates nothing).
-struct Buffers {
-    /// Position and velocity sampled at the start of the tick.
-    q: Vec<f64>,
-    drive: Vec<f64>,
-    qd: Vec<f64>,
-    tool: [f64; 3],
-    tool_velocity: [f64; 3],
-    /// Velocity during the substeps (motor speed for the back-EMF).
-    qd_live: Vec<f64>,
+/// Per-lane scratch, reused every tick (the loop allocates nothing per tick).
+struct LaneState {
+    sensors: Sensors,
     measured: Vec<f64>,
+    motor: Vec<f64>,
     command: Vec<f64>,
-    force: Vec<f64>,
-    torque: Vec<f64>,
-    voltage: Vec<f64>,
+    hold: Hold,
+    stop: Option<Stop>,
 }
 
-impl Buffers {
-    fn new(n: usize) -> Self {
-        let z = || vec![0.0; n];
-        Buffers {
-            q: z(),
-            drive: z(),
-            qd: z(),
-            tool: [0.0; 3],
-            tool_velocity: [0.0; 3],
-            qd_live: z(),
-            measured: z(),
-            command: z(),
-            force: z(),
-            torque: z(),
-            voltage: z(),
+/// Runs the lanes on the setpoint stream in lockstep. `progress(done, total)` is called every
+/// [`PROGRESS_EVERY`] ticks (settle included); when it returns `false` the run stops there as
+/// interrupted, keeping everything observed so far.
+pub fn run(
+    settings: &LoopSettings,
+    lanes: &mut [Lane<'_>],
+    setpoints: &mut dyn SetpointStream,
+    observer: &mut dyn Observer,
+    progress: &mut dyn FnMut(usize, usize) -> bool,
+) -> Outcome {
+    let started = Instant::now();
+    let n = setpoints.axes();
+    let t = settings.servo_period;
+    let mut state: Vec<LaneState> = lanes
+        .iter()
+        .map(|_| LaneState {
+            sensors: Sensors::new(n),
+            measured: vec![0.0; n],
+            motor: vec![0.0; n],
+            command: vec![0.0; n],
+            hold: Hold::new(n),
+            stop: None,
+        })
+        .collect();
+    let mut sample = SetpointSample::zeros(n);
+    let settle_ticks = (settings.settle_time / t).round() as usize;
+    let approach = &settings.approach;
+    let total = approach.len() + settle_ticks + setpoints.len();
+    let mut ticks = 0;
+    let mut done = 0;
+
+    // Before the program, not observed: the machine first settles at rest where it starts (the
+    // approach's first point, or the program's), as an enabled machine holds position before
+    // cycle start; then it comes to the program's first point along the approach.
+    let has_program = setpoints.next_sample(&mut sample);
+    let mut way = approach.stream();
+    let mut step = SetpointSample::zeros(n);
+    let mut on_way = way.next_sample(&mut step);
+    let mut hold = if on_way { step.clone() } else { sample.clone() };
+    hold.velocity.iter_mut().for_each(|v| *v = 0.0);
+    hold.acceleration.iter_mut().for_each(|a| *a = 0.0);
+    let before = (approach.len() + settle_ticks) as f64;
+    let mut settle = settle_ticks;
+    while state[0].stop.is_none() && (settle > 0 || on_way) && has_program {
+        let time = (done as f64 - before) * t;
+        let target = if settle > 0 { &hold } else { &step };
+        if !tick_lanes(settings, lanes, &mut state, time, target, None, observer) {
+            break;
         }
+        done += 1;
+        if done % PROGRESS_EVERY == 0 && !progress(done, total) {
+            interrupt(&mut state, time, observer);
+            break;
+        }
+        if settle > 0 {
+            settle -= 1;
+        } else {
+            on_way = way.next_sample(&mut step);
+        }
+    }
+    if state[0].stop.is_none() && has_program {
+        // The program.
+        let mut more = state[0].stop.is_none();
+        while more {
+            let time = ticks as f64 * t;
+            let alive = tick_lanes(
+                settings,
+                lanes,
+                &mut state,
+                time,
+                &sample,
+                Some(ticks),
+                observer,
+            );
+            ticks += 1;
+            done += 1;
+            if !alive {
+                break;
+            }
+            if done % PROGRESS_EVERY == 0 && !progress(done, total) {
+                interrupt(&mut state, time, observer);
+                break;
+            }
+            more = setpoints.next_sample(&mut sample);
+        }
+    }
+    progress(done, total);
+    Outcome {
+        ticks,
+        lanes: lanes
+            .iter()
+            .zip(state)
+            .map(|(lane, s)| LaneOutcome {
+                name: lane.name,
+                stop: s.stop,
+                steps: lane.plant.steps(),
+            })
+            .collect(),
+        wall_time: started.elapsed().as_secs_f64(),
     }
 }
 
-/// Appends the tick: setpoint and state sampled at its start, torque over its hold interval.
-fn record(trace: &mut Trace, tick: &Tick<'_>, b: &Buffers, segment: u32) {
-    trace.time.push(tick.time);
-    trace.commanded.extend_from_slice(tick.position);
-    trace.commanded_velocity.extend_from_slice(tick.velocity);
-    trace.actual.extend_from_slice(&b.q);
-    trace.actual_velocity.extend_from_slice(&b.qd);
-    trace.drive.extend_from_slice(&b.drive);
-    trace.command.extend_from_slice(&b.command);
-    trace.torque.extend_from_slice(&b.torque);
-    trace.voltage.extend_from_slice(&b.voltage);
-    trace.tool_point.push(b.tool);
-    trace.tool_velocity.push(b.tool_velocity);
-    trace.segment.push(segment);
+/// Stops the run as interrupted at `time`: the primary lane stops, observers hear it.
+fn interrupt(state: &mut [LaneState], time: f64, observer: &mut dyn Observer) {
+    let stop = Stop::Interrupted { time };
+    observer.stopped(0, &stop);
+    state[0].stop = Some(stop);
+}
+
+/// One servo period of every lane still running: sample, check, measure, control, hold.
+/// `k` is the program tick (`None` while settling: not observed). Returns whether the primary
+/// lane is still running.
+fn tick_lanes(
+    settings: &LoopSettings,
+    lanes: &mut [Lane<'_>],
+    state: &mut [LaneState],
+    time: f64,
+    setpoint: &SetpointSample,
+    k: Option<usize>,
+    observer: &mut dyn Observer,
+) -> bool {
+    for (index, (lane, s)) in lanes.iter_mut().zip(state.iter_mut()).enumerate() {
+        if s.stop.is_some() {
+            continue;
+        }
+        lane.plant.sample(&mut s.sensors);
+        let checked = settings.trip.check(time, &setpoint.position, &s.sensors);
+        if let Err(stop) = checked {
+            // A tripped drive disables its outputs; the sample that tripped it is evidence
+            // worth keeping. A state that is not finite is not.
+            if let (Some(k), Stop::FollowingError { .. }) = (k, &stop) {
+                s.command.iter_mut().for_each(|c| *c = 0.0);
+                s.hold.mean_torque.iter_mut().for_each(|c| *c = 0.0);
+                s.hold.voltage.iter_mut().for_each(|c| *c = 0.0);
+                settings
+                    .encoder
+                    .measure(&s.sensors, &mut s.measured, &mut s.motor);
+                observer.tick(index, &record(k, time, setpoint, s));
+            }
+            observer.stopped(index, &stop);
+            s.stop = Some(stop);
+            continue;
+        }
+        settings
+            .encoder
+            .measure(&s.sensors, &mut s.measured, &mut s.motor);
+        let input = ControllerInput {
+            time,
+            setpoint_position: &setpoint.position,
+            setpoint_velocity: &setpoint.velocity,
+            setpoint_acceleration: &setpoint.acceleration,
+            measured_position: &s.measured,
+            motor_position: &s.motor,
+        };
+        lane.controller.update(&input, &mut s.command);
+        lane.plant.hold(&s.command, &mut s.hold);
+        if let Some(k) = k {
+            observer.tick(index, &record(k, time, setpoint, s));
+        }
+    }
+    state[0].stop.is_none()
+}
+
+fn record<'a>(
+    k: usize,
+    time: f64,
+    setpoint: &'a SetpointSample,
+    s: &'a LaneState,
+) -> TickRecord<'a> {
+    TickRecord {
+        k,
+        time,
+        setpoint,
+        sensors: &s.sensors,
+        measured: &s.measured,
+        motor: &s.motor,
+        command: &s.command,
+        hold: &s.hold,
+    }
 }

@@ -7,11 +7,15 @@
 //! - [`search`]: bracket and bisect the P gain to the boundary of sustained oscillation.
 //! - [`linear`]: the same boundary derived from the linear axis's equations (ZOH
 //!   discretisation and spectral radius), the independent check.
+//! - [`cascade`]: the cascade's velocity loop by the bandwidth its phase budget allows, the
+//!   position loop at a quarter of it.
 
+pub mod cascade;
 pub mod linear;
 pub mod oscillation;
 pub mod search;
 
+pub use cascade::{design_cascade, CascadeDesign, PHASE_MARGIN_DEG};
 pub use linear::{LinearActuator, LinearAxis, UltimateCycle};
 pub use oscillation::{analyse, Oscillation, Verdict};
 pub use search::{find_ultimate, Outcome, Response, SearchError, SearchSettings, Trial, Ultimate};

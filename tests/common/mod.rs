@@ -175,8 +175,52 @@ pub fn rrd_rows(path: &std::path::Path) -> std::collections::BTreeMap<String, us
     for msg in DecoderApp::decode_lazy(file) {
         if let LogMsg::ArrowMsg(_, arrow) = msg.unwrap() {
             let chunk = Chunk::from_arrow_msg(&arrow).unwrap();
-            *rows.entry(chunk.entity_path().to_string()).or_insert(0) += chunk.num_rows();
+            // Rows on the run's timeline (static rows, e.g. series names, are not ticks); a
+            // static-only entity still shows, with its rows.
+            let timed = chunk.timelines().keys().any(|t| t.as_str() == "sim_time");
+            let entry = rows.entry(chunk.entity_path().to_string()).or_insert(0);
+            if timed || chunk.is_static() {
+                *entry += if timed { chunk.num_rows() } else { 0 };
+            }
         }
     }
     rows
+}
+
+/// Every string a recording holds, by entity path and component (e.g. `/events` →
+/// `TextLog:text`), over all its stores (the blueprint's included), in the order written.
+pub fn rrd_strings(
+    path: &std::path::Path,
+) -> std::collections::BTreeMap<String, Vec<(String, String)>> {
+    use rerun::external::re_log_encoding::DecoderApp;
+    use rerun::log::{Chunk, LogMsg};
+    let file = std::io::BufReader::new(std::fs::File::open(path).unwrap());
+    let mut out: std::collections::BTreeMap<String, Vec<(String, String)>> = Default::default();
+    for msg in DecoderApp::decode_lazy(file) {
+        if let LogMsg::ArrowMsg(_, arrow) = msg.unwrap() {
+            let chunk = Chunk::from_arrow_msg(&arrow).unwrap();
+            let entity = chunk.entity_path().to_string();
+            let components: Vec<_> = chunk.component_descriptors().map(|d| d.component).collect();
+            for component in components {
+                let is_text = chunk.components().get_array(component).is_some_and(|a| {
+                    matches!(
+                        a.values().data_type(),
+                        rerun::external::arrow::datatypes::DataType::Utf8
+                            | rerun::external::arrow::datatypes::DataType::LargeUtf8
+                    )
+                });
+                if !is_text {
+                    continue;
+                }
+                for slice in chunk.iter_slices::<String>(component) {
+                    for s in slice {
+                        out.entry(entity.clone())
+                            .or_default()
+                            .push((component.to_string(), s.to_string()));
+                    }
+                }
+            }
+        }
+    }
+    out
 }

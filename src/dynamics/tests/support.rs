@@ -67,6 +67,7 @@ pub fn tree(links: Vec<Link>, joints: Vec<Joint>) -> KinematicTree {
         links,
         joints,
         root: 0,
+        warnings: Vec::new(),
     }
 }
 

@@ -2,8 +2,10 @@
 //! linear servo theory. Figures in the assertions are derived in the comments next to them.
 
 use super::*;
-use crate::control::{Pid, PidBank, PidForm, PidGains};
+use crate::control::{Controller, ControllerInput, Pid, PidBank, PidForm, PidGains, PidSettings};
 use crate::machine::{AmplifierMode, Machine, StribeckCurve};
+use crate::plan::Setpoints;
+use crate::sim::{Encoder, FollowingErrorTrip, Lane, LoopSettings, Stop, Trace, TraceRecorder};
 use nalgebra::{SMatrix, SVector};
 use std::path::Path;
 
@@ -322,14 +324,83 @@ fn at_constant_speed_the_drive_force_is_damping_plus_stribeck_friction() {
     assert!(relative(k * hold.mean_torque, resisting) < 1e-9);
 }
 
+fn pid(kp: f64, ki: f64, kd: f64, limit: f64) -> Pid {
+    Pid::new(
+        PidSettings::plain(PidGains { kp, ki, kd }, limit),
+        PidForm::Positional,
+        1e-3,
+    )
+}
+
 /// The scenario's X loop: positional PID, 1 ms servo period, ±6 V.
 fn x_pid() -> PidBank {
-    let gains = PidGains {
-        kp: 19800.0,
-        ki: 6.1e5,
-        kd: 146.0,
-    };
-    PidBank::new(vec![Pid::new(gains, PidForm::Positional, 1e-3, 6.0)])
+    PidBank::new(vec![pid(19800.0, 6.1e5, 146.0, 6.0)])
+}
+
+/// The loop's settings for `axes` axes: 1 ms, 0.1 s settle, no trip within reach.
+fn loop_settings(axes: usize, encoder: Vec<Option<f64>>) -> LoopSettings {
+    LoopSettings {
+        servo_period: 1e-3,
+        approach: Setpoints::default(),
+        settle_time: 0.1,
+        encoder: Encoder {
+            resolution: encoder,
+        },
+        trip: FollowingErrorTrip {
+            limit: vec![1.0; axes],
+            axis_names: (0..axes).map(|i| format!("q{i}")).collect(),
+        },
+    }
+}
+
+/// The servo loop on the analytic models alone: the reference run.
+struct ReferenceRun {
+    trace: Trace,
+    stop: Option<Stop>,
+}
+
+fn run_reference(
+    models: Vec<AxisModel>,
+    controller: &mut dyn Controller,
+    s: &Setpoints,
+    steps_per_period: usize,
+    settings: &LoopSettings,
+) -> ReferenceRun {
+    let n = models.len();
+    let mut models = models;
+    for (m, &p) in models.iter_mut().zip(s.position(0)) {
+        m.rest_at(p);
+    }
+    let plant = AnalyticPlant::from_models(models, &machine(), 1e-3, steps_per_period);
+    let mut lanes = [Lane {
+        name: "analytic",
+        plant: Box::new(plant),
+        controller: Box::new(Borrowed(controller)),
+    }];
+    let mut recorder = TraceRecorder::new(1e-3, n, 1);
+    let outcome = crate::sim::run(
+        settings,
+        &mut lanes,
+        &mut s.stream(),
+        &mut recorder,
+        &mut |_, _| true,
+    );
+    ReferenceRun {
+        trace: recorder.lane(0).clone(),
+        stop: outcome.stop().cloned(),
+    }
+}
+
+/// A controller lent to the loop (the tests look at it afterwards).
+struct Borrowed<'a>(&'a mut dyn Controller);
+
+impl Controller for Borrowed<'_> {
+    fn update(&mut self, input: &ControllerInput<'_>, command: &mut [f64]) {
+        self.0.update(input, command)
+    }
+    fn reset(&mut self) {
+        self.0.reset()
+    }
 }
 
 /// One axis: position(t) sampled every `period` for `duration` seconds.
@@ -343,23 +414,15 @@ fn setpoints(period: f64, duration: f64, position: impl Fn(f64) -> (f64, f64, f6
     s
 }
 
-fn settings(steps_per_period: usize) -> ReferenceSettings {
-    ReferenceSettings {
-        servo_period: 1e-3,
-        steps_per_period,
-        settle_time: 0.1,
-        encoder_resolution: vec![None],
-    }
-}
-
-fn run(mut axis: AxisModel, s: &Setpoints, steps_per_period: usize) -> ReferenceRun {
+fn run(axis: AxisModel, s: &Setpoints, steps_per_period: usize) -> ReferenceRun {
     let run = run_reference(
-        std::slice::from_mut(&mut axis),
+        vec![axis],
         &mut x_pid(),
         s,
-        &settings(steps_per_period),
+        steps_per_period,
+        &loop_settings(1, vec![None]),
     );
-    assert!(run.diverged.is_none());
+    assert!(run.stop.is_none());
     run
 }
 
@@ -614,19 +677,15 @@ fn type_two_loop_lags_a_parabola_by_acceleration_over_ka() {
 #[test]
 fn z_axis_holds_its_weight() {
     let models = AxisModel::for_machine(&machine(), [0.0, 0.0, -9.81], false).unwrap();
-    let mut z = [models[2].clone()];
-    let gains = PidGains {
-        kp: 9700.0,
-        ki: 3.0e5,
-        kd: 85.0,
-    };
-    let mut pid = PidBank::new(vec![Pid::new(gains, PidForm::Positional, 1e-3, 3.125)]);
+    let z = models[2].clone();
+    let ratio = z.ratio();
+    let mut pid = PidBank::new(vec![pid(9700.0, 3.0e5, 85.0, 3.125)]);
     let s = setpoints(1e-3, 2.0, |_| (-0.02, 0.0, 0.0));
-    let run = run_reference(&mut z, &mut pid, &s, &settings(10));
+    let run = run_reference(vec![z], &mut pid, &s, 10, &loop_settings(1, vec![None]));
     let trace = run.trace;
     let last = trace.len() - 1;
     // Holding torque m·g/k = 0.5·9.81/(2π/5 mm) = 3.90e-3 N·m, and no position error.
-    let holding = 0.5 * 9.81 / z[0].ratio();
+    let holding = 0.5 * 9.81 / ratio;
     assert!(relative(trace.torque[last], holding) < 1e-6);
     assert!((trace.actual[last] + 0.02).abs() < 1e-12);
 }
@@ -642,84 +701,32 @@ impl Controller for Recording {
         self.measured.extend_from_slice(input.measured_position);
         self.inner.update(input, command);
     }
+    fn reset(&mut self) {
+        self.inner.reset();
+    }
 }
 
 #[test]
 fn the_controller_sees_encoder_counts() {
     let resolution = 1e-6;
     let s = setpoints(1e-3, 0.3, |t| (0.01 + 5e-3 * t, 5e-3, 0.0));
-    let mut axis = [x_axis(Default::default())];
-    let settings = ReferenceSettings {
-        encoder_resolution: vec![Some(resolution)],
-        ..settings(10)
-    };
     let mut controller = Recording {
         inner: x_pid(),
         measured: Vec::new(),
     };
-    let trace = run_reference(&mut axis, &mut controller, &s, &settings).trace;
+    let settings = loop_settings(1, vec![Some(resolution)]);
+    let trace = run_reference(
+        vec![x_axis(Default::default())],
+        &mut controller,
+        &s,
+        10,
+        &settings,
+    )
+    .trace;
     let settle = controller.measured.len() - trace.len();
     for (k, &seen) in controller.measured[settle..].iter().enumerate() {
         let counts = seen / resolution;
         assert!((counts - counts.round()).abs() < 1e-6, "tick {k}: {seen:e}");
         assert!((seen - trace.actual[k]).abs() <= resolution / 2.0 + 1e-15);
-    }
-}
-
-#[test]
-#[ignore = "timing: cargo test --release -- --ignored --nocapture"]
-fn servo_period_cost() {
-    let ticks = 20_000;
-    let rigid = {
-        let mut m = machine();
-        for a in &mut m.axes {
-            a.drive.guide = None;
-            a.drive.backlash = 0.0;
-        }
-        m
-    };
-    for (label, machine) in [("rigid", rigid), ("friction + backlash", machine())] {
-        for steps in [4, 10, 40] {
-            let mut axes = AxisModel::for_machine(&machine, [0.0, 0.0, -9.81], false).unwrap();
-            let s = Setpoints {
-                period: 1e-3,
-                axes: 3,
-                ..Default::default()
-            };
-            let mut s = s;
-            for k in 0..=ticks {
-                let p = 0.01 + 0.01 * (k as f64 * 1e-3 * 3.0).sin();
-                s.push(&[p, p, -0.02 + p], &[0.0; 3], &[0.0; 3], 0);
-            }
-            let xy = PidGains {
-                kp: 19800.0,
-                ki: 6.1e5,
-                kd: 146.0,
-            };
-            let z = PidGains {
-                kp: 9700.0,
-                ki: 3.0e5,
-                kd: 85.0,
-            };
-            let mut pid = PidBank::new(vec![
-                Pid::new(xy, PidForm::Positional, 1e-3, 6.0),
-                Pid::new(xy, PidForm::Positional, 1e-3, 6.0),
-                Pid::new(z, PidForm::Positional, 1e-3, 3.125),
-            ]);
-            let settings = ReferenceSettings {
-                servo_period: 1e-3,
-                steps_per_period: steps,
-                settle_time: 0.0,
-                encoder_resolution: vec![None; 3],
-            };
-            let started = std::time::Instant::now();
-            let run = run_reference(&mut axes, &mut pid, &s, &settings);
-            let per_tick = started.elapsed().as_secs_f64() / ticks as f64;
-            assert!(run.diverged.is_none());
-            println!(
-                "{label:>20}, {steps:>2} RK4 steps per period: {:.2} µs per servo period (3 axes)",
-                per_tick * 1e6
-            );
-        }
     }
 }

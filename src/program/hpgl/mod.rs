@@ -1,0 +1,333 @@
+//! HPGL plot files as plotters and CAD packages write them, redirected to an XYZ table: pen
+//! down/up become the tool's Z heights, VS the drawing speed.
+//!
+//! HP-GL/1 (AutoCAD's HP 7475 plots, instrument screen dumps) and HP-GL/2 (Windows plotter
+//! drivers: `PE` encoded polylines, polygon fills, the PCL/PJL job wrapped around them) are
+//! read. Commands that move the pen are drawn, labels through a Hershey stroke font, fills
+//! as outlines plus the hatch `FT` asks for. Commands that do not move the pen are skipped
+//! with one warning per kind (refused with `strict`); a command that would change the
+//! drawing but cannot be honoured is an error, never dropped.
+//!
+//! The file is read in two stages. The plotter model ([`plotter`], [`pen`], [`commands`])
+//! turns commands into a drawing ([`drawing`]): pen-up travels and pen-down strokes
+//! (polylines of lines and arcs), with barriers where the pen is changed. Moves are then
+//! generated from the drawing, either in the file's order or, with `optimise_pen_up`, with
+//! strokes reordered and reversed to shorten pen-up travel ([`optimise`]).
+
+mod commands;
+mod drawing;
+mod encoded;
+mod fill;
+mod font;
+mod label;
+mod optimise;
+mod pen;
+mod plotter;
+mod scan;
+
+use std::collections::BTreeSet;
+use std::path::Path;
+
+use self::drawing::{generate_moves, pen_up_travel, Element, Stroke};
+use self::fill::Polygon;
+use self::plotter::Plotter;
+use self::scan::{Escape, ScanError, Scanner, ESC};
+use super::error::{display_text, ErrorSink, Found, ProgramError, ProgramErrors};
+use super::options::{HpglOptions, ReadOptions};
+use super::report::PenUpTravel;
+use super::source::LineIndex;
+use super::types::{Program, Span, Warning};
+
+/// A decoded HPGL program with its pen-up travel figures.
+#[derive(Debug, Clone, PartialEq)]
+pub struct HpglOutput {
+    pub program: Program,
+    /// Pen-up travel as drawn and (if `optimise_pen_up`) after reordering; without
+    /// optimisation both figures are the file's.
+    pub pen_up: PenUpTravel,
+}
+
+/// Decodes an HPGL plot file held in memory. `source` names it in messages.
+pub fn parse_hpgl(
+    text: impl AsRef<[u8]>,
+    source: impl AsRef<Path>,
+    options: &ReadOptions,
+) -> Result<Program, ProgramErrors> {
+    parse_hpgl_detailed(text, source, options).map(|output| output.program)
+}
+
+/// Like [`parse_hpgl`], also returning the pen-up travel before and after optimisation.
+pub fn parse_hpgl_detailed(
+    text: impl AsRef<[u8]>,
+    source: impl AsRef<Path>,
+    options: &ReadOptions,
+) -> Result<HpglOutput, ProgramErrors> {
+    let text = text.as_ref();
+    let source = source.as_ref();
+    let mut reader = Reader {
+        scan: Scanner::new(text),
+        lines: LineIndex::new(text),
+        source,
+        options: &options.hpgl,
+        errors: ErrorSink::new(options.max_errors),
+        warnings: Vec::new(),
+        warned: BTreeSet::new(),
+        plotter: Plotter::new(&options.hpgl),
+        drawing: Vec::new(),
+        stroke: None,
+        mode: Mode::Hpgl,
+        polygon_mode: false,
+        polygon: Polygon::default(),
+        label_buffer: Vec::new(),
+        carriage: [0.0, 0.0],
+        page_advance: None,
+        fill_budget: options.hpgl.max_fill_lines,
+    };
+    reader.run();
+    let Reader {
+        errors,
+        warnings,
+        drawing,
+        options: hpgl,
+        ..
+    } = reader;
+    if !errors.is_empty() {
+        return errors.finish(HpglOutput {
+            program: Program::default(),
+            pen_up: PenUpTravel::default(),
+        });
+    }
+    let start = [0.0, 0.0];
+    let (travel_before, lifts_before) = pen_up_travel(&drawing, start);
+    let drawing = if hpgl.optimise_pen_up {
+        optimise::optimise(drawing, start)
+    } else {
+        drawing
+    };
+    let (travel_after, lifts_after) = pen_up_travel(&drawing, start);
+    let mut program = generate_moves(&drawing, hpgl, options);
+    program.source = source.to_path_buf();
+    program.warnings = warnings;
+    Ok(HpglOutput {
+        program,
+        pen_up: PenUpTravel {
+            before: travel_before,
+            after: travel_after,
+            lifts_before,
+            lifts_after,
+        },
+    })
+}
+
+/// Which language the bytes are in: HPGL, or the PCL / PJL job around an HP-GL/2 plot.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+enum Mode {
+    Hpgl,
+    Pcl,
+    Pjl,
+}
+
+/// A command that cannot be carried out: what was expected, and a hint.
+#[derive(Debug, Clone, PartialEq)]
+struct Problem {
+    problem: String,
+    hint: Option<String>,
+}
+
+impl Problem {
+    fn new(problem: impl Into<String>) -> Self {
+        Problem {
+            problem: problem.into(),
+            hint: None,
+        }
+    }
+
+    fn hint(mut self, hint: impl Into<String>) -> Self {
+        self.hint = Some(hint.into());
+        self
+    }
+}
+
+struct Reader<'a> {
+    scan: Scanner<'a>,
+    lines: LineIndex<'a>,
+    source: &'a Path,
+    options: &'a HpglOptions,
+    errors: ErrorSink,
+    warnings: Vec<Warning>,
+    /// Kinds of skipped command already warned about (one warning each).
+    warned: BTreeSet<String>,
+    plotter: Plotter,
+    drawing: Vec<Element>,
+    /// The stroke being drawn while the pen is down.
+    stroke: Option<Stroke>,
+    mode: Mode,
+    /// Between PM0 and PM2: moves are recorded into `polygon`, not drawn.
+    polygon_mode: bool,
+    polygon: Polygon,
+    /// The label buffered by BL for PB.
+    label_buffer: Vec<u8>,
+    /// Where a carriage return in a label goes (the last pen move's end).
+    carriage: [f64; 2],
+    /// Where the page was advanced (PG, FR): drawing after it would land on another page.
+    page_advance: Option<(Span, String)>,
+    /// Hatch lines still allowed in this file.
+    fill_budget: usize,
+}
+
+impl<'a> Reader<'a> {
+    fn run(&mut self) {
+        while let Some(byte) = self.scan.peek() {
+            match byte {
+                ESC => self.escape(),
+                b' ' | b'\t' | b'\r' | b'\n' | 0 | 0x0c => self.scan.at += 1,
+                _ => match self.mode {
+                    Mode::Hpgl => match byte {
+                        b';' => self.scan.at += 1,
+                        _ if byte.is_ascii_alphabetic() => self.command(),
+                        _ => {
+                            let start = self.scan.at;
+                            let end = self.scan.char_end(start);
+                            self.error(
+                                start,
+                                end,
+                                "expected an HPGL command (two letters) or ';'",
+                                None,
+                            );
+                            self.scan.at = end;
+                            self.scan.skip_to_terminator();
+                        }
+                    },
+                    Mode::Pjl => self.pjl_line(),
+                    Mode::Pcl => {
+                        let start = self.scan.at;
+                        self.error(
+                            start,
+                            self.scan.char_end(start),
+                            "expected PCL commands or an HP-GL/2 plot (ESC%1B) in the PCL part of the file; PCL text is printed, not plotted",
+                            Some("cncsim draws the HP-GL/2 vectors of a plot file; re-plot without text pages"),
+                        );
+                        // One error per run of text.
+                        while !matches!(self.scan.peek(), None | Some(ESC)) {
+                            self.scan.at += 1;
+                        }
+                    }
+                },
+            }
+        }
+        // End of file: a stroke still being drawn stays down.
+        let at = self.scan.text.len();
+        if let Some(mut stroke) = self.stroke.take() {
+            stroke.open_at_end = true;
+            stroke.up_span = self.lines.span(at);
+            self.drawing.push(Element::Stroke(stroke));
+        }
+    }
+
+    fn span(&self, at: usize) -> Span {
+        self.lines.span(at)
+    }
+
+    fn error(&mut self, start: usize, end: usize, problem: impl Into<String>, hint: Option<&str>) {
+        let text = self.scan.text;
+        let end = end.min(text.len());
+        let found = if start >= end {
+            Found::EndOfFile
+        } else {
+            Found::Text(display_text(&text[start..end]))
+        };
+        let mut error =
+            ProgramError::new(self.source, Some(self.span(start)), problem).found(found);
+        error.hint = hint.map(str::to_string);
+        self.errors.push(error);
+    }
+
+    fn scan_error(&mut self, error: ScanError) {
+        self.error(error.start, error.end, error.problem, None);
+    }
+
+    fn warn(&mut self, span: Span, message: String) {
+        self.warnings.push(Warning { span, message });
+    }
+
+    /// Something that does not move the pen is passed over: `what` it is, and what is
+    /// `done` with it instead (e.g. "was skipped"). One warning per `kind`, or, with
+    /// `strict`, an error for each.
+    fn skip(&mut self, kind: &str, start: usize, end: usize, what: &str, done: &str) {
+        if self.options.strict {
+            self.error(
+                start,
+                end,
+                format!("expected a command that draws; {what} (refused with --strict)"),
+                None,
+            );
+        } else if self.warned.insert(kind.to_string()) {
+            let span = self.span(start);
+            self.warn(
+                span,
+                format!("{what} and {done}; further ones without a warning"),
+            );
+        }
+    }
+
+    /// The PCL/PJL job around an HP-GL/2 plot.
+    fn skip_job_control(&mut self, start: usize, end: usize) {
+        self.skip(
+            "pcl",
+            start,
+            end,
+            "PCL/PJL job control around the HP-GL/2 plot is not a pen move",
+            "was skipped",
+        );
+    }
+
+    fn escape(&mut self) {
+        let start = self.scan.at;
+        match self.scan.escape() {
+            Err(error) => self.scan_error(error),
+            Ok(Escape::DeviceControl) => {}
+            Ok(Escape::EnterHpgl) => {
+                self.skip_job_control(start, self.scan.at);
+                self.mode = Mode::Hpgl;
+            }
+            Ok(escape) => {
+                self.mode = match escape {
+                    Escape::UniversalExit => Mode::Pjl,
+                    Escape::EnterPcl | Escape::PclReset => Mode::Pcl,
+                    _ => self.mode,
+                };
+                if escape == Escape::PclRaster {
+                    self.error(
+                        start,
+                        self.scan.at.min(start + 8),
+                        "expected PCL control or HP-GL/2 vectors; PCL raster graphics are an image, not pen moves",
+                        Some("re-plot the drawing as vectors (HP-GL/2) without raster images"),
+                    );
+                } else {
+                    self.skip_job_control(start, self.scan.at);
+                }
+            }
+        }
+    }
+
+    /// A PJL line after the universal exit: skipped; `ENTER LANGUAGE` switches language.
+    fn pjl_line(&mut self) {
+        let (start, end) = self.scan.line();
+        let line = String::from_utf8_lossy(&self.scan.text[start..end]).to_ascii_uppercase();
+        if !line.starts_with("@PJL") {
+            // Not PJL: the printer's default language, PCL.
+            self.scan.at = start;
+            self.mode = Mode::Pcl;
+            return;
+        }
+        self.skip_job_control(start, end);
+        if let Some(language) = line.split("LANGUAGE").nth(1) {
+            let language = language.trim_start_matches([' ', '=']).trim();
+            if language.starts_with("HPGL") {
+                self.mode = Mode::Hpgl;
+            } else if language.starts_with("PCL") {
+                self.mode = Mode::Pcl;
+            }
+        }
+    }
+}

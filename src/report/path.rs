@@ -1,0 +1,61 @@
+//! Figures of the tool against the programmed path, tick by tick: the contour error (distance
+//! of the actual tool point from the programmed path, not from the current setpoint) and the
+//! commanded and actual path speed.
+
+use crate::program::PathGeometry;
+use nalgebra::{Point3, Vector3};
+
+/// What the report needs to judge a tool point against the program.
+#[derive(Debug, Clone, PartialEq)]
+pub struct PathTracker {
+    pub geometry: PathGeometry,
+    /// Tool point (machine frame) at program zero.
+    pub program_origin: Point3<f64>,
+    /// Machine-axis index of program X, Y, Z where the machine has them.
+    pub linear_axes: [Option<usize>; 3],
+}
+
+/// The derived figures of one tick (SI).
+#[derive(Debug, Clone, Copy, PartialEq, Default)]
+pub struct PathSample {
+    pub contour_error: f64,
+    pub commanded_speed: f64,
+    pub actual_speed: f64,
+    /// The tool point in the program frame, and the programmed path's point nearest to it.
+    pub tool: [f64; 3],
+    pub nearest: Option<[f64; 3]>,
+}
+
+impl PathTracker {
+    /// The figures of a tick: the tool point and velocity (machine frame) of program move
+    /// `segment`, and the setpoint velocity per machine axis.
+    pub fn sample(
+        &self,
+        tool_point: [f64; 3],
+        tool_velocity: [f64; 3],
+        segment: u32,
+        setpoint_velocity: &[f64],
+    ) -> PathSample {
+        let tool = Point3::from(tool_point) - self.program_origin.coords;
+        let near = self
+            .geometry
+            .segment_of_move
+            .get(segment as usize)
+            .copied()
+            .unwrap_or(0);
+        let nearest = self.geometry.closest_near(&tool, near, 2);
+        let mut v = Vector3::zeros();
+        for (c, axis) in self.linear_axes.iter().enumerate() {
+            if let Some(i) = axis {
+                v[c] = setpoint_velocity[*i];
+            }
+        }
+        PathSample {
+            contour_error: nearest.map_or(f64::NAN, |q| (tool - q).norm()),
+            commanded_speed: v.norm(),
+            actual_speed: Vector3::from(tool_velocity).norm(),
+            tool: tool.into(),
+            nearest: nearest.map(Into::into),
+        }
+    }
+}

@@ -1,0 +1,83 @@
+//! Keeping a bounded, evenly spread subset of an unbounded sequence: every `stride`-th item,
+//! the stride doubling (and every other kept item dropped) whenever the buffer fills. A run of
+//! any length leaves at most `capacity` items, still covering it from start to end.
+
+#[derive(Debug, Clone, PartialEq)]
+pub struct Thinned<T> {
+    items: Vec<T>,
+    capacity: usize,
+    stride: usize,
+    seen: usize,
+}
+
+impl<T> Thinned<T> {
+    /// Keeps at most `capacity` (≥ 2) items.
+    pub fn new(capacity: usize) -> Thinned<T> {
+        Thinned {
+            items: Vec::new(),
+            capacity: capacity.max(2),
+            stride: 1,
+            seen: 0,
+        }
+    }
+
+    pub fn push(&mut self, item: T) {
+        if self.seen.is_multiple_of(self.stride) {
+            if self.items.len() == self.capacity {
+                let mut k = 0;
+                self.items.retain(|_| {
+                    k += 1;
+                    k % 2 == 1
+                });
+                self.stride *= 2;
+                if !self.seen.is_multiple_of(self.stride) {
+                    self.seen += 1;
+                    return;
+                }
+            }
+            self.items.push(item);
+        }
+        self.seen += 1;
+    }
+
+    pub fn items(&self) -> &[T] {
+        &self.items
+    }
+
+    pub fn into_items(self) -> Vec<T> {
+        self.items
+    }
+
+    /// Items seen per item kept.
+    pub fn stride(&self) -> usize {
+        self.stride
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn stays_bounded_and_evenly_spread() {
+        let mut t = Thinned::new(100);
+        for k in 0..1_000_000u32 {
+            t.push(k);
+        }
+        assert!(t.items().len() <= 100);
+        assert!(t.items().len() >= 50);
+        let step = t.stride() as u32;
+        for (i, &k) in t.items().iter().enumerate() {
+            assert_eq!(k, i as u32 * step);
+        }
+    }
+
+    #[test]
+    fn short_sequences_are_kept_whole() {
+        let mut t = Thinned::new(10);
+        for k in 0..7 {
+            t.push(k);
+        }
+        assert_eq!(t.items(), &[0, 1, 2, 3, 4, 5, 6]);
+    }
+}

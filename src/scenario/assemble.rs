@@ -1,0 +1,690 @@
+//! The assembly step: a scenario and its machine in, the wired servo loop and its setpoints
+//! out. `run`, `check`, `tune`, `ab`, `sweep` and `calibrate` all build their runs here, so a
+//! loop feature or a controller exists for every one of them at once (as Drake's
+//! DiagramBuilder wires systems, and ripgrep turns arguments into the workers it runs).
+
+use super::file::{ControllerType, InverseDynamicsSettings};
+use super::{ControlSpace, ProgramSource, Scenario};
+use crate::control::{
+    Actuator, ActuatorKind, Cascade, Compensated, ComputedTorque, Controller, Pid, PidBank,
+    TaskSpace,
+};
+use crate::diagnostics::{FileError, LineColumn};
+use crate::dynamics::DynamicsModel;
+use crate::kinematics::{AcAxes, AcTableKinematics, AxisMap};
+use crate::machine::Machine;
+use crate::model::{ModelError, PlantOptions};
+use crate::plan::{
+    plan_program, AxisKind, AxisLimits, PlanError, PlanSettings, Planner, Setpoints,
+};
+use crate::plan::{SetpointCursor, SetpointStream};
+use crate::program::{circle, polyline, read_program, Program, ProgramErrors};
+use crate::report::AxisLabel;
+use crate::sim::{
+    self, AnalyticPlant, Encoder, FollowingErrorTrip, Lane, LoopSettings, Observer, Outcome,
+    PhysicsPlant, MAX_PHYSICS_STEPS, MAX_SERVO_TICKS,
+};
+use std::path::PathBuf;
+
+/// Gravity in the machine base frame: URDF convention, z up.
+pub const GRAVITY: [f64; 3] = [0.0, 0.0, -9.81];
+
+#[derive(Debug, thiserror::Error)]
+pub enum RunError {
+    #[error("{0}")]
+    File(#[from] FileError),
+    #[error("{path}: {source}")]
+    Model { path: PathBuf, source: ModelError },
+    #[error("{path}: {source}")]
+    Plan { path: PathBuf, source: PlanError },
+    #[error(transparent)]
+    Report(#[from] crate::report::ReportError),
+    #[error("{0}")]
+    Program(ProgramErrors),
+}
+
+/// Which plant a lane simulates.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum PlantKind {
+    /// The Rapier machine.
+    Physics,
+    /// The analytic per-axis ODE models of the same machine.
+    Analytic,
+}
+
+/// A scenario wired for running: the machine with the scenario's choices applied, the program,
+/// its setpoints and the loop's settings. Plants and controllers are built fresh for each run.
+pub struct Assembly {
+    pub scenario: Scenario,
+    pub machine: Machine,
+    pub labels: Vec<AxisLabel>,
+    pub axis_map: AxisMap,
+    pub program: Program,
+    pub setpoints: Setpoints,
+    pub actuator: ActuatorKind,
+    pub loop_settings: LoopSettings,
+}
+
+impl Assembly {
+    /// Loads the scenario's machine and wires the scenario.
+    pub fn new(s: &Scenario) -> Result<Assembly, RunError> {
+        Self::with_machine(s, machine_for(s)?)
+    }
+
+    /// Wires the scenario on a machine given in memory (e.g. one a calibration varies), taken
+    /// as it is: [`machine_for`] is the scenario's machine with its `[mechanics]`,
+    /// `[feedback]` and `[actuator]` choices applied.
+    pub fn with_machine(s: &Scenario, machine: Machine) -> Result<Assembly, RunError> {
+        let (program, setpoints) = plan_for(s, &machine)?;
+        Self::from_plan(s, machine, program, setpoints)
+    }
+
+    /// Wires the scenario on `machine` with a plan made before (e.g. shared by the variants
+    /// of a sweep that all run the same setpoints).
+    pub fn from_plan(
+        s: &Scenario,
+        machine: Machine,
+        program: Program,
+        setpoints: Setpoints,
+    ) -> Result<Assembly, RunError> {
+        let Some(actuator) = s.actuator else {
+            let message = "running a scenario needs [actuator] and [controller] sections (planning with `cncsim plan` does not)";
+            return Err(FileError::new(&s.path, None, message).into());
+        };
+        if s.controller.is_none() {
+            let message = "running a scenario needs a [controller] section";
+            return Err(FileError::new(&s.path, None, message).into());
+        }
+        let labels = labels(&machine);
+        super::run::validate_against_machine(s, &machine, &labels)?;
+        let axis_map = AxisMap::cartesian(&machine)
+            .map_err(|e| FileError::new(&s.machine, None, e.to_string()))?;
+        let approach = approach_for(s, &machine, &axis_map, &program)?;
+        check_run_length(s, approach.len() + setpoints.len())?;
+        let encoder = Encoder {
+            resolution: machine
+                .axes
+                .iter()
+                .map(|a| {
+                    let mut drive = a.drive.clone();
+                    if let Some((counts, _)) = s.encoder_counts_per_rev.get(&a.name) {
+                        drive.encoder_counts_per_rev = Some(*counts);
+                    }
+                    drive.encoder_resolution()
+                })
+                .collect(),
+        };
+        let trip = FollowingErrorTrip {
+            limit: labels
+                .iter()
+                .map(|l| {
+                    if l.rotary {
+                        s.following_error_limit_rotary
+                    } else {
+                        s.following_error_limit_linear
+                    }
+                })
+                .collect(),
+            axis_names: labels.iter().map(|l| l.name.clone()).collect(),
+        };
+        Ok(Assembly {
+            scenario: s.clone(),
+            machine,
+            labels,
+            axis_map,
+            program,
+            setpoints,
+            actuator,
+            loop_settings: LoopSettings {
+                servo_period: s.servo_period,
+                approach,
+                settle_time: s.settle_time,
+                encoder,
+                trip,
+            },
+        })
+    }
+
+    /// The setpoint stream of the program, from its first sample.
+    pub fn setpoints(&self) -> SetpointCursor<'_> {
+        self.setpoints.stream()
+    }
+
+    /// Where every axis starts: at rest at the start of the approach, or else at the first
+    /// setpoint.
+    pub fn start(&self) -> Vec<f64> {
+        let approach = &self.loop_settings.approach;
+        if !approach.is_empty() {
+            approach.position(0).to_vec()
+        } else if !self.setpoints.is_empty() {
+            self.setpoints.position(0).to_vec()
+        } else {
+            vec![0.0; self.machine.axes.len()]
+        }
+    }
+
+    /// The Rapier machine at rest at `initial` (joint units per axis), with its actuators.
+    pub fn physics_plant(&self, initial: &[f64]) -> Result<PhysicsPlant, RunError> {
+        let s = &self.scenario;
+        let options = PlantOptions {
+            step: s.servo_period / s.substeps as f64,
+            gravity: GRAVITY,
+            initial_positions: initial.to_vec(),
+            include_drive_dynamics: true,
+            solver_iterations: s.solver_iterations,
+        };
+        let plant = crate::model::Plant::new(&self.machine, &options).map_err(|source| {
+            RunError::Model {
+                path: s.path.clone(),
+                source,
+            }
+        })?;
+        let axes = &self.machine.axes;
+        Ok(PhysicsPlant::new(
+            plant,
+            axes.iter()
+                .map(|a| Actuator::new(self.actuator, &a.drive))
+                .collect(),
+            axes.iter().map(|a| a.drive.ratio()).collect(),
+            s.substeps,
+        ))
+    }
+
+    /// The analytic reference model at rest at `initial`, integrated with the scenario's RK4
+    /// steps per period (16 without an `[analytic]` table).
+    pub fn analytic_plant(&self, initial: &[f64]) -> Result<AnalyticPlant, RunError> {
+        let s = &self.scenario;
+        AnalyticPlant::new(
+            &self.machine,
+            GRAVITY,
+            self.actuator == ActuatorKind::IdealTorque,
+            s.servo_period,
+            s.analytic_steps.unwrap_or(16),
+            initial,
+        )
+        .map_err(|e| FileError::new(&s.path, None, format!("the analytic model: {e}")).into())
+    }
+
+    /// A plant of either kind at rest at `initial`.
+    pub fn plant(&self, kind: PlantKind, initial: &[f64]) -> Result<Box<dyn sim::Plant>, RunError> {
+        Ok(match kind {
+            PlantKind::Physics => Box::new(self.physics_plant(initial)?),
+            PlantKind::Analytic => Box::new(self.analytic_plant(initial)?),
+        })
+    }
+
+    /// A fresh instance of the scenario's controller (with its compensation), in the machine's
+    /// axis order.
+    pub fn controller(&self) -> Result<Box<dyn Controller>, RunError> {
+        controller_for(&self.scenario, &self.machine, self.actuator)
+    }
+
+    /// The lanes of a run: the physics and, with `[analytic]`, the reference model beside it,
+    /// each at rest at the first setpoint with its own controller.
+    pub fn lanes(&self) -> Result<Vec<Lane<'static>>, RunError> {
+        let start = self.start();
+        let mut lanes = vec![Lane {
+            name: "physics",
+            plant: self.plant(PlantKind::Physics, &start)?,
+            controller: self.controller()?,
+        }];
+        if self.scenario.analytic_steps.is_some() {
+            lanes.push(Lane {
+                name: "analytic",
+                plant: self.plant(PlantKind::Analytic, &start)?,
+                controller: self.controller()?,
+            });
+        }
+        Ok(lanes)
+    }
+
+    /// Runs the scenario's lanes on its setpoints.
+    pub fn run(
+        &self,
+        observer: &mut dyn Observer,
+        progress: &mut dyn FnMut(usize, usize) -> bool,
+    ) -> Result<Outcome, RunError> {
+        let mut lanes = self.lanes()?;
+        let mut setpoints = self.setpoints();
+        Ok(sim::run(
+            &self.loop_settings,
+            &mut lanes,
+            &mut setpoints,
+            observer,
+            progress,
+        ))
+    }
+
+    /// Whether `other` runs the same setpoints (sample for sample): the condition of an A/B
+    /// comparison.
+    pub fn same_setpoints(&self, other: &Assembly) -> bool {
+        let (mut a, mut b) = (self.setpoints(), other.setpoints());
+        if a.len() != b.len() || a.axes() != b.axes() || a.period() != b.period() {
+            return false;
+        }
+        let (mut x, mut y) = (
+            crate::plan::SetpointSample::zeros(a.axes()),
+            crate::plan::SetpointSample::zeros(b.axes()),
+        );
+        while a.next_sample(&mut x) && b.next_sample(&mut y) {
+            if x != y {
+                return false;
+            }
+        }
+        true
+    }
+}
+
+fn labels(machine: &Machine) -> Vec<AxisLabel> {
+    machine
+        .axes
+        .iter()
+        .map(|a| AxisLabel {
+            name: a.name.clone(),
+            rotary: a.is_rotary(machine),
+        })
+        .collect()
+}
+
+/// The setpoints of the scenario's approach (none without one): a straight move from its start
+/// to the program's first point at its speed, planned by the scenario's own planner.
+fn approach_for(
+    s: &Scenario,
+    machine: &Machine,
+    axis_map: &AxisMap,
+    program: &Program,
+) -> Result<Setpoints, RunError> {
+    let Some(a) = s.approach else {
+        return Ok(Setpoints::default());
+    };
+    let start = crate::program::Position {
+        linear: a.from,
+        rotary: program.start.rotary,
+    };
+    let first = program.moves.first().map(|m| m.span).unwrap_or_default();
+    let way = Program {
+        source: program.source.clone(),
+        start,
+        moves: vec![crate::program::Move {
+            motion: crate::program::Motion::Linear,
+            end: program.start,
+            tool_axis: None,
+            feed: crate::program::Feed::PathSpeed(a.speed),
+            feed_rule: crate::program::FeedRule::LinuxCnc,
+            blend: crate::program::Blend::ExactStop,
+            tool_down: None,
+            spindle: crate::program::Spindle::Off,
+            span: first,
+        }],
+        warnings: Vec::new(),
+    };
+    let settings = plan_settings(s, machine, s.planner.profile)?;
+    plan_program(&way, axis_map, &settings).map_err(|source| RunError::Plan {
+        path: s.path.clone(),
+        source,
+    })
+}
+
+/// The scenario's program on `machine` and its setpoints.
+pub fn plan_for(s: &Scenario, machine: &Machine) -> Result<(Program, Setpoints), RunError> {
+    let axis_map =
+        AxisMap::cartesian(machine).map_err(|e| FileError::new(&s.machine, None, e.to_string()))?;
+    let program = load_checked_program(s, machine)?;
+    let mut settings = plan_settings(s, machine, s.planner.profile)?;
+    // Corner tolerances at the tool tip, as the program's author reads them.
+    settings.tool_lever_arms = crate::plan::tool_lever_arms(machine, &program, &axis_map);
+    let setpoints =
+        plan_program(&program, &axis_map, &settings).map_err(|source| RunError::Plan {
+            path: program.source.clone(),
+            source,
+        })?;
+    Ok((program, setpoints))
+}
+
+/// What the plan of a scenario on a machine depends on, as a key: runs with equal keys run
+/// the same setpoints (the program and its reading, the planner, the servo period, the
+/// machine's kinematic description and axes).
+pub fn plan_key(s: &Scenario, machine: &Machine) -> String {
+    let settings = plan_settings(s, machine, s.planner.profile).map(|p| format!("{p:?}"));
+    let axes: Vec<(&str, usize)> = machine
+        .axes
+        .iter()
+        .map(|a| (a.name.as_str(), a.joint))
+        .collect();
+    format!(
+        "{:?}|{settings:?}|{}|{axes:?}",
+        s.program,
+        machine.urdf_path.display()
+    )
+}
+
+/// The scenario's machine with its `[mechanics]`, `[feedback]` and `[actuator]` choices
+/// applied.
+pub fn machine_for(s: &Scenario) -> Result<Machine, RunError> {
+    Ok(with_choices(s, Machine::load(&s.machine)?))
+}
+
+/// `machine` with the scenario's `[mechanics]`, `[feedback]` and `[actuator]` choices applied.
+pub fn with_choices(s: &Scenario, mut machine: Machine) -> Machine {
+    apply_choices(s, &mut machine);
+    machine
+}
+
+fn apply_choices(s: &Scenario, machine: &mut Machine) {
+    keep_mechanics(machine, s.friction, s.backlash);
+    for axis in &mut machine.axes {
+        if let Some(feedback) = s.feedback_position {
+            axis.drive.feedback = feedback;
+        }
+        if let Some(mode) = s.amplifier_mode {
+            axis.drive.amplifier_mode = mode;
+        }
+    }
+}
+
+/// Removes the guides' friction (`friction = false`) and the transmissions' backlash
+/// (`backlash = false`) from every axis of `machine`; with both false, its linear part.
+pub fn keep_mechanics(machine: &mut Machine, friction: bool, backlash: bool) {
+    for axis in &mut machine.axes {
+        if !friction {
+            axis.drive.guide = None;
+        }
+        if !backlash {
+            axis.drive.backlash = 0.0;
+        }
+    }
+}
+
+/// Refuses a run longer than the loop's bounds, before it starts, with the number it needs.
+pub(crate) fn check_run_length(s: &Scenario, samples: usize) -> Result<(), FileError> {
+    let settle = (s.settle_time / s.servo_period).round() as u64;
+    let ticks = settle + samples as u64;
+    let steps = ticks.saturating_mul(s.substeps as u64);
+    let what = format!(
+        "settle {:?} s + program {:.6} s at a servo period of {:?} ms",
+        s.settle_time,
+        samples.saturating_sub(1) as f64 * s.servo_period,
+        s.servo_period * 1e3
+    );
+    if ticks > MAX_SERVO_TICKS {
+        return Err(FileError::new(
+            &s.path,
+            None,
+            format!("the run needs {ticks} servo ticks ({what}): the limit is {MAX_SERVO_TICKS}"),
+        ));
+    }
+    if steps > MAX_PHYSICS_STEPS {
+        return Err(FileError::new(
+            &s.path,
+            None,
+            format!(
+                "the run needs {steps} physics steps ({ticks} ticks of {} steps; {what}): the limit is {MAX_PHYSICS_STEPS}",
+                s.substeps
+            ),
+        ));
+    }
+    Ok(())
+}
+
+/// The scenario's controller for this machine, wrapped in its compensation if it has any.
+pub(crate) fn controller_for(
+    s: &Scenario,
+    machine: &Machine,
+    actuator: ActuatorKind,
+) -> Result<Box<dyn Controller>, RunError> {
+    let Some(kind) = s.controller else {
+        return Err(FileError::new(&s.path, None, "the scenario has no [controller]").into());
+    };
+    // Every axis has its settings: `validate_against_machine` checked it for the chosen type.
+    let missing = |what: &str, axis: &str| -> RunError {
+        FileError::new(
+            &s.path,
+            s.controller_at,
+            format!("[controller] has no {what} for axis '{axis}'"),
+        )
+        .into()
+    };
+    let inner: Box<dyn Controller> = match kind {
+        ControllerType::Pid => Box::new(PidBank::new(
+            machine
+                .axes
+                .iter()
+                .map(|a| {
+                    let g = s
+                        .gains
+                        .get(&a.name)
+                        .ok_or_else(|| missing("PID gains", &a.name))?;
+                    Ok(Pid::new(g.settings, s.pid_form, s.servo_period))
+                })
+                .collect::<Result<_, RunError>>()?,
+        )),
+        ControllerType::Cascade => {
+            let axes = machine
+                .axes
+                .iter()
+                .map(|a| {
+                    s.cascade
+                        .get(&a.name)
+                        .map(|c| c.settings)
+                        .ok_or_else(|| missing("cascade settings", &a.name))
+                })
+                .collect::<Result<_, RunError>>()?;
+            let drives: Vec<_> = machine.axes.iter().map(|a| a.drive.clone()).collect();
+            Box::new(Cascade::new(
+                axes,
+                s.velocity_filter_hz,
+                dynamics_model(s, machine, 1.0)?,
+                &drives,
+                actuator,
+                s.servo_period,
+            ))
+        }
+        ControllerType::InverseDynamics => {
+            let id = s
+                .inverse_dynamics
+                .as_ref()
+                .ok_or_else(|| missing("natural_frequency_hz", "any"))?;
+            inverse_dynamics(s, machine, actuator, id)?
+        }
+    };
+    if s.compensation.is_empty() {
+        return Ok(inner);
+    }
+    let per_axis = machine
+        .axes
+        .iter()
+        .map(|a| {
+            s.compensation
+                .get(&a.name)
+                .map(|c| c.compensation)
+                .unwrap_or_default()
+        })
+        .collect();
+    Ok(Box::new(Compensated::new(inner, per_axis, s.servo_period)))
+}
+
+/// The controller's model of the machine: the drives' reflected damping on the joints, the
+/// rotor inertia as armature, every link's mass scaled by `mass_scale` (robustness studies).
+fn dynamics_model(
+    s: &Scenario,
+    machine: &Machine,
+    mass_scale: f64,
+) -> Result<DynamicsModel, RunError> {
+    let mut model_machine = machine.clone();
+    for axis in &machine.axes {
+        model_machine.joints[axis.joint].damping += axis.drive.reflected_damping();
+    }
+    for link in &mut model_machine.links {
+        link.mass *= mass_scale;
+        link.inertia *= mass_scale;
+    }
+    DynamicsModel::from_machine(&model_machine, nalgebra::Vector3::from(GRAVITY))
+        .and_then(|m| m.with_drive_armature(&model_machine))
+        .map_err(|e| {
+            FileError::new(
+                &s.machine,
+                None,
+                format!("the controller's model of the machine: {e}"),
+            )
+            .into()
+        })
+}
+
+fn inverse_dynamics(
+    s: &Scenario,
+    machine: &Machine,
+    actuator: ActuatorKind,
+    id: &InverseDynamicsSettings,
+) -> Result<Box<dyn Controller>, RunError> {
+    let model = dynamics_model(s, machine, id.model_mass_scale)?;
+    let drives: Vec<_> = machine.axes.iter().map(|a| a.drive.clone()).collect();
+    let controller = ComputedTorque::new(
+        model,
+        &drives,
+        actuator,
+        s.servo_period,
+        id.omega_n,
+        id.damping_ratio,
+    );
+    Ok(match id.space {
+        ControlSpace::Joint => Box::new(controller),
+        ControlSpace::Task => {
+            let kinematics = AcTableKinematics::new(machine).map_err(|e| {
+                FileError::new(
+                    &s.path,
+                    s.controller_at,
+                    format!("controller.space = \"task\" resolves the tool tip on a table-tilting A-C machine: {e}"),
+                )
+            })?;
+            Box::new(controller.in_task_space(TaskSpace::new(kinematics, id.task_damping)))
+        }
+    })
+}
+
+/// The planner settings of a scenario for its machine, with `profile` (the scenario's own or
+/// a command-line override); limits are converted to SI per axis kind.
+pub fn plan_settings(
+    s: &Scenario,
+    machine: &Machine,
+    profile: super::ProfileName,
+) -> Result<PlanSettings, FileError> {
+    use super::ProfileName;
+    let p = &s.planner;
+    let planner = match profile {
+        ProfileName::ConstantVelocity => Planner::ConstantVelocity,
+        ProfileName::Trapezoid => Planner::Trapezoid {
+            acceleration: p.acceleration.ok_or_else(|| {
+                FileError::new(
+                    &s.path,
+                    p.at,
+                    "the trapezoid profile needs [planner] acceleration_mm_s2",
+                )
+            })?,
+        },
+        ProfileName::JerkLimited => {
+            for (axis, (_, place)) in &p.limits {
+                if machine.axis_index(axis).is_none() {
+                    return Err(FileError::new(
+                        &s.path,
+                        *place,
+                        format!(
+                            "planner.limits.{axis}: the machine '{}' has no axis '{axis}'",
+                            machine.name
+                        ),
+                    ));
+                }
+            }
+            let limits = machine
+                .axes
+                .iter()
+                .map(|a| {
+                    let ([v, acc, j], _) = p.limits.get(&a.name).ok_or_else(|| {
+                        FileError::new(&s.path, p.at, format!("the jerk-limited profile needs planner.limits.{} (velocity, acceleration, jerk in mm or deg units)", a.name))
+                    })?;
+                    let kind = if a.is_rotary(machine) { AxisKind::Rotary } else { AxisKind::Linear };
+                    Ok(AxisLimits::from_program_units(kind, *v, *acc, *j))
+                })
+                .collect::<Result<_, FileError>>()?;
+            Planner::JerkLimited { limits }
+        }
+    };
+    Ok(PlanSettings {
+        planner,
+        period: s.servo_period,
+        rapid_speed: s.rapid_speed,
+        blend: s.blend,
+        axis_names: machine.axes.iter().map(|a| a.name.clone()).collect(),
+        naive_cam_tolerance: None,
+        tool_lever_arms: Vec::new(),
+    })
+}
+
+/// Reads the scenario's program (built-in path or file) and checks it against the machine.
+pub fn load_checked_program(s: &Scenario, machine: &Machine) -> Result<Program, RunError> {
+    let mut program = match &s.program {
+        ProgramSource::Circle(c) => circle(c, &s.path),
+        ProgramSource::Polyline(p) => polyline(p, &s.path),
+        ProgramSource::File { path, options } => {
+            read_program(path, options).map_err(RunError::Program)?
+        }
+    };
+    if program.moves.is_empty() {
+        return Err(FileError::new(
+            &program.source,
+            None,
+            "the program has no moves: there is nothing to plan or run",
+        )
+        .into());
+    }
+    if program.moves.iter().any(|m| m.tool_axis.is_some()) {
+        // Cutter-location data (tool tip and axis on the workpiece): machine axes come from the
+        // 5-axis inverse kinematics, starting from machine zero.
+        let kinematics = AcTableKinematics::new(machine).map_err(|e| {
+            FileError::new(&program.source, None, format!("the program gives tool-axis vectors (CL data), which need a table-tilting A-C machine: {e}"))
+        })?;
+        program = kinematics
+            .program_to_machine(&program, &AcAxes::default())
+            .map_err(RunError::Program)?;
+    }
+    check_program_axes(&program, machine)?;
+    Ok(program)
+}
+
+/// A program may only move axes the machine has.
+fn check_program_axes(program: &Program, machine: &Machine) -> Result<(), FileError> {
+    const NAMES: [(&str, bool, usize); 6] = [
+        ("x", true, 0),
+        ("y", true, 1),
+        ("z", true, 2),
+        ("a", false, 0),
+        ("b", false, 1),
+        ("c", false, 2),
+    ];
+    let mut at = program.start;
+    for m in &program.moves {
+        for (name, linear, i) in NAMES {
+            let (from, to) = if linear {
+                (at.linear[i], m.end.linear[i])
+            } else {
+                (at.rotary[i], m.end.rotary[i])
+            };
+            if from != to && machine.axis_index(name).is_none() {
+                let place = Some(LineColumn {
+                    line: m.span.line as usize,
+                    column: m.span.column as usize,
+                });
+                return Err(FileError::new(
+                    &program.source,
+                    place,
+                    format!(
+                        "this move drives axis {}, which the machine '{}' does not have",
+                        name.to_uppercase(),
+                        machine.name
+                    ),
+                ));
+            }
+        }
+        at = m.end;
+    }
+    Ok(())
+}

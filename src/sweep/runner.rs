@@ -1,0 +1,216 @@
+//! Runs many scenario runs on all cores. Each job is independent and deterministic (Rapier runs
+//! single-threaded; nothing depends on scheduling), so the results are the same whatever the
+//! number of threads, and they come back in the jobs' order, not in the order they finish.
+//! Jobs that run the same setpoints share one plan: it is made once, by the first job that
+//! needs it, and the others wait for it.
+
+use super::file::{Change, RunSpec, Sweep};
+use super::machine_with;
+use crate::plan::Setpoints;
+use crate::program::Program;
+use crate::scenario::{plan_for, plan_key, run_assembly, with_choices, Assembly, Scenario};
+use rayon::prelude::*;
+use std::collections::HashMap;
+use std::path::PathBuf;
+use std::sync::atomic::{AtomicBool, AtomicUsize, Ordering};
+use std::sync::{Arc, Mutex, OnceLock};
+use std::time::Instant;
+
+/// One run: a scenario file with its changes, its outputs in `out_dir`.
+#[derive(Debug, Clone)]
+pub struct Job {
+    pub index: usize,
+    pub scenario: PathBuf,
+    pub changes: Vec<Change>,
+    pub out_dir: PathBuf,
+    /// Write the run's Rerun recording and CSV as its `[recording]` asks; off: metrics only.
+    pub recordings: bool,
+    /// Write the run's CSV trace even without recordings (a calibration reads it back).
+    pub csv: bool,
+}
+
+/// How a job ended.
+#[derive(Debug, Clone, PartialEq)]
+pub struct JobResult {
+    pub index: usize,
+    /// The run's `metrics.json` (`None` when the run could not start).
+    pub metrics: Option<serde_json::Value>,
+    /// Why it could not start (bad override, bad file: the message names the place).
+    pub error: Option<String>,
+    /// Why it stopped early (divergence, following-error fault, interruption).
+    pub stopped: Option<String>,
+    pub wall_time_s: f64,
+}
+
+/// What the runner has done so far, for a progress display.
+#[derive(Debug, Default)]
+pub struct Progress {
+    pub total: usize,
+    pub done: AtomicUsize,
+    pub running: AtomicUsize,
+    pub failed: AtomicUsize,
+}
+
+type PlanSlot = Arc<OnceLock<Result<(Program, Setpoints), String>>>;
+
+/// Plans shared between jobs, by [`plan_key`].
+#[derive(Default)]
+struct PlanCache {
+    slots: Mutex<HashMap<String, PlanSlot>>,
+    made: AtomicUsize,
+}
+
+impl PlanCache {
+    fn get(
+        &self,
+        s: &Scenario,
+        machine: &crate::machine::Machine,
+    ) -> Result<(Program, Setpoints), String> {
+        let slot = {
+            let mut slots = self
+                .slots
+                .lock()
+                .expect("no job panics while holding the lock");
+            slots.entry(plan_key(s, machine)).or_default().clone()
+        };
+        slot.get_or_init(|| {
+            self.made.fetch_add(1, Ordering::Relaxed);
+            plan_for(s, machine).map_err(|e| e.to_string())
+        })
+        .clone()
+    }
+}
+
+fn run_job(job: &Job, cache: &PlanCache, interrupted: &AtomicBool) -> JobResult {
+    let started = Instant::now();
+    let failed = |error: String| JobResult {
+        index: job.index,
+        metrics: None,
+        error: Some(error),
+        stopped: None,
+        wall_time_s: started.elapsed().as_secs_f64(),
+    };
+    let overrides: Vec<_> = job
+        .changes
+        .iter()
+        .filter_map(|c| match c {
+            Change::Scenario(o) => Some(o.clone()),
+            Change::Machine(_) => None,
+        })
+        .collect();
+    let mut s = match Scenario::load_with_overrides(&job.scenario, &overrides, "override") {
+        Ok(s) => s,
+        Err(e) => return failed(e.to_string()),
+    };
+    if !job.recordings {
+        s.record_rrd = false;
+        s.record_csv = job.csv;
+    }
+    let machine_changes: Vec<_> = job
+        .changes
+        .iter()
+        .filter_map(|c| match c {
+            Change::Machine(m) => Some(m),
+            Change::Scenario(_) => None,
+        })
+        .collect();
+    let machine = match machine_with(&s.machine, &machine_changes) {
+        Ok(m) => with_choices(&s, m),
+        Err(e) => return failed(e.to_string()),
+    };
+    let (program, setpoints) = match cache.get(&s, &machine) {
+        Ok(plan) => plan,
+        Err(e) => return failed(e),
+    };
+    let assembly = match Assembly::from_plan(&s, machine, program, setpoints) {
+        Ok(a) => a,
+        Err(e) => return failed(e.to_string()),
+    };
+    let mut keep_going = |_: usize, _: usize| !interrupted.load(Ordering::Relaxed);
+    match run_assembly(&assembly, &job.out_dir, &mut keep_going, false) {
+        Ok(run) => JobResult {
+            index: job.index,
+            metrics: Some(run.metrics_json),
+            error: None,
+            stopped: run.stop.map(|s| s.to_string()),
+            wall_time_s: started.elapsed().as_secs_f64(),
+        },
+        Err(e) => failed(e.to_string()),
+    }
+}
+
+/// Runs `jobs` on `threads` threads (1: in this thread); `on_change` hears after every job.
+/// Jobs not started when `interrupted` is set are left out of the result; a running one stops
+/// as interrupted and is kept. Also returns how many distinct plans were made.
+pub fn execute(
+    jobs: &[Job],
+    threads: usize,
+    interrupted: &AtomicBool,
+    progress: &Progress,
+    on_change: &(dyn Fn(&Progress) + Sync),
+) -> (Vec<JobResult>, usize) {
+    let cache = PlanCache::default();
+    let one = |job: &Job| -> Option<JobResult> {
+        if interrupted.load(Ordering::Relaxed) {
+            return None;
+        }
+        progress.running.fetch_add(1, Ordering::Relaxed);
+        on_change(progress);
+        let result = run_job(job, &cache, interrupted);
+        progress.running.fetch_sub(1, Ordering::Relaxed);
+        progress.done.fetch_add(1, Ordering::Relaxed);
+        if result.error.is_some() || result.stopped.is_some() {
+            progress.failed.fetch_add(1, Ordering::Relaxed);
+        }
+        on_change(progress);
+        Some(result)
+    };
+    let results: Vec<Option<JobResult>> = if threads <= 1 {
+        jobs.iter().map(one).collect()
+    } else {
+        match rayon::ThreadPoolBuilder::new().num_threads(threads).build() {
+            Ok(pool) => pool.install(|| jobs.par_iter().map(one).collect()),
+            Err(_) => jobs.iter().map(one).collect(),
+        }
+    };
+    (
+        results.into_iter().flatten().collect(),
+        cache.made.load(Ordering::Relaxed),
+    )
+}
+
+/// The jobs of a sweep's runs (those of shard `shard` = (K, N): every N-th from the K-th),
+/// each writing into `out/runs/<index>_<scenario>_<variant>[_p<point>]/`.
+pub fn run_sweep(
+    sweep: &Sweep,
+    out: &std::path::Path,
+    shard: Option<(usize, usize)>,
+) -> (Vec<RunSpec>, Vec<Job>) {
+    let runs: Vec<RunSpec> = sweep
+        .runs()
+        .into_iter()
+        .filter(|r| shard.is_none_or(|(k, n)| r.index % n == k - 1))
+        .collect();
+    let jobs = runs
+        .iter()
+        .map(|r| {
+            let scenario = &sweep.scenarios[r.scenario];
+            let stem = scenario
+                .file_stem()
+                .map_or("scenario".into(), |s| s.to_string_lossy().into_owned());
+            let mut folder = format!("{:05}_{stem}_{}", r.index, sweep.variants[r.variant].0);
+            if !r.values.is_empty() {
+                folder += &format!("_p{}", r.point);
+            }
+            Job {
+                index: r.index,
+                scenario: scenario.clone(),
+                changes: sweep.changes(r),
+                out_dir: out.join("runs").join(crate::scenario::folder_name(&folder)),
+                recordings: sweep.recordings,
+                csv: false,
+            }
+        })
+        .collect();
+    (runs, jobs)
+}

@@ -1,0 +1,254 @@
+//! Sweeps: parallel and deterministic (the same rows with one thread or two, and from shards
+//! merged), a failing run is a row with its error, Ctrl-C keeps the finished rows, plans are
+//! made once per distinct setpoint stream, and the Ray driver's merged result equals the
+//! single-machine sweep (when Ray is installed; required under CNCSIM_REQUIRE_ORACLES=1).
+
+use serde_json::Value;
+use std::path::{Path, PathBuf};
+use std::process::{Command, Output};
+
+fn root() -> PathBuf {
+    PathBuf::from(env!("CARGO_MANIFEST_DIR"))
+}
+
+/// A short scenario on the XYZ table (0.3 s of motion) and a sweep over it.
+fn setup(dir: &Path, extra_variant: &str) -> PathBuf {
+    let scenario = std::fs::read_to_string(root().join("scenarios/xyz_circle_5mms.toml"))
+        .unwrap()
+        .replace("../models/", &format!("{}/models/", root().display()))
+        .replace(
+            "circle = { center_mm = [100.0, 100.0], radius_mm = 30.0, start_angle_deg = 0.0, direction = \"ccw\", z_mm = 0.0 }",
+            "polyline = { points_mm = [[100.0, 100.0, 0.0], [101.5, 100.0, 0.0], [101.5, 100.5, 0.0]] }",
+        )
+        .split("[expect]")
+        .next()
+        .unwrap()
+        .to_string();
+    std::fs::write(dir.join("short.toml"), &scenario).unwrap();
+    std::fs::write(
+        dir.join("other.toml"),
+        scenario
+            .replace("name = \"xyz_circle_5mms\"", "name = \"other\"")
+            .replace("feed_mm_s = 5.0", "feed_mm_s = 10.0"),
+    )
+    .unwrap();
+    let sweep = format!(
+        r#"name = "t"
+scenarios = ["short.toml", "other.toml"]
+baseline = "pid"
+[variants]
+pid = []
+slow = ["controller.axes.x.kp=9900.0"]
+{extra_variant}
+[grid]
+"timing.servo_period_ms" = [0.5, 1.0]
+[report]
+metrics = ["max_contour_error_mm", "axes.x.max_following_error_mm"]
+"#
+    );
+    let path = dir.join("t_sweep.toml");
+    std::fs::write(&path, sweep).unwrap();
+    path
+}
+
+fn cncsim(args: &[&str], dir: &Path) -> Output {
+    Command::new(env!("CARGO_BIN_EXE_cncsim"))
+        .args(args)
+        .current_dir(dir)
+        .output()
+        .unwrap()
+}
+
+/// The rows of a results.json with the figures that vary from run to run (wall time) removed.
+fn rows(out: &Path) -> Vec<Value> {
+    let text = std::fs::read_to_string(out.join("results.json")).unwrap();
+    let mut json: Value = serde_json::from_str(&text).unwrap();
+    let rows = json["rows"].as_array_mut().unwrap();
+    for r in rows.iter_mut() {
+        let r = r.as_object_mut().unwrap();
+        r.remove("wall_time_s");
+        let m = r["metrics"].as_object_mut().unwrap();
+        m.remove("wall_time_s");
+        m.remove("real_time_factor");
+    }
+    rows.clone()
+}
+
+#[test]
+fn one_thread_two_threads_and_merged_shards_give_the_same_rows() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    let sweep = setup(d, "broken = [\"controller.axes.x.kp=-1\"]");
+    let sweep = sweep.to_str().unwrap();
+    let one = cncsim(&["sweep", sweep, "--jobs", "1", "--out", "one"], d);
+    let stderr = String::from_utf8_lossy(&one.stderr);
+    // The broken variant's runs fail with their reason; the sweep goes on and exits 1.
+    assert_eq!(one.status.code(), Some(1), "{stderr}");
+    assert!(
+        stderr.contains("2 scenarios × 3 variants × 2 points"),
+        "{stderr}"
+    );
+    // Plans: 2 scenarios × 2 servo periods; the variants share them.
+    assert!(stderr.contains("4 plans made for 12 runs"), "{stderr}");
+    let a = rows(&d.join("one"));
+    assert_eq!(a.len(), 12);
+    let broken: Vec<&Value> = a.iter().filter(|r| r["variant"] == "broken").collect();
+    assert_eq!(broken.len(), 4);
+    for r in &broken {
+        let e = r["error"].as_str().unwrap();
+        assert!(e.contains("gains must be from 0 to"), "{e}");
+    }
+    assert!(a
+        .iter()
+        .filter(|r| r["variant"] != "broken")
+        .all(|r| r["completed"] == true));
+
+    let two = cncsim(&["sweep", sweep, "--jobs", "2", "--out", "two"], d);
+    assert_eq!(two.status.code(), Some(1));
+    assert!(a == rows(&d.join("two")), "two threads changed the rows");
+
+    for k in ["1/3", "2/3", "3/3"] {
+        let out = format!("shard{}", &k[..1]);
+        let s = cncsim(&["sweep", sweep, "--shard", k, "--out", &out], d);
+        assert!(s.status.code() == Some(0) || s.status.code() == Some(1));
+    }
+    let merged = cncsim(
+        &["merge", "shard1", "shard2", "shard3", "--out", "merged"],
+        d,
+    );
+    assert!(
+        merged.status.success(),
+        "{}",
+        String::from_utf8_lossy(&merged.stderr)
+    );
+    let merged_rows = rows(&d.join("merged"));
+    assert!(
+        a == merged_rows,
+        "merged shards differ from the sweep: indexes {:?}",
+        merged_rows
+            .iter()
+            .map(|r| r["index"].clone())
+            .collect::<Vec<_>>()
+    );
+    // Overlapping shards are refused.
+    let twice = cncsim(&["merge", "shard1", "shard1", "--out", "bad"], d);
+    assert_eq!(twice.status.code(), Some(2));
+    assert!(String::from_utf8_lossy(&twice.stderr).contains("overlapping shards"));
+
+    // The summary marks the best and gives ratios to the baseline; the CSV has every metric.
+    let summary = std::fs::read_to_string(d.join("one/summary.md")).unwrap();
+    assert!(
+        summary.contains("(×1.000)") && summary.contains("**"),
+        "{summary}"
+    );
+    assert!(summary.contains("## Wins"));
+    let csv = std::fs::read_to_string(d.join("one/results.csv")).unwrap();
+    let header = csv.lines().next().unwrap();
+    assert!(
+        header.starts_with("index,scenario,variant,point,timing.servo_period_ms,completed"),
+        "{header}"
+    );
+    assert!(header.contains("axes.y.rms_torque_nm"));
+    assert_eq!(csv.lines().count(), 13);
+    assert!(d.join("one/plot_max_contour_error_mm.png").is_file());
+    assert!(d
+        .join("one/plot_max_contour_error_mm_vs_timing.servo_period_ms.png")
+        .is_file());
+}
+
+#[test]
+fn ctrl_c_keeps_the_finished_rows() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    let sweep = setup(d, "");
+    // Many runs, one at a time: interrupt after the first few.
+    let text = std::fs::read_to_string(&sweep).unwrap().replace(
+        "[0.5, 1.0]",
+        "[0.5, 1.0, 2.0, 0.5, 1.0, 2.0, 0.5, 1.0, 2.0, 0.5, 1.0, 2.0]",
+    );
+    std::fs::write(&sweep, text).unwrap();
+    let mut child = Command::new(env!("CARGO_BIN_EXE_cncsim"))
+        .args([
+            "sweep",
+            sweep.to_str().unwrap(),
+            "--jobs",
+            "1",
+            "--out",
+            "o",
+        ])
+        .current_dir(d)
+        .stderr(std::process::Stdio::piped())
+        .spawn()
+        .unwrap();
+    // Wait until some runs are done, then interrupt.
+    let started = std::time::Instant::now();
+    while !d.join("o/runs").is_dir() || std::fs::read_dir(d.join("o/runs")).unwrap().count() < 3 {
+        assert!(started.elapsed().as_secs() < 120, "no runs after 120 s");
+        std::thread::sleep(std::time::Duration::from_millis(50));
+    }
+    // SAFETY: sending a signal to our own child process.
+    unsafe {
+        libc::kill(child.id() as i32, libc::SIGINT);
+    }
+    let out = child.wait_with_output().unwrap();
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    assert_eq!(out.status.code(), Some(130), "{stderr}");
+    assert!(stderr.contains("interrupted:"), "{stderr}");
+    let r = rows(&d.join("o"));
+    assert!(!r.is_empty() && r.len() < 48, "{} rows", r.len());
+    // Rows in the sweep's order, from the first on.
+    for (i, row) in r.iter().enumerate() {
+        assert_eq!(row["index"].as_u64(), Some(i as u64));
+    }
+}
+
+#[test]
+fn the_ray_driver_merges_to_the_single_machine_result() {
+    let ray = Command::new("python3").args(["-c", "import ray"]).output();
+    if !ray.as_ref().is_ok_and(|o| o.status.success()) {
+        assert!(
+            std::env::var("CNCSIM_REQUIRE_ORACLES").is_err(),
+            "Ray is required here (pip install ray) but python3 cannot import it"
+        );
+        eprintln!("skipped: python3 cannot import ray (pip install ray)");
+        return;
+    }
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    let sweep = setup(d, "");
+    let sweep = sweep.to_str().unwrap();
+    let single = cncsim(&["sweep", sweep, "--out", "single"], d);
+    assert!(
+        single.status.success(),
+        "{}",
+        String::from_utf8_lossy(&single.stderr)
+    );
+    let driver = root().join("tools/ray_sweep.py");
+    let out = Command::new("python3")
+        .arg(driver)
+        .args([
+            "--sweep",
+            sweep,
+            "--cncsim",
+            env!("CARGO_BIN_EXE_cncsim"),
+            "--shards",
+            "3",
+            "--num-cpus",
+            "2",
+            "--out",
+            "ray",
+        ])
+        .current_dir(d)
+        .output()
+        .unwrap();
+    assert!(
+        out.status.success(),
+        "{}\n{}",
+        String::from_utf8_lossy(&out.stdout),
+        String::from_utf8_lossy(&out.stderr)
+    );
+    assert!(
+        rows(&d.join("single")) == rows(&d.join("ray")),
+        "Ray's merged sweep differs"
+    );
+}
