@@ -211,21 +211,34 @@ impl Calibration {
 
     pub fn parse(path: &Path, text: &str) -> Result<Calibration, FileError> {
         let spec: SpecFile = toml::from_str(text).map_err(|e| toml_error(path, text, &e))?;
-        let at = |span: std::ops::Range<usize>, m: String| FileError::at_offset(path, text, span.start, m);
+        let at = |span: std::ops::Range<usize>, m: String| {
+            FileError::at_offset(path, text, span.start, m)
+        };
         let dir = path.parent().unwrap_or(Path::new("."));
         let file = |p: &Spanned<String>, what: &str| -> Result<PathBuf, FileError> {
             let full = dir.join(p.get_ref());
             if full.is_file() {
                 Ok(full)
             } else {
-                Err(at(p.span(), format!("{what} '{}' not found (looked for {})", p.get_ref(), full.display())))
+                Err(at(
+                    p.span(),
+                    format!(
+                        "{what} '{}' not found (looked for {})",
+                        p.get_ref(),
+                        full.display()
+                    ),
+                ))
             }
         };
         let name = spec.name.clone().unwrap_or_else(|| {
             path.file_stem()
                 .map_or("calibration".into(), |s| s.to_string_lossy().into_owned())
         });
-        let default_scenario = spec.scenario.as_ref().map(|s| file(s, "scenario")).transpose()?;
+        let default_scenario = spec
+            .scenario
+            .as_ref()
+            .map(|s| file(s, "scenario"))
+            .transpose()?;
 
         let mut parameters = Vec::new();
         for (key, p) in spec.parameters.get_ref() {
@@ -235,11 +248,18 @@ impl Calibration {
             if !(q.min.is_finite() && q.max.is_finite() && q.min < q.max && (!log || q.min > 0.0)) {
                 return Err(fail(format!("expected finite min < max (min > 0 on a log scale), found min = {:?}, max = {:?}", q.min, q.max)));
             }
-            if let Some(s) = q.step.filter(|s| !(s.is_finite() && *s > 0.0 && *s <= q.max - q.min)) {
-                return Err(fail(format!("step = {s:?}: expected a number > 0, at most max − min")));
+            if let Some(s) = q
+                .step
+                .filter(|s| !(s.is_finite() && *s > 0.0 && *s <= q.max - q.min))
+            {
+                return Err(fail(format!(
+                    "step = {s:?}: expected a number > 0, at most max − min"
+                )));
             }
             if let Some(s) = q.start.filter(|s| !(q.min..=q.max).contains(s)) {
-                return Err(fail(format!("start = {s:?}: expected a value from min to max")));
+                return Err(fail(format!(
+                    "start = {s:?}: expected a value from min to max"
+                )));
             }
             // Every key must be one a run can apply (`drives.…`, `links.….mass` or a scenario key).
             for k in std::iter::once(key.get_ref()).chain(&q.also) {
@@ -257,10 +277,16 @@ impl Calibration {
             });
         }
         if parameters.is_empty() {
-            return Err(at(spec.parameters.span(), "[parameters] names no parameter: expected \"<key>\" = { min = …, max = … }".into()));
+            return Err(at(
+                spec.parameters.span(),
+                "[parameters] names no parameter: expected \"<key>\" = { min = …, max = … }".into(),
+            ));
         }
         for (key, _) in spec.parameters.get_ref() {
-            let p = parameters.iter().find(|p| &p.key == key.get_ref()).expect("just added");
+            let p = parameters
+                .iter()
+                .find(|p| &p.key == key.get_ref())
+                .expect("just added");
             if let Some(t) = &p.times {
                 if !parameters.iter().any(|q| &q.key == t && q.times.is_none()) {
                     return Err(at(key.span(), format!("parameters.\"{}\": times = \"{t}\": expected the key of another parameter (one that is not itself a factor)", p.key)));
@@ -274,7 +300,9 @@ impl Calibration {
             let q = t.get_ref();
             let scenario = match &q.scenario {
                 Some(s) => file(s, "scenario")?,
-                None => default_scenario.clone().ok_or_else(|| fail("names no scenario and there is no top-level scenario = …".into()))?,
+                None => default_scenario.clone().ok_or_else(|| {
+                    fail("names no scenario and there is no top-level scenario = …".into())
+                })?,
             };
             match (&q.metric, &q.trace) {
                 (Some(metric), None) => {
@@ -284,55 +312,101 @@ impl Calibration {
                     let (Some(measured), Some(tolerance)) = (q.measured, q.tolerance) else {
                         return Err(fail(format!("{metric}: expected measured = <number> and tolerance = <relative, e.g. 0.1>")));
                     };
-                    if !(measured.is_finite() && measured != 0.0 && tolerance.is_finite() && tolerance > 0.0) {
+                    if !(measured.is_finite()
+                        && measured != 0.0
+                        && tolerance.is_finite()
+                        && tolerance > 0.0)
+                    {
                         return Err(fail(format!("{metric}: expected measured ≠ 0 and a tolerance > 0 (relative), found measured = {measured:?}, tolerance = {tolerance:?}")));
                     }
-                    targets.push(Target::Metric { scenario, metric: metric.clone(), measured, tolerance });
+                    targets.push(Target::Metric {
+                        scenario,
+                        metric: metric.clone(),
+                        measured,
+                        tolerance,
+                    });
                 }
                 (None, Some(trace)) => {
                     if q.measured.is_some() || q.tolerance.is_some() {
                         return Err(fail("measured and tolerance belong to metric targets (a trace target has tolerance_mm)".into()));
                     }
                     let trace_path = file(trace, "measured trace")?;
-                    let columns: Vec<(String, String)> = q.columns.clone().unwrap_or_default().into_iter().collect();
+                    let columns: Vec<(String, String)> =
+                        q.columns.clone().unwrap_or_default().into_iter().collect();
                     if columns.is_empty() {
                         return Err(fail("expected columns = { <run trace.csv column> = \"<measured column>\", … }".into()));
                     }
-                    let tolerance_mm = q.tolerance_mm.filter(|v| v.is_finite() && *v > 0.0).ok_or_else(|| fail("expected tolerance_mm = <number > 0>".into()))?;
+                    let tolerance_mm = q
+                        .tolerance_mm
+                        .filter(|v| v.is_finite() && *v > 0.0)
+                        .ok_or_else(|| fail("expected tolerance_mm = <number > 0>".into()))?;
                     let max_shift_s = q.max_shift_s.unwrap_or(0.0);
                     if !(0.0..=60.0).contains(&max_shift_s) {
-                        return Err(fail(format!("max_shift_s = {max_shift_s:?}: expected 0 to 60 s")));
+                        return Err(fail(format!(
+                            "max_shift_s = {max_shift_s:?}: expected 0 to 60 s"
+                        )));
                     }
                     let measured = MeasuredTrace::load(&trace_path, &columns)?;
-                    targets.push(Target::Trace { scenario, trace: trace_path, columns, measured, tolerance_mm, max_shift_s });
+                    targets.push(Target::Trace {
+                        scenario,
+                        trace: trace_path,
+                        columns,
+                        measured,
+                        tolerance_mm,
+                        max_shift_s,
+                    });
                 }
-                _ => return Err(fail("expected either metric = \"<metric key>\" or trace = \"<measured CSV>\"".into())),
+                _ => {
+                    return Err(fail(
+                        "expected either metric = \"<metric key>\" or trace = \"<measured CSV>\""
+                            .into(),
+                    ))
+                }
             }
         }
         if targets.is_empty() {
-            return Err(at(spec.targets.span(), "expected at least one [[target]]".into()));
+            return Err(at(
+                spec.targets.span(),
+                "expected at least one [[target]]".into(),
+            ));
         }
 
         let opt = &spec.optimizer;
         let in_text = |k: &str| LineColumn::of_first(text, k);
-        let opt_fail = |k: &str, m: String| FileError::new(path, in_text(k), format!("optimizer.{k}: {m}"));
+        let opt_fail =
+            |k: &str, m: String| FileError::new(path, in_text(k), format!("optimizer.{k}: {m}"));
         // CMA-ES's own default population, 4 + ⌊3 ln n⌋.
-        let population = opt.population.unwrap_or(4 + (3.0 * (parameters.len() as f64).ln()) as usize);
+        let population = opt
+            .population
+            .unwrap_or(4 + (3.0 * (parameters.len() as f64).ln()) as usize);
         if !(2..=1000).contains(&population) {
-            return Err(opt_fail("population", format!("{population}: expected 2 to 1000")));
+            return Err(opt_fail(
+                "population",
+                format!("{population}: expected 2 to 1000"),
+            ));
         }
         let mut distinct: Vec<&Path> = targets.iter().map(Target::scenario).collect();
         distinct.sort();
         distinct.dedup();
         let max_evaluations = opt.max_evaluations.unwrap_or(100);
-        if max_evaluations == 0 || max_evaluations.saturating_mul(distinct.len()) > MAX_CALIBRATION_RUNS {
+        if max_evaluations == 0
+            || max_evaluations.saturating_mul(distinct.len()) > MAX_CALIBRATION_RUNS
+        {
             return Err(opt_fail("max_evaluations", format!("{max_evaluations} × {} scenarios: expected 1 to {MAX_CALIBRATION_RUNS} runs in all", distinct.len())));
         }
         let sigma = opt.sigma.unwrap_or(0.3);
         if !(sigma > 0.0 && sigma <= 1.0) {
-            return Err(opt_fail("sigma", format!("{sigma:?}: expected a number from 0 to 1 (of each parameter's range)")));
+            return Err(opt_fail(
+                "sigma",
+                format!("{sigma:?}: expected a number from 0 to 1 (of each parameter's range)"),
+            ));
         }
-        let predict = spec.predict.scenarios.iter().map(|s| file(s, "prediction scenario")).collect::<Result<_, _>>()?;
+        let predict = spec
+            .predict
+            .scenarios
+            .iter()
+            .map(|s| file(s, "prediction scenario"))
+            .collect::<Result<_, _>>()?;
         Ok(Calibration {
             name,
             path: path.to_path_buf(),
@@ -389,7 +463,10 @@ impl Calibration {
                 None => v,
             };
             for key in std::iter::once(&p.key).chain(&p.also) {
-                out.push(Change::parse(&format!("{key}={applied:?}")).expect("checked when the spec was read"));
+                out.push(
+                    Change::parse(&format!("{key}={applied:?}"))
+                        .expect("checked when the spec was read"),
+                );
             }
         }
         out
@@ -397,7 +474,11 @@ impl Calibration {
 
     /// The distinct scenarios of the targets.
     fn target_scenarios(&self) -> Vec<PathBuf> {
-        let mut s: Vec<PathBuf> = self.targets.iter().map(|t| t.scenario().to_path_buf()).collect();
+        let mut s: Vec<PathBuf> = self
+            .targets
+            .iter()
+            .map(|t| t.scenario().to_path_buf())
+            .collect();
         s.sort();
         s.dedup();
         s
@@ -409,31 +490,70 @@ impl MeasuredTrace {
     /// numbers with rising times. Errors name the file, line and column.
     pub fn load(path: &Path, columns: &[(String, String)]) -> Result<MeasuredTrace, FileError> {
         let text = read_text(path, "measured trace")?;
-        let mut reader = csv::ReaderBuilder::new().trim(csv::Trim::All).from_reader(text.as_bytes());
-        let located = |pos: Option<&csv::Position>| pos.map(|p| LineColumn::of_offset(&text, p.byte() as usize));
-        let header = reader.headers().map_err(|e| FileError::new(path, None, format!("cannot read the header: {e}")))?.clone();
+        let mut reader = csv::ReaderBuilder::new()
+            .trim(csv::Trim::All)
+            .from_reader(text.as_bytes());
+        let located = |pos: Option<&csv::Position>| {
+            pos.map(|p| LineColumn::of_offset(&text, p.byte() as usize))
+        };
+        let header = reader
+            .headers()
+            .map_err(|e| FileError::new(path, None, format!("cannot read the header: {e}")))?
+            .clone();
         let index = |name: &str| {
             header.iter().position(|h| h == name).ok_or_else(|| {
-                FileError::new(path, Some(LineColumn { line: 1, column: 1 }), format!("expected a column '{name}' in the header, found {}", header.iter().collect::<Vec<_>>().join(", ")))
+                FileError::new(
+                    path,
+                    Some(LineColumn { line: 1, column: 1 }),
+                    format!(
+                        "expected a column '{name}' in the header, found {}",
+                        header.iter().collect::<Vec<_>>().join(", ")
+                    ),
+                )
             })
         };
         let t_col = index("t_s")?;
-        let wanted: Vec<usize> = columns.iter().map(|(_, m)| index(m)).collect::<Result<_, _>>()?;
-        let mut trace = MeasuredTrace { t_s: Vec::new(), columns: vec![Vec::new(); wanted.len()] };
+        let wanted: Vec<usize> = columns
+            .iter()
+            .map(|(_, m)| index(m))
+            .collect::<Result<_, _>>()?;
+        let mut trace = MeasuredTrace {
+            t_s: Vec::new(),
+            columns: vec![Vec::new(); wanted.len()],
+        };
         for record in reader.records() {
-            let record = record.map_err(|e| FileError::new(path, located(e.position()), format!("{e}")))?;
+            let record =
+                record.map_err(|e| FileError::new(path, located(e.position()), format!("{e}")))?;
             if trace.t_s.len() >= MAX_TRACE_ROWS {
-                return Err(FileError::new(path, located(record.position()), format!("more than {MAX_TRACE_ROWS} rows")));
+                return Err(FileError::new(
+                    path,
+                    located(record.position()),
+                    format!("more than {MAX_TRACE_ROWS} rows"),
+                ));
             }
             let number = |c: usize| -> Result<f64, FileError> {
                 let cell = record.get(c).unwrap_or("");
-                cell.parse::<f64>().ok().filter(|v| v.is_finite()).ok_or_else(|| {
-                    FileError::new(path, located(record.position()), format!("column '{}': expected a finite number, found '{cell}'", &header[c]))
-                })
+                cell.parse::<f64>()
+                    .ok()
+                    .filter(|v| v.is_finite())
+                    .ok_or_else(|| {
+                        FileError::new(
+                            path,
+                            located(record.position()),
+                            format!(
+                                "column '{}': expected a finite number, found '{cell}'",
+                                &header[c]
+                            ),
+                        )
+                    })
             };
             let t = number(t_col)?;
             if trace.t_s.last().is_some_and(|&last| t <= last) {
-                return Err(FileError::new(path, located(record.position()), format!("t_s = {t}: expected times rising from row to row")));
+                return Err(FileError::new(
+                    path,
+                    located(record.position()),
+                    format!("t_s = {t}: expected times rising from row to row"),
+                ));
             }
             trace.t_s.push(t);
             for (k, &c) in wanted.iter().enumerate() {
@@ -441,7 +561,11 @@ impl MeasuredTrace {
             }
         }
         if trace.t_s.len() < 2 {
-            return Err(FileError::new(path, None, "expected at least two rows of measurements"));
+            return Err(FileError::new(
+                path,
+                None,
+                "expected at least two rows of measurements",
+            ));
         }
         Ok(trace)
     }
@@ -450,9 +574,17 @@ impl MeasuredTrace {
 /// RMS difference between a run's `trace.csv` (in `run_dir`) and a measured trace, at the best
 /// time shift within ±`max_shift_s` (in whole servo periods), over the measured samples the run
 /// covers.
-fn trace_rms(run_dir: &Path, columns: &[(String, String)], measured: &MeasuredTrace, max_shift_s: f64) -> Result<f64, String> {
+fn trace_rms(
+    run_dir: &Path,
+    columns: &[(String, String)],
+    measured: &MeasuredTrace,
+    max_shift_s: f64,
+) -> Result<f64, String> {
     let path = run_dir.join("trace.csv");
-    let runs: Vec<(String, String)> = columns.iter().map(|(run, _)| (run.clone(), run.clone())).collect();
+    let runs: Vec<(String, String)> = columns
+        .iter()
+        .map(|(run, _)| (run.clone(), run.clone()))
+        .collect();
     let sim = MeasuredTrace::load(&path, &runs).map_err(|e| e.to_string())?;
     let at = |t: f64, c: usize| -> Option<f64> {
         let k = sim.t_s.partition_point(|&s| s <= t);
@@ -484,7 +616,9 @@ fn trace_rms(run_dir: &Path, columns: &[(String, String)], measured: &MeasuredTr
             best = Some(best.map_or(rms, |b: f64| b.min(rms)));
         }
     }
-    best.ok_or_else(|| "the run's trace covers less than half of the measured trace at every shift".into())
+    best.ok_or_else(|| {
+        "the run's trace covers less than half of the measured trace at every shift".into()
+    })
 }
 
 /// One evaluated candidate.
@@ -529,7 +663,13 @@ pub struct CalibrationResult {
 
 /// Runs one candidate: every target scenario with `values` applied, in `scratch/`, which is
 /// removed afterwards (the figures are kept in the evaluation).
-fn evaluate(cal: &Calibration, scenarios: &[PathBuf], values: Vec<f64>, scratch: &Path, interrupted: &AtomicBool) -> Evaluation {
+fn evaluate(
+    cal: &Calibration,
+    scenarios: &[PathBuf],
+    values: Vec<f64>,
+    scratch: &Path,
+    interrupted: &AtomicBool,
+) -> Evaluation {
     let changes = cal.changes(&values);
     let jobs: Vec<Job> = scenarios
         .iter()
@@ -540,7 +680,10 @@ fn evaluate(cal: &Calibration, scenarios: &[PathBuf], values: Vec<f64>, scratch:
             changes: changes.clone(),
             out_dir: scratch.join(i.to_string()),
             recordings: false,
-            csv: cal.targets.iter().any(|t| matches!(t, Target::Trace { scenario, .. } if scenario == s)),
+            csv: cal
+                .targets
+                .iter()
+                .any(|t| matches!(t, Target::Trace { scenario, .. } if scenario == s)),
         })
         .collect();
     let (results, _) = execute(&jobs, 1, interrupted, &Progress::default(), &|_| {});
@@ -548,7 +691,10 @@ fn evaluate(cal: &Calibration, scenarios: &[PathBuf], values: Vec<f64>, scratch:
     let mut cost = 0.0;
     let mut out = Vec::new();
     for t in &cal.targets {
-        let i = scenarios.iter().position(|s| s == t.scenario()).expect("a target's scenario is run");
+        let i = scenarios
+            .iter()
+            .position(|s| s == t.scenario())
+            .expect("a target's scenario is run");
         let r: Option<&JobResult> = results.iter().find(|r| r.index == i);
         let failed = match r {
             None => Some("interrupted".to_string()),
@@ -567,21 +713,41 @@ fn evaluate(cal: &Calibration, scenarios: &[PathBuf], values: Vec<f64>, scratch:
                     failure.get_or_insert(format!("the run has no metric `{metric}`"));
                     f64::NAN
                 }),
-            (Target::Trace { columns, measured, max_shift_s, .. }, Some(_), None) => trace_rms(&jobs[i].out_dir, columns, measured, *max_shift_s).unwrap_or_else(|e| {
+            (
+                Target::Trace {
+                    columns,
+                    measured,
+                    max_shift_s,
+                    ..
+                },
+                Some(_),
+                None,
+            ) => trace_rms(&jobs[i].out_dir, columns, measured, *max_shift_s).unwrap_or_else(|e| {
                 failure.get_or_insert(e);
                 f64::NAN
             }),
             (_, None, None) => unreachable!("a missing run is a failure"),
         };
         let term = match t {
-            Target::Metric { measured, tolerance, .. } => ((value - measured) / (tolerance * measured)).powi(2),
+            Target::Metric {
+                measured,
+                tolerance,
+                ..
+            } => ((value - measured) / (tolerance * measured)).powi(2),
             Target::Trace { tolerance_mm, .. } => (value / tolerance_mm).powi(2),
         };
         cost += if term.is_finite() { term } else { FAILED };
         out.push(value);
     }
     let _ = std::fs::remove_dir_all(scratch);
-    Evaluation { index: 0, generation: 0, values, results: out, cost, failure }
+    Evaluation {
+        index: 0,
+        generation: 0,
+        values,
+        results: out,
+        cost,
+        failure,
+    }
 }
 
 /// Runs the calibration: generations of `population` candidates until `max_evaluations` (or an
@@ -603,9 +769,26 @@ pub fn calibrate(
         .iter()
         .map(|p| p.start.map_or(0.5, |s| Calibration::unit_of(p, s)))
         .collect();
-    let first = evaluate(cal, &scenarios, cal.values(&start_unit), &scratch.join("start"), interrupted);
-    if let Some(f) = first.failure.as_deref().filter(|f| f.starts_with("the run has no metric")) {
-        return Err(FileError::new(&cal.path, LineColumn::of_first(&std::fs::read_to_string(&cal.path).unwrap_or_default(), f.split('`').nth(1).unwrap_or("")), format!("{f}: see a run's metrics.json for the keys")));
+    let first = evaluate(
+        cal,
+        &scenarios,
+        cal.values(&start_unit),
+        &scratch.join("start"),
+        interrupted,
+    );
+    if let Some(f) = first
+        .failure
+        .as_deref()
+        .filter(|f| f.starts_with("the run has no metric"))
+    {
+        return Err(FileError::new(
+            &cal.path,
+            LineColumn::of_first(
+                &std::fs::read_to_string(&cal.path).unwrap_or_default(),
+                f.split('`').nth(1).unwrap_or(""),
+            ),
+            format!("{f}: see a run's metrics.json for the keys"),
+        ));
     }
 
     let generation = AtomicUsize::new(0);
@@ -617,7 +800,13 @@ pub fn calibrate(
         // pays a wall growing with the distance, so the search turns back.
         let outside: f64 = u.iter().map(|x| (x - x.clamp(0.0, 1.0)).powi(2)).sum();
         let n = counter.fetch_add(1, Ordering::Relaxed);
-        let mut e = evaluate(cal, &scenarios, cal.values(&u), &scratch.join(n.to_string()), interrupted);
+        let mut e = evaluate(
+            cal,
+            &scenarios,
+            cal.values(&u),
+            &scratch.join(n.to_string()),
+            interrupted,
+        );
         e.generation = generation.load(Ordering::Relaxed);
         e.cost += 1e3 * outside;
         let cost = e.cost;
@@ -649,21 +838,38 @@ pub fn calibrate(
         };
         while !interrupted.load(Ordering::Relaxed) {
             let done = state.next_parallel();
-            let mut generation_runs = std::mem::take(&mut *pending.lock().expect("no panics while held"));
+            let mut generation_runs =
+                std::mem::take(&mut *pending.lock().expect("no panics while held"));
             if interrupted.load(Ordering::Relaxed) {
                 // A generation cut short is not a fair sample: keep only its finished runs.
-                generation_runs.retain(|e| !e.failure.as_deref().is_some_and(|f| f.starts_with("interrupted")));
+                generation_runs.retain(|e| {
+                    !e.failure
+                        .as_deref()
+                        .is_some_and(|f| f.starts_with("interrupted"))
+                });
             }
-            generation_runs.sort_by(|a, b| a.values.partial_cmp(&b.values).unwrap_or(std::cmp::Ordering::Equal));
+            generation_runs.sort_by(|a, b| {
+                a.values
+                    .partial_cmp(&b.values)
+                    .unwrap_or(std::cmp::Ordering::Equal)
+            });
             evaluations.extend(generation_runs);
             generation.fetch_add(1, Ordering::Relaxed);
             if let Some(d) = done {
-                stop_reason = d.reasons.iter().map(|r| format!("{r:?}")).collect::<Vec<_>>().join(", ");
+                stop_reason = d
+                    .reasons
+                    .iter()
+                    .map(|r| format!("{r:?}"))
+                    .collect::<Vec<_>>()
+                    .join(", ");
                 break;
             }
         }
     };
-    match rayon::ThreadPoolBuilder::new().num_threads(threads.max(1)).build() {
+    match rayon::ThreadPoolBuilder::new()
+        .num_threads(threads.max(1))
+        .build()
+    {
         Ok(pool) => pool.install(search),
         Err(_) => search(),
     }
@@ -683,7 +889,9 @@ pub fn calibrate(
                 .iter()
                 .filter(|e| e.failure.is_none() && e.cost <= b.cost + 1.0)
                 .map(|e| e.values[i])
-                .fold(None, |r: Option<(f64, f64)>, v| Some(r.map_or((v, v), |(lo, hi)| (lo.min(v), hi.max(v)))))
+                .fold(None, |r: Option<(f64, f64)>, v| {
+                    Some(r.map_or((v, v), |(lo, hi)| (lo.min(v), hi.max(v))))
+                })
         })
         .collect();
     Ok(CalibrationResult {
@@ -701,7 +909,13 @@ pub fn calibrate(
 
 /// The runs of the target and prediction scenarios with the best values, each with its
 /// recording, in `out/<scenario stem>/`. Returns (scenario, result) in spec order.
-pub fn predict(cal: &Calibration, values: &[f64], out: &Path, threads: usize, interrupted: &AtomicBool) -> Vec<(PathBuf, JobResult)> {
+pub fn predict(
+    cal: &Calibration,
+    values: &[f64],
+    out: &Path,
+    threads: usize,
+    interrupted: &AtomicBool,
+) -> Vec<(PathBuf, JobResult)> {
     let mut scenarios = cal.target_scenarios();
     for p in &cal.predict {
         if !scenarios.contains(p) {
@@ -716,13 +930,19 @@ pub fn predict(cal: &Calibration, values: &[f64], out: &Path, threads: usize, in
             index: i,
             scenario: s.clone(),
             changes: changes.clone(),
-            out_dir: out.join(s.file_stem().map_or("scenario".into(), |s| s.to_string_lossy().into_owned())),
+            out_dir: out.join(
+                s.file_stem()
+                    .map_or("scenario".into(), |s| s.to_string_lossy().into_owned()),
+            ),
             recordings: true,
             csv: true,
         })
         .collect();
     let (results, _) = execute(&jobs, threads, interrupted, &Progress::default(), &|_| {});
-    results.into_iter().map(|r| (scenarios[r.index].clone(), r)).collect()
+    results
+        .into_iter()
+        .map(|r| (scenarios[r.index].clone(), r))
+        .collect()
 }
 
 /// The predictions table: per scenario, each axis's largest error with when and where in the
@@ -731,24 +951,42 @@ pub fn predictions_markdown(cal: &Calibration, runs: &[(PathBuf, JobResult)]) ->
     let targets = cal.target_scenarios();
     let mut t = String::from("| scenario | X max error | Y max error | path-speed error | stalls X / Y | role |\n|---|---|---|---:|---:|---|\n");
     for (s, r) in runs {
-        let stem = s.file_stem().map_or(String::new(), |s| s.to_string_lossy().into_owned());
-        let role = if targets.contains(s) { "calibration" } else { "prediction" };
+        let stem = s
+            .file_stem()
+            .map_or(String::new(), |s| s.to_string_lossy().into_owned());
+        let role = if targets.contains(s) {
+            "calibration"
+        } else {
+            "prediction"
+        };
         let Some(m) = &r.metrics else {
-            t += &format!("| {stem} | failed: {} | | | | {role} |\n", r.error.as_deref().unwrap_or("?"));
+            t += &format!(
+                "| {stem} | failed: {} | | | | {role} |\n",
+                r.error.as_deref().unwrap_or("?")
+            );
             continue;
         };
         let axis = |a: &str| {
             let v = |k: &str| Metrics::lookup(m, &format!("axes.{a}.{k}"));
-            let at = m["axes"][a]["max_following_error_at"].as_str().unwrap_or("?");
+            let at = m["axes"][a]["max_following_error_at"]
+                .as_str()
+                .unwrap_or("?");
             match (v("max_following_error_mm"), v("max_following_error_time_s")) {
                 (Some(e), Some(time)) => format!("{e:.3} mm ({at}, {time:.2} s)"),
                 _ => "—".into(),
             }
         };
-        let stalls = |a: &str| Metrics::lookup(m, &format!("axes.{a}.stick_slip_stalls")).map_or("—".into(), |v| format!("{v}"));
+        let stalls = |a: &str| {
+            Metrics::lookup(m, &format!("axes.{a}.stick_slip_stalls"))
+                .map_or("—".into(), |v| format!("{v}"))
+        };
         t += &format!(
             "| {stem}{} | {} | {} | {:.2} mm/s | {} / {} | {role} |\n",
-            if r.stopped.is_some() { " (stopped early)" } else { "" },
+            if r.stopped.is_some() {
+                " (stopped early)"
+            } else {
+                ""
+            },
             axis("x"),
             axis("y"),
             Metrics::lookup(m, "max_path_speed_error_mm_s").unwrap_or(f64::NAN),
@@ -777,19 +1015,43 @@ impl CalibrationResult {
         };
         t += "## Fitted parameters\n\n| parameter | value | range within Δcost ≤ 1 | bounds |\n|---|---:|---|---|\n";
         for (i, p) in self.parameters.iter().enumerate() {
-            let range = self.ranges[i].map_or("—".into(), |(lo, hi)| format!("{lo:.5} … {hi:.5}"));
-            let factor = p.times.as_deref().map_or(String::new(), |k| format!(" (× {k})"));
-            t += &format!("| {}{factor} | {:.5} | {range} | {} … {}{} |\n", p.key, best.values[i], p.min, p.max, if p.log { ", log" } else { "" });
+            let range =
+                self.ranges[i].map_or("—".into(), |(lo, hi)| format!("{lo:.5} … {hi:.5}"));
+            let factor = p
+                .times
+                .as_deref()
+                .map_or(String::new(), |k| format!(" (× {k})"));
+            t += &format!(
+                "| {}{factor} | {:.5} | {range} | {} … {}{} |\n",
+                p.key,
+                best.values[i],
+                p.min,
+                p.max,
+                if p.log { ", log" } else { "" }
+            );
         }
-        t += "\n## Targets\n\n| target | measured | best candidate | miss |\n|---|---:|---:|---:|\n";
+        t +=
+            "\n## Targets\n\n| target | measured | best candidate | miss |\n|---|---:|---:|---:|\n";
         for (i, target) in cal.targets.iter().enumerate() {
             let v = best.results[i];
             match target {
-                Target::Metric { metric, measured, tolerance, .. } => {
-                    t += &format!("| {metric} | {measured} | {v:.4} | {:+.1} % (tolerance {:.0} %) |\n", (v / measured - 1.0) * 100.0, tolerance * 100.0);
+                Target::Metric {
+                    metric,
+                    measured,
+                    tolerance,
+                    ..
+                } => {
+                    t += &format!(
+                        "| {metric} | {measured} | {v:.4} | {:+.1} % (tolerance {:.0} %) |\n",
+                        (v / measured - 1.0) * 100.0,
+                        tolerance * 100.0
+                    );
                 }
                 Target::Trace { tolerance_mm, .. } => {
-                    t += &format!("| {} | — | {v:.4} | tolerance {tolerance_mm} mm |\n", target.name());
+                    t += &format!(
+                        "| {} | — | {v:.4} | tolerance {tolerance_mm} mm |\n",
+                        target.name()
+                    );
                 }
             }
         }
@@ -803,7 +1065,11 @@ impl CalibrationResult {
         t += "\n|---|---:|";
         t += &"---:|".repeat(self.parameters.len() + self.targets.len());
         t += "\n";
-        let mut ranked: Vec<&Evaluation> = self.evaluations.iter().filter(|e| e.failure.is_none()).collect();
+        let mut ranked: Vec<&Evaluation> = self
+            .evaluations
+            .iter()
+            .filter(|e| e.failure.is_none())
+            .collect();
         ranked.sort_by(|a, b| a.cost.total_cmp(&b.cost).then(a.index.cmp(&b.index)));
         for e in ranked.iter().take(10) {
             t += &format!("| {} | {:.4} |", e.index, e.cost);
@@ -812,7 +1078,11 @@ impl CalibrationResult {
             }
             t += "\n";
         }
-        let failed: Vec<&Evaluation> = self.evaluations.iter().filter(|e| e.failure.is_some()).collect();
+        let failed: Vec<&Evaluation> = self
+            .evaluations
+            .iter()
+            .filter(|e| e.failure.is_some())
+            .collect();
         if let Some(first) = failed.first() {
             t += &format!(
                 "\n{} candidates failed or stopped early (cost {FAILED:e}), e.g. #{}: {}\n",
@@ -839,7 +1109,10 @@ impl CalibrationResult {
             &format!("calibration {}: cost against evaluations", self.name),
             "evaluation",
             "cost (Σ squared misses in tolerances)",
-            &[("every candidate".into(), all), ("best so far".into(), running)],
+            &[
+                ("every candidate".into(), all),
+                ("best so far".into(), running),
+            ],
         )
     }
 
@@ -897,7 +1170,8 @@ pub fn write_back(cal: &Calibration, values: &[f64]) -> Result<Vec<PathBuf>, Fil
     if !scenario_overrides.is_empty() {
         for s in &scenarios {
             let text = read_text(s, "scenario")?;
-            let edited = edit_toml(&text, &scenario_overrides).map_err(|e| FileError::new(s, None, e))?;
+            let edited =
+                edit_toml(&text, &scenario_overrides).map_err(|e| FileError::new(s, None, e))?;
             Scenario::parse(s, &edited)?;
             edits.push((s.clone(), edited));
         }
@@ -907,7 +1181,8 @@ pub fn write_back(cal: &Calibration, values: &[f64]) -> Result<Vec<PathBuf>, Fil
     }
     let mut written = Vec::new();
     for (path, text) in edits {
-        std::fs::write(&path, text).map_err(|e| FileError::new(&path, None, format!("cannot write: {e}")))?;
+        std::fs::write(&path, text)
+            .map_err(|e| FileError::new(&path, None, format!("cannot write: {e}")))?;
         written.push(path);
     }
     Ok(written)

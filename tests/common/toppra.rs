@@ -1,5 +1,6 @@
 //! The TOPP-RA oracle: the time-optimal, acceleration-limited traversal of the geometry a plan
 //! follows, computed by `tools/toppra_bound.py` with the `toppra` Python package.
+#![allow(dead_code)]
 
 use std::path::Path;
 use std::process::Command;
