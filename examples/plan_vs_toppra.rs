@@ -3,10 +3,10 @@
 //!
 //! ```sh
 //! # G-code files on the XYZ table with the same limits on every axis:
-//! cargo run --release --example plan_vs_toppra -- --limits 200,2000 --jerk 5e4,1e6,1e8 \
+//! cargo run --example plan_vs_toppra -- --limits 200,2000 --jerk 5e4,1e6,1e8 \
 //!     --tolerance 0.05 [--q 0.03] FILE.ngc...
 //! # Bundled scenarios with their own limits (jerk as in the scenario):
-//! cargo run --release --example plan_vs_toppra -- --scenario scenarios/plan_table2_jerk_g64.toml
+//! cargo run --example plan_vs_toppra -- --scenario scenarios/plan_table2_jerk_g64.toml
 //! ```
 //!
 //! Prints one Markdown table row per program and jerk limit. `--python` names the interpreter
