@@ -12,6 +12,8 @@
 //! Prints one Markdown table row per program and jerk limit. `--python` names the interpreter
 //! with toppra (default `CNCSIM_PYTHON`, else `python3`).
 
+#[path = "../tests/common/mod.rs"]
+mod common;
 #[path = "../tests/common/toppra.rs"]
 mod toppra;
 
@@ -20,7 +22,7 @@ use std::path::{Path, PathBuf};
 use cncsim::kinematics::AxisMap;
 use cncsim::machine::Machine;
 use cncsim::plan::{
-    jerk_limited_plans, tool_lever_arms, AxisKind, AxisLimits, BlendChoice, PlanSettings, Planner,
+    jerk_limited_plans, tool_lever_arms, AxisLimits, BlendChoice, PlanSettings, Planner,
 };
 use cncsim::program::{read_program, Program, ReadOptions};
 use cncsim::scenario::{load_checked_program, machine_for, plan_settings, Scenario};
@@ -137,18 +139,11 @@ fn main() -> Result<(), String> {
                 .map_err(|e| format!("{}: {e}", file.display()))?;
             let name = file.file_name().unwrap_or_default().to_string_lossy();
             for &jerk in &o.jerks {
-                let limits: Vec<AxisLimits> = machine
-                    .axes
-                    .iter()
-                    .map(|a| {
-                        let kind = if a.is_rotary(&machine) {
-                            AxisKind::Rotary
-                        } else {
-                            AxisKind::Linear
-                        };
-                        AxisLimits::from_program_units(kind, o.limits.0, o.limits.1, jerk)
-                    })
-                    .collect();
+                let limits: Vec<AxisLimits> =
+                    common::uniform_axes(&machine, o.limits.0, o.limits.1, jerk)
+                        .iter()
+                        .map(|a| a.limits)
+                        .collect();
                 let settings = PlanSettings {
                     planner: Planner::JerkLimited {
                         limits: limits.clone(),

@@ -3,13 +3,15 @@
 //! before anything is sampled, with the number of samples they would need and the limit; the
 //! planner never panics or allocates without bound on them.
 
+mod common;
+
 use std::path::Path;
 
 use cncsim::kinematics::AxisMap;
 use cncsim::machine::Machine;
 use cncsim::plan::{
-    plan_program, plan_program_stream, AxisKind, AxisLimits, BlendChoice, PlanError, PlanSettings,
-    Planner, MAX_SETPOINT_SAMPLES,
+    plan_program, plan_program_stream, BlendChoice, PlanError, PlanSettings, Planner,
+    MAX_SETPOINT_SAMPLES,
 };
 use cncsim::program::{circle, parse_gcode, CircleSpec, Program, ReadOptions};
 
@@ -34,17 +36,9 @@ fn settings(machine: &Machine, planner: Planner, rapid_speed: f64) -> PlanSettin
 
 fn jerk_limited(machine: &Machine, v: f64, a: f64, j: f64) -> Planner {
     Planner::JerkLimited {
-        limits: machine
-            .axes
+        limits: common::uniform_axes(machine, v, a, j)
             .iter()
-            .map(|axis| {
-                let kind = if axis.is_rotary(machine) {
-                    AxisKind::Rotary
-                } else {
-                    AxisKind::Linear
-                };
-                AxisLimits::from_program_units(kind, v, a, j)
-            })
+            .map(|axis| axis.limits)
             .collect(),
     }
 }
@@ -130,45 +124,46 @@ fn planner_limits_of_1e_minus_300_are_refused_not_memory_without_bound() {
     }
 }
 
+/// `text` is refused: by the G-code reader (with its message), or else by every planner in
+/// `planners` with the sample count it would need.
+fn assert_program_refused(text: &str, name: &str, planners: Vec<Planner>) {
+    let (machine, axes) = machine("xyz_table.urdf");
+    match parse_gcode(text, name, &ReadOptions::default()) {
+        Err(e) => assert!(!e.to_string().is_empty()),
+        Ok(program) => {
+            for planner in planners {
+                assert_too_many_samples(&program, &axes, &settings(&machine, planner, 0.05));
+            }
+        }
+    }
+}
+
 #[test]
 fn dwell_of_1e300_seconds_is_refused() {
-    let (machine, axes) = machine("xyz_table.urdf");
-    let program = parse_gcode(
+    let (machine, _) = machine("xyz_table.urdf");
+    assert_program_refused(
         "G1 X10 F600\nG4 P1e300\n",
         "dwell.ngc",
-        &ReadOptions::default(),
+        vec![
+            Planner::ConstantVelocity,
+            Planner::Trapezoid { acceleration: 1.0 },
+            jerk_limited(&machine, 200.0, 2000.0, 50_000.0),
+        ],
     );
-    // The G-code reader may refuse the number itself; if it passes, the planner refuses it.
-    let Ok(program) = program else {
-        return;
-    };
-    for planner in [
-        Planner::ConstantVelocity,
-        Planner::Trapezoid { acceleration: 1.0 },
-        jerk_limited(&machine, 200.0, 2000.0, 50_000.0),
-    ] {
-        assert_too_many_samples(&program, &axes, &settings(&machine, planner, 0.05));
-    }
 }
 
 #[test]
 fn an_arc_of_four_billion_turns_is_refused_quickly() {
     // G2 with P4294967295: the number of turns multiplies the arc's length, not the work.
-    let (machine, axes) = machine("xyz_table.urdf");
-    let program = parse_gcode(
+    let (machine, _) = machine("xyz_table.urdf");
+    assert_program_refused(
         "G1 X10 F6000\nG2 X10 Y0 I5 J0 P4294967295\n",
         "turns.ngc",
-        &ReadOptions::default(),
+        vec![
+            Planner::ConstantVelocity,
+            jerk_limited(&machine, 200.0, 2000.0, 50_000.0),
+        ],
     );
-    let Ok(program) = program else {
-        return;
-    };
-    for planner in [
-        Planner::ConstantVelocity,
-        jerk_limited(&machine, 200.0, 2000.0, 50_000.0),
-    ] {
-        assert_too_many_samples(&program, &axes, &settings(&machine, planner, 0.05));
-    }
 }
 
 #[test]

@@ -24,8 +24,8 @@ use std::path::{Path, PathBuf};
 use cncsim::kinematics::{tool_in_workpiece, AxisMap};
 use cncsim::machine::Machine;
 use cncsim::plan::{
-    jerk_limited_plans, tool_lever_arms, AxisKind, AxisLimits, AxisSpec, BlendChoice, Plan,
-    PlanSettings, Planner,
+    jerk_limited_plans, tool_lever_arms, AxisLimits, AxisSpec, BlendChoice, Plan, PlanSettings,
+    Planner,
 };
 use cncsim::program::{read_program, Program, ReadOptions};
 use common::{assert_within_limits, fine};
@@ -98,22 +98,7 @@ fn plan_case(case: &Case) -> Planned {
     let map = AxisMap::cartesian(&machine).unwrap();
     let program = read_program(&case.file, &ReadOptions::default())
         .unwrap_or_else(|e| panic!("{}: {e}", case.file.display()));
-    let axes: Vec<AxisSpec> = machine
-        .axes
-        .iter()
-        .map(|a| {
-            let kind = if a.is_rotary(&machine) {
-                AxisKind::Rotary
-            } else {
-                AxisKind::Linear
-            };
-            AxisSpec {
-                name: a.name.clone(),
-                kind,
-                limits: AxisLimits::from_program_units(kind, VELOCITY, ACCELERATION, case.jerk),
-            }
-        })
-        .collect();
+    let axes = common::uniform_axes(&machine, VELOCITY, ACCELERATION, case.jerk);
     let settings = PlanSettings {
         planner: Planner::JerkLimited {
             limits: axes.iter().map(|a| a.limits).collect(),

@@ -19,6 +19,8 @@
 //! path limits. Passed at constant speed `v` this is a time-optimal jerk-limited velocity change
 //! of duration `L/v` on the limiting axis; the planner may also speed up or slow down on it.
 
+use super::geometry::{AxisJet, PathPoint};
+
 /// The normalised direction-change shape σ̂ on [0, 1] with ramp fraction r.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub(super) struct TurnShape {
@@ -89,17 +91,9 @@ pub(super) struct CornerBlend {
 impl CornerBlend {
     /// Axis positions, velocities and accelerations at `sigma ∈ [0, L]` moving with `σ̇`, `σ̈`;
     /// `data` holds `P_in`, `u1` and `Δu`.
-    #[allow(clippy::too_many_arguments)]
-    pub fn eval(
-        &self,
-        data: &[f64],
-        sigma: f64,
-        sigma_dot: f64,
-        sigma_ddot: f64,
-        position: &mut [f64],
-        velocity: &mut [f64],
-        acceleration: &mut [f64],
-    ) {
+    pub fn eval(&self, data: &[f64], at: PathPoint, out: AxisJet) {
+        let (sigma, sigma_dot, sigma_ddot) = at.parts();
+        let (position, velocity, acceleration) = out.parts();
         let n = position.len();
         let (start, rest) = data.split_at(n);
         let (u1, du) = rest.split_at(n);
@@ -150,13 +144,25 @@ mod tests {
         };
         let data = [-0.1, 0.0, 1.0, 0.0, -1.0, 1.0];
         let (mut p, mut v, mut a) = ([0.0; 2], [0.0; 2], [0.0; 2]);
-        blend.eval(&data, 0.0, 1.0, 0.0, &mut p, &mut v, &mut a);
+        blend.eval(
+            &data,
+            PathPoint::new(0.0, 1.0, 0.0),
+            AxisJet::new(&mut p, &mut v, &mut a),
+        );
         assert_eq!(p, [-0.1, 0.0]);
         assert_eq!(v, [1.0, 0.0]);
-        blend.eval(&data, 0.2, 1.0, 0.0, &mut p, &mut v, &mut a);
+        blend.eval(
+            &data,
+            PathPoint::new(0.2, 1.0, 0.0),
+            AxisJet::new(&mut p, &mut v, &mut a),
+        );
         assert!((p[0]).abs() < 1e-15 && (p[1] - 0.1).abs() < 1e-15, "{p:?}");
         assert!(v[0].abs() < 1e-15 && (v[1] - 1.0).abs() < 1e-15);
-        blend.eval(&data, 0.1, 1.0, 0.0, &mut p, &mut v, &mut a);
+        blend.eval(
+            &data,
+            PathPoint::new(0.1, 1.0, 0.0),
+            AxisJet::new(&mut p, &mut v, &mut a),
+        );
         let mid = 0.2 * blend.shape.midpoint_integral();
         assert!(
             (p[0] + mid).abs() < 1e-15 && (p[1] - mid).abs() < 1e-15,

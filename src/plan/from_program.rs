@@ -150,7 +150,7 @@ impl SampleBudget {
     ) -> Result<usize, PlanError> {
         self.duration += duration;
         let needed = self.samples as f64 + ticks;
-        if !(needed <= MAX_SETPOINT_SAMPLES as f64) {
+        if needed.is_nan() || needed > MAX_SETPOINT_SAMPLES as f64 {
             return Err(PlanError::TooManySamples {
                 index,
                 line,

@@ -18,6 +18,55 @@ use std::f64::consts::{FRAC_PI_2, PI, TAU};
 
 use super::path::{AxisKind, AxisSpec, Geometry, PathError, PathSegment, ARC_RADIUS_MISMATCH};
 
+/// A point moving along a piece of path: its coordinate σ (m) and σ̇, σ̈.
+#[derive(Debug, Clone, Copy)]
+pub struct PathPoint {
+    pub sigma: f64,
+    pub sigma_dot: f64,
+    pub sigma_ddot: f64,
+}
+
+impl PathPoint {
+    /// (σ, σ̇, σ̈).
+    pub fn parts(self) -> (f64, f64, f64) {
+        (self.sigma, self.sigma_dot, self.sigma_ddot)
+    }
+
+    pub fn new(sigma: f64, sigma_dot: f64, sigma_ddot: f64) -> Self {
+        PathPoint {
+            sigma,
+            sigma_dot,
+            sigma_ddot,
+        }
+    }
+}
+
+/// Where a piece's `eval` writes the axis positions, velocities and accelerations.
+pub struct AxisJet<'a> {
+    pub position: &'a mut [f64],
+    pub velocity: &'a mut [f64],
+    pub acceleration: &'a mut [f64],
+}
+
+impl<'a> AxisJet<'a> {
+    /// (positions, velocities, accelerations).
+    pub fn parts(self) -> (&'a mut [f64], &'a mut [f64], &'a mut [f64]) {
+        (self.position, self.velocity, self.acceleration)
+    }
+
+    pub fn new(
+        position: &'a mut [f64],
+        velocity: &'a mut [f64],
+        acceleration: &'a mut [f64],
+    ) -> Self {
+        AxisJet {
+            position,
+            velocity,
+            acceleration,
+        }
+    }
+}
+
 /// The geometry of every segment of a path, in flat storage (no allocation per segment).
 #[derive(Debug, Clone, Default)]
 pub(super) struct Shapes {
@@ -88,7 +137,7 @@ impl ArcShape {
 
 /// Largest |cos x| for x in [lo, hi].
 fn max_abs_cos(lo: f64, hi: f64) -> f64 {
-    if !(hi - lo < PI) {
+    if (hi - lo).is_nan() || hi - lo >= PI {
         return 1.0;
     }
     // A multiple of π inside the interval reaches 1; otherwise |cos| is largest at an end.
@@ -262,17 +311,9 @@ impl Shapes {
 
     /// Axis positions, velocities and accelerations at path coordinate `s ∈ [0, length]` moving
     /// with `ṡ`, `s̈`. At `s ≥ length` the position is the programmed end point itself.
-    #[allow(clippy::too_many_arguments)]
-    pub fn eval(
-        &self,
-        k: usize,
-        s: f64,
-        s_dot: f64,
-        s_ddot: f64,
-        position: &mut [f64],
-        velocity: &mut [f64],
-        acceleration: &mut [f64],
-    ) {
+    pub fn eval(&self, k: usize, at: PathPoint, out: AxisJet) {
+        let (s, s_dot, s_ddot) = at.parts();
+        let (position, velocity, acceleration) = out.parts();
         let shape = &self.shapes[k];
         let (start, end, rates) = (self.start(k), self.end(k), self.rates(k));
         let at_end = s >= shape.length;
@@ -501,7 +542,7 @@ mod tests {
                         "s {s} order {m} axis {i}: {fd} vs {}",
                         here[m + 1][i]
                     );
-                    if m + 1 <= 4 {
+                    if m < 4 {
                         assert!(
                             here[m + 1][i].abs()
                                 <= shapes.bound(0, i, m as i32 + 1) * (1.0 + 1e-12)
@@ -512,14 +553,22 @@ mod tests {
         }
         // Within the segment the jet agrees with eval, and eval ends on the programmed point.
         let (mut p, mut v, mut a) = (vec![0.0; n], vec![0.0; n], vec![0.0; n]);
-        shapes.eval(0, 0.3 * length, 2.0, 3.0, &mut p, &mut v, &mut a);
+        shapes.eval(
+            0,
+            PathPoint::new(0.3 * length, 2.0, 3.0),
+            AxisJet::new(&mut p, &mut v, &mut a),
+        );
         jet(0.3 * length, &mut rows);
         for i in 0..n {
             assert!((p[i] - rows[0][i]).abs() < 1e-15);
             assert!((v[i] - 2.0 * rows[1][i]).abs() < 1e-12);
             assert!((a[i] - (4.0 * rows[2][i] + 3.0 * rows[1][i])).abs() < 1e-9);
         }
-        shapes.eval(0, length, 0.0, 0.0, &mut p, &mut v, &mut a);
+        shapes.eval(
+            0,
+            PathPoint::new(length, 0.0, 0.0),
+            AxisJet::new(&mut p, &mut v, &mut a),
+        );
         assert_eq!(p, [0.01, -0.020015, 0.003]);
     }
 }

@@ -666,11 +666,8 @@ impl<'a> Builder<'a> {
                 // The data at the knots around depend on which lines are smoothed two
                 // lines either way: those lines are checked again.
                 flags[m] = false;
-                for neighbour in m.saturating_sub(2)..(m + 3).min(count) {
-                    if flags[neighbour] {
-                        work.push(neighbour);
-                    }
-                }
+                let around = m.saturating_sub(2)..(m + 3).min(count);
+                work.extend(around.filter(|&neighbour| flags[neighbour]));
             }
         }
         // Stage 2: along each run, one curve through as many lines as stay within the
@@ -881,7 +878,7 @@ impl<'a> Builder<'a> {
                 }
             }
             let length = within.min(longest).min(needed);
-            if !(length > 0.0) {
+            if length.is_nan() || length <= 0.0 {
                 continue;
             }
             self.corner_bounds(u1, u2, length, shape);
@@ -889,7 +886,7 @@ impl<'a> Builder<'a> {
                 .bounds
                 .reduced(self.table.axes(), feed)
                 .ceiling(SIZING_SHARE);
-            if best.map_or(true, |(c, _)| ceiling > c) {
+            if best.is_none_or(|(c, _)| ceiling > c) {
                 best = Some((ceiling, CornerBlend { length, shape }));
             }
         }
@@ -918,7 +915,7 @@ impl<'a> Builder<'a> {
             longest = longest.min(MAX_BLEND_TURN / self.tangent.curvature);
         }
         let length = self.tangent.length_within(tolerance, longest);
-        if !(length > 0.0) {
+        if length.is_nan() || length <= 0.0 {
             return Junction::Stop;
         }
         self.tangent.bounds(

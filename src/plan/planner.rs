@@ -20,7 +20,7 @@
 //! Every chain ends exactly on its programmed end point; the programmed points inside a chain
 //! are passed within the corner tolerance (through them, on a tangent blend).
 
-use super::geometry::{Metric, Shapes};
+use super::geometry::{AxisJet, Metric, PathPoint, Shapes};
 use super::path::{AxisPath, Blend, Geometry, PathError};
 use super::pieces::{assign_limits, Builder, Chain, Piece, PieceKind, Pieces, SHARE_CAPS};
 use super::profile::{reachable_velocity, Limits, Profile, Recipe};
@@ -394,13 +394,9 @@ impl Cursor {
         let u = (s - piece.start).clamp(0.0, piece.length);
         plan.eval_piece(
             piece,
-            u,
-            state.velocity,
-            state.acceleration,
+            PathPoint::new(u, state.velocity, state.acceleration),
             &mut self.scratch,
-            position,
-            velocity,
-            acceleration,
+            AxisJet::new(position, velocity, acceleration),
         );
         plan.source_index[plan.pieces.segment_at(piece, u)]
     }
@@ -422,55 +418,25 @@ impl Plan {
         &self.start
     }
 
-    #[allow(clippy::too_many_arguments)]
-    fn eval_piece(
-        &self,
-        piece: &Piece,
-        u: f64,
-        s_dot: f64,
-        s_ddot: f64,
-        scratch: &mut JetScratch,
-        position: &mut [f64],
-        velocity: &mut [f64],
-        acceleration: &mut [f64],
-    ) {
+    /// Evaluates `piece` at `at` (σ measured from the piece's start).
+    fn eval_piece(&self, piece: &Piece, at: PathPoint, scratch: &mut JetScratch, out: AxisJet) {
         match piece.kind {
             PieceKind::Segment { segment, from } => self.shapes.eval(
                 segment,
-                from + u,
-                s_dot,
-                s_ddot,
-                position,
-                velocity,
-                acceleration,
+                PathPoint {
+                    sigma: from + at.sigma,
+                    ..at
+                },
+                out,
             ),
-            PieceKind::Corner { blend, data, .. } => blend.eval(
-                &self.pieces.arena[data..data + 3 * self.axes],
-                u,
-                s_dot,
-                s_ddot,
-                position,
-                velocity,
-                acceleration,
-            ),
-            PieceKind::Tangent(tangent) => tangent.eval(
-                &self.shapes,
-                scratch,
-                u,
-                s_dot,
-                s_ddot,
-                position,
-                velocity,
-                acceleration,
-            ),
+            PieceKind::Corner { blend, data, .. } => {
+                blend.eval(&self.pieces.arena[data..data + 3 * self.axes], at, out)
+            }
+            PieceKind::Tangent(tangent) => tangent.eval(&self.shapes, scratch, at, out),
             PieceKind::Quintic { data, .. } => quintic::eval(
                 &self.pieces.arena[data..data + quintic::COEFFICIENTS * self.axes],
-                u,
-                s_dot,
-                s_ddot,
-                position,
-                velocity,
-                acceleration,
+                at,
+                out,
             ),
         }
     }
@@ -640,7 +606,12 @@ impl Plan {
                     for k in usize::from(i > 0)..=steps {
                         let mut p = vec![0.0; n];
                         let u = piece.length * k as f64 / steps as f64;
-                        self.eval_piece(piece, u, 0.0, 0.0, &mut scratch, &mut p, &mut v, &mut a);
+                        self.eval_piece(
+                            piece,
+                            PathPoint::new(u, 0.0, 0.0),
+                            &mut scratch,
+                            AxisJet::new(&mut p, &mut v, &mut a),
+                        );
                         points.push(p);
                     }
                 }

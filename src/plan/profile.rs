@@ -112,7 +112,7 @@ pub fn reachable_velocity(v_from: f64, distance: f64, limits: &Limits) -> f64 {
     if transfer_distance(v_from, limits.velocity, a, j) <= distance {
         return limits.velocity;
     }
-    if !(distance > 0.0) {
+    if distance.is_nan() || distance <= 0.0 {
         return v_from.min(limits.velocity);
     }
     let switch = a * a / j;

@@ -25,7 +25,7 @@
 //! cubic whose extremes on the segment are found exactly; `|q'|` is bounded from a grid and
 //! the bound on `q''`.
 
-use super::geometry::Metric;
+use super::geometry::{AxisJet, Metric, PathPoint};
 
 /// Coefficients per axis: `q_i(σ) = Σ_m c[6·i + m]·σ^m`.
 pub(super) const COEFFICIENTS: usize = 6;
@@ -115,7 +115,7 @@ pub(super) fn coefficients(k0: &Knot, k1: &Knot, h: f64, out: &mut Vec<f64>) {
         ];
         let mut scale = 1.0;
         for m in 0..6 {
-            let c: f64 = (0..6).map(|b| BASIS[b][m] * data[b]).sum();
+            let c: f64 = BASIS.iter().zip(&data).map(|(basis, d)| basis[m] * d).sum();
             out.push(c / scale);
             scale *= h;
         }
@@ -131,15 +131,9 @@ fn jet(c: &[f64], s: f64) -> (f64, f64, f64) {
 }
 
 /// Axis positions, velocities and accelerations at σ moving with `σ̇`, `σ̈`.
-pub(super) fn eval(
-    coefficients: &[f64],
-    sigma: f64,
-    sigma_dot: f64,
-    sigma_ddot: f64,
-    position: &mut [f64],
-    velocity: &mut [f64],
-    acceleration: &mut [f64],
-) {
+pub(super) fn eval(coefficients: &[f64], at: PathPoint, out: AxisJet) {
+    let (sigma, sigma_dot, sigma_ddot) = at.parts();
+    let (position, velocity, acceleration) = out.parts();
     for (i, c) in coefficients.chunks_exact(COEFFICIENTS).enumerate() {
         let (q, d1, d2) = jet(c, sigma);
         position[i] = q;

@@ -22,7 +22,7 @@
 //! constants `sup |w^(m)(x)|·|x − ½|^k` below. The planner turns the resulting bounds on
 //! `g'`, `g''`, `g'''` into the blend's speed ceiling and path limits, exactly as for an arc.
 
-use super::geometry::{Metric, Shapes};
+use super::geometry::{AxisJet, Metric, PathPoint, Shapes};
 use super::profile::largest_at_most;
 
 /// sup over x ∈ [0, ½] of w(x)·|x − ½|^k, k = 0…4 (rounded up).
@@ -84,18 +84,9 @@ fn jet_into(shapes: &Shapes, k: usize, s: f64, rows: &mut [f64], orders: usize) 
 
 impl TangentBlend {
     /// Axis positions, velocities and accelerations at `sigma ∈ [0, L]` moving with `σ̇`, `σ̈`.
-    #[allow(clippy::too_many_arguments)]
-    pub fn eval(
-        &self,
-        shapes: &Shapes,
-        scratch: &mut JetScratch,
-        sigma: f64,
-        sigma_dot: f64,
-        sigma_ddot: f64,
-        position: &mut [f64],
-        velocity: &mut [f64],
-        acceleration: &mut [f64],
-    ) {
+    pub fn eval(&self, shapes: &Shapes, scratch: &mut JetScratch, at: PathPoint, out: AxisJet) {
+        let (sigma, sigma_dot, sigma_ddot) = at.parts();
+        let (position, velocity, acceleration) = out.parts();
         let n = shapes.n;
         let l = self.length;
         let sigma = sigma.clamp(0.0, l);
@@ -266,8 +257,8 @@ mod tests {
                 if x <= 0.5 {
                     found[0][k] = found[0][k].max(w[0] * dk);
                 }
-                for m in 1..4 {
-                    found[m][k] = found[m][k].max(w[m].abs() * dk);
+                for (f, w) in found.iter_mut().zip(&w).skip(1) {
+                    f[k] = f[k].max(w.abs() * dk);
                 }
             }
         }

@@ -2,6 +2,7 @@
 //! only, independently of the planner's bookkeeping.
 #![allow(dead_code)]
 
+use cncsim::machine::Machine;
 use cncsim::plan::{AxisKind, AxisLimits, AxisSpec, Blend, Geometry, PathSegment, Plan, Setpoints};
 
 pub fn axis(name: &str, kind: AxisKind, v: f64, a: f64, j: f64) -> AxisSpec {
@@ -223,4 +224,25 @@ pub fn rrd_strings(
         }
     }
     out
+}
+
+/// The machine's axes, each with velocity `v`, acceleration `a` and jerk `j` in program units
+/// (mm or deg).
+pub fn uniform_axes(machine: &Machine, v: f64, a: f64, j: f64) -> Vec<AxisSpec> {
+    machine
+        .axes
+        .iter()
+        .map(|axis| {
+            let kind = if axis.is_rotary(machine) {
+                AxisKind::Rotary
+            } else {
+                AxisKind::Linear
+            };
+            AxisSpec {
+                name: axis.name.clone(),
+                kind,
+                limits: AxisLimits::from_program_units(kind, v, a, j),
+            }
+        })
+        .collect()
 }
