@@ -93,7 +93,7 @@ fn trapezoid_program(
                 }
             }
             Motion::Arc { .. } => {
-                return Err(PlanError::Unsupported { index, line, what: "an arc with the trapezoid profile (seed digest §1.5 defines it for straight moves; use constant-velocity or jerk-limited)" })
+                return Err(PlanError::Unsupported { index, line, what: "an arc with the trapezoid profile (docs/sources.md §1.5 defines it for straight moves; use constant-velocity or jerk-limited)" })
             }
             Motion::Dwell { seconds } => out.hold((seconds / settings.period).ceil() as usize, index as u32),
         }

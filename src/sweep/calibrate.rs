@@ -23,7 +23,8 @@
 //! measured = 0.61
 //! tolerance = 0.1                 # relative: the cost is Σ ((run − measured)/(tolerance·measured))²
 //! [[target]]                      # or a measured trace: RMS difference after time alignment
-//! trace = "measured.csv"          # a t_s column and those named in `columns`
+//! trace = "measured.csv"          # a time column (s) and those named in `columns`
+//! time_column = "t_s"             # the default
 //! columns = { x_actual_mm = "x_mm" }   # the run's trace.csv column = the measured column
 //! tolerance_mm = 0.05             # the cost is (RMS / tolerance_mm)²
 //! max_shift_s = 0.2               # time alignment searched within ± this
@@ -182,6 +183,7 @@ struct TargetSpec {
     measured: Option<f64>,
     tolerance: Option<f64>,
     trace: Option<Spanned<String>>,
+    time_column: Option<String>,
     columns: Option<BTreeMap<String, String>>,
     tolerance_mm: Option<f64>,
     max_shift_s: Option<f64>,
@@ -278,8 +280,8 @@ impl Calibration {
             };
             match (&q.metric, &q.trace) {
                 (Some(metric), None) => {
-                    if q.columns.is_some() || q.tolerance_mm.is_some() || q.max_shift_s.is_some() {
-                        return Err(fail(format!("{metric}: columns, tolerance_mm and max_shift_s belong to trace targets")));
+                    if q.columns.is_some() || q.time_column.is_some() || q.tolerance_mm.is_some() || q.max_shift_s.is_some() {
+                        return Err(fail(format!("{metric}: columns, time_column, tolerance_mm and max_shift_s belong to trace targets")));
                     }
                     let (Some(measured), Some(tolerance)) = (q.measured, q.tolerance) else {
                         return Err(fail(format!("{metric}: expected measured = <number> and tolerance = <relative, e.g. 0.1>")));
@@ -303,7 +305,8 @@ impl Calibration {
                     if !(0.0..=60.0).contains(&max_shift_s) {
                         return Err(fail(format!("max_shift_s = {max_shift_s:?}: expected 0 to 60 s")));
                     }
-                    let measured = MeasuredTrace::load(&trace_path, &columns)?;
+                    let time_column = q.time_column.as_deref().unwrap_or("t_s");
+                    let measured = MeasuredTrace::load(&trace_path, time_column, &columns)?;
                     targets.push(Target::Trace { scenario, trace: trace_path, columns, measured, tolerance_mm, max_shift_s });
                 }
                 _ => return Err(fail("expected either metric = \"<metric key>\" or trace = \"<measured CSV>\"".into())),
@@ -405,19 +408,22 @@ impl Calibration {
 }
 
 impl MeasuredTrace {
-    /// Reads a measured trace: a header with `t_s` and the measured columns, then rows of
-    /// numbers with rising times. Errors name the file, line and column.
-    pub fn load(path: &Path, columns: &[(String, String)]) -> Result<MeasuredTrace, FileError> {
-        let text = read_text(path, "measured trace")?;
-        let mut reader = csv::ReaderBuilder::new().trim(csv::Trim::All).from_reader(text.as_bytes());
-        let located = |pos: Option<&csv::Position>| pos.map(|p| LineColumn::of_offset(&text, p.byte() as usize));
+    /// Reads a measured trace: a header with the time column (seconds) and the measured
+    /// columns, then rows of numbers with rising times. Errors name the file, line and column.
+    pub fn load(path: &Path, time_column: &str, columns: &[(String, String)]) -> Result<MeasuredTrace, FileError> {
+        // Streamed row by row (a run's own trace can be large); bounded by MAX_TRACE_ROWS.
+        let mut reader = csv::ReaderBuilder::new()
+            .trim(csv::Trim::All)
+            .from_path(path)
+            .map_err(|e| FileError::new(path, None, format!("cannot read the measured trace: {e}")))?;
+        let located = |pos: Option<&csv::Position>| pos.map(|p| LineColumn { line: p.line() as usize, column: 1 });
         let header = reader.headers().map_err(|e| FileError::new(path, None, format!("cannot read the header: {e}")))?.clone();
         let index = |name: &str| {
             header.iter().position(|h| h == name).ok_or_else(|| {
                 FileError::new(path, Some(LineColumn { line: 1, column: 1 }), format!("expected a column '{name}' in the header, found {}", header.iter().collect::<Vec<_>>().join(", ")))
             })
         };
-        let t_col = index("t_s")?;
+        let t_col = index(time_column)?;
         let wanted: Vec<usize> = columns.iter().map(|(_, m)| index(m)).collect::<Result<_, _>>()?;
         let mut trace = MeasuredTrace { t_s: Vec::new(), columns: vec![Vec::new(); wanted.len()] };
         for record in reader.records() {
@@ -433,7 +439,7 @@ impl MeasuredTrace {
             };
             let t = number(t_col)?;
             if trace.t_s.last().is_some_and(|&last| t <= last) {
-                return Err(FileError::new(path, located(record.position()), format!("t_s = {t}: expected times rising from row to row")));
+                return Err(FileError::new(path, located(record.position()), format!("{time_column} = {t}: expected times rising from row to row")));
             }
             trace.t_s.push(t);
             for (k, &c) in wanted.iter().enumerate() {
@@ -453,7 +459,7 @@ impl MeasuredTrace {
 fn trace_rms(run_dir: &Path, columns: &[(String, String)], measured: &MeasuredTrace, max_shift_s: f64) -> Result<f64, String> {
     let path = run_dir.join("trace.csv");
     let runs: Vec<(String, String)> = columns.iter().map(|(run, _)| (run.clone(), run.clone())).collect();
-    let sim = MeasuredTrace::load(&path, &runs).map_err(|e| e.to_string())?;
+    let sim = MeasuredTrace::load(&path, "t_s", &runs).map_err(|e| e.to_string())?;
     let at = |t: f64, c: usize| -> Option<f64> {
         let k = sim.t_s.partition_point(|&s| s <= t);
         if k == 0 || k >= sim.t_s.len() {
@@ -500,7 +506,42 @@ pub struct Evaluation {
     pub results: Vec<f64>,
     pub cost: f64,
     pub failure: Option<String>,
+    /// The failure was a run that could not start (not one that stopped early).
+    #[serde(skip)]
+    pub cannot_start: bool,
 }
+
+/// How the cost changes around the best candidate along one parameter: the best moved down
+/// and up by a small step (2 % of the range, or one `step`) with the others held.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct Sensitivity {
+    /// (value, cost) below and above the best (None at a bound or when the run failed).
+    pub below: Option<(f64, f64)>,
+    pub above: Option<(f64, f64)>,
+    /// Half-width of Δcost ≤ 1 from the parabola through the three points, when it opens
+    /// upwards: the one-sigma uncertainty with the tolerances as standard deviations.
+    pub sigma: Option<f64>,
+}
+
+impl Sensitivity {
+    fn of(best: (f64, f64), below: Option<(f64, f64)>, above: Option<(f64, f64)>) -> Sensitivity {
+        let (p0, c0) = best;
+        let sigma = match (below, above) {
+            // Only at a minimum: a neighbour with a lower cost means the search stopped short.
+            (Some((pl, cl)), Some((ph, ch))) if ph > pl && cl > c0 && ch > c0 => {
+                let curvature = 2.0 * ((ch - c0) / (ph - p0) - (c0 - cl) / (p0 - pl)) / (ph - pl);
+                (curvature > 0.0).then(|| (2.0 / curvature).sqrt())
+            }
+            _ => None,
+        };
+        Sensitivity { below, above, sigma }
+    }
+}
+
+/// Unit-box step of the sensitivity profile and the polish.
+const PROFILE_STEP: f64 = 0.02;
+/// Most moves of the polish after CMA-ES.
+const MAX_POLISH_ROUNDS: usize = 8;
 
 /// The running state of a calibration, for a progress display.
 #[derive(Debug, Default)]
@@ -521,6 +562,10 @@ pub struct CalibrationResult {
     /// (with the tolerances as standard deviations, the one-sigma range of a χ² fit, as far as
     /// the candidates sampled it).
     pub ranges: Vec<Option<(f64, f64)>>,
+    /// Per parameter: the best candidate moved one small step each way with the others held.
+    pub sensitivity: Vec<Sensitivity>,
+    /// Moves of the compass search after CMA-ES (each to a better neighbour).
+    pub polish_rounds: usize,
     pub interrupted: bool,
     /// Why CMA-ES stopped (e.g. MaxFunctionEvaluations, TolFun).
     pub stop_reason: String,
@@ -545,6 +590,7 @@ fn evaluate(cal: &Calibration, scenarios: &[PathBuf], values: Vec<f64>, scratch:
         .collect();
     let (results, _) = execute(&jobs, 1, interrupted, &Progress::default(), &|_| {});
     let mut failure = None;
+    let cannot_start = results.iter().any(|r| r.error.is_some());
     let mut cost = 0.0;
     let mut out = Vec::new();
     for t in &cal.targets {
@@ -581,7 +627,7 @@ fn evaluate(cal: &Calibration, scenarios: &[PathBuf], values: Vec<f64>, scratch:
         out.push(value);
     }
     let _ = std::fs::remove_dir_all(scratch);
-    Evaluation { index: 0, generation: 0, values, results: out, cost, failure }
+    Evaluation { index: 0, generation: 0, values, results: out, cost, failure, cannot_start }
 }
 
 /// Runs the calibration: generations of `population` candidates until `max_evaluations` (or an
@@ -604,11 +650,20 @@ pub fn calibrate(
         .map(|p| p.start.map_or(0.5, |s| Calibration::unit_of(p, s)))
         .collect();
     let first = evaluate(cal, &scenarios, cal.values(&start_unit), &scratch.join("start"), interrupted);
-    if let Some(f) = first.failure.as_deref().filter(|f| f.starts_with("the run has no metric")) {
-        return Err(FileError::new(&cal.path, LineColumn::of_first(&std::fs::read_to_string(&cal.path).unwrap_or_default(), f.split('`').nth(1).unwrap_or("")), format!("{f}: see a run's metrics.json for the keys")));
+    // The start point must run: a run that cannot start (a key the scenario does not have, a
+    // value it refuses) or lacks a metric is a fault of the spec, reported before the search.
+    if let Some(f) = first.failure.as_deref() {
+        let spec_text = std::fs::read_to_string(&cal.path).unwrap_or_default();
+        if f.starts_with("the run has no metric") {
+            return Err(FileError::new(&cal.path, LineColumn::of_first(&spec_text, f.split('`').nth(1).unwrap_or("")), format!("{f}: see a run's metrics.json for the keys")));
+        }
+        if first.cannot_start {
+            return Err(FileError::new(&cal.path, None, format!("at the start point the run cannot start: {f}")));
+        }
     }
 
-    let generation = AtomicUsize::new(0);
+    // Generation 0 is the start point.
+    let generation = AtomicUsize::new(1);
     let counter = AtomicUsize::new(0);
     let pending: Mutex<Vec<Evaluation>> = Mutex::new(Vec::new());
     let objective = |unit: &cmaes::DVector<f64>| -> f64 {
@@ -667,15 +722,39 @@ pub fn calibrate(
         Ok(pool) => pool.install(search),
         Err(_) => search(),
     }
-    let _ = std::fs::remove_dir_all(&scratch);
+    let best_of = |evaluations: &[Evaluation]| {
+        evaluations
+            .iter()
+            .filter(|e| e.failure.is_none())
+            .min_by(|a, b| a.cost.total_cmp(&b.cost))
+            .cloned()
+    };
+    let mut best = best_of(&evaluations);
+    // Polish: CMA-ES stops on its budget, not at a minimum. A compass search around the best
+    // (each parameter a small step each way) moves to a better neighbour while there is one;
+    // its last round is the sensitivity profile.
+    let mut sensitivity = Vec::new();
+    let mut polish_rounds = 0;
+    while let Some(b) = best.clone().filter(|_| !interrupted.load(Ordering::Relaxed)) {
+        let (profile, mut runs) = profile(cal, &scenarios, &b, &scratch, threads, interrupted);
+        let round = generation.load(Ordering::Relaxed) + polish_rounds;
+        for e in &mut runs {
+            e.generation = round;
+        }
+        evaluations.extend(runs);
+        sensitivity = profile;
+        let better = best_of(&evaluations).filter(|n| n.cost < b.cost);
+        if better.is_none() || polish_rounds == MAX_POLISH_ROUNDS {
+            break;
+        }
+        best = better;
+        polish_rounds += 1;
+    }
     for (i, e) in evaluations.iter_mut().enumerate() {
         e.index = i;
     }
-    let best = evaluations
-        .iter()
-        .filter(|e| e.failure.is_none())
-        .min_by(|a, b| a.cost.total_cmp(&b.cost))
-        .cloned();
+    // The best again, now numbered.
+    let best = best.and_then(|b| evaluations.iter().find(|e| e.values == b.values && e.failure.is_none()).cloned());
     let ranges = (0..cal.parameters.len())
         .map(|i| {
             let b = best.as_ref()?;
@@ -686,6 +765,7 @@ pub fn calibrate(
                 .fold(None, |r: Option<(f64, f64)>, v| Some(r.map_or((v, v), |(lo, hi)| (lo.min(v), hi.max(v)))))
         })
         .collect();
+    let _ = std::fs::remove_dir_all(&scratch);
     Ok(CalibrationResult {
         name: cal.name.clone(),
         parameters: cal.parameters.clone(),
@@ -693,10 +773,55 @@ pub fn calibrate(
         evaluations,
         best,
         ranges,
+        sensitivity,
+        polish_rounds,
         interrupted: interrupted.load(Ordering::Relaxed),
         stop_reason,
         wall_time_s: started.elapsed().as_secs_f64(),
     })
+}
+
+/// The sensitivity profile around `best`: 2 runs per parameter (fewer at the bounds), in
+/// parallel.
+fn profile(cal: &Calibration, scenarios: &[PathBuf], best: &Evaluation, scratch: &Path, threads: usize, interrupted: &AtomicBool) -> (Vec<Sensitivity>, Vec<Evaluation>) {
+    let unit: Vec<f64> = cal.parameters.iter().zip(&best.values).map(|(p, &v)| Calibration::unit_of(p, v)).collect();
+    // Each neighbour as (parameter, values); stepped parameters move by one step.
+    let mut points: Vec<(usize, Vec<f64>)> = Vec::new();
+    for (i, p) in cal.parameters.iter().enumerate() {
+        for sign in [-1.0, 1.0] {
+            let mut values = best.values.clone();
+            values[i] = match p.step {
+                Some(step) => best.values[i] + sign * step,
+                None => {
+                    let mut u = unit.clone();
+                    u[i] += sign * PROFILE_STEP;
+                    cal.values(&u)[i]
+                }
+            };
+            if (p.min..=p.max).contains(&values[i]) && values[i] != best.values[i] {
+                points.push((i, values));
+            }
+        }
+    }
+    let run = |(k, (_, values)): (usize, &(usize, Vec<f64>))| evaluate(cal, scenarios, values.clone(), &scratch.join(format!("profile{k}")), interrupted);
+    let runs: Vec<Evaluation> = match rayon::ThreadPoolBuilder::new().num_threads(threads.max(1)).build() {
+        Ok(pool) => pool.install(|| {
+            use rayon::prelude::*;
+            points.par_iter().enumerate().map(run).collect()
+        }),
+        Err(_) => points.iter().enumerate().map(run).collect(),
+    };
+    let sensitivity = (0..cal.parameters.len())
+        .map(|i| {
+            let side = |below: bool| {
+                points.iter().zip(&runs).find_map(|((j, values), e)| {
+                    (*j == i && (values[i] < best.values[i]) == below && e.failure.is_none()).then_some((values[i], e.cost))
+                })
+            };
+            Sensitivity::of((best.values[i], best.cost), side(true), side(false))
+        })
+        .collect();
+    (sensitivity, runs)
 }
 
 /// The runs of the target and prediction scenarios with the best values, each with its
@@ -726,34 +851,49 @@ pub fn predict(cal: &Calibration, values: &[f64], out: &Path, threads: usize, in
 }
 
 /// The predictions table: per scenario, each axis's largest error with when and where in the
-/// motion it occurred, the path-speed error and the stick-slip stalls.
+/// motion it occurred, the path-speed error and each axis's stick-slip stalls.
 pub fn predictions_markdown(cal: &Calibration, runs: &[(PathBuf, JobResult)]) -> String {
     let targets = cal.target_scenarios();
-    let mut t = String::from("| scenario | X max error | Y max error | path-speed error | stalls X / Y | role |\n|---|---|---|---:|---:|---|\n");
+    let axes: Vec<String> = runs
+        .iter()
+        .find_map(|(_, r)| r.metrics.as_ref()?["axes"].as_object().map(|a| a.keys().cloned().collect()))
+        .unwrap_or_default();
+    let mut t = String::from("| scenario |");
+    for a in &axes {
+        t += &format!(" {} max error |", a.to_uppercase());
+    }
+    t += &format!(" path-speed error | stalls {} | role |\n|---|", axes.iter().map(|a| a.to_uppercase()).collect::<Vec<_>>().join(" / "));
+    t += &"---|".repeat(axes.len());
+    t += "---:|---:|---|\n";
     for (s, r) in runs {
         let stem = s.file_stem().map_or(String::new(), |s| s.to_string_lossy().into_owned());
         let role = if targets.contains(s) { "calibration" } else { "prediction" };
         let Some(m) = &r.metrics else {
-            t += &format!("| {stem} | failed: {} | | | | {role} |\n", r.error.as_deref().unwrap_or("?"));
+            t += &format!("| {stem} | failed: {} |{}| | {role} |\n", r.error.as_deref().unwrap_or("?"), " |".repeat(axes.len()));
             continue;
         };
         let axis = |a: &str| {
             let v = |k: &str| Metrics::lookup(m, &format!("axes.{a}.{k}"));
             let at = m["axes"][a]["max_following_error_at"].as_str().unwrap_or("?");
-            match (v("max_following_error_mm"), v("max_following_error_time_s")) {
-                (Some(e), Some(time)) => format!("{e:.3} mm ({at}, {time:.2} s)"),
+            let (value, unit) = match (v("max_following_error_mm"), v("max_following_error_deg")) {
+                (Some(e), _) => (Some(e), "mm"),
+                (None, Some(e)) => (Some(e), "°"),
+                _ => (None, ""),
+            };
+            match (value, v("max_following_error_time_s")) {
+                (Some(e), Some(time)) => format!("{e:.3} {unit} ({at}, {time:.2} s)"),
                 _ => "—".into(),
             }
         };
         let stalls = |a: &str| Metrics::lookup(m, &format!("axes.{a}.stick_slip_stalls")).map_or("—".into(), |v| format!("{v}"));
+        t += &format!("| {stem}{} |", if r.stopped.is_some() { " (stopped early)" } else { "" });
+        for a in &axes {
+            t += &format!(" {} |", axis(a));
+        }
         t += &format!(
-            "| {stem}{} | {} | {} | {:.2} mm/s | {} / {} | {role} |\n",
-            if r.stopped.is_some() { " (stopped early)" } else { "" },
-            axis("x"),
-            axis("y"),
+            " {:.2} mm/s | {} | {role} |\n",
             Metrics::lookup(m, "max_path_speed_error_mm_s").unwrap_or(f64::NAN),
-            stalls("x"),
-            stalls("y"),
+            axes.iter().map(|a| stalls(a)).collect::<Vec<_>>().join(" / "),
         );
     }
     t
@@ -763,23 +903,43 @@ impl CalibrationResult {
     /// The report: the fitted parameters with their ranges, each target, the best candidates.
     pub fn markdown(&self, cal: &Calibration) -> String {
         let mut t = format!(
-            "# Calibration {}\n\n{} candidates evaluated in {:.1} s (CMA-ES, seed {}, population {}; stopped: {}){}.\n\n",
+            "# Calibration {}\n\n{} candidates evaluated in {:.1} s (CMA-ES, seed {}, population {}; stopped: {}; then a compass search around the best, {} move{} to a better neighbour, and its last round as the sensitivity profile){}.\n\n",
             self.name,
             self.evaluations.len(),
             self.wall_time_s,
             cal.seed,
             cal.population,
             self.stop_reason,
+            self.polish_rounds,
+            if self.polish_rounds == 1 { "" } else { "s" },
             if self.interrupted { "; interrupted: the best so far" } else { "" }
         );
         let Some(best) = &self.best else {
             return t + "No candidate ran to the end.\n";
         };
-        t += "## Fitted parameters\n\n| parameter | value | range within Δcost ≤ 1 | bounds |\n|---|---:|---|---|\n";
+        t += "## Fitted parameters\n\nOne-sigma from the local curvature of the cost (the best moved a small step each way, the other parameters held; \"not convex\" where the cost does not rise both ways), and the range of all candidates within Δcost ≤ 1 of the best.\n\n| parameter | value | ± one sigma | cost below / best / above | candidates within Δcost ≤ 1 | bounds |\n|---|---:|---:|---|---|---|\n";
+        let within = self.evaluations.iter().filter(|e| e.failure.is_none() && e.cost <= best.cost + 1.0).count();
         for (i, p) in self.parameters.iter().enumerate() {
-            let range = self.ranges[i].map_or("—".into(), |(lo, hi)| format!("{lo:.5} … {hi:.5}"));
+            let range = match self.ranges[i] {
+                Some(_) if within < 2 => "only the best".into(),
+                Some((lo, hi)) => format!("{lo:.5} … {hi:.5} ({within})"),
+                None => "—".into(),
+            };
             let factor = p.times.as_deref().map_or(String::new(), |k| format!(" (× {k})"));
-            t += &format!("| {}{factor} | {:.5} | {range} | {} … {}{} |\n", p.key, best.values[i], p.min, p.max, if p.log { ", log" } else { "" });
+            let (sigma, costs) = match self.sensitivity.get(i) {
+                Some(s) => {
+                    let c = |side: Option<(f64, f64)>| side.map_or("—".into(), |(_, c)| format!("{c:.3}"));
+                    let lower = [s.below, s.above].into_iter().flatten().any(|(_, c)| c < best.cost);
+                    let sigma = match s.sigma {
+                        Some(v) => format!("{v:.5}"),
+                        None if lower => "not a minimum: search stopped short".into(),
+                        None => "not convex".into(),
+                    };
+                    (sigma, format!("{} / {:.3} / {}", c(s.below), best.cost, c(s.above)))
+                }
+                None => ("—".into(), "—".into()),
+            };
+            t += &format!("| {}{factor} | {:.5} | {sigma} | {costs} | {range} | {} … {}{} |\n", p.key, best.values[i], p.min, p.max, if p.log { ", log" } else { "" });
         }
         t += "\n## Targets\n\n| target | measured | best candidate | miss |\n|---|---:|---:|---:|\n";
         for (i, target) in cal.targets.iter().enumerate() {
