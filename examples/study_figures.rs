@@ -1,4 +1,4 @@
-//! Prints the planning figures of the 5-axis study's program (seed digest §3.3): per-axis limits
+//! Prints the planning figures of the 5-axis study's program (docs/sources.md §3.3): per-axis limits
 //! v = 150, a = 1000, j = 1000 (mm and degree units), F = 150 mm/s on the Euclidean norm of all
 //! axis deltas in mm and degrees.
 //!

@@ -627,7 +627,11 @@ fn calibrate_cli(path: &Path, jobs: Option<usize>, out: Option<PathBuf>, write: 
                             eprintln!("  updated {}", p.display());
                         }
                     }
-                    Err(e) => return fail_input(&e),
+                    Err(e) => {
+                        report += &format!("\n**Not written back:** {e}\n");
+                        status = ExitCode::from(2);
+                        eprintln!("error: {e}");
+                    }
                 }
             }
         }

@@ -37,7 +37,7 @@ fn fixture_values_are_reproduced() {
             .map(|v| v.as_f64().unwrap())
             .collect()
     };
-    // Reference values: ../shared/reference/fixtures/ac_table_eccentric.md (copied to tests/fixtures).
+    // Reference values: tests/fixtures/ac_table_eccentric.md.
     let close = |a: &[f64], b: &[f64]| {
         a.len() == b.len() && a.iter().zip(b).all(|(x, y)| (x - y).abs() <= 1e-6)
     };

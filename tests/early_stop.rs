@@ -144,7 +144,9 @@ fn a_divergence_keeps_everything_and_names_time_and_axis() {
         let s = scenario(analytic, decimation);
         let assembly = Assembly::new(&s).unwrap();
         let mut lanes = assembly.lanes().unwrap();
-        let settle = (s.settle_time / s.servo_period).round() as usize;
+        // Untraced before the program: the settle at rest, then the approach to its start.
+        let settle = (s.settle_time / s.servo_period).round() as usize
+            + assembly.loop_settings.approach.len();
         let inner = std::mem::replace(
             &mut lanes[0].plant,
             Box::new(sim::AnalyticPlant::from_models(

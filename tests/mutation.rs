@@ -269,6 +269,16 @@ fn reached(stage: usize) {
 
 /// Runs one case through every stage; `Err` describes what went wrong (a panic, an error
 /// without its file).
+/// Keeps the first `keep` samples of a setpoint list.
+fn truncate(setpoints: &mut cncsim::plan::Setpoints, keep: usize) {
+    let keep = setpoints.len().min(keep);
+    let n = setpoints.axes;
+    setpoints.position.truncate(keep * n);
+    setpoints.velocity.truncate(keep * n);
+    setpoints.acceleration.truncate(keep * n);
+    setpoints.segment.truncate(keep);
+}
+
 fn run_case(kind: Kind, scenario_path: &Path, mutated: &str) -> Result<(), String> {
     let original = Scenario::load(scenario_path).map_err(|e| format!("bundled scenario: {e}"))?;
     let machine_path = original.machine.clone();
@@ -342,13 +352,13 @@ fn run_case(kind: Kind, scenario_path: &Path, mutated: &str) -> Result<(), Strin
     let mut setpoints = assembly.setpoints.clone();
     let keep = setpoints.len().min(RUN_TICKS);
     let n = setpoints.axes;
-    setpoints.position.truncate(keep * n);
-    setpoints.velocity.truncate(keep * n);
-    setpoints.acceleration.truncate(keep * n);
-    setpoints.segment.truncate(keep);
+    truncate(&mut setpoints, keep);
+    // The untraced approach to the program's start is cut short alike.
+    let mut loop_settings = assembly.loop_settings.clone();
+    truncate(&mut loop_settings.approach, RUN_TICKS);
     let mut recorder = cncsim::sim::TraceRecorder::new(scenario.servo_period, n, lanes.len());
     let outcome = cncsim::sim::run(
-        &assembly.loop_settings,
+        &loop_settings,
         &mut lanes,
         &mut setpoints.stream(),
         &mut recorder,

@@ -1,4 +1,4 @@
-//! The seed trapezoidal profile (seed digest §1.5).
+//! The seed trapezoidal profile (docs/sources.md §1.5).
 
 use cncsim::plan::{trapezoid_line, TrapezoidProfile};
 

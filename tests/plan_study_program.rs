@@ -1,4 +1,4 @@
-//! The 5-axis study's program (seed digest §3.3) on a plain five-axis Cartesian machine with
+//! The 5-axis study's program (docs/sources.md §3.3) on a plain five-axis Cartesian machine with
 //! per-axis limits v = 150, a = 1000, j = 1000 in mm and degree units.
 
 mod common;

@@ -1,4 +1,4 @@
-//! Inverse-dynamics (computed-torque) control in joint space, seed digest §1.3:
+//! Inverse-dynamics (computed-torque) control in joint space, docs/sources.md §1.3:
 //!
 //!   ν = q̈_d + K_D(q̇_d − q̇) + K_P(q_d − q),   τ = M(q)ν + C(q,q̇)q̇ + F q̇ + g(q)
 //!

@@ -1,4 +1,4 @@
-//! Closed-form kinematics of the table-tilting A-C mill (seed digest §3.1): cutter-location
+//! Closed-form kinematics of the table-tilting A-C mill (docs/sources.md §3.1): cutter-location
 //! data in workpiece coordinates ⇄ machine axes X, Y, Z, A, C.
 //!
 //! # The machine, as read from the URDF

@@ -1,5 +1,5 @@
 //! The classic constant-velocity interpolators of the source documents, exactly as written:
-//! straight lines by equal steps ΔS = V·T (seed digest §1.4) and circles by equal chords
+//! straight lines by equal steps ΔS = V·T (docs/sources.md §1.4) and circles by equal chords
 //! θ = acos((2r² − ΔS²)/(2r²)) (§1.6). Each sample is computed from the move's start, not by
 //! repeated addition, so there is no drift, and every move ends exactly on its target with a
 //! shorter last step. Velocity is a step function; acceleration is zero between samples.

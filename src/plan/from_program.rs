@@ -232,7 +232,7 @@ fn trapezoid_stretches(
                 }
             }
             Motion::Arc { .. } => {
-                return Err(PlanError::Unsupported { index, line, what: "an arc with the trapezoid profile (seed digest §1.5 defines it for straight moves; use constant-velocity or jerk-limited)" })
+                return Err(PlanError::Unsupported { index, line, what: "an arc with the trapezoid profile (docs/sources.md §1.5 defines it for straight moves; use constant-velocity or jerk-limited)" })
             }
             Motion::Dwell { seconds } => {
                 let ticks = budget.add_dwell(seconds, index, line)?;

@@ -1,8 +1,8 @@
 //! Motion planning: program moves → setpoints at the servo period per machine axis.
 //!
 //! - [`constant_velocity`]: the source documents' constant-velocity interpolators (equal steps
-//!   V·T on lines, equal chords on circles; seed digest §1.4, §1.6).
-//! - [`trapezoid`]: the source documents' trapezoidal profile (seed digest §1.5).
+//!   V·T on lines, equal chords on circles; docs/sources.md §1.4, §1.6).
+//! - [`trapezoid`]: the source documents' trapezoidal profile (docs/sources.md §1.5).
 //! - [`profile`]: one-dimensional seven-phase jerk-limited profiles and their closed forms.
 //! - [`path`]: the jerk-limited planner's input, a path on the machine axes (SI units).
 //! - `geometry`, `blend`, `tangent`, `pieces`: the path's segments, corner blends between

@@ -1,4 +1,4 @@
-//! The seed trapezoidal velocity profile (seed digest §1.5), exactly as the source documents
+//! The seed trapezoidal velocity profile (docs/sources.md §1.5), exactly as the source documents
 //! give it: constant acceleration `A` from rest to `V`, cruise at `V`, constant deceleration to
 //! rest; a triangle without cruise when the move is too short to reach `V` (`|L| < V²/A`).
 //! The acceleration jumps at the phase boundaries (unlimited jerk): that is the seed's

@@ -6,7 +6,7 @@ use std::path::PathBuf;
 use super::types::{Blend, Feed, FeedRule, Motion, Plane, Position, Program, Spindle};
 use super::*;
 
-/// The sample programs of the source documents (copies of `shared/reference/programs`).
+/// The sample programs of the source documents (copies of the sample programs described in docs/sources.md).
 fn samples_dir() -> PathBuf {
     PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("scenarios/programs")
 }

@@ -39,6 +39,10 @@ pub struct AxisMetrics {
     pub stick_slip_stalls: usize,
 }
 
+/// Longest catch-up after a start from rest that the path-speed error leaves out (s): a
+/// machine that has not reached its commanded speed by then is slow, not starting.
+pub const CATCH_UP_WINDOW_S: f64 = 0.5;
+
 /// Below this fraction of the axis's peak commanded speed the setpoint is slowing through a
 /// reversal (or starting, or stopping): whatever the axis does there is not stick-slip.
 const STALL_COMMAND_FLOOR: f64 = 0.2;
@@ -95,9 +99,15 @@ pub struct Metrics {
     pub stopped: Option<String>,
     pub max_contour_error_mm: f64,
     pub rms_contour_error_mm: f64,
-    /// Largest |commanded − actual| path speed, leaving out the ticks at which the command
-    /// steps between rest and motion (there the difference is the step, not the machine).
+    /// Largest |commanded − actual| path speed of the moving machine: left out are the ticks
+    /// at which the command steps between rest and motion (there the difference is the step,
+    /// not the machine) and, after a start from rest, the catch-up until the actual speed
+    /// first reaches the commanded one (at most `CATCH_UP_WINDOW_S`), which
+    /// `path_speed_catch_up_s` reports instead.
     pub max_path_speed_error_mm_s: f64,
+    /// Longest time the actual path speed took to reach the commanded one after the command
+    /// stepped from rest to motion (the window's length where it never did).
+    pub path_speed_catch_up_s: f64,
     pub sim_time_s: f64,
     pub wall_time_s: f64,
     pub real_time_factor: f64,
@@ -256,6 +266,9 @@ pub struct MetricsAccumulator {
     max_speed_error: f64,
     /// The commanded path speed of the previous tick (0: at rest before the first).
     commanded_speed_before: f64,
+    /// Time of the last step from rest to motion, while the actual speed has not caught up.
+    catching_up_since: Option<f64>,
+    longest_catch_up: f64,
     /// Lane 0's positions at tick `primary_tick`, for the comparison with lane 1.
     primary: Vec<f64>,
     primary_tick: Option<usize>,
@@ -292,6 +305,8 @@ impl MetricsAccumulator {
             sum_contour2: 0.0,
             max_speed_error: 0.0,
             commanded_speed_before: 0.0,
+            catching_up_since: None,
+            longest_catch_up: 0.0,
             primary: vec![0.0; labels.len()],
             primary_tick: None,
         }
@@ -347,9 +362,25 @@ impl MetricsAccumulator {
         // A tick at which the command steps between rest and motion (the stream's first sample
         // at feed, its last at rest, an exact stop) compares a command that starts now with a
         // speed measured before it could act: that difference is the step itself, whatever
-        // the machine does, so it is not counted. The ticks after it are.
-        let moving = path.commanded_speed > 0.0;
-        if moving == (self.commanded_speed_before > 0.0) {
+        // the machine does, so it is not counted. After a start from rest the machine needs
+        // a while to reach the commanded speed; that catch-up is reported as its duration,
+        // and the speed error counts from the moment the machine first reaches the command.
+        // "At rest" allows for rounding in the stream's samples (1 nm/s).
+        const AT_REST: f64 = 1e-9;
+        let moving = path.commanded_speed > AT_REST;
+        let was_moving = self.commanded_speed_before > AT_REST;
+        let t = r.k as f64 * self.period;
+        if moving && !was_moving {
+            self.catching_up_since = Some(t);
+        }
+        if let Some(since) = self.catching_up_since {
+            let caught_up = path.actual_speed >= path.commanded_speed;
+            if caught_up || !moving || t - since >= CATCH_UP_WINDOW_S {
+                self.longest_catch_up = self.longest_catch_up.max(t - since);
+                self.catching_up_since = None;
+            }
+        }
+        if moving == was_moving && self.catching_up_since.is_none() {
             self.max_speed_error = nan_max(
                 self.max_speed_error,
                 (path.commanded_speed - path.actual_speed).abs(),
@@ -406,6 +437,10 @@ impl MetricsAccumulator {
             );
         }
         let sim_time = n as f64 * self.period;
+        // A catch-up still under way when the run ended.
+        let catch_up = self
+            .catching_up_since
+            .map_or(self.longest_catch_up, |since| self.longest_catch_up.max(sim_time - since));
         let wall_time = outcome.wall_time;
         let stopped = outcome.stop().map(|s| s.to_string());
         Metrics {
@@ -415,6 +450,7 @@ impl MetricsAccumulator {
             max_contour_error_mm: self.max_contour * 1e3,
             rms_contour_error_mm: rms(self.sum_contour2) * 1e3,
             max_path_speed_error_mm_s: self.max_speed_error * 1e3,
+            path_speed_catch_up_s: catch_up,
             sim_time_s: sim_time,
             wall_time_s: wall_time,
             real_time_factor: if wall_time > 0.0 {

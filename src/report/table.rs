@@ -31,10 +31,11 @@ pub fn metrics_table(m: &Metrics) -> String {
         ));
     }
     s.push_str(&format!(
-        "  contour error: max {:.3} µm, rms {:.3} µm;  path-speed error: max {:.4} mm/s\n",
+        "  contour error: max {:.3} µm, rms {:.3} µm;  path-speed error: max {:.4} mm/s (after a catch-up from rest of {:.0} ms)\n",
         m.max_contour_error_mm * 1e3,
         m.rms_contour_error_mm * 1e3,
-        m.max_path_speed_error_mm_s
+        m.max_path_speed_error_mm_s,
+        m.path_speed_catch_up_s * 1e3
     ));
     let comparison: Vec<String> = m
         .axes

@@ -262,8 +262,9 @@ pub fn summary_markdown(assembly: &Assembly, metrics: &Metrics, verdict: &Verdic
         metrics.rms_contour_error_mm * 1e3
     );
     t += &format!(
-        "| max path-speed error | {:.3} mm/s |\n",
-        metrics.max_path_speed_error_mm_s
+        "| max path-speed error | {:.3} mm/s |\n| path-speed catch-up from rest | {:.0} ms |\n",
+        metrics.max_path_speed_error_mm_s,
+        metrics.path_speed_catch_up_s * 1e3
     );
     for (name, a) in &metrics.axes {
         match (a.max_following_error_mm, a.max_following_error_deg) {

@@ -213,7 +213,7 @@ struct MotorSide {
     c: f64,
 }
 
-/// The X axis of the XYZ table (seed digest §2.1), 20 kg moved: the tests' fixture.
+/// The X axis of the XYZ table (docs/sources.md §2.1), 20 kg moved: the tests' fixture.
 #[cfg(test)]
 pub(crate) fn xyz_table_x_axis() -> LinearAxis {
     let k = 100.0 / 0.025;

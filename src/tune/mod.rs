@@ -1,4 +1,4 @@
-//! Gain design by the Ziegler–Nichols ultimate-cycle method (seed digest §2.2) on a simulated
+//! Gain design by the Ziegler–Nichols ultimate-cycle method (docs/sources.md §2.2) on a simulated
 //! axis. This stage comes after [`sim`](crate::sim): it runs closed loops, but only through a
 //! `simulate(gain)` function its caller wires (physics or analytic model), so the search and
 //! its judgement of oscillation are plain functions of traces.
