@@ -609,7 +609,13 @@ fn calibrate_cli(path: &Path, jobs: Option<usize>, out: Option<PathBuf>, write: 
     match &result.best {
         Some(best) if !INTERRUPTED.load(Ordering::Relaxed) => {
             eprintln!("running the scenarios with the best values …");
-            let runs = predict(&cal, &best.values, &out.join("predictions"), threads, &INTERRUPTED);
+            let runs = predict(
+                &cal,
+                &best.values,
+                &out.join("predictions"),
+                threads,
+                &INTERRUPTED,
+            );
             report += &format!(
                 "\n## With the best values\n\nRecordings in `predictions/<scenario>/`. Where the largest error occurs: start (before the axis first caught up with its command), reversal (after the command slowed and turned), stop, or moving.\n\n{}",
                 predictions_markdown(&cal, &runs)

@@ -291,3 +291,39 @@ fn task_space_inverse_dynamics_tracks_the_study_program_through_a_zero() {
         "C torque: joint {joint}, task {task} N·m"
     );
 }
+
+/// Scenarios with the analytic model on (the paper's, for one) run it in each variant's own
+/// recording; the shared A/B recording holds the physics lanes (a regression: it indexed a
+/// lane it had no columns for and panicked).
+#[test]
+fn ab_of_scenarios_with_the_analytic_model_writes_one_recording() {
+    let dir = tempfile::tempdir().unwrap();
+    let out = dir.path().join("ab");
+    let (run, json) = ab_args(
+        &[
+            "scenarios/xyz_circle_5mms.toml",
+            "--a",
+            "controller.axes.x.kp=19800.0",
+            "--b",
+            "controller.axes.x.kp=9900.0",
+        ],
+        &out,
+    );
+    assert!(
+        run.status.success(),
+        "{}",
+        String::from_utf8_lossy(&run.stderr)
+    );
+    assert!(out.join("ab.rrd").is_file());
+    // Halving X's proportional gain lets it lag more (measured 0.076 → 0.104 µm).
+    let (a, b) = row(&json, "x: max following error");
+    assert!(b > 1.2 * a, "x max following error: {a} µm, then {b} µm");
+    let metrics: serde_json::Value = serde_json::from_str(
+        &std::fs::read_to_string(
+            out.join("a_xyz_circle_5mms_controller.axes.x.kp=19800.0/metrics.json"),
+        )
+        .unwrap(),
+    )
+    .unwrap();
+    assert!(metrics["axes"]["x"]["max_physics_vs_analytic_mm"].is_number());
+}

@@ -33,7 +33,10 @@ fn short_scenario(dir: &Path, name: &str, kp: f64) -> PathBuf {
         .next()
         .unwrap()
         .to_string();
-    assert!(text.contains(&format!("kp = {kp:.1}")), "the scenario template changed");
+    assert!(
+        text.contains(&format!("kp = {kp:.1}")),
+        "the scenario template changed"
+    );
     let path = dir.join(format!("{name}.toml"));
     std::fs::write(&path, text).unwrap();
     path
@@ -58,11 +61,18 @@ fn fresh_dir(name: &str) -> PathBuf {
 fn measured_trace(dir: &Path) -> PathBuf {
     short_scenario(dir, "truth", TRUE_KP);
     let out = cncsim(&["run", "truth.toml", "--out", "truth"], dir);
-    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
     let mut reader = csv::Reader::from_path(dir.join("truth/trace.csv")).unwrap();
     let headers = reader.headers().unwrap().clone();
     let t = headers.iter().position(|h| h == "t_s").expect("t_s column");
-    let x = headers.iter().position(|h| h == "x_actual_mm").expect("x_actual_mm column");
+    let x = headers
+        .iter()
+        .position(|h| h == "x_actual_mm")
+        .expect("x_actual_mm column");
     let mut text = String::from("time_s,x_mm\n");
     for row in reader.records() {
         let row = row.unwrap();
@@ -107,7 +117,11 @@ fn recovers_a_known_gain_from_a_measured_trace_and_writes_it_back() {
     std::fs::write(dir.join("spec.toml"), spec(96)).unwrap();
     let out = cncsim(&["calibrate", "spec.toml", "--out", "cal", "--write"], &dir);
     let stdout = String::from_utf8_lossy(&out.stdout);
-    assert!(out.status.success(), "{stdout}\n{}", String::from_utf8_lossy(&out.stderr));
+    assert!(
+        out.status.success(),
+        "{stdout}\n{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
     let result = evaluations(&dir, "cal");
     let best = &result["best"];
     let kp = best["values"][0].as_f64().unwrap();
@@ -132,7 +146,10 @@ fn recovers_a_known_gain_from_a_measured_trace_and_writes_it_back() {
         (written_kp / kp - 1.0).abs() < 1e-5,
         "written {written_kp}, best {kp}"
     );
-    assert!(written.contains("# The bundled default"), "comments are kept");
+    assert!(
+        written.contains("# The bundled default"),
+        "comments are kept"
+    );
     let _ = std::fs::remove_dir_all(&dir);
 }
 
@@ -143,8 +160,15 @@ fn the_same_candidates_with_one_thread_or_two() {
     short_scenario(&dir, "model", FILE_KP);
     std::fs::write(dir.join("spec.toml"), spec(12)).unwrap();
     for (jobs, out) in [("1", "one"), ("2", "two")] {
-        let run = cncsim(&["calibrate", "spec.toml", "--jobs", jobs, "--out", out], &dir);
-        assert!(run.status.success(), "{}", String::from_utf8_lossy(&run.stderr));
+        let run = cncsim(
+            &["calibrate", "spec.toml", "--jobs", jobs, "--out", out],
+            &dir,
+        );
+        assert!(
+            run.status.success(),
+            "{}",
+            String::from_utf8_lossy(&run.stderr)
+        );
     }
     let (one, two) = (evaluations(&dir, "one"), evaluations(&dir, "two"));
     assert_eq!(one["evaluations"], two["evaluations"]);
@@ -191,7 +215,10 @@ fn a_bad_spec_is_refused_with_its_location_before_anything_runs() {
         ),
         (
             "a metric no run reports",
-            good.replace("axes.x.max_following_error_mm", "axes.x.max_folowing_error_mm"),
+            good.replace(
+                "axes.x.max_following_error_mm",
+                "axes.x.max_folowing_error_mm",
+            ),
             "axes.x.max_folowing_error_mm",
         ),
         (
@@ -205,7 +232,10 @@ fn a_bad_spec_is_refused_with_its_location_before_anything_runs() {
         let out = cncsim(&["calibrate", "spec.toml", "--out", "cal"], &dir);
         let stderr = String::from_utf8_lossy(&out.stderr);
         assert_eq!(out.status.code(), Some(2), "{what}: {stderr}");
-        assert!(stderr.contains(expected), "{what}: expected {expected:?} in\n{stderr}");
+        assert!(
+            stderr.contains(expected),
+            "{what}: expected {expected:?} in\n{stderr}"
+        );
         assert!(!stderr.contains("panicked"), "{what}: {stderr}");
         assert!(
             !dir.join("cal/evaluations.json").exists(),

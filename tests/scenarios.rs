@@ -23,7 +23,7 @@ fn circle_scenario_meets_its_bounds_and_writes_a_readable_recording() {
     assert!(run.stop.is_none(), "{:?}", run.stop);
     let verdict = check(&scenario, &run.metrics_json);
     assert!(verdict.passed(), "breaches: {:?}", verdict.breaches);
-    assert_eq!(verdict.checked, 8);
+    assert_eq!(verdict.checked, 9);
 
     // metrics.json has the documented keys.
     let json: serde_json::Value =
@@ -32,6 +32,7 @@ fn circle_scenario_meets_its_bounds_and_writes_a_readable_recording() {
     for key in [
         "max_contour_error_mm",
         "max_path_speed_error_mm_s",
+        "path_speed_catch_up_s",
         "sim_time_s",
         "wall_time_s",
         "physics_steps",

@@ -185,7 +185,9 @@ impl Plant {
                 RigidBodyBuilder::fixed()
             } else {
                 if mass.mass() <= 0.0 {
-                    return Err(ModelError::MasslessMovingLink(machine.links[i].name.clone()));
+                    return Err(ModelError::MasslessMovingLink(
+                        machine.links[i].name.clone(),
+                    ));
                 }
                 // Machine axes creep at micrometres per second; they must never sleep.
                 RigidBodyBuilder::dynamic()
@@ -357,7 +359,12 @@ impl Plant {
                     dof(link_of(&world, drive)),
                 );
                 if drive != carriage {
-                    push(child, joint.axis, joint.kind, dof(link_of(&world, carriage)));
+                    push(
+                        child,
+                        joint.axis,
+                        joint.kind,
+                        dof(link_of(&world, carriage)),
+                    );
                 }
                 if let Some(g) = guide {
                     // The lift-off DOF follows the travel DOF in the carriage's joint.

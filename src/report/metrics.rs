@@ -139,10 +139,14 @@ enum Phase {
     #[default]
     Start,
     /// The command slowed down while moving in direction `before` (±1; 0 = not yet moving).
-    Slow { before: f64 },
+    Slow {
+        before: f64,
+    },
     /// The command is back to speed after a slow phase, the axis not yet caught up; `label` is
     /// what that slow phase was.
-    CatchingUp { label: &'static str },
+    CatchingUp {
+        label: &'static str,
+    },
     Moving,
 }
 
@@ -173,15 +177,29 @@ impl PhaseTracker {
         let (next, resolved) = match self.phase {
             Phase::Start if caught_up => (Phase::Moving, Some("start")),
             Phase::Start => (Phase::Start, None),
-            Phase::Moving if slow => (Phase::Slow { before: self.direction }, Some("moving")),
+            Phase::Moving if slow => (
+                Phase::Slow {
+                    before: self.direction,
+                },
+                Some("moving"),
+            ),
             Phase::Moving => (Phase::Moving, None),
             Phase::Slow { before } if !slow => {
-                let label = if before != 0.0 && sign != before { "reversal" } else { "stop" };
+                let label = if before != 0.0 && sign != before {
+                    "reversal"
+                } else {
+                    "stop"
+                };
                 (Phase::CatchingUp { label }, Some(label))
             }
             Phase::Slow { .. } => (self.phase, None),
             Phase::CatchingUp { label } if caught_up => (Phase::Moving, Some(label)),
-            Phase::CatchingUp { label } if slow => (Phase::Slow { before: self.direction }, Some(label)),
+            Phase::CatchingUp { label } if slow => (
+                Phase::Slow {
+                    before: self.direction,
+                },
+                Some(label),
+            ),
             Phase::CatchingUp { .. } => (self.phase, None),
         };
         if sign != 0.0 {
@@ -422,7 +440,9 @@ impl MetricsAccumulator {
         // A catch-up still under way when the run ended.
         let catch_up = self
             .catching_up_since
-            .map_or(self.longest_catch_up, |since| self.longest_catch_up.max(sim_time - since));
+            .map_or(self.longest_catch_up, |since| {
+                self.longest_catch_up.max(sim_time - since)
+            });
         let wall_time = outcome.wall_time;
         let stopped = outcome.stop().map(|s| s.to_string());
         Metrics {
@@ -492,7 +512,10 @@ mod tests {
     fn place(commanded: &[f64], actual: &[f64], peak_at: usize) -> &'static str {
         let peak = commanded.iter().fold(0.0f64, |m, v| m.max(v.abs()));
         let mut a = AxisSums {
-            phases: PhaseTracker { peak, ..Default::default() },
+            phases: PhaseTracker {
+                peak,
+                ..Default::default()
+            },
             ..Default::default()
         };
         for (k, (c, v)) in commanded.iter().zip(actual).enumerate() {
@@ -506,7 +529,12 @@ mod tests {
                 a.max_error_at = None;
             }
         }
-        a.max_error_at.unwrap_or(if a.max_error_phase == a.phases.serial { a.phases.final_label() } else { "moving" })
+        a.max_error_at
+            .unwrap_or(if a.max_error_phase == a.phases.serial {
+                a.phases.final_label()
+            } else {
+                "moving"
+            })
     }
 
     #[test]

@@ -348,6 +348,10 @@ impl RrdWriter {
 
     /// Adds a tick of lane `lane` with its path figures; every `decimation`-th tick is kept.
     pub fn tick(&mut self, lane: usize, r: &TickRecord<'_>, path: &PathSample) {
+        // A writer records the lanes it was set up for (an A/B recording: physics only).
+        if lane >= self.columns.len() {
+            return;
+        }
         if lane == 0 {
             self.primary.copy_from_slice(&r.sensors.position);
             self.primary_tick = Some(r.k);

@@ -821,7 +821,10 @@ impl Scenario {
         let approach = match &p.approach_from_mm {
             None => {
                 if let Some(f) = &p.approach_feed_mm_s {
-                    return Err(err(f.span(), "approach_feed_mm_s applies with approach_from_mm".into()));
+                    return Err(err(
+                        f.span(),
+                        "approach_feed_mm_s applies with approach_from_mm".into(),
+                    ));
                 }
                 None
             }
@@ -829,7 +832,10 @@ impl Scenario {
                 let c = limits::COORDINATE_MM;
                 let v = from.get_ref();
                 if !v.iter().all(|x| x.is_finite() && x.abs() <= c) {
-                    return Err(err(from.span(), format!("approach_from_mm = {v:?}: expected coordinates within ±{c:?} mm")));
+                    return Err(err(
+                        from.span(),
+                        format!("approach_from_mm = {v:?}: expected coordinates within ±{c:?} mm"),
+                    ));
                 }
                 let speed = match &p.approach_feed_mm_s {
                     Some(f) => ranged(f, "approach_feed_mm_s", "mm/s", limits::SPEED_MM_S)?,

@@ -213,21 +213,34 @@ impl Calibration {
 
     pub fn parse(path: &Path, text: &str) -> Result<Calibration, FileError> {
         let spec: SpecFile = toml::from_str(text).map_err(|e| toml_error(path, text, &e))?;
-        let at = |span: std::ops::Range<usize>, m: String| FileError::at_offset(path, text, span.start, m);
+        let at = |span: std::ops::Range<usize>, m: String| {
+            FileError::at_offset(path, text, span.start, m)
+        };
         let dir = path.parent().unwrap_or(Path::new("."));
         let file = |p: &Spanned<String>, what: &str| -> Result<PathBuf, FileError> {
             let full = dir.join(p.get_ref());
             if full.is_file() {
                 Ok(full)
             } else {
-                Err(at(p.span(), format!("{what} '{}' not found (looked for {})", p.get_ref(), full.display())))
+                Err(at(
+                    p.span(),
+                    format!(
+                        "{what} '{}' not found (looked for {})",
+                        p.get_ref(),
+                        full.display()
+                    ),
+                ))
             }
         };
         let name = spec.name.clone().unwrap_or_else(|| {
             path.file_stem()
                 .map_or("calibration".into(), |s| s.to_string_lossy().into_owned())
         });
-        let default_scenario = spec.scenario.as_ref().map(|s| file(s, "scenario")).transpose()?;
+        let default_scenario = spec
+            .scenario
+            .as_ref()
+            .map(|s| file(s, "scenario"))
+            .transpose()?;
 
         let mut parameters = Vec::new();
         for (key, p) in spec.parameters.get_ref() {
@@ -237,11 +250,18 @@ impl Calibration {
             if !(q.min.is_finite() && q.max.is_finite() && q.min < q.max && (!log || q.min > 0.0)) {
                 return Err(fail(format!("expected finite min < max (min > 0 on a log scale), found min = {:?}, max = {:?}", q.min, q.max)));
             }
-            if let Some(s) = q.step.filter(|s| !(s.is_finite() && *s > 0.0 && *s <= q.max - q.min)) {
-                return Err(fail(format!("step = {s:?}: expected a number > 0, at most max − min")));
+            if let Some(s) = q
+                .step
+                .filter(|s| !(s.is_finite() && *s > 0.0 && *s <= q.max - q.min))
+            {
+                return Err(fail(format!(
+                    "step = {s:?}: expected a number > 0, at most max − min"
+                )));
             }
             if let Some(s) = q.start.filter(|s| !(q.min..=q.max).contains(s)) {
-                return Err(fail(format!("start = {s:?}: expected a value from min to max")));
+                return Err(fail(format!(
+                    "start = {s:?}: expected a value from min to max"
+                )));
             }
             // Every key must be one a run can apply (`drives.…`, `links.….mass` or a scenario key).
             for k in std::iter::once(key.get_ref()).chain(&q.also) {
@@ -259,10 +279,16 @@ impl Calibration {
             });
         }
         if parameters.is_empty() {
-            return Err(at(spec.parameters.span(), "[parameters] names no parameter: expected \"<key>\" = { min = …, max = … }".into()));
+            return Err(at(
+                spec.parameters.span(),
+                "[parameters] names no parameter: expected \"<key>\" = { min = …, max = … }".into(),
+            ));
         }
         for (key, _) in spec.parameters.get_ref() {
-            let p = parameters.iter().find(|p| &p.key == key.get_ref()).expect("just added");
+            let p = parameters
+                .iter()
+                .find(|p| &p.key == key.get_ref())
+                .expect("just added");
             if let Some(t) = &p.times {
                 if !parameters.iter().any(|q| &q.key == t && q.times.is_none()) {
                     return Err(at(key.span(), format!("parameters.\"{}\": times = \"{t}\": expected the key of another parameter (one that is not itself a factor)", p.key)));
@@ -276,66 +302,118 @@ impl Calibration {
             let q = t.get_ref();
             let scenario = match &q.scenario {
                 Some(s) => file(s, "scenario")?,
-                None => default_scenario.clone().ok_or_else(|| fail("names no scenario and there is no top-level scenario = …".into()))?,
+                None => default_scenario.clone().ok_or_else(|| {
+                    fail("names no scenario and there is no top-level scenario = …".into())
+                })?,
             };
             match (&q.metric, &q.trace) {
                 (Some(metric), None) => {
-                    if q.columns.is_some() || q.time_column.is_some() || q.tolerance_mm.is_some() || q.max_shift_s.is_some() {
+                    if q.columns.is_some()
+                        || q.time_column.is_some()
+                        || q.tolerance_mm.is_some()
+                        || q.max_shift_s.is_some()
+                    {
                         return Err(fail(format!("{metric}: columns, time_column, tolerance_mm and max_shift_s belong to trace targets")));
                     }
                     let (Some(measured), Some(tolerance)) = (q.measured, q.tolerance) else {
                         return Err(fail(format!("{metric}: expected measured = <number> and tolerance = <relative, e.g. 0.1>")));
                     };
-                    if !(measured.is_finite() && measured != 0.0 && tolerance.is_finite() && tolerance > 0.0) {
+                    if !(measured.is_finite()
+                        && measured != 0.0
+                        && tolerance.is_finite()
+                        && tolerance > 0.0)
+                    {
                         return Err(fail(format!("{metric}: expected measured ≠ 0 and a tolerance > 0 (relative), found measured = {measured:?}, tolerance = {tolerance:?}")));
                     }
-                    targets.push(Target::Metric { scenario, metric: metric.clone(), measured, tolerance });
+                    targets.push(Target::Metric {
+                        scenario,
+                        metric: metric.clone(),
+                        measured,
+                        tolerance,
+                    });
                 }
                 (None, Some(trace)) => {
                     if q.measured.is_some() || q.tolerance.is_some() {
                         return Err(fail("measured and tolerance belong to metric targets (a trace target has tolerance_mm)".into()));
                     }
                     let trace_path = file(trace, "measured trace")?;
-                    let columns: Vec<(String, String)> = q.columns.clone().unwrap_or_default().into_iter().collect();
+                    let columns: Vec<(String, String)> =
+                        q.columns.clone().unwrap_or_default().into_iter().collect();
                     if columns.is_empty() {
                         return Err(fail("expected columns = { <run trace.csv column> = \"<measured column>\", … }".into()));
                     }
-                    let tolerance_mm = q.tolerance_mm.filter(|v| v.is_finite() && *v > 0.0).ok_or_else(|| fail("expected tolerance_mm = <number > 0>".into()))?;
+                    let tolerance_mm = q
+                        .tolerance_mm
+                        .filter(|v| v.is_finite() && *v > 0.0)
+                        .ok_or_else(|| fail("expected tolerance_mm = <number > 0>".into()))?;
                     let max_shift_s = q.max_shift_s.unwrap_or(0.0);
                     if !(0.0..=60.0).contains(&max_shift_s) {
-                        return Err(fail(format!("max_shift_s = {max_shift_s:?}: expected 0 to 60 s")));
+                        return Err(fail(format!(
+                            "max_shift_s = {max_shift_s:?}: expected 0 to 60 s"
+                        )));
                     }
                     let time_column = q.time_column.as_deref().unwrap_or("t_s");
                     let measured = MeasuredTrace::load(&trace_path, time_column, &columns)?;
-                    targets.push(Target::Trace { scenario, trace: trace_path, columns, measured, tolerance_mm, max_shift_s });
+                    targets.push(Target::Trace {
+                        scenario,
+                        trace: trace_path,
+                        columns,
+                        measured,
+                        tolerance_mm,
+                        max_shift_s,
+                    });
                 }
-                _ => return Err(fail("expected either metric = \"<metric key>\" or trace = \"<measured CSV>\"".into())),
+                _ => {
+                    return Err(fail(
+                        "expected either metric = \"<metric key>\" or trace = \"<measured CSV>\""
+                            .into(),
+                    ))
+                }
             }
         }
         if targets.is_empty() {
-            return Err(at(spec.targets.span(), "expected at least one [[target]]".into()));
+            return Err(at(
+                spec.targets.span(),
+                "expected at least one [[target]]".into(),
+            ));
         }
 
         let opt = &spec.optimizer;
         let in_text = |k: &str| LineColumn::of_first(text, k);
-        let opt_fail = |k: &str, m: String| FileError::new(path, in_text(k), format!("optimizer.{k}: {m}"));
+        let opt_fail =
+            |k: &str, m: String| FileError::new(path, in_text(k), format!("optimizer.{k}: {m}"));
         // CMA-ES's own default population, 4 + ⌊3 ln n⌋.
-        let population = opt.population.unwrap_or(4 + (3.0 * (parameters.len() as f64).ln()) as usize);
+        let population = opt
+            .population
+            .unwrap_or(4 + (3.0 * (parameters.len() as f64).ln()) as usize);
         if !(2..=1000).contains(&population) {
-            return Err(opt_fail("population", format!("{population}: expected 2 to 1000")));
+            return Err(opt_fail(
+                "population",
+                format!("{population}: expected 2 to 1000"),
+            ));
         }
         let mut distinct: Vec<&Path> = targets.iter().map(Target::scenario).collect();
         distinct.sort();
         distinct.dedup();
         let max_evaluations = opt.max_evaluations.unwrap_or(100);
-        if max_evaluations == 0 || max_evaluations.saturating_mul(distinct.len()) > MAX_CALIBRATION_RUNS {
+        if max_evaluations == 0
+            || max_evaluations.saturating_mul(distinct.len()) > MAX_CALIBRATION_RUNS
+        {
             return Err(opt_fail("max_evaluations", format!("{max_evaluations} × {} scenarios: expected 1 to {MAX_CALIBRATION_RUNS} runs in all", distinct.len())));
         }
         let sigma = opt.sigma.unwrap_or(0.3);
         if !(sigma > 0.0 && sigma <= 1.0) {
-            return Err(opt_fail("sigma", format!("{sigma:?}: expected a number from 0 to 1 (of each parameter's range)")));
+            return Err(opt_fail(
+                "sigma",
+                format!("{sigma:?}: expected a number from 0 to 1 (of each parameter's range)"),
+            ));
         }
-        let predict = spec.predict.scenarios.iter().map(|s| file(s, "prediction scenario")).collect::<Result<_, _>>()?;
+        let predict = spec
+            .predict
+            .scenarios
+            .iter()
+            .map(|s| file(s, "prediction scenario"))
+            .collect::<Result<_, _>>()?;
         Ok(Calibration {
             name,
             path: path.to_path_buf(),
@@ -392,7 +470,10 @@ impl Calibration {
                 None => v,
             };
             for key in std::iter::once(&p.key).chain(&p.also) {
-                out.push(Change::parse(&format!("{key}={applied:?}")).expect("checked when the spec was read"));
+                out.push(
+                    Change::parse(&format!("{key}={applied:?}"))
+                        .expect("checked when the spec was read"),
+                );
             }
         }
         out
@@ -400,7 +481,11 @@ impl Calibration {
 
     /// The distinct scenarios of the targets.
     fn target_scenarios(&self) -> Vec<PathBuf> {
-        let mut s: Vec<PathBuf> = self.targets.iter().map(|t| t.scenario().to_path_buf()).collect();
+        let mut s: Vec<PathBuf> = self
+            .targets
+            .iter()
+            .map(|t| t.scenario().to_path_buf())
+            .collect();
         s.sort();
         s.dedup();
         s
@@ -410,36 +495,82 @@ impl Calibration {
 impl MeasuredTrace {
     /// Reads a measured trace: a header with the time column (seconds) and the measured
     /// columns, then rows of numbers with rising times. Errors name the file, line and column.
-    pub fn load(path: &Path, time_column: &str, columns: &[(String, String)]) -> Result<MeasuredTrace, FileError> {
+    pub fn load(
+        path: &Path,
+        time_column: &str,
+        columns: &[(String, String)],
+    ) -> Result<MeasuredTrace, FileError> {
         // Streamed row by row (a run's own trace can be large); bounded by MAX_TRACE_ROWS.
         let mut reader = csv::ReaderBuilder::new()
             .trim(csv::Trim::All)
             .from_path(path)
-            .map_err(|e| FileError::new(path, None, format!("cannot read the measured trace: {e}")))?;
-        let located = |pos: Option<&csv::Position>| pos.map(|p| LineColumn { line: p.line() as usize, column: 1 });
-        let header = reader.headers().map_err(|e| FileError::new(path, None, format!("cannot read the header: {e}")))?.clone();
+            .map_err(|e| {
+                FileError::new(path, None, format!("cannot read the measured trace: {e}"))
+            })?;
+        let located = |pos: Option<&csv::Position>| {
+            pos.map(|p| LineColumn {
+                line: p.line() as usize,
+                column: 1,
+            })
+        };
+        let header = reader
+            .headers()
+            .map_err(|e| FileError::new(path, None, format!("cannot read the header: {e}")))?
+            .clone();
         let index = |name: &str| {
             header.iter().position(|h| h == name).ok_or_else(|| {
-                FileError::new(path, Some(LineColumn { line: 1, column: 1 }), format!("expected a column '{name}' in the header, found {}", header.iter().collect::<Vec<_>>().join(", ")))
+                FileError::new(
+                    path,
+                    Some(LineColumn { line: 1, column: 1 }),
+                    format!(
+                        "expected a column '{name}' in the header, found {}",
+                        header.iter().collect::<Vec<_>>().join(", ")
+                    ),
+                )
             })
         };
         let t_col = index(time_column)?;
-        let wanted: Vec<usize> = columns.iter().map(|(_, m)| index(m)).collect::<Result<_, _>>()?;
-        let mut trace = MeasuredTrace { t_s: Vec::new(), columns: vec![Vec::new(); wanted.len()] };
+        let wanted: Vec<usize> = columns
+            .iter()
+            .map(|(_, m)| index(m))
+            .collect::<Result<_, _>>()?;
+        let mut trace = MeasuredTrace {
+            t_s: Vec::new(),
+            columns: vec![Vec::new(); wanted.len()],
+        };
         for record in reader.records() {
-            let record = record.map_err(|e| FileError::new(path, located(e.position()), format!("{e}")))?;
+            let record =
+                record.map_err(|e| FileError::new(path, located(e.position()), format!("{e}")))?;
             if trace.t_s.len() >= MAX_TRACE_ROWS {
-                return Err(FileError::new(path, located(record.position()), format!("more than {MAX_TRACE_ROWS} rows")));
+                return Err(FileError::new(
+                    path,
+                    located(record.position()),
+                    format!("more than {MAX_TRACE_ROWS} rows"),
+                ));
             }
             let number = |c: usize| -> Result<f64, FileError> {
                 let cell = record.get(c).unwrap_or("");
-                cell.parse::<f64>().ok().filter(|v| v.is_finite()).ok_or_else(|| {
-                    FileError::new(path, located(record.position()), format!("column '{}': expected a finite number, found '{cell}'", &header[c]))
-                })
+                cell.parse::<f64>()
+                    .ok()
+                    .filter(|v| v.is_finite())
+                    .ok_or_else(|| {
+                        FileError::new(
+                            path,
+                            located(record.position()),
+                            format!(
+                                "column '{}': expected a finite number, found '{cell}'",
+                                &header[c]
+                            ),
+                        )
+                    })
             };
             let t = number(t_col)?;
             if trace.t_s.last().is_some_and(|&last| t <= last) {
-                return Err(FileError::new(path, located(record.position()), format!("{time_column} = {t}: expected times rising from row to row")));
+                return Err(FileError::new(
+                    path,
+                    located(record.position()),
+                    format!("{time_column} = {t}: expected times rising from row to row"),
+                ));
             }
             trace.t_s.push(t);
             for (k, &c) in wanted.iter().enumerate() {
@@ -447,7 +578,11 @@ impl MeasuredTrace {
             }
         }
         if trace.t_s.len() < 2 {
-            return Err(FileError::new(path, None, "expected at least two rows of measurements"));
+            return Err(FileError::new(
+                path,
+                None,
+                "expected at least two rows of measurements",
+            ));
         }
         Ok(trace)
     }
@@ -456,9 +591,17 @@ impl MeasuredTrace {
 /// RMS difference between a run's `trace.csv` (in `run_dir`) and a measured trace, at the best
 /// time shift within ±`max_shift_s` (in whole servo periods), over the measured samples the run
 /// covers.
-fn trace_rms(run_dir: &Path, columns: &[(String, String)], measured: &MeasuredTrace, max_shift_s: f64) -> Result<f64, String> {
+fn trace_rms(
+    run_dir: &Path,
+    columns: &[(String, String)],
+    measured: &MeasuredTrace,
+    max_shift_s: f64,
+) -> Result<f64, String> {
     let path = run_dir.join("trace.csv");
-    let runs: Vec<(String, String)> = columns.iter().map(|(run, _)| (run.clone(), run.clone())).collect();
+    let runs: Vec<(String, String)> = columns
+        .iter()
+        .map(|(run, _)| (run.clone(), run.clone()))
+        .collect();
     let sim = MeasuredTrace::load(&path, "t_s", &runs).map_err(|e| e.to_string())?;
     let at = |t: f64, c: usize| -> Option<f64> {
         let k = sim.t_s.partition_point(|&s| s <= t);
@@ -490,7 +633,9 @@ fn trace_rms(run_dir: &Path, columns: &[(String, String)], measured: &MeasuredTr
             best = Some(best.map_or(rms, |b: f64| b.min(rms)));
         }
     }
-    best.ok_or_else(|| "the run's trace covers less than half of the measured trace at every shift".into())
+    best.ok_or_else(|| {
+        "the run's trace covers less than half of the measured trace at every shift".into()
+    })
 }
 
 /// One evaluated candidate.
@@ -534,7 +679,11 @@ impl Sensitivity {
             }
             _ => None,
         };
-        Sensitivity { below, above, sigma }
+        Sensitivity {
+            below,
+            above,
+            sigma,
+        }
     }
 }
 
@@ -574,7 +723,13 @@ pub struct CalibrationResult {
 
 /// Runs one candidate: every target scenario with `values` applied, in `scratch/`, which is
 /// removed afterwards (the figures are kept in the evaluation).
-fn evaluate(cal: &Calibration, scenarios: &[PathBuf], values: Vec<f64>, scratch: &Path, interrupted: &AtomicBool) -> Evaluation {
+fn evaluate(
+    cal: &Calibration,
+    scenarios: &[PathBuf],
+    values: Vec<f64>,
+    scratch: &Path,
+    interrupted: &AtomicBool,
+) -> Evaluation {
     let changes = cal.changes(&values);
     let jobs: Vec<Job> = scenarios
         .iter()
@@ -585,7 +740,10 @@ fn evaluate(cal: &Calibration, scenarios: &[PathBuf], values: Vec<f64>, scratch:
             changes: changes.clone(),
             out_dir: scratch.join(i.to_string()),
             recordings: false,
-            csv: cal.targets.iter().any(|t| matches!(t, Target::Trace { scenario, .. } if scenario == s)),
+            csv: cal
+                .targets
+                .iter()
+                .any(|t| matches!(t, Target::Trace { scenario, .. } if scenario == s)),
         })
         .collect();
     let (results, _) = execute(&jobs, 1, interrupted, &Progress::default(), &|_| {});
@@ -594,7 +752,10 @@ fn evaluate(cal: &Calibration, scenarios: &[PathBuf], values: Vec<f64>, scratch:
     let mut cost = 0.0;
     let mut out = Vec::new();
     for t in &cal.targets {
-        let i = scenarios.iter().position(|s| s == t.scenario()).expect("a target's scenario is run");
+        let i = scenarios
+            .iter()
+            .position(|s| s == t.scenario())
+            .expect("a target's scenario is run");
         let r: Option<&JobResult> = results.iter().find(|r| r.index == i);
         let failed = match r {
             None => Some("interrupted".to_string()),
@@ -613,21 +774,42 @@ fn evaluate(cal: &Calibration, scenarios: &[PathBuf], values: Vec<f64>, scratch:
                     failure.get_or_insert(format!("the run has no metric `{metric}`"));
                     f64::NAN
                 }),
-            (Target::Trace { columns, measured, max_shift_s, .. }, Some(_), None) => trace_rms(&jobs[i].out_dir, columns, measured, *max_shift_s).unwrap_or_else(|e| {
+            (
+                Target::Trace {
+                    columns,
+                    measured,
+                    max_shift_s,
+                    ..
+                },
+                Some(_),
+                None,
+            ) => trace_rms(&jobs[i].out_dir, columns, measured, *max_shift_s).unwrap_or_else(|e| {
                 failure.get_or_insert(e);
                 f64::NAN
             }),
             (_, None, None) => unreachable!("a missing run is a failure"),
         };
         let term = match t {
-            Target::Metric { measured, tolerance, .. } => ((value - measured) / (tolerance * measured)).powi(2),
+            Target::Metric {
+                measured,
+                tolerance,
+                ..
+            } => ((value - measured) / (tolerance * measured)).powi(2),
             Target::Trace { tolerance_mm, .. } => (value / tolerance_mm).powi(2),
         };
         cost += if term.is_finite() { term } else { FAILED };
         out.push(value);
     }
     let _ = std::fs::remove_dir_all(scratch);
-    Evaluation { index: 0, generation: 0, values, results: out, cost, failure, cannot_start }
+    Evaluation {
+        index: 0,
+        generation: 0,
+        values,
+        results: out,
+        cost,
+        failure,
+        cannot_start,
+    }
 }
 
 /// Runs the calibration: generations of `population` candidates until `max_evaluations` (or an
@@ -649,16 +831,30 @@ pub fn calibrate(
         .iter()
         .map(|p| p.start.map_or(0.5, |s| Calibration::unit_of(p, s)))
         .collect();
-    let first = evaluate(cal, &scenarios, cal.values(&start_unit), &scratch.join("start"), interrupted);
+    let first = evaluate(
+        cal,
+        &scenarios,
+        cal.values(&start_unit),
+        &scratch.join("start"),
+        interrupted,
+    );
     // The start point must run: a run that cannot start (a key the scenario does not have, a
     // value it refuses) or lacks a metric is a fault of the spec, reported before the search.
     if let Some(f) = first.failure.as_deref() {
         let spec_text = std::fs::read_to_string(&cal.path).unwrap_or_default();
         if f.starts_with("the run has no metric") {
-            return Err(FileError::new(&cal.path, LineColumn::of_first(&spec_text, f.split('`').nth(1).unwrap_or("")), format!("{f}: see a run's metrics.json for the keys")));
+            return Err(FileError::new(
+                &cal.path,
+                LineColumn::of_first(&spec_text, f.split('`').nth(1).unwrap_or("")),
+                format!("{f}: see a run's metrics.json for the keys"),
+            ));
         }
         if first.cannot_start {
-            return Err(FileError::new(&cal.path, None, format!("at the start point the run cannot start: {f}")));
+            return Err(FileError::new(
+                &cal.path,
+                None,
+                format!("at the start point the run cannot start: {f}"),
+            ));
         }
     }
 
@@ -672,7 +868,13 @@ pub fn calibrate(
         // pays a wall growing with the distance, so the search turns back.
         let outside: f64 = u.iter().map(|x| (x - x.clamp(0.0, 1.0)).powi(2)).sum();
         let n = counter.fetch_add(1, Ordering::Relaxed);
-        let mut e = evaluate(cal, &scenarios, cal.values(&u), &scratch.join(n.to_string()), interrupted);
+        let mut e = evaluate(
+            cal,
+            &scenarios,
+            cal.values(&u),
+            &scratch.join(n.to_string()),
+            interrupted,
+        );
         e.generation = generation.load(Ordering::Relaxed);
         e.cost += 1e3 * outside;
         let cost = e.cost;
@@ -704,21 +906,38 @@ pub fn calibrate(
         };
         while !interrupted.load(Ordering::Relaxed) {
             let done = state.next_parallel();
-            let mut generation_runs = std::mem::take(&mut *pending.lock().expect("no panics while held"));
+            let mut generation_runs =
+                std::mem::take(&mut *pending.lock().expect("no panics while held"));
             if interrupted.load(Ordering::Relaxed) {
                 // A generation cut short is not a fair sample: keep only its finished runs.
-                generation_runs.retain(|e| !e.failure.as_deref().is_some_and(|f| f.starts_with("interrupted")));
+                generation_runs.retain(|e| {
+                    !e.failure
+                        .as_deref()
+                        .is_some_and(|f| f.starts_with("interrupted"))
+                });
             }
-            generation_runs.sort_by(|a, b| a.values.partial_cmp(&b.values).unwrap_or(std::cmp::Ordering::Equal));
+            generation_runs.sort_by(|a, b| {
+                a.values
+                    .partial_cmp(&b.values)
+                    .unwrap_or(std::cmp::Ordering::Equal)
+            });
             evaluations.extend(generation_runs);
             generation.fetch_add(1, Ordering::Relaxed);
             if let Some(d) = done {
-                stop_reason = d.reasons.iter().map(|r| format!("{r:?}")).collect::<Vec<_>>().join(", ");
+                stop_reason = d
+                    .reasons
+                    .iter()
+                    .map(|r| format!("{r:?}"))
+                    .collect::<Vec<_>>()
+                    .join(", ");
                 break;
             }
         }
     };
-    match rayon::ThreadPoolBuilder::new().num_threads(threads.max(1)).build() {
+    match rayon::ThreadPoolBuilder::new()
+        .num_threads(threads.max(1))
+        .build()
+    {
         Ok(pool) => pool.install(search),
         Err(_) => search(),
     }
@@ -735,7 +954,10 @@ pub fn calibrate(
     // its last round is the sensitivity profile.
     let mut sensitivity = Vec::new();
     let mut polish_rounds = 0;
-    while let Some(b) = best.clone().filter(|_| !interrupted.load(Ordering::Relaxed)) {
+    while let Some(b) = best
+        .clone()
+        .filter(|_| !interrupted.load(Ordering::Relaxed))
+    {
         let (profile, mut runs) = profile(cal, &scenarios, &b, &scratch, threads, interrupted);
         let round = generation.load(Ordering::Relaxed) + polish_rounds;
         for e in &mut runs {
@@ -754,7 +976,12 @@ pub fn calibrate(
         e.index = i;
     }
     // The best again, now numbered.
-    let best = best.and_then(|b| evaluations.iter().find(|e| e.values == b.values && e.failure.is_none()).cloned());
+    let best = best.and_then(|b| {
+        evaluations
+            .iter()
+            .find(|e| e.values == b.values && e.failure.is_none())
+            .cloned()
+    });
     let ranges = (0..cal.parameters.len())
         .map(|i| {
             let b = best.as_ref()?;
@@ -762,7 +989,9 @@ pub fn calibrate(
                 .iter()
                 .filter(|e| e.failure.is_none() && e.cost <= b.cost + 1.0)
                 .map(|e| e.values[i])
-                .fold(None, |r: Option<(f64, f64)>, v| Some(r.map_or((v, v), |(lo, hi)| (lo.min(v), hi.max(v)))))
+                .fold(None, |r: Option<(f64, f64)>, v| {
+                    Some(r.map_or((v, v), |(lo, hi)| (lo.min(v), hi.max(v))))
+                })
         })
         .collect();
     let _ = std::fs::remove_dir_all(&scratch);
@@ -783,8 +1012,20 @@ pub fn calibrate(
 
 /// The sensitivity profile around `best`: 2 runs per parameter (fewer at the bounds), in
 /// parallel.
-fn profile(cal: &Calibration, scenarios: &[PathBuf], best: &Evaluation, scratch: &Path, threads: usize, interrupted: &AtomicBool) -> (Vec<Sensitivity>, Vec<Evaluation>) {
-    let unit: Vec<f64> = cal.parameters.iter().zip(&best.values).map(|(p, &v)| Calibration::unit_of(p, v)).collect();
+fn profile(
+    cal: &Calibration,
+    scenarios: &[PathBuf],
+    best: &Evaluation,
+    scratch: &Path,
+    threads: usize,
+    interrupted: &AtomicBool,
+) -> (Vec<Sensitivity>, Vec<Evaluation>) {
+    let unit: Vec<f64> = cal
+        .parameters
+        .iter()
+        .zip(&best.values)
+        .map(|(p, &v)| Calibration::unit_of(p, v))
+        .collect();
     // Each neighbour as (parameter, values); stepped parameters move by one step.
     let mut points: Vec<(usize, Vec<f64>)> = Vec::new();
     for (i, p) in cal.parameters.iter().enumerate() {
@@ -803,8 +1044,19 @@ fn profile(cal: &Calibration, scenarios: &[PathBuf], best: &Evaluation, scratch:
             }
         }
     }
-    let run = |(k, (_, values)): (usize, &(usize, Vec<f64>))| evaluate(cal, scenarios, values.clone(), &scratch.join(format!("profile{k}")), interrupted);
-    let runs: Vec<Evaluation> = match rayon::ThreadPoolBuilder::new().num_threads(threads.max(1)).build() {
+    let run = |(k, (_, values)): (usize, &(usize, Vec<f64>))| {
+        evaluate(
+            cal,
+            scenarios,
+            values.clone(),
+            &scratch.join(format!("profile{k}")),
+            interrupted,
+        )
+    };
+    let runs: Vec<Evaluation> = match rayon::ThreadPoolBuilder::new()
+        .num_threads(threads.max(1))
+        .build()
+    {
         Ok(pool) => pool.install(|| {
             use rayon::prelude::*;
             points.par_iter().enumerate().map(run).collect()
@@ -815,7 +1067,8 @@ fn profile(cal: &Calibration, scenarios: &[PathBuf], best: &Evaluation, scratch:
         .map(|i| {
             let side = |below: bool| {
                 points.iter().zip(&runs).find_map(|((j, values), e)| {
-                    (*j == i && (values[i] < best.values[i]) == below && e.failure.is_none()).then_some((values[i], e.cost))
+                    (*j == i && (values[i] < best.values[i]) == below && e.failure.is_none())
+                        .then_some((values[i], e.cost))
                 })
             };
             Sensitivity::of((best.values[i], best.cost), side(true), side(false))
@@ -826,7 +1079,13 @@ fn profile(cal: &Calibration, scenarios: &[PathBuf], best: &Evaluation, scratch:
 
 /// The runs of the target and prediction scenarios with the best values, each with its
 /// recording, in `out/<scenario stem>/`. Returns (scenario, result) in spec order.
-pub fn predict(cal: &Calibration, values: &[f64], out: &Path, threads: usize, interrupted: &AtomicBool) -> Vec<(PathBuf, JobResult)> {
+pub fn predict(
+    cal: &Calibration,
+    values: &[f64],
+    out: &Path,
+    threads: usize,
+    interrupted: &AtomicBool,
+) -> Vec<(PathBuf, JobResult)> {
     let mut scenarios = cal.target_scenarios();
     for p in &cal.predict {
         if !scenarios.contains(p) {
@@ -841,13 +1100,19 @@ pub fn predict(cal: &Calibration, values: &[f64], out: &Path, threads: usize, in
             index: i,
             scenario: s.clone(),
             changes: changes.clone(),
-            out_dir: out.join(s.file_stem().map_or("scenario".into(), |s| s.to_string_lossy().into_owned())),
+            out_dir: out.join(
+                s.file_stem()
+                    .map_or("scenario".into(), |s| s.to_string_lossy().into_owned()),
+            ),
             recordings: true,
             csv: true,
         })
         .collect();
     let (results, _) = execute(&jobs, threads, interrupted, &Progress::default(), &|_| {});
-    results.into_iter().map(|r| (scenarios[r.index].clone(), r)).collect()
+    results
+        .into_iter()
+        .map(|r| (scenarios[r.index].clone(), r))
+        .collect()
 }
 
 /// The predictions table: per scenario, each axis's largest error with when and where in the
@@ -856,25 +1121,47 @@ pub fn predictions_markdown(cal: &Calibration, runs: &[(PathBuf, JobResult)]) ->
     let targets = cal.target_scenarios();
     let axes: Vec<String> = runs
         .iter()
-        .find_map(|(_, r)| r.metrics.as_ref()?["axes"].as_object().map(|a| a.keys().cloned().collect()))
+        .find_map(|(_, r)| {
+            r.metrics.as_ref()?["axes"]
+                .as_object()
+                .map(|a| a.keys().cloned().collect())
+        })
         .unwrap_or_default();
     let mut t = String::from("| scenario |");
     for a in &axes {
         t += &format!(" {} max error |", a.to_uppercase());
     }
-    t += &format!(" path-speed error | stalls {} | role |\n|---|", axes.iter().map(|a| a.to_uppercase()).collect::<Vec<_>>().join(" / "));
+    t += &format!(
+        " path-speed error | stalls {} | role |\n|---|",
+        axes.iter()
+            .map(|a| a.to_uppercase())
+            .collect::<Vec<_>>()
+            .join(" / ")
+    );
     t += &"---|".repeat(axes.len());
     t += "---:|---:|---|\n";
     for (s, r) in runs {
-        let stem = s.file_stem().map_or(String::new(), |s| s.to_string_lossy().into_owned());
-        let role = if targets.contains(s) { "calibration" } else { "prediction" };
+        let stem = s
+            .file_stem()
+            .map_or(String::new(), |s| s.to_string_lossy().into_owned());
+        let role = if targets.contains(s) {
+            "calibration"
+        } else {
+            "prediction"
+        };
         let Some(m) = &r.metrics else {
-            t += &format!("| {stem} | failed: {} |{}| | {role} |\n", r.error.as_deref().unwrap_or("?"), " |".repeat(axes.len()));
+            t += &format!(
+                "| {stem} | failed: {} |{}| | {role} |\n",
+                r.error.as_deref().unwrap_or("?"),
+                " |".repeat(axes.len())
+            );
             continue;
         };
         let axis = |a: &str| {
             let v = |k: &str| Metrics::lookup(m, &format!("axes.{a}.{k}"));
-            let at = m["axes"][a]["max_following_error_at"].as_str().unwrap_or("?");
+            let at = m["axes"][a]["max_following_error_at"]
+                .as_str()
+                .unwrap_or("?");
             let (value, unit) = match (v("max_following_error_mm"), v("max_following_error_deg")) {
                 (Some(e), _) => (Some(e), "mm"),
                 (None, Some(e)) => (Some(e), "°"),
@@ -885,15 +1172,28 @@ pub fn predictions_markdown(cal: &Calibration, runs: &[(PathBuf, JobResult)]) ->
                 _ => "—".into(),
             }
         };
-        let stalls = |a: &str| Metrics::lookup(m, &format!("axes.{a}.stick_slip_stalls")).map_or("—".into(), |v| format!("{v}"));
-        t += &format!("| {stem}{} |", if r.stopped.is_some() { " (stopped early)" } else { "" });
+        let stalls = |a: &str| {
+            Metrics::lookup(m, &format!("axes.{a}.stick_slip_stalls"))
+                .map_or("—".into(), |v| format!("{v}"))
+        };
+        t += &format!(
+            "| {stem}{} |",
+            if r.stopped.is_some() {
+                " (stopped early)"
+            } else {
+                ""
+            }
+        );
         for a in &axes {
             t += &format!(" {} |", axis(a));
         }
         t += &format!(
             " {:.2} mm/s | {} | {role} |\n",
             Metrics::lookup(m, "max_path_speed_error_mm_s").unwrap_or(f64::NAN),
-            axes.iter().map(|a| stalls(a)).collect::<Vec<_>>().join(" / "),
+            axes.iter()
+                .map(|a| stalls(a))
+                .collect::<Vec<_>>()
+                .join(" / "),
         );
     }
     t
@@ -918,38 +1218,73 @@ impl CalibrationResult {
             return t + "No candidate ran to the end.\n";
         };
         t += "## Fitted parameters\n\nOne-sigma from the local curvature of the cost (the best moved a small step each way, the other parameters held; \"not convex\" where the cost does not rise both ways), and the range of all candidates within Δcost ≤ 1 of the best.\n\n| parameter | value | ± one sigma | cost below / best / above | candidates within Δcost ≤ 1 | bounds |\n|---|---:|---:|---|---|---|\n";
-        let within = self.evaluations.iter().filter(|e| e.failure.is_none() && e.cost <= best.cost + 1.0).count();
+        let within = self
+            .evaluations
+            .iter()
+            .filter(|e| e.failure.is_none() && e.cost <= best.cost + 1.0)
+            .count();
         for (i, p) in self.parameters.iter().enumerate() {
             let range = match self.ranges[i] {
                 Some(_) if within < 2 => "only the best".into(),
                 Some((lo, hi)) => format!("{lo:.5} … {hi:.5} ({within})"),
                 None => "—".into(),
             };
-            let factor = p.times.as_deref().map_or(String::new(), |k| format!(" (× {k})"));
+            let factor = p
+                .times
+                .as_deref()
+                .map_or(String::new(), |k| format!(" (× {k})"));
             let (sigma, costs) = match self.sensitivity.get(i) {
                 Some(s) => {
-                    let c = |side: Option<(f64, f64)>| side.map_or("—".into(), |(_, c)| format!("{c:.3}"));
-                    let lower = [s.below, s.above].into_iter().flatten().any(|(_, c)| c < best.cost);
+                    let c = |side: Option<(f64, f64)>| {
+                        side.map_or("—".into(), |(_, c)| format!("{c:.3}"))
+                    };
+                    let lower = [s.below, s.above]
+                        .into_iter()
+                        .flatten()
+                        .any(|(_, c)| c < best.cost);
                     let sigma = match s.sigma {
                         Some(v) => format!("{v:.5}"),
                         None if lower => "not a minimum: search stopped short".into(),
                         None => "not convex".into(),
                     };
-                    (sigma, format!("{} / {:.3} / {}", c(s.below), best.cost, c(s.above)))
+                    (
+                        sigma,
+                        format!("{} / {:.3} / {}", c(s.below), best.cost, c(s.above)),
+                    )
                 }
                 None => ("—".into(), "—".into()),
             };
-            t += &format!("| {}{factor} | {:.5} | {sigma} | {costs} | {range} | {} … {}{} |\n", p.key, best.values[i], p.min, p.max, if p.log { ", log" } else { "" });
+            t += &format!(
+                "| {}{factor} | {:.5} | {sigma} | {costs} | {range} | {} … {}{} |\n",
+                p.key,
+                best.values[i],
+                p.min,
+                p.max,
+                if p.log { ", log" } else { "" }
+            );
         }
-        t += "\n## Targets\n\n| target | measured | best candidate | miss |\n|---|---:|---:|---:|\n";
+        t +=
+            "\n## Targets\n\n| target | measured | best candidate | miss |\n|---|---:|---:|---:|\n";
         for (i, target) in cal.targets.iter().enumerate() {
             let v = best.results[i];
             match target {
-                Target::Metric { metric, measured, tolerance, .. } => {
-                    t += &format!("| {metric} | {measured} | {v:.4} | {:+.1} % (tolerance {:.0} %) |\n", (v / measured - 1.0) * 100.0, tolerance * 100.0);
+                Target::Metric {
+                    metric,
+                    measured,
+                    tolerance,
+                    ..
+                } => {
+                    t += &format!(
+                        "| {metric} | {measured} | {v:.4} | {:+.1} % (tolerance {:.0} %) |\n",
+                        (v / measured - 1.0) * 100.0,
+                        tolerance * 100.0
+                    );
                 }
                 Target::Trace { tolerance_mm, .. } => {
-                    t += &format!("| {} | — | {v:.4} | tolerance {tolerance_mm} mm |\n", target.name());
+                    t += &format!(
+                        "| {} | — | {v:.4} | tolerance {tolerance_mm} mm |\n",
+                        target.name()
+                    );
                 }
             }
         }
@@ -963,7 +1298,11 @@ impl CalibrationResult {
         t += "\n|---|---:|";
         t += &"---:|".repeat(self.parameters.len() + self.targets.len());
         t += "\n";
-        let mut ranked: Vec<&Evaluation> = self.evaluations.iter().filter(|e| e.failure.is_none()).collect();
+        let mut ranked: Vec<&Evaluation> = self
+            .evaluations
+            .iter()
+            .filter(|e| e.failure.is_none())
+            .collect();
         ranked.sort_by(|a, b| a.cost.total_cmp(&b.cost).then(a.index.cmp(&b.index)));
         for e in ranked.iter().take(10) {
             t += &format!("| {} | {:.4} |", e.index, e.cost);
@@ -972,7 +1311,11 @@ impl CalibrationResult {
             }
             t += "\n";
         }
-        let failed: Vec<&Evaluation> = self.evaluations.iter().filter(|e| e.failure.is_some()).collect();
+        let failed: Vec<&Evaluation> = self
+            .evaluations
+            .iter()
+            .filter(|e| e.failure.is_some())
+            .collect();
         if let Some(first) = failed.first() {
             t += &format!(
                 "\n{} candidates failed or stopped early (cost {FAILED:e}), e.g. #{}: {}\n",
@@ -999,7 +1342,10 @@ impl CalibrationResult {
             &format!("calibration {}: cost against evaluations", self.name),
             "evaluation",
             "cost (Σ squared misses in tolerances)",
-            &[("every candidate".into(), all), ("best so far".into(), running)],
+            &[
+                ("every candidate".into(), all),
+                ("best so far".into(), running),
+            ],
         )
     }
 
@@ -1057,7 +1403,8 @@ pub fn write_back(cal: &Calibration, values: &[f64]) -> Result<Vec<PathBuf>, Fil
     if !scenario_overrides.is_empty() {
         for s in &scenarios {
             let text = read_text(s, "scenario")?;
-            let edited = edit_toml(&text, &scenario_overrides).map_err(|e| FileError::new(s, None, e))?;
+            let edited =
+                edit_toml(&text, &scenario_overrides).map_err(|e| FileError::new(s, None, e))?;
             Scenario::parse(s, &edited)?;
             edits.push((s.clone(), edited));
         }
@@ -1067,7 +1414,8 @@ pub fn write_back(cal: &Calibration, values: &[f64]) -> Result<Vec<PathBuf>, Fil
     }
     let mut written = Vec::new();
     for (path, text) in edits {
-        std::fs::write(&path, text).map_err(|e| FileError::new(&path, None, format!("cannot write: {e}")))?;
+        std::fs::write(&path, text)
+            .map_err(|e| FileError::new(&path, None, format!("cannot write: {e}")))?;
         written.push(path);
     }
     Ok(written)

@@ -208,7 +208,12 @@ fn set_link_mass(text: &str, link: &str, mass: f64) -> Result<String, String> {
         .filter(|m| *m > 0.0)
         .ok_or_else(|| format!("link '{link}': its <mass> has no positive value"))?;
     let scale = mass / old;
-    let six = |v: f64| format!("{:.5e}", v).parse::<f64>().map_or(v, |r| r).to_string();
+    let six = |v: f64| {
+        format!("{:.5e}", v)
+            .parse::<f64>()
+            .map_or(v, |r| r)
+            .to_string()
+    };
     let mut out = text.to_string();
     // Right to left, so earlier offsets stay valid.
     let mut spans = tags;
@@ -222,9 +227,9 @@ fn set_link_mass(text: &str, link: &str, mass: f64) -> Result<String, String> {
         };
         for name in names {
             if let Some((span, v)) = attribute(&tag, name) {
-                let v: f64 = v
-                    .parse()
-                    .map_err(|_| format!("link '{link}': <{kind} {name}=\"{v}\"> is not a number"))?;
+                let v: f64 = v.parse().map_err(|_| {
+                    format!("link '{link}': <{kind} {name}=\"{v}\"> is not a number")
+                })?;
                 tag.replace_range(span, &six(v * scale));
             }
         }

@@ -42,10 +42,12 @@ fn damped_mass_under_force(f: f64, m: f64, c: f64, t: f64) -> (f64, f64) {
 
 #[test]
 fn model_takes_its_masses_from_the_machine() {
-    let models = AxisModel::for_machine(&machine(), [0.0, 0.0, -9.81], false).unwrap();
-    // X moves 8 + 3.5 + 15 + 0.5 kg, Y 3.5 + 15 + 0.5 kg, Z 0.5 kg (URDF; the z_column's
-    // 15 kg is the calibrated mass); J·k² on top.
-    let expected_moved = [27.0, 19.0, 0.5];
+    let machine = machine();
+    let models = AxisModel::for_machine(&machine, [0.0, 0.0, -9.81], false).unwrap();
+    // X moves 8 + 3.5 + m_zc + 0.5 kg, Y 3.5 + m_zc + 0.5 kg, Z 0.5 kg (URDF; the z_column's
+    // mass m_zc is calibrated); J·k² on top.
+    let column = machine.links[machine.link_index("z_column").unwrap()].mass;
+    let expected_moved = [12.0 + column, 4.0 + column, 0.5];
     for (model, moved) in models.iter().zip(expected_moved) {
         let reflected = model.drive_mass;
         assert!(relative(model.effective_mass(), moved + reflected) < 1e-12);
