@@ -167,7 +167,7 @@ fn ctrl_c_keeps_the_finished_rows() {
         "[0.5, 1.0, 2.0, 0.5, 1.0, 2.0, 0.5, 1.0, 2.0, 0.5, 1.0, 2.0]",
     );
     std::fs::write(&sweep, text).unwrap();
-    let mut child = Command::new(env!("CARGO_BIN_EXE_cncsim"))
+    let child = Command::new(env!("CARGO_BIN_EXE_cncsim"))
         .args([
             "sweep",
             sweep.to_str().unwrap(),

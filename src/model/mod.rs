@@ -658,6 +658,7 @@ impl Plant {
 /// Inserts the guide (on the parent link) and the runner (under the carriage) of a guided
 /// joint. At the home pose the runner ball touches the guide's top face at the joint origin;
 /// the guide runs the whole travel so the contact never ends.
+#[allow(clippy::too_many_arguments)] // the joint's bodies, frames and guide data, each one value
 fn insert_guide(
     world: &mut PhysicsWorld,
     (parent, child): (RigidBodyHandle, RigidBodyHandle),

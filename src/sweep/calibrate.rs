@@ -284,7 +284,7 @@ impl Calibration {
                 "[parameters] names no parameter: expected \"<key>\" = { min = …, max = … }".into(),
             ));
         }
-        for (key, _) in spec.parameters.get_ref() {
+        for key in spec.parameters.get_ref().keys() {
             let p = parameters
                 .iter()
                 .find(|p| &p.key == key.get_ref())
