@@ -176,3 +176,61 @@ fn cl_data_is_planned_through_the_inverse_kinematics() {
         "{err}"
     );
 }
+
+/// `[planner] naive_cam_tolerance_mm` (LinuxCNC's G64 Q): a chain of short lines that zig-zag
+/// within the tolerance of one straight line plans as that line, faster than move by move;
+/// with exact stops the key is refused at its place.
+#[test]
+fn naive_cam_tolerance_joins_collinear_short_lines() {
+    let root = std::path::PathBuf::from(env!("CARGO_MANIFEST_DIR"));
+    // 40 lines of 1 mm along X, alternately 5 µm off the line.
+    let points: Vec<String> = (0..=40)
+        .map(|i| format!("[{}.0, {}, 0.0]", i, if i % 2 == 1 { 0.005 } else { 0.0 }))
+        .collect();
+    let scenario = |extra: &str, blend: &str| {
+        format!(
+            r#"machine = "{}/models/xyz_table.urdf"
+[program]
+polyline = {{ points_mm = [{}] }}
+feed_mm_s = 100.0
+[planner]
+profile = "jerk-limited"
+blend = "{blend}"
+{extra}
+limits.x = {{ velocity = 200.0, acceleration = 2000.0, jerk = 50000.0 }}
+limits.y = {{ velocity = 200.0, acceleration = 2000.0, jerk = 50000.0 }}
+limits.z = {{ velocity = 200.0, acceleration = 2000.0, jerk = 50000.0 }}
+[timing]
+servo_period_ms = 1.0
+physics_step_ms = 0.25
+"#,
+            root.display(),
+            points.join(", ")
+        )
+    };
+    let path = root.join("scenarios/q_test.toml");
+    let plan = |text: &str| {
+        let s = cncsim::scenario::Scenario::parse(&path, text).unwrap();
+        cncsim::scenario::plan_scenario(&s, None)
+            .unwrap()
+            .setpoints
+            .duration()
+    };
+    let without = plan(&scenario("", "continuous"));
+    let with = plan(&scenario("naive_cam_tolerance_mm = 0.01", "continuous"));
+    eprintln!("joined {with} s, move by move {without} s");
+    assert!(
+        with < 0.9 * without,
+        "joined: {with} s, move by move: {without} s"
+    );
+    let refused = cncsim::scenario::Scenario::parse(
+        &path,
+        &scenario("naive_cam_tolerance_mm = 0.01", "exact-stop"),
+    )
+    .unwrap_err()
+    .to_string();
+    assert!(
+        refused.contains("q_test.toml:8:") && refused.contains("naive_cam_tolerance_mm"),
+        "{refused}"
+    );
+}

@@ -1168,3 +1168,16 @@ fn offsets_tools_and_subroutines_reach_the_machine_position() {
     assert_eq!(program.moves[0].end.linear, [0.0, 0.0, 0.06]);
     assert_eq!(program.moves[1].end.linear, [0.101, 0.052, 0.06]);
 }
+
+#[test]
+fn a_programs_g64_q_is_named_as_not_read() {
+    let program = gcode("G64 P0.05 Q0.03\nG1 X1 F60\nG64 P0.05\nG1 X2");
+    let q: Vec<&str> = program
+        .warnings
+        .iter()
+        .map(|w| w.message.as_str())
+        .filter(|m| m.contains("G64 Q"))
+        .collect();
+    assert_eq!(q.len(), 1, "{:?}", program.warnings);
+    assert!(q[0].contains("naive_cam_tolerance_mm"), "{}", q[0]);
+}

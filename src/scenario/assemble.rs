@@ -614,7 +614,7 @@ pub fn plan_settings(
         rapid_speed: s.rapid_speed,
         blend: s.blend,
         axis_names: machine.axes.iter().map(|a| a.name.clone()).collect(),
-        naive_cam_tolerance: None,
+        naive_cam_tolerance: s.naive_cam_tolerance,
         tool_lever_arms: Vec::new(),
     })
 }

@@ -192,6 +192,9 @@ struct RawPlanner {
     blend: RawBlend,
     /// Tolerance of `blend = "continuous"` (mm); absent = as far as the segments allow.
     tolerance_mm: Option<Num>,
+    /// Naive-CAM collinearity tolerance (LinuxCNC's G64 Q, mm): runs of short straight moves
+    /// within it of one line are joined, with continuous blending.
+    naive_cam_tolerance_mm: Option<Num>,
     /// Jerk-limited planner: limits per machine axis in mm or deg per s, s², s³.
     #[serde(default)]
     limits: BTreeMap<String, Spanned<RawLimits>>,
@@ -209,6 +212,7 @@ impl Default for RawPlanner {
             acceleration_mm_s2: None,
             blend: RawBlend::default(),
             tolerance_mm: None,
+            naive_cam_tolerance_mm: None,
             limits: BTreeMap::new(),
         }
     }
@@ -584,6 +588,8 @@ pub struct Scenario {
     pub approach: Option<Approach>,
     pub planner: PlannerSettings,
     pub blend: BlendChoice,
+    /// LinuxCNC's G64 Q (m): runs of straight moves within it of one line are joined.
+    pub naive_cam_tolerance: Option<f64>,
     pub rapid_speed: f64,
     pub servo_period: f64,
     pub substeps: usize,
@@ -1237,6 +1243,18 @@ impl Scenario {
                 "tolerance_mm applies to blend = \"continuous\"".into(),
             ));
         }
+        let naive_cam_tolerance = match &rp.naive_cam_tolerance_mm {
+            Some(q) if rp.blend == RawBlend::ExactStop => {
+                return Err(err(
+                    q.span(),
+                    "naive_cam_tolerance_mm joins moves: it needs blend = \"continuous\" or \"program\"".into(),
+                ))
+            }
+            Some(q) => Some(
+                ranged(q, "naive_cam_tolerance_mm", "mm", limits::TOLERANCE_MM)? * 1e-3,
+            ),
+            None => None,
+        };
 
         let analytic_steps = match &raw.analytic {
             Some(a) if a.enabled => {
@@ -1305,6 +1323,7 @@ impl Scenario {
             approach,
             planner,
             blend,
+            naive_cam_tolerance,
             rapid_speed: ranged(
                 &raw.planner.rapid_mm_s,
                 "rapid_mm_s",

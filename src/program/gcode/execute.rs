@@ -410,6 +410,15 @@ impl Interpreter<'_> {
                     _ => None,
                 };
                 self.canon.blend = Blend::Continuous { tolerance };
+                if let Some(q) = block.word(b'q').filter(|q| q.value > 0.0) {
+                    self.canon.program.warnings.push(Warning {
+                        span,
+                        message: format!(
+                            "G64 Q{} (naive-CAM tolerance) is not read from the program: set [planner] naive_cam_tolerance_mm in the scenario",
+                            q.value
+                        ),
+                    });
+                }
             }
             _ => {}
         }
