@@ -13,8 +13,9 @@ cluster (Ray's cluster launcher, or KubeRay on Kubernetes), run this on the head
 --address ray://HEAD:10001; every worker needs the `cncsim` binary at the --cncsim path (built
 for the worker's platform: `cargo build --release`, or a container image with it) and the
 repository's scenario, model and program files at the same absolute paths as here (a shared
-filesystem, or the image). Each shard's per-run outputs stay on its worker; its results come
-back through Ray.
+filesystem, or the image). Each shard runs in a temporary folder on its worker, removed when
+it is done; its results come back through Ray (run a shard by hand with `cncsim sweep
+--shard K/N` to keep per-run outputs).
 """
 
 import argparse
@@ -29,16 +30,17 @@ import ray
 
 @ray.remote(num_cpus=1)
 def run_shard(cncsim, sweep, k, n, cwd):
-    """Runs shard k of n in a fresh folder and returns its results.json (text) and status."""
-    out = tempfile.mkdtemp(prefix=f"cncsim_shard_{k}_of_{n}_")
-    done = subprocess.run(
-        [cncsim, "sweep", sweep, "--shard", f"{k}/{n}", "--jobs", "1", "--out", out],
-        capture_output=True,
-        text=True,
-        cwd=cwd,
-    )
-    path = os.path.join(out, "results.json")
-    results = open(path, encoding="utf-8").read() if os.path.exists(path) else None
+    """Runs shard k of n in a fresh folder and returns its results.json (text) and status.
+    The folder (with the shard's per-run outputs) is removed from the worker afterwards."""
+    with tempfile.TemporaryDirectory(prefix=f"cncsim_shard_{k}_of_{n}_") as out:
+        done = subprocess.run(
+            [cncsim, "sweep", sweep, "--shard", f"{k}/{n}", "--jobs", "1", "--out", out],
+            capture_output=True,
+            text=True,
+            cwd=cwd,
+        )
+        path = os.path.join(out, "results.json")
+        results = open(path, encoding="utf-8").read() if os.path.exists(path) else None
     return {
         "shard": k,
         "returncode": done.returncode,
