@@ -389,6 +389,17 @@ fn ab(
     ExitCode::SUCCESS
 }
 
+/// The scenario a tune command designs on; `linear`: without friction and backlash, as the
+/// source paper designed its gains.
+fn scenario_to_tune(path: &Path, linear: bool) -> Result<Scenario, cncsim::diagnostics::FileError> {
+    let mut scenario = Scenario::load(path)?;
+    if linear {
+        scenario.friction = false;
+        scenario.backlash = false;
+    }
+    Ok(scenario)
+}
+
 fn tune(
     path: &Path,
     mut options: TuneOptions,
@@ -397,14 +408,10 @@ fn tune(
     linear: bool,
     json: bool,
 ) -> ExitCode {
-    let mut scenario = match Scenario::load(path) {
+    let scenario = match scenario_to_tune(path, linear) {
         Ok(s) => s,
         Err(e) => return fail_input(&e),
     };
-    if linear {
-        scenario.friction = false;
-        scenario.backlash = false;
-    }
     // The step is given per axis kind; the tuner learns the kind from the machine.
     let rotary = Machine::load(&scenario.machine)
         .ok()
@@ -678,14 +685,10 @@ fn tune_cascade_cli(
     linear: bool,
     json: bool,
 ) -> ExitCode {
-    let mut scenario = match Scenario::load(path) {
+    let scenario = match scenario_to_tune(path, linear) {
         Ok(s) => s,
         Err(e) => return fail_input(&e),
     };
-    if linear {
-        scenario.friction = false;
-        scenario.backlash = false;
-    }
     let machine = match cncsim::scenario::machine_for(&scenario) {
         Ok(m) => m,
         Err(e) => return fail_input(&e),

@@ -39,25 +39,7 @@ pub fn write_contour_error_plot(
     path: &Path,
     series: &[ContourSeries<'_>],
 ) -> Result<(), ReportError> {
-    register_font();
-    let (w, h) = PLOT_SIZE;
-    let mut pixels = vec![255u8; (w * h * 3) as usize];
-    draw(&mut pixels, series).map_err(|e| ReportError::Io {
-        path: path.to_path_buf(),
-        source: std::io::Error::other(format!("drawing the plot: {e}")),
-    })?;
-    let io = |source| ReportError::Io {
-        path: path.to_path_buf(),
-        source,
-    };
-    let file = std::fs::File::create(path).map_err(io)?;
-    let mut encoder = png::Encoder::new(std::io::BufWriter::new(file), w, h);
-    encoder.set_color(png::ColorType::Rgb);
-    encoder.set_depth(png::BitDepth::Eight);
-    let encoded = encoder
-        .write_header()
-        .and_then(|mut writer| writer.write_image_data(&pixels));
-    encoded.map_err(|e| io(std::io::Error::other(e)))
+    render(path, |pixels| draw(pixels, series))
 }
 
 type DrawResult<T> = Result<T, Box<dyn std::error::Error>>;
@@ -176,6 +158,15 @@ const PALETTE: [RGBColor; 8] = [
 ];
 
 /// Writes `pixels` (RGB, [`PLOT_SIZE`]) as a PNG.
+/// Draws a plot of `PLOT_SIZE` on white with `draw` and writes it to `path` as PNG.
+fn render(path: &Path, draw: impl FnOnce(&mut [u8]) -> DrawResult<()>) -> Result<(), ReportError> {
+    register_font();
+    let (w, h) = PLOT_SIZE;
+    let mut pixels = vec![255u8; (w * h * 3) as usize];
+    draw(&mut pixels).map_err(|e| drawing_error(path, e))?;
+    write_png(path, &pixels)
+}
+
 fn write_png(path: &Path, pixels: &[u8]) -> Result<(), ReportError> {
     let (w, h) = PLOT_SIZE;
     let io = |source| ReportError::Io {
@@ -208,11 +199,9 @@ pub fn write_bar_plot(
     groups: &[String],
     series: &[BarSeries],
 ) -> Result<(), ReportError> {
-    register_font();
-    let (w, h) = PLOT_SIZE;
-    let mut pixels = vec![255u8; (w * h * 3) as usize];
-    draw_bars(&mut pixels, title, y_label, groups, series).map_err(|e| drawing_error(path, e))?;
-    write_png(path, &pixels)
+    render(path, |pixels| {
+        draw_bars(pixels, title, y_label, groups, series)
+    })
 }
 
 fn draw_bars(
@@ -323,11 +312,9 @@ pub fn write_line_plot(
     y_label: &str,
     series: &[(String, Vec<(f64, f64)>)],
 ) -> Result<(), ReportError> {
-    register_font();
-    let (w, h) = PLOT_SIZE;
-    let mut pixels = vec![255u8; (w * h * 3) as usize];
-    draw_lines(&mut pixels, title, x_label, y_label, series).map_err(|e| drawing_error(path, e))?;
-    write_png(path, &pixels)
+    render(path, |pixels| {
+        draw_lines(pixels, title, x_label, y_label, series)
+    })
 }
 
 fn draw_lines(
