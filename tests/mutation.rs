@@ -349,10 +349,9 @@ fn run_case(kind: Kind, scenario_path: &Path, mutated: &str) -> Result<(), Strin
             return check_error(&e);
         }
     };
-    let mut setpoints = assembly.setpoints.clone();
-    let keep = setpoints.len().min(RUN_TICKS);
-    let n = setpoints.axes;
-    truncate(&mut setpoints, keep);
+    let mut setpoints = cncsim::plan::FirstSamples::new(assembly.setpoints(), RUN_TICKS);
+    let keep = cncsim::plan::SetpointStream::len(&setpoints);
+    let n = assembly.labels.len();
     // The untraced approach to the program's start is cut short alike.
     let mut loop_settings = assembly.loop_settings.clone();
     truncate(&mut loop_settings.approach, RUN_TICKS);
@@ -360,7 +359,7 @@ fn run_case(kind: Kind, scenario_path: &Path, mutated: &str) -> Result<(), Strin
     let outcome = cncsim::sim::run(
         &loop_settings,
         &mut lanes,
-        &mut setpoints.stream(),
+        &mut setpoints,
         &mut recorder,
         &mut |_, _| true,
     );

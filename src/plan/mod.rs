@@ -10,7 +10,8 @@
 //!   limits on the path coordinate.
 //! - [`planner`]: look-ahead over the chains, time-optimal profiles per span.
 //! - [`setpoints`] and `stream`: the output, a stream at the servo period computed as it is
-//!   read (every move timed first).
+//!   read (every move timed first); [`PlannedProgram`]: a program planned once and streamed
+//!   again for every run, no sample kept.
 //! - [`metrics`]: finite-difference extremes of a setpoint stream and its CSV recording.
 
 mod blend;
@@ -21,6 +22,7 @@ mod geometry;
 pub mod metrics;
 pub mod path;
 mod pieces;
+mod planned;
 pub mod planner;
 pub mod profile;
 mod quintic;
@@ -38,6 +40,7 @@ pub use from_program::{
 pub use metrics::{finite_difference_extremes, write_setpoints_csv, AxisExtremes};
 pub use path::{AxisKind, AxisLimits, AxisPath, AxisSpec, Blend, Geometry, PathError, PathSegment};
 pub use pieces::{SMOOTH_ANGLE, TANGENT_ANGLE};
+pub use planned::{FirstSamples, PlannedProgram};
 pub use planner::{plan, Plan, SegmentTiming, SPAN_SPREAD};
 pub use profile::{Limits, Profile, Recipe, Regime, VelocityChange};
 pub use setpoints::{

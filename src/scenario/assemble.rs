@@ -15,9 +15,9 @@ use crate::kinematics::{AcAxes, AcTableKinematics, AxisMap};
 use crate::machine::Machine;
 use crate::model::{ModelError, PlantOptions};
 use crate::plan::{
-    plan_program, AxisKind, AxisLimits, PlanError, PlanSettings, Planner, Setpoints,
+    plan_program, AxisKind, AxisLimits, PlanError, PlanSettings, PlannedProgram, Planner,
+    SetpointStream, Setpoints,
 };
-use crate::plan::{SetpointCursor, SetpointStream};
 use crate::program::{circle, polyline, read_program, Program, ProgramErrors};
 use crate::report::AxisLabel;
 use crate::sim::{
@@ -52,15 +52,16 @@ pub enum PlantKind {
     Analytic,
 }
 
-/// A scenario wired for running: the machine with the scenario's choices applied, the program,
-/// its setpoints and the loop's settings. Plants and controllers are built fresh for each run.
+/// A scenario wired for running: the machine with the scenario's choices applied, the planned
+/// program and the loop's settings. Plants and controllers are built fresh for each run, and
+/// so is the setpoint stream: no sample is kept, so memory does not grow with the program's
+/// duration.
 pub struct Assembly {
     pub scenario: Scenario,
     pub machine: Machine,
     pub labels: Vec<AxisLabel>,
     pub axis_map: AxisMap,
-    pub program: Program,
-    pub setpoints: Setpoints,
+    pub plan: PlannedProgram,
     pub actuator: ActuatorKind,
     pub loop_settings: LoopSettings,
 }
@@ -75,8 +76,8 @@ impl Assembly {
     /// as it is: [`machine_for`] is the scenario's machine with its `[mechanics]`,
     /// `[feedback]` and `[actuator]` choices applied.
     pub fn with_machine(s: &Scenario, machine: Machine) -> Result<Assembly, RunError> {
-        let (program, setpoints) = plan_for(s, &machine)?;
-        Self::from_plan(s, machine, program, setpoints)
+        let plan = plan_for(s, &machine)?;
+        Self::from_plan(s, machine, plan)
     }
 
     /// Wires the scenario on `machine` with a plan made before (e.g. shared by the variants
@@ -84,8 +85,7 @@ impl Assembly {
     pub fn from_plan(
         s: &Scenario,
         machine: Machine,
-        program: Program,
-        setpoints: Setpoints,
+        plan: PlannedProgram,
     ) -> Result<Assembly, RunError> {
         let Some(actuator) = s.actuator else {
             let message = "running a scenario needs [actuator] and [controller] sections (planning with `cncsim plan` does not)";
@@ -99,8 +99,8 @@ impl Assembly {
         super::run::validate_against_machine(s, &machine, &labels)?;
         let axis_map = AxisMap::cartesian(&machine)
             .map_err(|e| FileError::new(&s.machine, None, e.to_string()))?;
-        let approach = approach_for(s, &machine, &axis_map, &program)?;
-        check_run_length(s, approach.len() + setpoints.len())?;
+        let approach = approach_for(s, &machine, &axis_map, plan.program())?;
+        check_run_length(s, approach.len() + plan.len())?;
         let encoder = Encoder {
             resolution: machine
                 .axes
@@ -132,8 +132,7 @@ impl Assembly {
             machine,
             labels,
             axis_map,
-            program,
-            setpoints,
+            plan,
             actuator,
             loop_settings: LoopSettings {
                 servo_period: s.servo_period,
@@ -145,9 +144,13 @@ impl Assembly {
         })
     }
 
-    /// The setpoint stream of the program, from its first sample.
-    pub fn setpoints(&self) -> SetpointCursor<'_> {
-        self.setpoints.stream()
+    pub fn program(&self) -> &Program {
+        self.plan.program()
+    }
+
+    /// The setpoint stream of the program, from its first sample, computed as it is read.
+    pub fn setpoints(&self) -> Box<dyn SetpointStream + Send + '_> {
+        self.plan.stream()
     }
 
     /// Where every axis starts: at rest at the start of the approach, or else at the first
@@ -156,8 +159,8 @@ impl Assembly {
         let approach = &self.loop_settings.approach;
         if !approach.is_empty() {
             approach.position(0).to_vec()
-        } else if !self.setpoints.is_empty() {
-            self.setpoints.position(0).to_vec()
+        } else if let Some(first) = self.plan.first_position() {
+            first.to_vec()
         } else {
             vec![0.0; self.machine.axes.len()]
         }
@@ -325,20 +328,19 @@ fn approach_for(
     })
 }
 
-/// The scenario's program on `machine` and its setpoints.
-pub fn plan_for(s: &Scenario, machine: &Machine) -> Result<(Program, Setpoints), RunError> {
+/// The scenario's program on `machine`, planned.
+pub fn plan_for(s: &Scenario, machine: &Machine) -> Result<PlannedProgram, RunError> {
     let axis_map =
         AxisMap::cartesian(machine).map_err(|e| FileError::new(&s.machine, None, e.to_string()))?;
     let program = load_checked_program(s, machine)?;
     let mut settings = plan_settings(s, machine, s.planner.profile)?;
     // Corner tolerances at the tool tip, as the program's author reads them.
     settings.tool_lever_arms = crate::plan::tool_lever_arms(machine, &program, &axis_map);
-    let setpoints =
-        plan_program(&program, &axis_map, &settings).map_err(|source| RunError::Plan {
-            path: program.source.clone(),
-            source,
-        })?;
-    Ok((program, setpoints))
+    let source = program.source.clone();
+    PlannedProgram::new(program, axis_map, settings).map_err(|source_error| RunError::Plan {
+        path: source,
+        source: source_error,
+    })
 }
 
 /// What the plan of a scenario on a machine depends on, as a key: runs with equal keys run

@@ -93,15 +93,20 @@ pub fn report_setup(assembly: &Assembly) -> ReportSetup {
         dc_motor: assembly.actuator == ActuatorKind::DcMotor,
         period: s.servo_period,
         path: PathTracker {
-            geometry: PathGeometry::of(&assembly.program),
+            geometry: PathGeometry::of(assembly.program()),
             program_origin: kinematics::tool_point(machine, &zeros),
             linear_axes: ["x", "y", "z"].map(|n| machine.axis_index(n)),
         },
         peak_velocity: peak,
-        ticks: assembly.setpoints.len(),
+        ticks: assembly.plan.len(),
         lanes: lanes_of(s),
         backlash: machine.axes.iter().map(|a| a.drive.backlash).collect(),
-        move_lines: assembly.program.moves.iter().map(|m| m.span.line).collect(),
+        move_lines: assembly
+            .program()
+            .moves
+            .iter()
+            .map(|m| m.span.line)
+            .collect(),
     }
 }
 
@@ -248,8 +253,8 @@ pub fn summary_markdown(assembly: &Assembly, metrics: &Metrics, verdict: &Verdic
         assembly.actuator,
         s.servo_period * 1e3,
         s.servo_period / s.substeps as f64 * 1e3,
-        assembly.program.source.display(),
-        assembly.program.moves.len(),
+        assembly.program().source.display(),
+        assembly.program().moves.len(),
         metrics.stopped.as_deref().unwrap_or("completed"),
     );
     t += "| figure | value |\n|---|---:|\n";

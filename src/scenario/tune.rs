@@ -205,18 +205,18 @@ pub fn tune_scenario_with(
     // A boundary judged on a handful of peaks is a guess: a slow loop (an ultimate period
     // near the trial time) can look settled or growing by chance. The search is repeated
     // with twice the trial time until the oscillating bound shows enough swings.
+    // Trials start at rest at the program's first point.
+    let program_start = assembly
+        .plan
+        .first_position()
+        .map_or_else(|| vec![0.0; assembly.labels.len()], <[f64]>::to_vec);
     let mut trial_time = options.trial_time;
     let (mut simulations, mut simulated_time) = (0, 0.0);
     let mut previous = None;
     let (ultimate, ticks) = loop {
         let ticks = (trial_time / s.servo_period).round() as usize;
-        let trial_setpoints = step_setpoints(
-            &assembly.setpoints,
-            s.servo_period,
-            axis,
-            options.step,
-            ticks,
-        );
+        let trial_setpoints =
+            step_setpoints(&program_start, s.servo_period, axis, options.step, ticks);
         let probe = Probe {
             assembly: &assembly,
             plant,
@@ -308,13 +308,13 @@ pub fn tune_scenario_with(
 /// The trial's setpoints: at rest at the program's first point (one sample there, which both
 /// loops take as the rest position), then the tuned axis's setpoint steps by `step`.
 fn step_setpoints(
-    program: &Setpoints,
+    start: &[f64],
     servo_period: f64,
     axis: usize,
     step: f64,
     ticks: usize,
 ) -> Setpoints {
-    let start = program.position(0).to_vec();
+    let start = start.to_vec();
     let n = start.len();
     let mut target = start.clone();
     target[axis] += step;

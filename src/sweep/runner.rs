@@ -6,8 +6,7 @@
 
 use super::file::{Change, RunSpec, Sweep};
 use super::machine_with;
-use crate::plan::Setpoints;
-use crate::program::Program;
+use crate::plan::PlannedProgram;
 use crate::scenario::{plan_for, plan_key, run_assembly, with_choices, Assembly, Scenario};
 use rayon::prelude::*;
 use std::collections::HashMap;
@@ -51,7 +50,7 @@ pub struct Progress {
     pub failed: AtomicUsize,
 }
 
-type PlanSlot = Arc<OnceLock<Result<(Program, Setpoints), String>>>;
+type PlanSlot = Arc<OnceLock<Result<PlannedProgram, String>>>;
 
 /// Plans shared between jobs, by [`plan_key`].
 #[derive(Default)]
@@ -65,7 +64,7 @@ impl PlanCache {
         &self,
         s: &Scenario,
         machine: &crate::machine::Machine,
-    ) -> Result<(Program, Setpoints), String> {
+    ) -> Result<PlannedProgram, String> {
         let slot = {
             let mut slots = self
                 .slots
@@ -118,11 +117,11 @@ fn run_job(job: &Job, cache: &PlanCache, interrupted: &AtomicBool) -> JobResult 
         Ok(m) => with_choices(&s, m),
         Err(e) => return failed(e.to_string()),
     };
-    let (program, setpoints) = match cache.get(&s, &machine) {
+    let plan = match cache.get(&s, &machine) {
         Ok(plan) => plan,
         Err(e) => return failed(e),
     };
-    let assembly = match Assembly::from_plan(&s, machine, program, setpoints) {
+    let assembly = match Assembly::from_plan(&s, machine, plan) {
         Ok(a) => a,
         Err(e) => return failed(e.to_string()),
     };
