@@ -484,12 +484,12 @@ fn mass_shift(moment_per_acceleration: f64, a: f64) -> f64 {
     moment_per_acceleration * a / SPACING
 }
 
-/// Why the bundled twin stays on one runner (README, "Weight transfer"): the backlash's end
-/// stops are rigid, so taking up the gap at 5 mm/s changes the carriage's speed within one
-/// physics step, an acceleration of some 20 m/s². Under the Y carriage's centre of gravity that
-/// lifts a runner of a 120 mm pair off its rail (above g·L/(2·h) ≈ 5 m/s²) and rocks the
-/// carriage, which a real transmission's compliance would not; on runners 4 m apart the load
-/// only swings. One runner carries the weight throughout.
+/// Why the bundled twin stays on one runner (README, "Weight transfer: measured, not in the
+/// twin"): the backlash's end stops are rigid, so taking up the gap at 5 mm/s changes the
+/// carriage's speed within one physics step, an acceleration of some 20 m/s². Under the Y
+/// carriage's centre of gravity that lifts a runner of a 120 mm pair off its rail (above
+/// g·L/(2·h) ≈ 5 m/s²) and rocks the carriage, which a real transmission's compliance would
+/// not; on runners 4 m apart the load only swings. One runner carries the weight throughout.
 #[test]
 fn a_rigid_backlash_take_up_lifts_a_runner_off() {
     let static_load = |m: &Machine| carried_mass(m, 1) * G;

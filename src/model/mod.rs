@@ -852,3 +852,75 @@ pub fn home_poses(machine: &Machine) -> Vec<Isometry3<f64>> {
     }
     poses
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use std::path::Path;
+
+    /// The bundled table with its X and Y carriages on runners `spacing` apart.
+    fn table(spacing: Option<f64>) -> Machine {
+        let path = Path::new(env!("CARGO_MANIFEST_DIR")).join("models/xyz_table.urdf");
+        let mut machine = Machine::load(&path).expect("bundled model loads");
+        for axis in machine.axes.iter_mut().take(2) {
+            if let Some(g) = axis.drive.guide.as_mut() {
+                g.runner_spacing_m = spacing;
+            }
+        }
+        machine
+    }
+
+    fn plant(machine: &Machine) -> Plant {
+        let options = PlantOptions {
+            step: 2.5e-4,
+            gravity: [0.0, 0.0, -9.81],
+            initial_positions: vec![0.1, 0.1, 0.0],
+            include_drive_dynamics: true,
+            solver_iterations: 1,
+        };
+        Plant::new(machine, &options).expect("plant builds")
+    }
+
+    #[test]
+    fn two_runners_add_one_pitch_dof_per_carriage() {
+        let dofs = |spacing| {
+            let p = plant(&table(spacing));
+            let runners: Vec<usize> = (0..3)
+                .filter_map(|a| p.runner_normal_forces(a).map(|r| r.len()))
+                .collect();
+            (p.multibody().expect("machine").ndofs(), runners)
+        };
+        let (one, one_runners) = dofs(None);
+        let (two, two_runners) = dofs(Some(0.12));
+        assert_eq!(one_runners, [1, 1]);
+        assert_eq!(two_runners, [2, 2]);
+        assert_eq!(two, one + 2, "a pitch DOF on X and on Y");
+    }
+
+    /// At rest the runners share the weight by the lever rule: the Z slide hangs 60 mm ahead
+    /// of X's joint origin (the URDF), so X's front runner carries m·g·0.06/L more than half
+    /// and its back runner as much less; Y's centre of gravity is over its joint origin.
+    #[test]
+    fn at_rest_the_runners_share_the_load_by_the_lever_rule() {
+        let spacing = 0.12;
+        let machine = table(Some(spacing));
+        let mut plant = plant(&machine);
+        let slide = machine.link_index("z_slide").expect("z slide");
+        let hold = machine.links[slide].mass * 9.81;
+        for _ in 0..2000 {
+            plant.set_joint_forces(&[0.0, 0.0, hold]);
+            plant.step();
+        }
+        let x = plant.runner_normal_forces(0).expect("X has a guide");
+        let lever = machine.links[slide].mass * 9.81 * 0.06 / spacing;
+        let half = x.iter().sum::<f64>() / 2.0;
+        assert!((x[0] - (half - lever)).abs() < 1e-3 * half, "X back {x:?}");
+        assert!((x[1] - (half + lever)).abs() < 1e-3 * half, "X front {x:?}");
+        let y = plant.runner_normal_forces(1).expect("Y has a guide");
+        assert!((y[0] - y[1]).abs() < 1e-3 * y[0], "Y {y:?}");
+        // The static tilt is the contacts' sag, far below a micro-radian.
+        for pitch in plant.carriage_pitches().into_iter().take(2) {
+            assert!(pitch.expect("pitches").abs() < 1e-6);
+        }
+    }
+}
