@@ -321,6 +321,22 @@ fn bad_guides_and_feedback_name_the_axis() {
             "expected a finite, non-zero vector",
         ),
         (
+            drives.replacen(
+                x_guide,
+                "guide = { friction_coefficient = 0.1, runner_spacing_m = 120.0 }",
+                1,
+            ),
+            "axis 'x': guide.runner_spacing_m = 120.0 m: expected a value from 0.001 to 5.0 m",
+        ),
+        (
+            drives.replacen(
+                x_guide,
+                "guide = { friction_coefficient = 0.1, runner_spacing_m = -0.12 }",
+                1,
+            ),
+            "axis 'x': guide.runner_spacing_m = -0.12 m: expected a value from 0.001 to 5.0 m",
+        ),
+        (
             drives.replacen(x_guide, "guide = { friction_coeficient = 0.1 }", 1),
             "unknown field `friction_coeficient`",
         ),

@@ -37,6 +37,8 @@ pub const MAX_FRICTION_COEFFICIENT: f64 = 2.0;
 pub const SUSPECT_FRICTION_COEFFICIENT: f64 = 0.5;
 /// Range of the Stribeck velocity (m/s).
 pub const STRIBECK_VELOCITY_RANGE_M_S: (f64, f64) = (1e-7, 1.0);
+/// Range of a guide's runner spacing (m): from a miniature stage's blocks to a gantry's.
+pub const RUNNER_SPACING_RANGE_M: (f64, f64) = (1e-3, 5.0);
 /// Backlash above this loads with a warning (m at a linear joint, rad at a rotary one).
 pub const SUSPECT_BACKLASH: f64 = 2e-3;
 
@@ -185,6 +187,12 @@ pub struct Guide {
     /// joint frame; must be perpendicular to the joint axis.
     #[serde(default = "up")]
     pub normal: [f64; 3],
+    /// Distance (m) between a front and a back runner along the travel; with it the carriage
+    /// gets a pitch degree of freedom as well, so the load shifts between the runners when
+    /// the carriage accelerates under a high centre of gravity (weight transfer). Absent: one
+    /// runner under the joint origin and no pitch.
+    #[serde(default)]
+    pub runner_spacing_m: Option<f64>,
 }
 
 impl Guide {
@@ -195,6 +203,7 @@ impl Guide {
             static_friction_coefficient: None,
             stribeck_velocity_m_s: None,
             normal: up(),
+            runner_spacing_m: None,
         }
     }
 
@@ -239,6 +248,10 @@ impl Guide {
                 ));
             }
             None => {}
+        }
+        if let Some(l) = self.runner_spacing_m {
+            let (lo, hi) = RUNNER_SPACING_RANGE_M;
+            check_range("guide.runner_spacing_m", l, "m", lo, hi)?;
         }
         let n = self.normal;
         if !(n.iter().all(|v| v.is_finite()) && n.iter().any(|v| *v != 0.0)) {

@@ -79,13 +79,17 @@ struct AxisBinding {
     slack: Option<(usize, usize)>,
     /// Index into a joint's coordinate array (0 = translation along the joint x, 3 = rotation).
     coordinate: usize,
+    /// Multibody link and DOF of the carriage's pitch on two runners, if it has them.
+    pitch: Option<(usize, usize)>,
     feedback: Feedback,
 }
 
-/// The colliders of one guide contact (carriage runner on the parent's guide).
+/// The colliders of one guide contact (the carriage's runners on the parent's guide).
 struct GuidePair {
     guide: ColliderHandle,
-    runner: ColliderHandle,
+    /// One runner under the joint origin, or the back and the front runner (in that order
+    /// along the travel) of a carriage that pitches.
+    runners: Vec<ColliderHandle>,
     /// Guide normal in the world frame (constant: guides sit on linear chains).
     normal: Vector3<f64>,
     /// Friction coefficient against sliding speed; with stiction it is set on the colliders
@@ -113,9 +117,12 @@ pub struct Plant {
 const GUIDE_CONTACT_HZ: f64 = 1000.0;
 
 /// Radius of a guide runner: a ball under the carriage, so the runner touches its rail at one
-/// point. The carriage cannot tilt (the joint holds its rotation), so where the load sits does
-/// not matter and one contact point carries it as well as four: friction is μ·N either way,
-/// and the solver has three rows per guide instead of twelve (a pad's four corners).
+/// point. A carriage without `runner_spacing_m` cannot tilt (the joint holds its rotation), so
+/// where the load sits does not matter and one contact point carries it as well as four:
+/// friction is μ·N either way, and the solver has three rows per guide instead of twelve (a
+/// pad's four corners). With `runner_spacing_m` the carriage pitches on a back and a front
+/// runner, whose contacts share the load as its moment demands (weight transfer); it still
+/// cannot roll, so two points along the travel suffice.
 const RUNNER_RADIUS: f64 = 0.005;
 
 /// Half-width and half-thickness of a guide rail (m).
@@ -228,10 +235,13 @@ impl Plant {
             // Joint frames: x along the joint axis and, for a guided carriage, z along the
             // guide normal, so the free coordinates are x (travel) and z (lift-off).
             let frame = joint_frame(&joint.axis, guide.map(|g| Vector3::from(g.normal)));
-            let free_normal = if guide.is_some() {
-                JointAxesMask::LIN_Z
-            } else {
-                JointAxesMask::empty()
+            // Guided: lift-off along z; on two runners also pitch about y (normal × travel).
+            let free_normal = match guide {
+                Some(g) if g.runner_spacing_m.is_some() => {
+                    JointAxesMask::LIN_Z | JointAxesMask::ANG_Y
+                }
+                Some(_) => JointAxesMask::LIN_Z,
+                None => JointAxesMask::empty(),
             };
             let locked = match joint.kind {
                 JointKind::Revolute => JointAxesMask::LOCKED_REVOLUTE_AXES,
@@ -283,7 +293,7 @@ impl Plant {
                 drive_body.push(child);
             }
             if let (Some(a), Some(g)) = (axis, guide) {
-                // Each guide touches only its own runner: one collision group per axis.
+                // Each guide touches only its own runners: one collision group per axis.
                 let group = Group::from_bits_truncate(1 << (a % 32));
                 guides[a] = Some(insert_guide(
                     &mut world,
@@ -313,6 +323,10 @@ impl Plant {
             let drive = drive_joint[j].expect("every axis has a drive joint");
             let carriage = child_joint[j].expect("axes move their links");
             let slack = (drive != carriage).then(|| link_of(&world, carriage));
+            let pitches = axis
+                .drive
+                .guide
+                .is_some_and(|g| g.runner_spacing_m.is_some());
             axes.push(AxisBinding {
                 driven: drive_body[j],
                 parent: link_bodies[joint.parent],
@@ -322,6 +336,7 @@ impl Plant {
                 drive_dof: usize::MAX, // known once the fixed root is resolved (configure_dofs)
                 slack: slack.map(|link| (link, usize::MAX)),
                 coordinate: coordinate(joint.kind),
+                pitch: pitches.then(|| (link_of(&world, carriage), usize::MAX)),
                 feedback: axis.drive.feedback,
             });
         }
@@ -367,7 +382,8 @@ impl Plant {
                     );
                 }
                 if let Some(g) = guide {
-                    // The lift-off DOF follows the travel DOF in the carriage's joint.
+                    // The lift-off DOF follows the travel DOF in the carriage's joint, the
+                    // pitch (about normal × travel, through the joint origin) the lift-off.
                     let normal = Vector3::from(g.normal).normalize();
                     push(
                         child,
@@ -375,6 +391,14 @@ impl Plant {
                         JointKind::Prismatic,
                         (link_of(&world, carriage), 1),
                     );
+                    if g.runner_spacing_m.is_some() {
+                        push(
+                            child,
+                            normal.cross(&joint.axis.normalize()),
+                            JointKind::Revolute,
+                            (link_of(&world, carriage), 2),
+                        );
+                    }
                 }
             }
             link = joint.parent;
@@ -427,6 +451,13 @@ impl Plant {
             if let Some((link, dof)) = &mut binding.slack {
                 *dof = mb.link(*link).expect("slack link").assembly_id();
             }
+            if let Some((link, dof)) = &mut binding.pitch {
+                // Travel (or dead band), lift-off, pitch: the carriage joint's third DOF. Its
+                // only stiffness and damping are the runners' contacts (critically damped);
+                // Rapier's default damping of angular DOFs is not part of the machine.
+                *dof = mb.link(*link).expect("carriage link").assembly_id() + 2;
+                mb.damping_mut()[*dof] = 0.0;
+            }
             let joint = &machine.joints[axis.joint];
             let (armature, drive_damping) = if options.include_drive_dynamics {
                 (
@@ -468,24 +499,32 @@ impl Plant {
 
     /// Sets the generalised force each drive applies at its joint (N or N·m), held until the
     /// next call. It acts on the drive side of the transmission, the reaction on the link the
-    /// motor is mounted on.
+    /// motor is mounted on. A linear drive pushes along the joint axis through the joint origin
+    /// (the URDF's axis line), not through the carriage's centre of mass: on a carriage that
+    /// pitches, the drive's line decides the moment that shifts the load between the runners.
     pub fn set_joint_forces(&mut self, forces: &[f64]) {
         for (_, rb) in self.world.bodies.iter_mut() {
             rb.reset_forces(false);
             rb.reset_torques(false);
         }
         for (binding, &f) in self.axes.iter().zip(forces) {
-            let direction = {
-                let driven = &self.world.bodies[binding.driven];
-                from_pose(driven.position()).rotation * binding.local_axis
+            // The driven body's origin is the joint origin (the drive side of a backlash sits
+            // at its carriage's pose).
+            let (direction, origin) = {
+                let driven = from_pose(self.world.bodies[binding.driven].position());
+                (
+                    driven.rotation * binding.local_axis,
+                    driven.translation.vector,
+                )
             };
             let load = to_vec(&(direction * f));
             let parent_moves = self.world.bodies[binding.parent].is_dynamic();
             match binding.kind {
                 JointKind::Prismatic => {
-                    self.world.bodies[binding.driven].add_force(load, false);
+                    let at = to_vec(&origin);
+                    self.world.bodies[binding.driven].add_force_at_point(load, at, false);
                     if parent_moves {
-                        self.world.bodies[binding.parent].add_force(-load, false);
+                        self.world.bodies[binding.parent].add_force_at_point(-load, at, false);
                     }
                 }
                 JointKind::Revolute => {
@@ -521,8 +560,8 @@ impl Plant {
             let mu = guide
                 .coefficient
                 .sliding(Self::carriage_velocity(mb, &self.axes[a]));
-            let (runner, guide) = (guide.runner, guide.guide);
-            for collider in [runner, guide] {
+            let GuidePair { guide, runners, .. } = guide;
+            for &collider in runners.iter().chain([guide]) {
                 if let Some(c) = self.world.colliders.get_mut(collider) {
                     c.set_friction(mu);
                 }
@@ -598,19 +637,43 @@ impl Plant {
         }
     }
 
-    /// Normal force each axis's guide contact carries (N), from the contact impulses of the
-    /// last step; `None` for an axis without a guide.
+    /// Normal force each axis's guide carries (N), over all its runners, from the contact
+    /// impulses of the last step; `None` for an axis without a guide.
     pub fn guide_normal_forces(&self) -> Vec<Option<f64>> {
+        (0..self.guides.len())
+            .map(|a| Some(self.runner_normal_forces(a)?.iter().sum()))
+            .collect()
+    }
+
+    /// Normal force on each runner of axis `axis`'s guide (N), from the contact impulses of
+    /// the last step: one runner, or the back and the front runner (along the travel).
+    pub fn runner_normal_forces(&self, axis: usize) -> Option<Vec<f64>> {
+        let g = self.guides.get(axis)?.as_ref()?;
         let dt = self.step_size();
-        self.guides
+        let forces = g
+            .runners
             .iter()
-            .map(|g| {
-                let g = g.as_ref()?;
-                let pair = self.world.narrow_phase.contact_pair(g.guide, g.runner);
+            .map(|&runner| {
+                let pair = self.world.narrow_phase.contact_pair(g.guide, runner);
                 let impulse = pair.map_or(Vector3::zeros(), |p| from_vec(&p.total_impulse()));
                 // The impulse is the one the pair applies to its first collider; either way
                 // its component along the guide normal is the load, up to sign.
-                Some((impulse.dot(&g.normal)).abs() / dt)
+                impulse.dot(&g.normal).abs() / dt
+            })
+            .collect();
+        Some(forces)
+    }
+
+    /// Pitch of each axis's carriage on its two runners (rad, about guide normal × travel;
+    /// positive dips the front: the top leans forward); `None` for a carriage that cannot pitch.
+    pub fn carriage_pitches(&self) -> Vec<Option<f64>> {
+        let mb = self.multibody();
+        self.axes
+            .iter()
+            .map(|b| {
+                let (link, _) = b.pitch?;
+                // Joint coordinates: three translations, then the rotations about x, y, z.
+                mb.map(|mb| Self::coordinate(mb, link, 4))
             })
             .collect()
     }
@@ -655,9 +718,10 @@ impl Plant {
     }
 }
 
-/// Inserts the guide (on the parent link) and the runner (under the carriage) of a guided
-/// joint. At the home pose the runner ball touches the guide's top face at the joint origin;
-/// the guide runs the whole travel so the contact never ends.
+/// Inserts the guide (on the parent link) and the runners (under the carriage) of a guided
+/// joint. At the home pose the runner balls touch the guide's top face, one at the joint
+/// origin or two at ∓spacing/2 along the travel; the guide runs the whole travel so no
+/// contact ever ends.
 #[allow(clippy::too_many_arguments)] // the joint's bodies, frames and guide data, each one value
 fn insert_guide(
     world: &mut PhysicsWorld,
@@ -673,8 +737,13 @@ fn insert_guide(
     let [lo, hi] = joint.limits.unwrap_or([-1.0, 1.0]);
     let [hb, ht] = RAIL_HALF;
     // In the joint frame `frame`: x along the travel, z along the guide normal.
-    let runner_shape = ColliderBuilder::ball(RUNNER_RADIUS);
-    let guide_half_length = (hi - lo) / 2.0 + RUNNER_RADIUS;
+    // Back and front runner at ∓spacing/2 along the travel, or one under the joint origin.
+    let spacing = guide.runner_spacing_m;
+    let offsets = match spacing {
+        Some(l) => vec![-l / 2.0, l / 2.0],
+        None => vec![0.0],
+    };
+    let guide_half_length = (hi - lo) / 2.0 + spacing.unwrap_or(0.0) / 2.0 + RUNNER_RADIUS;
     let guide_shape = ColliderBuilder::cuboid(guide_half_length, hb, ht);
     let coefficient = guide.coefficient();
     // At rest: a carriage starts stuck, held by the static coefficient.
@@ -688,15 +757,21 @@ fn insert_guide(
             .collision_groups(groups)
             .build()
     };
-    let runner_pose = frame * Translation3::new(0.0, 0.0, RUNNER_RADIUS);
     let guide_pose =
         parent_offset * joint.origin * frame * Translation3::new((lo + hi) / 2.0, 0.0, -ht);
-    let runner = world.insert_collider(finish(runner_shape, runner_pose), Some(child));
+    let runners = offsets
+        .into_iter()
+        .map(|x| {
+            let pose = frame * Translation3::new(x, 0.0, RUNNER_RADIUS);
+            let ball = ColliderBuilder::ball(RUNNER_RADIUS);
+            world.insert_collider(finish(ball, pose), Some(child))
+        })
+        .collect();
     let guide_collider = world.insert_collider(finish(guide_shape, guide_pose), Some(parent));
     let normal = (parent_home * joint.origin * frame).rotation * Vector3::z();
     GuidePair {
         guide: guide_collider,
-        runner,
+        runners,
         normal,
         coefficient,
     }
@@ -776,4 +851,76 @@ pub fn home_poses(machine: &Machine) -> Vec<Isometry3<f64>> {
         poses[joint.child] = poses[joint.parent] * joint.origin;
     }
     poses
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use std::path::Path;
+
+    /// The bundled table with its X and Y carriages on runners `spacing` apart.
+    fn table(spacing: Option<f64>) -> Machine {
+        let path = Path::new(env!("CARGO_MANIFEST_DIR")).join("models/xyz_table.urdf");
+        let mut machine = Machine::load(&path).expect("bundled model loads");
+        for axis in machine.axes.iter_mut().take(2) {
+            if let Some(g) = axis.drive.guide.as_mut() {
+                g.runner_spacing_m = spacing;
+            }
+        }
+        machine
+    }
+
+    fn plant(machine: &Machine) -> Plant {
+        let options = PlantOptions {
+            step: 2.5e-4,
+            gravity: [0.0, 0.0, -9.81],
+            initial_positions: vec![0.1, 0.1, 0.0],
+            include_drive_dynamics: true,
+            solver_iterations: 1,
+        };
+        Plant::new(machine, &options).expect("plant builds")
+    }
+
+    #[test]
+    fn two_runners_add_one_pitch_dof_per_carriage() {
+        let dofs = |spacing| {
+            let p = plant(&table(spacing));
+            let runners: Vec<usize> = (0..3)
+                .filter_map(|a| p.runner_normal_forces(a).map(|r| r.len()))
+                .collect();
+            (p.multibody().expect("machine").ndofs(), runners)
+        };
+        let (one, one_runners) = dofs(None);
+        let (two, two_runners) = dofs(Some(0.12));
+        assert_eq!(one_runners, [1, 1]);
+        assert_eq!(two_runners, [2, 2]);
+        assert_eq!(two, one + 2, "a pitch DOF on X and on Y");
+    }
+
+    /// At rest the runners share the weight by the lever rule: the Z slide hangs 60 mm ahead
+    /// of X's joint origin (the URDF), so X's front runner carries m·g·0.06/L more than half
+    /// and its back runner as much less; Y's centre of gravity is over its joint origin.
+    #[test]
+    fn at_rest_the_runners_share_the_load_by_the_lever_rule() {
+        let spacing = 0.12;
+        let machine = table(Some(spacing));
+        let mut plant = plant(&machine);
+        let slide = machine.link_index("z_slide").expect("z slide");
+        let hold = machine.links[slide].mass * 9.81;
+        for _ in 0..2000 {
+            plant.set_joint_forces(&[0.0, 0.0, hold]);
+            plant.step();
+        }
+        let x = plant.runner_normal_forces(0).expect("X has a guide");
+        let lever = machine.links[slide].mass * 9.81 * 0.06 / spacing;
+        let half = x.iter().sum::<f64>() / 2.0;
+        assert!((x[0] - (half - lever)).abs() < 1e-3 * half, "X back {x:?}");
+        assert!((x[1] - (half + lever)).abs() < 1e-3 * half, "X front {x:?}");
+        let y = plant.runner_normal_forces(1).expect("Y has a guide");
+        assert!((y[0] - y[1]).abs() < 1e-3 * y[0], "Y {y:?}");
+        // The static tilt is the contacts' sag, far below a micro-radian.
+        for pitch in plant.carriage_pitches().into_iter().take(2) {
+            assert!(pitch.expect("pitches").abs() < 1e-6);
+        }
+    }
 }
