@@ -27,7 +27,10 @@ use rerun::{RecordingStream, TimeColumn};
 use std::path::{Path, PathBuf};
 
 /// Recorded rows buffered before they are sent: bounds the writer's memory.
-const CHUNK_ROWS: usize = 1024;
+const CHUNK_ROWS: usize = 8192;
+/// Recorded ticks per piece of the actual tool path: the path grows with the time cursor in
+/// steps this long.
+const PATH_PIECE_ROWS: usize = 1024;
 /// Points kept for the magnified path (evenly thinned over the run).
 const MAGNIFIED_POINTS: usize = 20_000;
 /// Colours: commanded grey-blue, physics orange, analytic green, drive side purple.
@@ -65,6 +68,8 @@ struct Columns {
     poses: Vec<Vec<Isometry3<f64>>>,
     /// Tool point on the workpiece per row (physics lane only).
     tool: Vec<[f32; 3]>,
+    /// Tool points of these rows already drawn as pieces of the actual path.
+    drawn: usize,
 }
 
 impl Columns {
@@ -72,6 +77,7 @@ impl Columns {
         self.time.clear();
         self.poses.clear();
         self.tool.clear();
+        self.drawn = 0;
         for (_, v) in &mut self.series {
             v.clear();
         }
@@ -99,8 +105,8 @@ pub struct RrdWriter {
     /// Lane 0's positions at the current tick, for the physics − analytic series.
     primary: Vec<f64>,
     primary_tick: Option<usize>,
-    chunks: usize,
-    /// Last tool point sent, so consecutive path chunks join.
+    path_pieces: usize,
+    /// Last tool point drawn, so consecutive path pieces join.
     last_tool: Option<[f32; 3]>,
     magnified: Thinned<Deviation>,
     /// The first error; the loop does not stop for it, `finish` reports it.
@@ -150,7 +156,7 @@ impl RrdWriter {
             columns: Vec::new(),
             primary: vec![0.0; setup.labels.len()],
             primary_tick: None,
-            chunks: 0,
+            path_pieces: 0,
             last_tool: None,
             magnified: Thinned::new(MAGNIFIED_POINTS),
             error: None,
@@ -407,7 +413,12 @@ impl RrdWriter {
                 on_workpiece.z as f32,
             ]);
             c.poses.push(poses);
+            if c.tool.len() - c.drawn >= PATH_PIECE_ROWS {
+                let drawn = self.draw_path_piece();
+                self.keep(drawn);
+            }
         }
+        let c = &self.columns[lane];
         if c.time.len() >= CHUNK_ROWS {
             let sent = self.send(lane);
             self.keep(sent);
@@ -478,26 +489,40 @@ impl RrdWriter {
                 [times()],
                 rerun::Points3D::new(c.tool.iter().copied()).columns_of_unit_batches()?,
             )?;
-            // This chunk of the actual path, from the last point sent: the path grows with
-            // the time cursor (each chunk is an entity of its own, shown once logged).
-            let strip: Vec<[f32; 3]> = self
-                .last_tool
-                .into_iter()
-                .chain(c.tool.iter().copied())
-                .collect();
-            self.rec
-                .set_duration_secs("sim_time", *c.time.last().expect("not empty"));
-            self.rec.log(
-                format!("{paths}/actual/{:05}", self.chunks),
-                &rerun::LineStrips3D::new([strip])
-                    .with_colors([rgb(self.colour("physics"))])
-                    .with_radii([rerun::Radius::new_ui_points(1.5)]),
-            )?;
-            self.rec.disable_timeline("sim_time");
-            self.last_tool = c.tool.last().copied();
-            self.chunks += 1;
+            self.draw_path_piece()?;
         }
         self.columns[lane].clear();
+        Ok(())
+    }
+
+    /// Draws the physics lane's tool points not drawn yet as the next piece of the actual
+    /// path, from the last point drawn: the path grows with the time cursor (each piece is an
+    /// entity of its own, shown from its last point's time on).
+    fn draw_path_piece(&mut self) -> rerun::RecordingStreamResult<()> {
+        let c = &mut self.columns[0];
+        let (Some(&end), Some(&time)) = (c.tool.last(), c.time.last()) else {
+            return Ok(());
+        };
+        if c.drawn == c.tool.len() {
+            return Ok(());
+        }
+        let strip: Vec<[f32; 3]> = self
+            .last_tool
+            .into_iter()
+            .chain(c.tool[c.drawn..].iter().copied())
+            .collect();
+        c.drawn = c.tool.len();
+        let paths = format!("{}/paths", self.workpiece_entity());
+        self.rec.set_duration_secs("sim_time", time);
+        self.rec.log(
+            format!("{paths}/actual/{:05}", self.path_pieces),
+            &rerun::LineStrips3D::new([strip])
+                .with_colors([rgb(self.colour("physics"))])
+                .with_radii([rerun::Radius::new_ui_points(1.5)]),
+        )?;
+        self.rec.disable_timeline("sim_time");
+        self.last_tool = Some(end);
+        self.path_pieces += 1;
         Ok(())
     }
 
