@@ -19,12 +19,16 @@ use crate::plan::{
     SetpointStream, Setpoints,
 };
 use crate::program::{circle, polyline, read_program, Program, ProgramErrors};
-use crate::report::AxisLabel;
+use crate::report::{AxisLabel, Thinned};
 use crate::sim::{
     self, AnalyticPlant, Encoder, FollowingErrorTrip, Lane, LoopSettings, Observer, Outcome,
     PhysicsPlant, MAX_PHYSICS_STEPS, MAX_SERVO_TICKS,
 };
 use std::path::PathBuf;
+use std::sync::OnceLock;
+
+/// Points of the programmed path drawn in a recording (evenly thinned over the program).
+const PROGRAMMED_PATH_POINTS: usize = 50_000;
 
 /// Gravity in the machine base frame: URDF convention, z up.
 pub const GRAVITY: [f64; 3] = [0.0, 0.0, -9.81];
@@ -64,6 +68,19 @@ pub struct Assembly {
     pub plan: PlannedProgram,
     pub actuator: ActuatorKind,
     pub loop_settings: LoopSettings,
+    /// What the reports need of the whole program, from one pass over its setpoints when first
+    /// asked for.
+    overview: OnceLock<ProgramOverview>,
+}
+
+/// What a run's reports need to know of the whole program before it runs.
+#[derive(Debug, Clone, PartialEq)]
+pub struct ProgramOverview {
+    /// Largest |commanded velocity| of each axis (joint units per s).
+    pub peak_velocity: Vec<f64>,
+    /// The programmed tool path on the workpiece (forward kinematics of the setpoints, evenly
+    /// thinned to a bounded number of points, the last one kept), m.
+    pub programmed_path: Vec<[f64; 3]>,
 }
 
 impl Assembly {
@@ -141,6 +158,33 @@ impl Assembly {
                 encoder,
                 trip,
             },
+            overview: OnceLock::new(),
+        })
+    }
+
+    /// The program's peak velocities and tool path, from one pass over its setpoints (made
+    /// once, then kept).
+    pub fn overview(&self) -> &ProgramOverview {
+        self.overview.get_or_init(|| {
+            let mut peak = vec![0.0f64; self.machine.axes.len()];
+            let mut path = Thinned::new(PROGRAMMED_PATH_POINTS);
+            let mut last = None;
+            let mut stream = self.setpoints();
+            let mut sample = crate::plan::SetpointSample::zeros(stream.axes());
+            while stream.next_sample(&mut sample) {
+                for (p, v) in peak.iter_mut().zip(&sample.velocity) {
+                    *p = p.max(v.abs());
+                }
+                let q = crate::kinematics::tool_in_workpiece(&self.machine, &sample.position);
+                path.push([q.x, q.y, q.z]);
+                last = Some([q.x, q.y, q.z]);
+            }
+            let mut programmed_path = path.into_items();
+            programmed_path.extend(last.filter(|l| programmed_path.last() != Some(l)));
+            ProgramOverview {
+                peak_velocity: peak,
+                programmed_path,
+            }
         })
     }
 

@@ -13,7 +13,7 @@ mod tune;
 pub use ab::{run_ab, AbReport, AbRow};
 pub use assemble::{
     keep_mechanics, load_checked_program, machine_for, plan_for, plan_key, plan_settings,
-    with_choices, Assembly, PlantKind, RunError, GRAVITY,
+    with_choices, Assembly, PlantKind, ProgramOverview, RunError, GRAVITY,
 };
 pub use check::{check, Breach, Verdict};
 pub use file::{

@@ -9,17 +9,13 @@ use crate::control::ActuatorKind;
 use crate::diagnostics::FileError;
 use crate::kinematics;
 use crate::machine::Machine;
-use crate::plan::{SetpointSample, SetpointStream};
 use crate::program::PathGeometry;
 use crate::report::{
     self, AxisLabel, Envelope, Metrics, PathTracker, RecordingSetup, ReportError, ReportSetup,
-    RunReport, Thinned,
+    RunReport,
 };
 use crate::sim::{Observer, Observers, Outcome, Stop, Trace, TraceRecorder};
 use std::path::{Path, PathBuf};
-
-/// Points of the programmed path drawn in a recording (evenly thinned over the program).
-const PROGRAMMED_PATH_POINTS: usize = 50_000;
 
 /// What a run produced.
 #[derive(Debug, Clone)]
@@ -74,19 +70,11 @@ pub fn run_scenario_with(
 }
 
 /// What the report of an assembled scenario needs to know before the run: the path to judge
-/// against, each axis's peak commanded speed (one pass over the setpoints), the lanes.
+/// against, each axis's peak commanded speed, the lanes.
 pub fn report_setup(assembly: &Assembly) -> ReportSetup {
     let machine = &assembly.machine;
     let s = &assembly.scenario;
     let zeros = vec![0.0; machine.axes.len()];
-    let mut peak = vec![0.0f64; machine.axes.len()];
-    let mut stream = assembly.setpoints();
-    let mut sample = SetpointSample::zeros(stream.axes());
-    while stream.next_sample(&mut sample) {
-        for (p, v) in peak.iter_mut().zip(&sample.velocity) {
-            *p = p.max(v.abs());
-        }
-    }
     ReportSetup {
         name: s.name.clone(),
         labels: assembly.labels.clone(),
@@ -97,7 +85,7 @@ pub fn report_setup(assembly: &Assembly) -> ReportSetup {
             program_origin: kinematics::tool_point(machine, &zeros),
             linear_axes: ["x", "y", "z"].map(|n| machine.axis_index(n)),
         },
-        peak_velocity: peak,
+        peak_velocity: assembly.overview().peak_velocity.clone(),
         ticks: assembly.plan.len(),
         lanes: lanes_of(s),
         backlash: machine.axes.iter().map(|a| a.drive.backlash).collect(),
@@ -118,24 +106,13 @@ fn lanes_of(s: &Scenario) -> Vec<&'static str> {
     }
 }
 
-/// The recording's view of an assembled scenario: the programmed tool path on the workpiece
-/// (forward kinematics of the setpoints, evenly thinned to a bounded number of points).
+/// The recording's view of an assembled scenario, with the programmed tool path on the
+/// workpiece.
 pub fn recording_setup<'a>(
     assembly: &'a Assembly,
     lanes: &'a [&'static str],
 ) -> RecordingSetup<'a> {
     let machine = &assembly.machine;
-    let mut path = Thinned::new(PROGRAMMED_PATH_POINTS);
-    let mut stream = assembly.setpoints();
-    let mut sample = SetpointSample::zeros(stream.axes());
-    let mut last = None;
-    while stream.next_sample(&mut sample) {
-        let p = kinematics::tool_in_workpiece(machine, &sample.position);
-        path.push([p.x, p.y, p.z]);
-        last = Some([p.x, p.y, p.z]);
-    }
-    let mut programmed_path = path.into_items();
-    programmed_path.extend(last.filter(|l| programmed_path.last() != Some(l)));
     RecordingSetup {
         name: &assembly.scenario.name,
         machine,
@@ -143,7 +120,7 @@ pub fn recording_setup<'a>(
         dc_motor: assembly.actuator == ActuatorKind::DcMotor,
         decimation: assembly.scenario.decimation,
         lanes,
-        programmed_path,
+        programmed_path: assembly.overview().programmed_path.clone(),
         variant: None,
     }
 }
