@@ -236,7 +236,11 @@ fn plan_one(
     if let Some(csv) = csv {
         let written = std::fs::File::create(&csv).and_then(|f| {
             let mut w = std::io::BufWriter::new(f);
-            cncsim::plan::write_setpoints_csv(&mut w, &report.setpoints, &report.axes)?;
+            cncsim::plan::write_setpoint_stream_csv(
+                &mut w,
+                report.plan.stream().as_mut(),
+                &report.axes,
+            )?;
             std::io::Write::flush(&mut w)
         });
         if let Err(e) = written {
@@ -256,7 +260,7 @@ fn plan_one(
         if let Err(e) = cncsim::report::write_setpoints_recording(
             &rrd,
             &scenario.name,
-            &report.setpoints,
+            report.plan.stream().as_mut(),
             &labels,
             &report.tool_path,
         ) {

@@ -213,7 +213,6 @@ physics_step_ms = 0.25
         let s = cncsim::scenario::Scenario::parse(&path, text).unwrap();
         cncsim::scenario::plan_scenario(&s, None)
             .unwrap()
-            .setpoints
             .duration()
     };
     let without = plan(&scenario("", "continuous"));

@@ -4,7 +4,7 @@
 use std::io::{self, Write};
 
 use super::path::AxisSpec;
-use super::setpoints::Setpoints;
+use super::setpoints::{SetpointSample, SetpointStream, Setpoints};
 
 /// Largest |velocity|, |acceleration| and |jerk| of one axis (SI units per s, s², s³).
 #[derive(Debug, Clone, Copy, PartialEq, Default)]
@@ -22,27 +22,60 @@ pub struct AxisExtremes {
 /// bounds of the continuous-time maxima and converge to them as T shrinks (up to rounding,
 /// which grows like ε·|q|/T³ for the jerk).
 pub fn finite_difference_extremes(setpoints: &Setpoints) -> Vec<AxisExtremes> {
-    let n = setpoints.axes;
-    let t = setpoints.period;
-    let mut out = vec![AxisExtremes::default(); n];
-    let len = setpoints.len();
-    for (axis, extremes) in out.iter_mut().enumerate() {
-        let q = |k: usize| setpoints.position[k * n + axis];
-        for k in 0..len {
-            if k + 1 < len {
-                extremes.velocity = extremes.velocity.max(((q(k + 1) - q(k)) / t).abs());
+    let mut differences = FiniteDifferences::new(setpoints.axes, setpoints.period);
+    for k in 0..setpoints.len() {
+        differences.push(setpoints.position(k));
+    }
+    differences.extremes()
+}
+
+/// [`finite_difference_extremes`] of a stream, sample by sample: only the last four positions
+/// are kept.
+#[derive(Debug, Clone)]
+pub struct FiniteDifferences {
+    period: f64,
+    /// The last four positions, oldest first once four have come (axis-major per sample).
+    last: [Vec<f64>; 4],
+    seen: usize,
+    extremes: Vec<AxisExtremes>,
+}
+
+impl FiniteDifferences {
+    pub fn new(axes: usize, period: f64) -> FiniteDifferences {
+        FiniteDifferences {
+            period,
+            last: std::array::from_fn(|_| vec![0.0; axes]),
+            seen: 0,
+            extremes: vec![AxisExtremes::default(); axes],
+        }
+    }
+
+    /// Adds the next sample's positions.
+    pub fn push(&mut self, position: &[f64]) {
+        self.last.rotate_left(1);
+        self.last[3].copy_from_slice(position);
+        self.seen += 1;
+        let t = self.period;
+        let [q0, q1, q2, q3] = &self.last;
+        for (i, e) in self.extremes.iter_mut().enumerate() {
+            if self.seen >= 2 {
+                e.velocity = e.velocity.max(((q3[i] - q2[i]) / t).abs());
             }
-            if k + 2 < len {
-                let d2 = q(k + 2) - 2.0 * q(k + 1) + q(k);
-                extremes.acceleration = extremes.acceleration.max((d2 / (t * t)).abs());
+            if self.seen >= 3 {
+                let d2 = q3[i] - 2.0 * q2[i] + q1[i];
+                e.acceleration = e.acceleration.max((d2 / (t * t)).abs());
             }
-            if k + 3 < len {
-                let d3 = q(k + 3) - 3.0 * q(k + 2) + 3.0 * q(k + 1) - q(k);
-                extremes.jerk = extremes.jerk.max((d3 / (t * t * t)).abs());
+            if self.seen >= 4 {
+                let d3 = q3[i] - 3.0 * q2[i] + 3.0 * q1[i] - q0[i];
+                e.jerk = e.jerk.max((d3 / (t * t * t)).abs());
             }
         }
     }
-    out
+
+    /// Per axis, the largest |v|, |a|, |j| so far.
+    pub fn extremes(&self) -> Vec<AxisExtremes> {
+        self.extremes.clone()
+    }
 }
 
 /// Writes the setpoint stream as CSV: a header `t_s,<axis names>`, then one row per sample with
@@ -50,27 +83,36 @@ pub fn finite_difference_extremes(setpoints: &Setpoints) -> Vec<AxisExtremes> {
 /// every number in shortest round-trip form (full precision: jerk can be recomputed from
 /// third differences of the file).
 pub fn write_setpoints_csv<W: Write>(
-    mut out: W,
+    out: W,
     setpoints: &Setpoints,
     axes: &[AxisSpec],
 ) -> io::Result<()> {
-    assert_eq!(
-        axes.len(),
-        setpoints.axes,
-        "one axis spec per setpoint axis"
-    );
+    write_setpoint_stream_csv(out, &mut setpoints.stream(), axes)
+}
+
+/// [`write_setpoints_csv`] of a stream, sample by sample.
+pub fn write_setpoint_stream_csv<W: Write>(
+    mut out: W,
+    stream: &mut dyn SetpointStream,
+    axes: &[AxisSpec],
+) -> io::Result<()> {
+    assert_eq!(axes.len(), stream.axes(), "one axis spec per setpoint axis");
     write!(out, "t_s")?;
     for axis in axes {
         write!(out, ",{}", axis.name)?;
     }
     writeln!(out)?;
     let scale: Vec<f64> = axes.iter().map(|a| a.kind.program_units_per_si()).collect();
-    for k in 0..setpoints.len() {
-        write!(out, "{:?}", k as f64 * setpoints.period)?;
-        for (q, s) in setpoints.position(k).iter().zip(&scale) {
+    let period = stream.period();
+    let mut sample = SetpointSample::zeros(stream.axes());
+    let mut k = 0usize;
+    while stream.next_sample(&mut sample) {
+        write!(out, "{:?}", k as f64 * period)?;
+        for (q, s) in sample.position.iter().zip(&scale) {
             write!(out, ",{:?}", q * s)?;
         }
         writeln!(out)?;
+        k += 1;
     }
     Ok(())
 }

@@ -37,7 +37,10 @@ pub use from_program::{
     jerk_limited_plans, plan_program, plan_program_stream, tool_lever_arms, BlendChoice,
     PlanSettings, Planner,
 };
-pub use metrics::{finite_difference_extremes, write_setpoints_csv, AxisExtremes};
+pub use metrics::{
+    finite_difference_extremes, write_setpoint_stream_csv, write_setpoints_csv, AxisExtremes,
+    FiniteDifferences,
+};
 pub use path::{AxisKind, AxisLimits, AxisPath, AxisSpec, Blend, Geometry, PathError, PathSegment};
 pub use pieces::{SMOOTH_ANGLE, TANGENT_ANGLE};
 pub use planned::{FirstSamples, PlannedProgram};

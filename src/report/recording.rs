@@ -703,12 +703,12 @@ fn f32x3(v: &nalgebra::Vector3<f64>) -> [f32; 3] {
 }
 
 /// A recording of a planned setpoint stream (`cncsim plan --rrd`): per machine axis position,
-/// velocity and acceleration (mm or deg units) under `setpoints/<axis>/…`, and the tool path on
-/// the workpiece (`workpiece/tool_path`, m) when given.
+/// velocity and acceleration (mm or deg units) under `setpoints/<axis>/…`, sent in chunks as the
+/// stream is read, and the tool path on the workpiece (`workpiece/tool_path`, m) when given.
 pub fn write_setpoints_recording(
     path: &Path,
     name: &str,
-    setpoints: &crate::plan::Setpoints,
+    setpoints: &mut dyn crate::plan::SetpointStream,
     labels: &[AxisLabel],
     tool_on_workpiece: &[[f64; 3]],
 ) -> Result<(), ReportError> {
@@ -717,36 +717,64 @@ pub fn write_setpoints_recording(
         .recording_name(name)
         .save(path)
         .map_err(|e| fail(&e))?;
-    let log = || -> rerun::RecordingStreamResult<()> {
-        let n = setpoints.axes;
-        let times = || {
-            TimeColumn::new_duration_secs(
-                "sim_time",
-                (0..setpoints.len()).map(|k| k as f64 * setpoints.period),
-            )
-        };
-        for (i, l) in labels.iter().enumerate() {
-            let s = l.scale();
-            let u = l.unit();
-            for (series, values, unit) in [
-                ("position", &setpoints.position, u.to_string()),
-                ("velocity", &setpoints.velocity, format!("{u}/s")),
-                ("acceleration", &setpoints.acceleration, format!("{u}/s²")),
+    let mut log = || -> Result<(), Box<dyn std::error::Error>> {
+        let n = setpoints.axes();
+        let period = setpoints.period();
+        // (entity, scale) per series: position, velocity, acceleration of each axis.
+        let mut series = Vec::new();
+        for l in labels {
+            let (s, u) = (l.scale(), l.unit());
+            for (what, unit) in [
+                ("position", u.to_string()),
+                ("velocity", format!("{u}/s")),
+                ("acceleration", format!("{u}/s²")),
             ] {
-                let entity = format!("setpoints/{}/{series}", l.name);
+                let entity = format!("setpoints/{}/{what}", l.name);
                 rec.log_static(
                     entity.as_str(),
-                    &rerun::SeriesLines::new()
-                        .with_names([format!("{} {series} ({unit})", l.name)]),
+                    &rerun::SeriesLines::new().with_names([format!("{} {what} ({unit})", l.name)]),
                 )?;
-                let column: Vec<f64> = (0..setpoints.len())
-                    .map(|k| values[k * n + i] * s)
-                    .collect();
-                rec.send_columns(
-                    entity.as_str(),
-                    [times()],
-                    rerun::Scalars::new(column).columns_of_unit_batches()?,
-                )?;
+                series.push((entity, s));
+            }
+        }
+        let mut sample = crate::plan::SetpointSample::zeros(n);
+        let mut times = Vec::with_capacity(CHUNK_ROWS);
+        let mut columns: Vec<Vec<f64>> = vec![Vec::with_capacity(CHUNK_ROWS); series.len()];
+        let mut k = 0usize;
+        loop {
+            let more = setpoints.next_sample(&mut sample);
+            if more {
+                times.push(k as f64 * period);
+                for i in 0..n {
+                    let values = [
+                        sample.position[i],
+                        sample.velocity[i],
+                        sample.acceleration[i],
+                    ];
+                    for (j, v) in values.into_iter().enumerate() {
+                        columns[3 * i + j].push(v * series[3 * i + j].1);
+                    }
+                }
+                k += 1;
+            }
+            if !times.is_empty() && (times.len() == CHUNK_ROWS || !more) {
+                for ((entity, _), column) in series.iter().zip(&mut columns) {
+                    rec.send_columns(
+                        entity.as_str(),
+                        [TimeColumn::new_duration_secs(
+                            "sim_time",
+                            times.iter().copied(),
+                        )],
+                        rerun::Scalars::new(column.drain(..)).columns_of_unit_batches()?,
+                    )?;
+                }
+                times.clear();
+                // Planning outruns the stream's writer thread: waiting for it after each chunk
+                // keeps what is queued (and memory) to one chunk.
+                rec.flush_blocking()?;
+            }
+            if !more {
+                break;
             }
         }
         if !tool_on_workpiece.is_empty() {

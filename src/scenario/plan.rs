@@ -7,15 +7,20 @@ use crate::diagnostics::FileError;
 use crate::kinematics::{self, AxisMap};
 use crate::machine::Machine;
 use crate::plan::{
-    finite_difference_extremes, plan_program, AxisExtremes, AxisKind, AxisLimits, AxisSpec,
-    Setpoints,
+    AxisExtremes, AxisKind, AxisLimits, AxisSpec, FiniteDifferences, PlannedProgram, SetpointSample,
 };
+use crate::report::Thinned;
+
+/// Points of the tool path kept for the plan's recording (evenly thinned over the program).
+const TOOL_PATH_POINTS: usize = 50_000;
 
 /// What planning a scenario produced.
 #[derive(Debug, Clone)]
 pub struct PlanReport {
     pub profile: ProfileName,
-    pub setpoints: Setpoints,
+    /// The planned program: its setpoints are streamed again to write them (no sample is kept,
+    /// so a plan of any duration fits in memory).
+    pub plan: PlannedProgram,
     /// Machine axes (kinds for unit conversion; limits as planned, or zero if none apply).
     pub axes: Vec<AxisSpec>,
     /// Per machine axis: max |v|, |a|, |j| (SI).
@@ -24,7 +29,8 @@ pub struct PlanReport {
     pub tool_extremes: Vec<AxisExtremes>,
     /// Per program move that moved: (move index, source line, duration in s).
     pub move_durations: Vec<(u32, u32, f64)>,
-    /// Tool tip on the workpiece at every sample (m).
+    /// Tool tip on the workpiece, evenly thinned over the samples to at most 50 000 points, the
+    /// last sample's included (m).
     pub tool_path: Vec<[f64; 3]>,
 }
 
@@ -37,10 +43,13 @@ pub fn plan_scenario(s: &Scenario, profile: Option<ProfileName>) -> Result<PlanR
     let mut settings = plan_settings(s, &machine, profile)?;
     // Corner tolerances at the tool tip, as the program's author reads them.
     settings.tool_lever_arms = crate::plan::tool_lever_arms(&machine, &program, &axis_map);
-    let setpoints =
-        plan_program(&program, &axis_map, &settings).map_err(|source| RunError::Plan {
-            path: program.source.clone(),
-            source,
+    let source = program.source.clone();
+    let plan =
+        PlannedProgram::new(program, axis_map, settings.clone()).map_err(|source_error| {
+            RunError::Plan {
+                path: source,
+                source: source_error,
+            }
         })?;
     let limits = match &settings.planner {
         crate::plan::Planner::JerkLimited { limits } => limits.clone(),
@@ -68,33 +77,58 @@ pub fn plan_scenario(s: &Scenario, profile: Option<ProfileName>) -> Result<PlanR
         })
         .collect();
 
-    // Tool tip on the workpiece at every sample, as a 3-axis stream for the same differences.
-    let mut tool = Setpoints::new(setpoints.period, 3);
-    let zeros = [0.0; 3];
-    let mut tool_path = Vec::with_capacity(setpoints.len());
-    for k in 0..setpoints.len() {
-        let p = kinematics::tool_in_workpiece(&machine, setpoints.position(k));
-        tool.push(&[p.x, p.y, p.z], &zeros, &zeros, setpoints.segment[k]);
-        tool_path.push([p.x, p.y, p.z]);
-    }
-
+    // One pass over the samples: the machine axes' and the tool tip's finite differences, the
+    // moves' durations and the tool path.
+    let period = settings.period;
+    let mut stream = plan.stream();
+    let mut sample = SetpointSample::zeros(stream.axes());
+    let mut axis_differences = FiniteDifferences::new(stream.axes(), period);
+    let mut tool_differences = FiniteDifferences::new(3, period);
+    let mut tool_path = Thinned::new(TOOL_PATH_POINTS);
+    let mut last_tool = None;
     let mut move_durations = Vec::new();
-    let mut previous_end = 0usize;
-    for k in 1..setpoints.len() {
-        let last_of_segment =
-            k + 1 == setpoints.len() || setpoints.segment[k + 1] != setpoints.segment[k];
-        if last_of_segment {
-            let index = setpoints.segment[k];
-            let line = program.moves.get(index as usize).map_or(0, |m| m.span.line);
-            move_durations.push((index, line, (k - previous_end) as f64 * setpoints.period));
-            previous_end = k;
+    let line_of = |index: u32| {
+        plan.program()
+            .moves
+            .get(index as usize)
+            .map_or(0, |m| m.span.line)
+    };
+    // A move ends at its last sample (sample 0 is the start, before any move).
+    let (mut k, mut previous_end, mut previous_segment) = (0usize, 0usize, None);
+    while stream.next_sample(&mut sample) {
+        axis_differences.push(&sample.position);
+        let p = kinematics::tool_in_workpiece(&machine, &sample.position);
+        tool_differences.push(&[p.x, p.y, p.z]);
+        tool_path.push([p.x, p.y, p.z]);
+        last_tool = Some([p.x, p.y, p.z]);
+        if let Some(segment) = previous_segment {
+            if k >= 2 && segment != sample.segment {
+                move_durations.push((
+                    segment,
+                    line_of(segment),
+                    (k - 1 - previous_end) as f64 * period,
+                ));
+                previous_end = k - 1;
+            }
         }
+        previous_segment = Some(sample.segment);
+        k += 1;
     }
+    if let (Some(segment), true) = (previous_segment, k >= 2) {
+        move_durations.push((
+            segment,
+            line_of(segment),
+            (k - 1 - previous_end) as f64 * period,
+        ));
+    }
+    drop(stream);
+    let mut tool_path = tool_path.into_items();
+    tool_path.extend(last_tool.filter(|l| tool_path.last() != Some(l)));
     Ok(PlanReport {
         profile,
-        axis_extremes: finite_difference_extremes(&setpoints),
-        tool_extremes: finite_difference_extremes(&tool),
-        setpoints,
+        axis_extremes: axis_differences.extremes(),
+        tool_extremes: tool_differences.extremes(),
+        plan,
         axes,
         move_durations,
         tool_path,
@@ -102,14 +136,19 @@ pub fn plan_scenario(s: &Scenario, profile: Option<ProfileName>) -> Result<PlanR
 }
 
 impl PlanReport {
+    /// Cycle time: from the first sample to the last (s).
+    pub fn duration(&self) -> f64 {
+        self.plan.len().saturating_sub(1) as f64 * self.plan.settings().period
+    }
+
     /// The report as text, in program units (mm, deg, s).
     pub fn text(&self) -> String {
         let mut out = format!(
             "profile {:?}: cycle time {:.6} s ({} samples at T = {} ms)\n",
             self.profile,
-            self.setpoints.duration(),
-            self.setpoints.len(),
-            self.setpoints.period * 1e3
+            self.duration(),
+            self.plan.len(),
+            self.plan.settings().period * 1e3
         );
         out.push_str("  move  line   duration s   (to the servo period)\n");
         for (index, line, d) in &self.move_durations {
