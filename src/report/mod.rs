@@ -23,7 +23,7 @@ pub use plot::{
 pub use recording::{magnification, write_setpoints_recording, RecordingSetup, RrdWriter};
 pub use run_report::{Envelope, ReportSetup, RunReport};
 pub use table::metrics_table;
-pub use thin::Thinned;
+pub use thin::{Thinned, ThinnedPath};
 
 /// Report errors: only I/O and the recorder can fail here.
 #[derive(Debug, thiserror::Error)]

@@ -54,6 +54,35 @@ impl<T> Thinned<T> {
     }
 }
 
+/// A polyline thinned to a bounded number of points that still ends where it ends: the last
+/// point is kept whether or not the thinning would have kept it.
+#[derive(Debug, Clone, PartialEq)]
+pub struct ThinnedPath {
+    points: Thinned<[f64; 3]>,
+    last: Option<[f64; 3]>,
+}
+
+impl ThinnedPath {
+    /// Keeps at most `capacity` points, plus the last.
+    pub fn new(capacity: usize) -> ThinnedPath {
+        ThinnedPath {
+            points: Thinned::new(capacity),
+            last: None,
+        }
+    }
+
+    pub fn push(&mut self, point: [f64; 3]) {
+        self.points.push(point);
+        self.last = Some(point);
+    }
+
+    pub fn into_points(self) -> Vec<[f64; 3]> {
+        let mut points = self.points.into_items();
+        points.extend(self.last.filter(|l| points.last() != Some(l)));
+        points
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -70,6 +99,18 @@ mod tests {
         for (i, &k) in t.items().iter().enumerate() {
             assert_eq!(k, i as u32 * step);
         }
+    }
+
+    #[test]
+    fn a_thinned_path_ends_at_its_last_point() {
+        let mut path = ThinnedPath::new(10);
+        for k in 0..1001 {
+            path.push([k as f64, 0.0, 0.0]);
+        }
+        let points = path.into_points();
+        assert!(points.len() <= 11);
+        assert_eq!(points.first(), Some(&[0.0, 0.0, 0.0]));
+        assert_eq!(points.last(), Some(&[1000.0, 0.0, 0.0]));
     }
 
     #[test]

@@ -19,7 +19,7 @@ use crate::plan::{
     SetpointStream, Setpoints,
 };
 use crate::program::{circle, polyline, read_program, Program, ProgramErrors};
-use crate::report::{AxisLabel, Thinned};
+use crate::report::{AxisLabel, ThinnedPath};
 use crate::sim::{
     self, AnalyticPlant, Encoder, FollowingErrorTrip, Lane, LoopSettings, Observer, Outcome,
     PhysicsPlant, MAX_PHYSICS_STEPS, MAX_SERVO_TICKS,
@@ -167,8 +167,7 @@ impl Assembly {
     pub fn overview(&self) -> &ProgramOverview {
         self.overview.get_or_init(|| {
             let mut peak = vec![0.0f64; self.machine.axes.len()];
-            let mut path = Thinned::new(PROGRAMMED_PATH_POINTS);
-            let mut last = None;
+            let mut path = ThinnedPath::new(PROGRAMMED_PATH_POINTS);
             let mut stream = self.setpoints();
             let mut sample = crate::plan::SetpointSample::zeros(stream.axes());
             while stream.next_sample(&mut sample) {
@@ -177,13 +176,10 @@ impl Assembly {
                 }
                 let q = crate::kinematics::tool_in_workpiece(&self.machine, &sample.position);
                 path.push([q.x, q.y, q.z]);
-                last = Some([q.x, q.y, q.z]);
             }
-            let mut programmed_path = path.into_items();
-            programmed_path.extend(last.filter(|l| programmed_path.last() != Some(l)));
             ProgramOverview {
                 peak_velocity: peak,
-                programmed_path,
+                programmed_path: path.into_points(),
             }
         })
     }

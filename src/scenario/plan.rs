@@ -9,7 +9,7 @@ use crate::machine::Machine;
 use crate::plan::{
     AxisExtremes, AxisKind, AxisLimits, AxisSpec, FiniteDifferences, PlannedProgram, SetpointSample,
 };
-use crate::report::Thinned;
+use crate::report::ThinnedPath;
 
 /// Points of the tool path kept for the plan's recording (evenly thinned over the program).
 const TOOL_PATH_POINTS: usize = 50_000;
@@ -84,8 +84,7 @@ pub fn plan_scenario(s: &Scenario, profile: Option<ProfileName>) -> Result<PlanR
     let mut sample = SetpointSample::zeros(stream.axes());
     let mut axis_differences = FiniteDifferences::new(stream.axes(), period);
     let mut tool_differences = FiniteDifferences::new(3, period);
-    let mut tool_path = Thinned::new(TOOL_PATH_POINTS);
-    let mut last_tool = None;
+    let mut tool_path = ThinnedPath::new(TOOL_PATH_POINTS);
     let mut move_durations = Vec::new();
     let line_of = |index: u32| {
         plan.program()
@@ -100,7 +99,6 @@ pub fn plan_scenario(s: &Scenario, profile: Option<ProfileName>) -> Result<PlanR
         let p = kinematics::tool_in_workpiece(&machine, &sample.position);
         tool_differences.push(&[p.x, p.y, p.z]);
         tool_path.push([p.x, p.y, p.z]);
-        last_tool = Some([p.x, p.y, p.z]);
         if let Some(segment) = previous_segment {
             if k >= 2 && segment != sample.segment {
                 move_durations.push((
@@ -122,8 +120,6 @@ pub fn plan_scenario(s: &Scenario, profile: Option<ProfileName>) -> Result<PlanR
         ));
     }
     drop(stream);
-    let mut tool_path = tool_path.into_items();
-    tool_path.extend(last_tool.filter(|l| tool_path.last() != Some(l)));
     Ok(PlanReport {
         profile,
         axis_extremes: axis_differences.extremes(),
@@ -131,7 +127,7 @@ pub fn plan_scenario(s: &Scenario, profile: Option<ProfileName>) -> Result<PlanR
         plan,
         axes,
         move_durations,
-        tool_path,
+        tool_path: tool_path.into_points(),
     })
 }
 
