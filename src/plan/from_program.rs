@@ -5,6 +5,7 @@
 
 use super::constant_velocity::ConstantVelocityStream;
 use super::path::{AxisLimits, AxisPath, AxisSpec, Blend, Geometry, PathError, PathSegment};
+use super::planner::{PlanWindows, WINDOW_SEGMENTS};
 use super::setpoints::{sample_count, SetpointStream, Setpoints, MAX_SETPOINT_SAMPLES};
 use super::stream::{collect, Stretch, StretchStream};
 use super::trapezoid::TrapezoidProfile;
@@ -111,15 +112,20 @@ pub fn jerk_limited_plans(
         return Ok(None);
     };
     let stretches = jerk_limited_stretches(program, axes, settings, limits)?;
-    Ok(Some(
-        stretches
-            .into_iter()
-            .filter_map(|s| match s {
-                Stretch::Plan { plan, .. } => Some(*plan),
-                _ => None,
-            })
-            .collect(),
-    ))
+    let mut plans = Vec::new();
+    for stretch in stretches {
+        match stretch {
+            Stretch::Windows { plan, .. } => {
+                // Whole: for inspecting the planned geometry and timing.
+                let (path, first_move) = plan.into_path();
+                plans.push(
+                    super::plan(&path).map_err(|source| path_error(program, first_move, source))?,
+                );
+            }
+            _ => {}
+        }
+    }
+    Ok(Some(plans))
 }
 
 /// Running count of the samples a program needs, refused beyond [`MAX_SETPOINT_SAMPLES`].
@@ -342,8 +348,6 @@ impl PathCollector<'_> {
         if self.path.segments.is_empty() {
             return Ok(());
         }
-        let planned =
-            plan(&self.path).map_err(|source| path_error(self.program, self.first_move, source))?;
         let last = self
             .path
             .segments
@@ -351,17 +355,24 @@ impl PathCollector<'_> {
             .map_or(0, |s| s.source_index as usize);
         let line = self.program.moves.get(last).map_or(0, |m| m.span.line);
         if std::env::var_os("CNCSIM_PLAN_DEBUG").is_some() {
-            eprintln!("{}", planned.debug_dump());
+            if let Ok(planned) = plan(&self.path) {
+                eprintln!("{}", planned.debug_dump());
+            }
         }
-        let ticks = budget.add_motion(planned.duration(), last, line)?;
-        let cursor = super::planner::Cursor::new(&planned);
-        stretches.push(Stretch::Plan {
-            plan: Box::new(planned),
-            cursor: Box::new(cursor),
+        let end = self.end().to_vec();
+        let path = AxisPath {
+            axes: self.path.axes.clone(),
+            start: std::mem::replace(&mut self.path.start, end),
+            segments: std::mem::take(&mut self.path.segments),
+            tool_lever_arms: self.path.tool_lever_arms.clone(),
+        };
+        let windows = PlanWindows::new(path, WINDOW_SEGMENTS, self.first_move)
+            .map_err(|source| path_error(self.program, self.first_move, source))?;
+        let ticks = budget.add_motion(windows.duration(), last, line)?;
+        stretches.push(Stretch::Windows {
+            plan: Box::new(windows),
             ticks,
         });
-        self.path.start = self.end().to_vec();
-        self.path.segments.clear();
         self.run_points.clear();
         Ok(())
     }
