@@ -48,7 +48,8 @@ pub struct PlanSettings {
     /// Naive-CAM collinearity tolerance (LinuxCNC's G64 Q, m): in continuous mode, a run of
     /// straight feed moves whose points all lie within it of one straight line is joined into
     /// that line (at most 100 points, rotary axes unchanged, one feed), as LinuxCNC joins them.
-    /// `None`: moves are planned as programmed.
+    /// It overrides the program's own G64 Q (zero: no joining); `None`: the program's G64 Q
+    /// where it gives one (a run then stays within one G64 setting).
     pub naive_cam_tolerance: Option<f64>,
     /// Distance (m) of the tool tip from each rotary machine axis at the program's points
     /// ([`tool_lever_arms`]), so that corner tolerances are measured at the tool tip on the
@@ -255,7 +256,6 @@ fn trapezoid_stretches(
 /// between dwells, joining naive-CAM runs on the way.
 struct PathCollector<'a> {
     program: &'a Program,
-    settings: &'a PlanSettings,
     axes: &'a AxisMap,
     path: AxisPath,
     /// First program move of the path being collected, for error messages.
@@ -264,6 +264,8 @@ struct PathCollector<'a> {
     /// has absorbed.
     run_start: Vec<f64>,
     run_points: Vec<Vec<f64>>,
+    /// The naive-CAM tolerance the last segment was programmed with.
+    last_q: Option<f64>,
 }
 
 impl PathCollector<'_> {
@@ -277,8 +279,11 @@ impl PathCollector<'_> {
 
     /// Appends a segment, joining it to the previous straight segment when both belong to one
     /// naive-CAM run.
-    fn push(&mut self, segment: PathSegment) {
-        if self.joins_run(&segment) {
+    /// `q`: the segment's naive-CAM tolerance.
+    fn push(&mut self, segment: PathSegment, q: Option<f64>) {
+        let joins = self.joins_run(&segment, q);
+        self.last_q = q;
+        if joins {
             let last = self.path.segments.last_mut().expect("a run has a segment");
             self.run_points.push(last.geometry.end().to_vec());
             *last = segment;
@@ -289,10 +294,13 @@ impl PathCollector<'_> {
         self.path.segments.push(segment);
     }
 
-    fn joins_run(&self, next: &PathSegment) -> bool {
-        let Some(q) = self.settings.naive_cam_tolerance.filter(|q| *q > 0.0) else {
+    fn joins_run(&self, next: &PathSegment, q: Option<f64>) -> bool {
+        let Some(q) = q.filter(|q| *q > 0.0) else {
             return false;
         };
+        if self.last_q != Some(q) {
+            return false;
+        }
         let Some(last) = self.path.segments.last() else {
             return false;
         };
@@ -405,7 +413,6 @@ fn jerk_limited_stretches(
     }];
     let mut collector = PathCollector {
         program,
-        settings,
         axes,
         path: AxisPath {
             axes: specs,
@@ -416,6 +423,7 @@ fn jerk_limited_stretches(
         first_move: 0,
         run_start: Vec::new(),
         run_points: Vec::new(),
+        last_q: None,
     };
     let mut at = program.start;
 
@@ -499,17 +507,25 @@ fn jerk_limited_stretches(
                 Blend::ExactStop
             }
             (BlendChoice::Continuous { tolerance }, _) => Blend::Continuous { tolerance },
-            (BlendChoice::Program, program::Blend::Continuous { tolerance }) => {
+            (BlendChoice::Program, program::Blend::Continuous { tolerance, .. }) => {
                 Blend::Continuous { tolerance }
             }
         };
-        collector.push(PathSegment {
-            geometry,
-            feed,
-            feed_metric: weights,
-            blend,
-            source_index: index as u32,
-        });
+        let q = match (settings.naive_cam_tolerance, m.blend) {
+            (Some(q), _) => Some(q),
+            (None, program::Blend::Continuous { naive_cam, .. }) => naive_cam,
+            (None, program::Blend::ExactStop) => None,
+        };
+        collector.push(
+            PathSegment {
+                geometry,
+                feed,
+                feed_metric: weights,
+                blend,
+                source_index: index as u32,
+            },
+            q,
+        );
         at = m.end;
     }
     collector.flush(&mut stretches, &mut budget)?;
