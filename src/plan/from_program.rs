@@ -115,15 +115,12 @@ pub fn jerk_limited_plans(
     let stretches = jerk_limited_stretches(program, axes, settings, limits)?;
     let mut plans = Vec::new();
     for stretch in stretches {
-        match stretch {
-            Stretch::Windows { plan, .. } => {
-                // Whole: for inspecting the planned geometry and timing.
-                let (path, first_move) = plan.into_path();
-                plans.push(
-                    super::plan(&path).map_err(|source| path_error(program, first_move, source))?,
-                );
-            }
-            _ => {}
+        if let Stretch::Windows { plan, .. } = stretch {
+            // Whole: for inspecting the planned geometry and timing.
+            let (path, first_move) = plan.into_path();
+            plans.push(
+                super::plan(&path).map_err(|source| path_error(program, first_move, source))?,
+            );
         }
     }
     Ok(Some(plans))
