@@ -160,9 +160,13 @@ fn plan_segments(
     Ok((plan, next))
 }
 
-/// Segments per window of [`PlanWindows`] at first; a window grows (doubling) until it holds a
-/// whole chain.
+/// Segments per window of [`PlanWindows`] at first; a window grows until it holds a whole
+/// chain.
 pub(super) const WINDOW_SEGMENTS: usize = 512;
+
+/// Most segments whose window plans the timing pass of [`PlanWindows`] keeps for evaluation
+/// (a path this short is planned once, not twice).
+const KEPT_SEGMENTS: usize = 16_384;
 
 /// A path planned window by window, as it is evaluated: the plans of a few hundred segments at
 /// a time, never the whole path. Samples are bit-identical to [`plan`]'s: each window holds
@@ -172,6 +176,9 @@ pub(super) struct PlanWindows {
     path: AxisPath,
     window: usize,
     duration: f64,
+    /// Windows after the current one planned by the timing pass, with where each is followed
+    /// (none when they would hold more than [`KEPT_SEGMENTS`]).
+    kept: std::collections::VecDeque<(Plan, usize)>,
     /// The window being evaluated (None before the first evaluation, or when no chain moves),
     /// with its cursor; and where the next window starts.
     current: Option<(Plan, Cursor)>,
@@ -183,20 +190,35 @@ pub(super) struct PlanWindows {
 }
 
 impl PlanWindows {
-    /// Plans every window once for the path's duration (keeping only the first, where the
-    /// evaluation starts), and reports the errors [`plan`] would.
+    /// Plans every window once for the path's duration (keeping the first, where the
+    /// evaluation starts, and the rest only for a short path), and reports the errors [`plan`]
+    /// would.
     pub fn new(path: AxisPath, window: usize, first_move: usize) -> Result<Self, PathError> {
+        Self::keeping(path, window, first_move, KEPT_SEGMENTS)
+    }
+
+    /// [`Self::new`], keeping the timing pass's windows for a path of at most `most` segments.
+    fn keeping(
+        path: AxisPath,
+        window: usize,
+        first_move: usize,
+        most: usize,
+    ) -> Result<Self, PathError> {
         validate(&path)?;
         let mut window = window.max(1);
         let mut duration = 0.0;
         let mut next = 0;
         let mut first = None;
+        let mut kept = std::collections::VecDeque::new();
+        let keep = path.segments.len() <= most;
         while next < path.segments.len() {
             let plan;
             (plan, next) = Self::plan_window(&path, next, &mut window, duration)?;
             duration = plan.duration;
             if first.is_none() {
                 first = Some((plan, next));
+            } else if keep {
+                kept.push_back((plan, next));
             }
         }
         let rest = (
@@ -215,6 +237,7 @@ impl PlanWindows {
             path,
             window,
             duration,
+            kept,
             current,
             next,
             rest,
@@ -267,10 +290,13 @@ impl PlanWindows {
     fn advance(&mut self) -> bool {
         let mut time = self.current.as_ref().map_or(0.0, |(p, _)| p.duration);
         while self.next < self.path.segments.len() {
+            let window = match self.kept.pop_front() {
+                Some(kept) => Ok(kept),
+                None => Self::plan_window(&self.path, self.next, &mut self.window, time),
+            };
             // Planned before without error: the same computation cannot fail now; if it
             // did, the motion would hold where it is.
-            let Ok((plan, next)) = Self::plan_window(&self.path, self.next, &mut self.window, time)
-            else {
+            let Ok((plan, next)) = window else {
                 self.next = self.path.segments.len();
                 return false;
             };
@@ -944,8 +970,12 @@ mod tests {
         let period = 1e-3;
         let expected = whole.sample(period);
         let n = path.axes.len();
-        for window in [1, 2, 3, 7, 64, 10_000] {
-            let mut windows = PlanWindows::new(path.clone(), window, 0).unwrap();
+        // Windows planned again as they are evaluated, and kept from the timing pass.
+        for (window, most) in [1, 2, 3, 7, 64, 10_000]
+            .into_iter()
+            .flat_map(|w| [(w, 0), (w, usize::MAX)])
+        {
+            let mut windows = PlanWindows::keeping(path.clone(), window, 0, most).unwrap();
             assert_eq!(windows.duration().to_bits(), whole.duration().to_bits());
             let (mut p, mut v, mut a) = (vec![0.0; n], vec![0.0; n], vec![0.0; n]);
             for (k, t) in sample_times(whole.duration(), period).enumerate() {
