@@ -351,3 +351,63 @@ fn servo_rate_stream_has_segments_in_order() {
         }
     }
 }
+
+/// A program's own G64 P- Q- (LinuxCNC's naive-CAM tolerance): 40 lines of 1 mm zig-zagging
+/// 5 µm about one line are joined under `G64 P0.05 Q0.01`, exactly as with the scenario's
+/// `naive_cam_tolerance` (which overrides the program's Q, zero turning it off); a G64 without
+/// Q ends the joining where it is programmed.
+#[test]
+fn a_programs_g64_q_joins_collinear_short_lines() {
+    use cncsim::kinematics::AxisMap;
+    use cncsim::machine::Machine;
+    use cncsim::plan::{plan_program, AxisKind, AxisLimits, BlendChoice, PlanSettings, Planner};
+    use cncsim::program::{parse_gcode, ReadOptions};
+
+    let root = std::path::Path::new(env!("CARGO_MANIFEST_DIR"));
+    let machine = Machine::load(&root.join("models/xyz_table.urdf")).unwrap();
+    let axes = AxisMap::cartesian(&machine).unwrap();
+    // `header` is the G64 in effect from the start; `middle` is programmed before line 20.
+    let program = |header: &str, middle: &str| {
+        let mut text = format!("G21 G90 {header}\nG0 X0 Y0 Z0\nF6000\n");
+        for i in 1..=40 {
+            if i == 20 {
+                text.push_str(middle);
+                text.push('\n');
+            }
+            let y = if i % 2 == 1 { 0.005 } else { 0.0 };
+            text.push_str(&format!("G1 X{i} Y{y}\n"));
+        }
+        parse_gcode(&text, "q.ngc", &ReadOptions::default()).unwrap()
+    };
+    let duration = |program: &cncsim::program::Program, q: Option<f64>| {
+        let settings = PlanSettings {
+            planner: Planner::JerkLimited {
+                limits: vec![
+                    AxisLimits::from_program_units(AxisKind::Linear, 200.0, 2000.0, 5e4);
+                    3
+                ],
+            },
+            period: 1e-3,
+            rapid_speed: 0.05,
+            blend: BlendChoice::Program,
+            axis_names: machine.axes.iter().map(|a| a.name.clone()).collect(),
+            naive_cam_tolerance: q,
+            tool_lever_arms: Vec::new(),
+        };
+        plan_program(program, &axes, &settings).unwrap().duration()
+    };
+    let with_q = program("G64 P0.05 Q0.01", "");
+    let without_q = program("G64 P0.05", "");
+    let joined = duration(&with_q, None);
+    let move_by_move = duration(&without_q, None);
+    eprintln!("G64 P0.05 Q0.01: {joined} s; G64 P0.05: {move_by_move} s");
+    // 0.490 s joined, 0.527 s move by move (the corners are blended within P either way).
+    assert!(joined < move_by_move, "{joined} {move_by_move}");
+    assert_eq!(duration(&without_q, Some(1e-5)), joined);
+    assert_eq!(duration(&with_q, Some(0.0)), move_by_move);
+    let ended = duration(&program("G64 P0.05 Q0.01", "G64 P0.05"), None);
+    assert!(
+        joined < ended && ended < move_by_move,
+        "{joined} {ended} {move_by_move}"
+    );
+}

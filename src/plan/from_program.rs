@@ -5,6 +5,7 @@
 
 use super::constant_velocity::ConstantVelocityStream;
 use super::path::{AxisLimits, AxisPath, AxisSpec, Blend, Geometry, PathError, PathSegment};
+use super::planner::{PlanWindows, WINDOW_SEGMENTS};
 use super::setpoints::{sample_count, SetpointStream, Setpoints, MAX_SETPOINT_SAMPLES};
 use super::stream::{collect, Stretch, StretchStream};
 use super::trapezoid::TrapezoidProfile;
@@ -47,7 +48,8 @@ pub struct PlanSettings {
     /// Naive-CAM collinearity tolerance (LinuxCNC's G64 Q, m): in continuous mode, a run of
     /// straight feed moves whose points all lie within it of one straight line is joined into
     /// that line (at most 100 points, rotary axes unchanged, one feed), as LinuxCNC joins them.
-    /// `None`: moves are planned as programmed.
+    /// It overrides the program's own G64 Q (zero: no joining); `None`: the program's G64 Q
+    /// where it gives one (a run then stays within one G64 setting).
     pub naive_cam_tolerance: Option<f64>,
     /// Distance (m) of the tool tip from each rotary machine axis at the program's points
     /// ([`tool_lever_arms`]), so that corner tolerances are measured at the tool tip on the
@@ -111,15 +113,17 @@ pub fn jerk_limited_plans(
         return Ok(None);
     };
     let stretches = jerk_limited_stretches(program, axes, settings, limits)?;
-    Ok(Some(
-        stretches
-            .into_iter()
-            .filter_map(|s| match s {
-                Stretch::Plan { plan, .. } => Some(*plan),
-                _ => None,
-            })
-            .collect(),
-    ))
+    let mut plans = Vec::new();
+    for stretch in stretches {
+        if let Stretch::Windows { plan, .. } = stretch {
+            // Whole: for inspecting the planned geometry and timing.
+            let (path, first_move) = plan.into_path();
+            plans.push(
+                super::plan(&path).map_err(|source| path_error(program, first_move, source))?,
+            );
+        }
+    }
+    Ok(Some(plans))
 }
 
 /// Running count of the samples a program needs, refused beyond [`MAX_SETPOINT_SAMPLES`].
@@ -249,7 +253,6 @@ fn trapezoid_stretches(
 /// between dwells, joining naive-CAM runs on the way.
 struct PathCollector<'a> {
     program: &'a Program,
-    settings: &'a PlanSettings,
     axes: &'a AxisMap,
     path: AxisPath,
     /// First program move of the path being collected, for error messages.
@@ -258,6 +261,8 @@ struct PathCollector<'a> {
     /// has absorbed.
     run_start: Vec<f64>,
     run_points: Vec<Vec<f64>>,
+    /// The naive-CAM tolerance the last segment was programmed with.
+    last_q: Option<f64>,
 }
 
 impl PathCollector<'_> {
@@ -271,8 +276,11 @@ impl PathCollector<'_> {
 
     /// Appends a segment, joining it to the previous straight segment when both belong to one
     /// naive-CAM run.
-    fn push(&mut self, segment: PathSegment) {
-        if self.joins_run(&segment) {
+    /// `q`: the segment's naive-CAM tolerance.
+    fn push(&mut self, segment: PathSegment, q: Option<f64>) {
+        let joins = self.joins_run(&segment, q);
+        self.last_q = q;
+        if joins {
             let last = self.path.segments.last_mut().expect("a run has a segment");
             self.run_points.push(last.geometry.end().to_vec());
             *last = segment;
@@ -283,10 +291,13 @@ impl PathCollector<'_> {
         self.path.segments.push(segment);
     }
 
-    fn joins_run(&self, next: &PathSegment) -> bool {
-        let Some(q) = self.settings.naive_cam_tolerance.filter(|q| *q > 0.0) else {
+    fn joins_run(&self, next: &PathSegment, q: Option<f64>) -> bool {
+        let Some(q) = q.filter(|q| *q > 0.0) else {
             return false;
         };
+        if self.last_q != Some(q) {
+            return false;
+        }
         let Some(last) = self.path.segments.last() else {
             return false;
         };
@@ -342,8 +353,6 @@ impl PathCollector<'_> {
         if self.path.segments.is_empty() {
             return Ok(());
         }
-        let planned =
-            plan(&self.path).map_err(|source| path_error(self.program, self.first_move, source))?;
         let last = self
             .path
             .segments
@@ -351,17 +360,24 @@ impl PathCollector<'_> {
             .map_or(0, |s| s.source_index as usize);
         let line = self.program.moves.get(last).map_or(0, |m| m.span.line);
         if std::env::var_os("CNCSIM_PLAN_DEBUG").is_some() {
-            eprintln!("{}", planned.debug_dump());
+            if let Ok(planned) = plan(&self.path) {
+                eprintln!("{}", planned.debug_dump());
+            }
         }
-        let ticks = budget.add_motion(planned.duration(), last, line)?;
-        let cursor = super::planner::Cursor::new(&planned);
-        stretches.push(Stretch::Plan {
-            plan: Box::new(planned),
-            cursor: Box::new(cursor),
+        let end = self.end().to_vec();
+        let path = AxisPath {
+            axes: self.path.axes.clone(),
+            start: std::mem::replace(&mut self.path.start, end),
+            segments: std::mem::take(&mut self.path.segments),
+            tool_lever_arms: self.path.tool_lever_arms.clone(),
+        };
+        let windows = PlanWindows::new(path, WINDOW_SEGMENTS, self.first_move)
+            .map_err(|source| path_error(self.program, self.first_move, source))?;
+        let ticks = budget.add_motion(windows.duration(), last, line)?;
+        stretches.push(Stretch::Windows {
+            plan: Box::new(windows),
             ticks,
         });
-        self.path.start = self.end().to_vec();
-        self.path.segments.clear();
         self.run_points.clear();
         Ok(())
     }
@@ -394,7 +410,6 @@ fn jerk_limited_stretches(
     }];
     let mut collector = PathCollector {
         program,
-        settings,
         axes,
         path: AxisPath {
             axes: specs,
@@ -405,6 +420,7 @@ fn jerk_limited_stretches(
         first_move: 0,
         run_start: Vec::new(),
         run_points: Vec::new(),
+        last_q: None,
     };
     let mut at = program.start;
 
@@ -488,17 +504,25 @@ fn jerk_limited_stretches(
                 Blend::ExactStop
             }
             (BlendChoice::Continuous { tolerance }, _) => Blend::Continuous { tolerance },
-            (BlendChoice::Program, program::Blend::Continuous { tolerance }) => {
+            (BlendChoice::Program, program::Blend::Continuous { tolerance, .. }) => {
                 Blend::Continuous { tolerance }
             }
         };
-        collector.push(PathSegment {
-            geometry,
-            feed,
-            feed_metric: weights,
-            blend,
-            source_index: index as u32,
-        });
+        let q = match (settings.naive_cam_tolerance, m.blend) {
+            (Some(q), _) => Some(q),
+            (None, program::Blend::Continuous { naive_cam, .. }) => naive_cam,
+            (None, program::Blend::ExactStop) => None,
+        };
+        collector.push(
+            PathSegment {
+                geometry,
+                feed,
+                feed_metric: weights,
+                blend,
+                source_index: index as u32,
+            },
+            q,
+        );
         at = m.end;
     }
     collector.flush(&mut stretches, &mut budget)?;

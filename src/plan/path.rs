@@ -157,6 +157,43 @@ pub enum PathError {
 /// rounding in the program (the radius is then interpolated along the arc).
 pub const ARC_RADIUS_MISMATCH: f64 = 1e-3;
 
+impl PathError {
+    /// The same error with its segment index counted `by` segments further on.
+    pub(super) fn offset(self, by: usize) -> PathError {
+        match self {
+            PathError::AxisCountMismatch {
+                segment,
+                expected,
+                found,
+            } => PathError::AxisCountMismatch {
+                segment: segment.map(|s| s + by),
+                expected,
+                found,
+            },
+            PathError::InvalidValue { segment, what } => PathError::InvalidValue {
+                segment: segment.map(|s| s + by),
+                what,
+            },
+            PathError::InvalidArcPlane { segment } => PathError::InvalidArcPlane {
+                segment: segment + by,
+            },
+            PathError::InvalidArcRadius {
+                segment,
+                start_radius,
+                end_radius,
+            } => PathError::InvalidArcRadius {
+                segment: segment + by,
+                start_radius,
+                end_radius,
+            },
+            PathError::Infeasible { segment } => PathError::Infeasible {
+                segment: segment + by,
+            },
+            other => other,
+        }
+    }
+}
+
 impl fmt::Display for PathError {
     fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
         match self {

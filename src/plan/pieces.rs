@@ -387,6 +387,9 @@ pub(super) struct Builder<'a> {
     scratch: JetScratch,
     /// Per segment: the budget of the segment on its own.
     budgets: Vec<Budget>,
+    /// Per segment: the speed it would cruise at between two stops ([`Self::stop_is_faster`]),
+    /// once asked for (each segment is on two junctions).
+    cruise: Vec<Option<f64>>,
     /// The per-axis bounds of every budget made.
     table: Budgets,
 }
@@ -408,7 +411,9 @@ impl<'a> Builder<'a> {
             tangent: TangentJunction::default(),
             scratch: JetScratch::new(n),
             budgets: Vec::with_capacity(segments.len()),
-            table: Budgets::with_capacity(axes, 3 * axes.len() * 3 * segments.len()),
+            cruise: vec![None; segments.len()],
+            // A junction's budget and its segment's middle (or smoothing curve) per segment.
+            table: Budgets::with_capacity(axes, 3 * axes.len() * 2 * segments.len()),
         }
     }
 
@@ -420,20 +425,27 @@ impl<'a> Builder<'a> {
         }
     }
 
-    /// The budget of segment `k` on its own.
+    /// The budget of segment `k` on its own. Only its minima are used (for sizing blends), so
+    /// its per-axis bounds are not stored.
     fn segment_budget(&mut self, k: usize) -> Budget {
-        self.range_budget(k, 0.0, self.shapes.shapes[k].length)
+        self.range_bounds(k, 0.0, self.shapes.shapes[k].length);
+        self.bounds.reduced(self.table.axes(), self.feed(k))
     }
 
     /// The budget of segment `k` over `s ∈ [lo, hi]`.
     fn range_budget(&mut self, k: usize, lo: f64, hi: f64) -> Budget {
+        self.range_bounds(k, lo, hi);
+        let feed = self.feed(k);
+        self.bounds.budget(&mut self.table, feed)
+    }
+
+    /// The per-axis bounds of segment `k` over `s ∈ [lo, hi]`, into `self.bounds`.
+    fn range_bounds(&mut self, k: usize, lo: f64, hi: f64) {
         for i in 0..self.axes.len() {
             self.bounds.k1[i] = self.shapes.bound_over(k, i, 1, lo, hi);
             self.bounds.k2[i] = self.shapes.bound_over(k, i, 2, lo, hi);
             self.bounds.k3[i] = self.shapes.bound_over(k, i, 3, lo, hi);
         }
-        let feed = self.feed(k);
-        self.bounds.budget(&mut self.table, feed)
     }
 
     pub fn build(mut self) -> Pieces {
@@ -471,11 +483,16 @@ impl<'a> Builder<'a> {
         junctions.push(Junction::Stop);
         tolerances.push(0.0);
         let smooth = self.smooth_runs(&moving, &junctions, &tolerances);
+        let corners = junctions
+            .iter()
+            .filter(|j| matches!(j, Junction::Corner { .. }))
+            .count();
+        let n = self.axes.len();
 
         let mut out = Pieces {
             pieces: Vec::with_capacity(2 * moving.len()),
             chains: Vec::new(),
-            arena: Vec::new(),
+            arena: Vec::with_capacity(3 * n * corners + smooth.coefficients.len()),
             budgets: Vec::with_capacity(2 * moving.len()),
             covered: Vec::new(),
             lengths: shapes.shapes.iter().map(|s| s.length).collect(),
@@ -828,15 +845,13 @@ impl<'a> Builder<'a> {
             }
         };
         match junction {
-            Junction::Corner { budget, .. } | Junction::Tangent { budget, .. }
-                if self.stop_is_faster(
-                    p,
-                    k,
-                    junction.length(),
-                    self.table.limits(&budget, SIZING_SHARE),
-                ) =>
-            {
-                Junction::Stop
+            Junction::Corner { budget, .. } | Junction::Tangent { budget, .. } => {
+                let limits = self.table.limits(&budget, SIZING_SHARE);
+                if self.stop_is_faster(p, k, junction.length(), limits) {
+                    Junction::Stop
+                } else {
+                    junction
+                }
             }
             other => other,
         }
@@ -939,10 +954,12 @@ impl<'a> Builder<'a> {
     /// length; slowing from cruise `v` to `u` and back loses about `T·(v − u)/(2·v)` (a change
     /// lasting T covers its distance at the mean speed), and the blend itself takes
     /// `length/u` where cruising would take `length/v`.
-    fn stop_is_faster(&self, p: usize, k: usize, length: f64, limits: Limits) -> bool {
-        let side = |segment: usize| {
+    fn stop_is_faster(&mut self, p: usize, k: usize, length: f64, limits: Limits) -> bool {
+        let mut side = |segment: usize| {
             let l = self.budgets[segment].straight();
-            let cruise = reachable_velocity(0.0, 0.5 * self.shapes.shapes[segment].length, &l);
+            let length = self.shapes.shapes[segment].length;
+            let cruise = *self.cruise[segment]
+                .get_or_insert_with(|| reachable_velocity(0.0, 0.5 * length, &l));
             (l, cruise)
         };
         let sides = [side(p), side(k)];

@@ -75,11 +75,42 @@ pub struct SegmentTiming {
 /// Plans a path. See the module documentation for the method.
 pub fn plan(path: &AxisPath) -> Result<Plan, PathError> {
     validate(path)?;
-    let shapes = Shapes::new(&path.start, &path.segments, &path.axes)?;
+    plan_segments(path, 0, path.segments.len(), 0.0, false).map(|(plan, _)| plan)
+}
+
+/// Plans segments `first..end` of `path` (validated), its first chain starting at
+/// `start_time`. With `complete_only`, the last chain (which ends where the segments are cut
+/// off, not at a stop) is left out. Returns the plan and the segment after its last chain.
+///
+/// A chain's pieces depend only on its own segments and the shapes of the two segments around
+/// it (every junction, blend and smoothing curve looks no further, and none crosses a stop),
+/// so the chains planned here are exactly those of the whole path.
+fn plan_segments(
+    path: &AxisPath,
+    first: usize,
+    end: usize,
+    start_time: f64,
+    complete_only: bool,
+) -> Result<(Plan, usize), PathError> {
+    let segments = &path.segments[first..end];
+    let start = match first.checked_sub(1) {
+        Some(previous) => path.segments[previous].geometry.end(),
+        None => &path.start,
+    };
+    let shapes = Shapes::new(start, segments, &path.axes).map_err(|e| e.offset(first))?;
     let metric = Metric::new(&path.axes, &path.tool_lever_arms);
-    let mut pieces = Builder::new(&path.axes, &path.segments, &shapes, &metric).build();
+    let mut pieces = Builder::new(&path.axes, segments, &shapes, &metric).build();
+    let next = if complete_only {
+        pieces.chains.pop();
+        pieces
+            .chains
+            .last()
+            .map_or(first, |c| first + c.last_segment + 1)
+    } else {
+        end
+    };
     let mut spans = Vec::with_capacity(pieces.pieces.len());
-    let mut time = 0.0;
+    let mut time = start_time;
     let mut drafts = Vec::new();
     let mut trial = Vec::new();
     let mut best = Vec::new();
@@ -102,7 +133,8 @@ pub fn plan(path: &AxisPath) -> Result<Plan, PathError> {
                 cap,
                 &mut scratch,
             );
-            let duration = time_chain(&pieces, c, &mut drafts, time, &mut trial)?;
+            let duration = time_chain(&pieces, c, &mut drafts, time, &mut trial)
+                .map_err(|e| e.offset(first))?;
             if duration < fastest {
                 fastest = duration;
                 std::mem::swap(&mut best, &mut trial);
@@ -116,15 +148,197 @@ pub fn plan(path: &AxisPath) -> Result<Plan, PathError> {
         time += fastest;
         spans.append(&mut best);
     }
-    Ok(Plan {
+    let plan = Plan {
         axes: path.axes.len(),
-        source_index: path.segments.iter().map(|s| s.source_index).collect(),
+        source_index: segments.iter().map(|s| s.source_index).collect(),
         shapes,
         pieces,
         spans,
-        start: path.start.clone(),
+        start: start.to_vec(),
         duration: time,
-    })
+    };
+    Ok((plan, next))
+}
+
+/// Segments per window of [`PlanWindows`] at first; a window grows until it holds a whole
+/// chain.
+pub(super) const WINDOW_SEGMENTS: usize = 512;
+
+/// Most segments whose window plans the timing pass of [`PlanWindows`] keeps for evaluation
+/// (a path this short is planned once, not twice).
+const KEPT_SEGMENTS: usize = 16_384;
+
+/// A path planned window by window, as it is evaluated: the plans of a few hundred segments at
+/// a time, never the whole path. Samples are bit-identical to [`plan`]'s: each window holds
+/// whole chains of the path, timed from where the previous window ended.
+#[derive(Debug)]
+pub(super) struct PlanWindows {
+    path: AxisPath,
+    window: usize,
+    duration: f64,
+    /// Windows after the current one planned by the timing pass, with where each is followed
+    /// (none when they would hold more than [`KEPT_SEGMENTS`]).
+    kept: std::collections::VecDeque<(Plan, usize)>,
+    /// The window being evaluated (None before the first evaluation, or when no chain moves),
+    /// with its cursor; and where the next window starts.
+    current: Option<(Plan, Cursor)>,
+    next: usize,
+    /// The start point and program move reported when nothing moves.
+    rest: (Vec<f64>, u32),
+    /// The program move the path starts with (for error messages).
+    first_move: usize,
+}
+
+impl PlanWindows {
+    /// Plans every window once for the path's duration (keeping the first, where the
+    /// evaluation starts, and the rest only for a short path), and reports the errors [`plan`]
+    /// would.
+    pub fn new(path: AxisPath, window: usize, first_move: usize) -> Result<Self, PathError> {
+        Self::keeping(path, window, first_move, KEPT_SEGMENTS)
+    }
+
+    /// [`Self::new`], keeping the timing pass's windows for a path of at most `most` segments.
+    fn keeping(
+        path: AxisPath,
+        window: usize,
+        first_move: usize,
+        most: usize,
+    ) -> Result<Self, PathError> {
+        validate(&path)?;
+        let mut window = window.max(1);
+        let mut duration = 0.0;
+        let mut next = 0;
+        let mut first = None;
+        let mut kept = std::collections::VecDeque::new();
+        let keep = path.segments.len() <= most;
+        while next < path.segments.len() {
+            let plan;
+            (plan, next) = Self::plan_window(&path, next, &mut window, duration)?;
+            duration = plan.duration;
+            if first.is_none() {
+                first = Some((plan, next));
+            } else if keep {
+                kept.push_back((plan, next));
+            }
+        }
+        let rest = (
+            path.start.clone(),
+            path.segments.first().map_or(0, |s| s.source_index),
+        );
+        let (current, next) = match first {
+            Some((plan, next)) if !plan.spans.is_empty() => {
+                let cursor = Cursor::new(&plan);
+                (Some((plan, cursor)), next)
+            }
+            Some((_, next)) => (None, next),
+            None => (None, 0),
+        };
+        Ok(PlanWindows {
+            path,
+            window,
+            duration,
+            kept,
+            current,
+            next,
+            rest,
+            first_move,
+        })
+    }
+
+    /// The path, and the program move it starts with.
+    pub fn into_path(self) -> (AxisPath, usize) {
+        (self.path, self.first_move)
+    }
+
+    /// The plan of the whole chains from segment `first` on, timed from `start_time`, and where
+    /// the next window starts. A window of `window` segments grows eightfold until it holds a
+    /// whole chain (each try is planned in full: a long chain costs about 8/7 of its planning
+    /// again), and doubles when less than half of it is kept (the chain cut off at its end is
+    /// planned again with the next window), so that no more than about half the work is
+    /// repeated.
+    fn plan_window(
+        path: &AxisPath,
+        first: usize,
+        window: &mut usize,
+        start_time: f64,
+    ) -> Result<(Plan, usize), PathError> {
+        let count = path.segments.len();
+        loop {
+            let end = first.saturating_add(*window).min(count);
+            let last = end == count;
+            let (plan, next) = plan_segments(path, first, end, start_time, !last)?;
+            if last {
+                return Ok((plan, count));
+            }
+            if next > first {
+                if 2 * (next - first) < end - first {
+                    *window = window.saturating_mul(2);
+                }
+                return Ok((plan, next));
+            }
+            *window = window.saturating_mul(8);
+        }
+    }
+
+    /// Total duration (s), the same as [`plan`]'s.
+    pub fn duration(&self) -> f64 {
+        self.duration
+    }
+
+    /// Moves on to the next window that has spans, if there is one; false at the end (the
+    /// current window stays).
+    fn advance(&mut self) -> bool {
+        let mut time = self.current.as_ref().map_or(0.0, |(p, _)| p.duration);
+        while self.next < self.path.segments.len() {
+            let window = match self.kept.pop_front() {
+                Some(kept) => Ok(kept),
+                None => Self::plan_window(&self.path, self.next, &mut self.window, time),
+            };
+            // Planned before without error: the same computation cannot fail now; if it
+            // did, the motion would hold where it is.
+            let Ok((plan, next)) = window else {
+                self.next = self.path.segments.len();
+                return false;
+            };
+            self.next = next;
+            time = plan.duration;
+            if !plan.spans.is_empty() {
+                let cursor = Cursor::new(&plan);
+                self.current = Some((plan, cursor));
+                return true;
+            }
+        }
+        false
+    }
+
+    /// As [`Cursor::eval`] on the whole path's plan (times not decreasing).
+    pub fn eval(
+        &mut self,
+        t: f64,
+        position: &mut [f64],
+        velocity: &mut [f64],
+        acceleration: &mut [f64],
+    ) -> u32 {
+        if self.current.is_none() && !self.advance() {
+            position.copy_from_slice(&self.rest.0);
+            velocity.fill(0.0);
+            acceleration.fill(0.0);
+            return self.rest.1;
+        }
+        // The next window's first span starts where this one ends: move on once `t` is there
+        // (as the whole plan's cursor moves on to a span starting at or before `t`).
+        while self.current.as_ref().is_some_and(|(p, _)| p.duration <= t)
+            && self.next < self.path.segments.len()
+        {
+            if !self.advance() {
+                break;
+            }
+        }
+        let Some((plan, cursor)) = self.current.as_mut() else {
+            return self.rest.1;
+        };
+        cursor.eval(plan, t, position, velocity, acceleration)
+    }
 }
 
 /// The largest centripetal share any piece in `range` was given.
@@ -247,13 +461,20 @@ fn look_ahead(drafts: &[Draft]) -> Vec<f64> {
     for i in 1..m {
         speeds[i] = drafts[i - 1].limits.velocity.min(drafts[i].limits.velocity);
     }
+    // `reachable_velocity(v, ..)` is never below `v` (for `v` within the span's limit, as every
+    // boundary speed is), so a boundary no faster than its neighbour keeps its speed without
+    // solving for it.
     for i in (1..m).rev() {
         let d = &drafts[i];
-        speeds[i] = speeds[i].min(reachable_velocity(speeds[i + 1], d.length, &d.limits));
+        if speeds[i + 1] < speeds[i] {
+            speeds[i] = speeds[i].min(reachable_velocity(speeds[i + 1], d.length, &d.limits));
+        }
     }
     for i in 0..m.saturating_sub(1) {
         let d = &drafts[i];
-        speeds[i + 1] = speeds[i + 1].min(reachable_velocity(speeds[i], d.length, &d.limits));
+        if speeds[i] < speeds[i + 1] {
+            speeds[i + 1] = speeds[i + 1].min(reachable_velocity(speeds[i], d.length, &d.limits));
+        }
     }
     speeds
 }
@@ -651,5 +872,146 @@ impl Plan {
             out.push_str(&format!("span chain {} pieces {}..{} start {:.6} t {:.4} len {:.6} v0 {:.4} peak {:.4} v1 {:.4} dur {:.4}\n", s.chain, s.first, s.end, s.start, s.start_time, s.recipe.length, s.recipe.v_start, s.recipe.peak, s.recipe.v_end, s.recipe.duration()));
         }
         out
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::plan::path::{AxisKind, AxisLimits, AxisSpec, PathSegment};
+
+    /// Lines with sharp corners (stops), gentle corners (blends), a smoothed run, a tangent arc,
+    /// a zero-length segment and an exact stop, in a few hundred segments.
+    fn mixed_path() -> AxisPath {
+        let axes = (0..3)
+            .map(|i| AxisSpec {
+                name: format!("q{i}"),
+                kind: AxisKind::Linear,
+                limits: AxisLimits {
+                    velocity: 0.2,
+                    acceleration: 2.0,
+                    jerk: 50.0 + 10.0 * i as f64,
+                },
+            })
+            .collect();
+        let blend = Blend::Continuous {
+            tolerance: Some(5e-5),
+        };
+        let mut segments = Vec::new();
+        let mut at = [0.0f64; 3];
+        let push = |geometry: Geometry, blend: Blend, segments: &mut Vec<PathSegment>| {
+            let index = segments.len() as u32;
+            segments.push(PathSegment {
+                geometry,
+                feed: Some(0.1),
+                feed_metric: vec![1.0; 3],
+                blend,
+                source_index: index,
+            });
+        };
+        for k in 0..300 {
+            let kind = k % 40;
+            let step = match kind {
+                // A sharp reversal: a stop.
+                0 => [-1e-3, 2e-4, 0.0],
+                // A short run on a smooth curve.
+                1..=15 => {
+                    let x = k as f64 * 0.1;
+                    [1e-3, 0.0, 1e-4 * x.sin()]
+                }
+                // Gentle corners.
+                16..=30 => [1e-3, if k % 2 == 0 { 2e-4 } else { -2e-4 }, 0.0],
+                _ => [2e-3, 0.0, 0.0],
+            };
+            let end: Vec<f64> = (0..3).map(|i| at[i] + step[i]).collect();
+            let mode = if kind == 33 { Blend::ExactStop } else { blend };
+            push(Geometry::Line { end: end.clone() }, mode, &mut segments);
+            if kind == 35 {
+                // Nothing moves.
+                push(Geometry::Line { end: end.clone() }, blend, &mut segments);
+            }
+            if kind == 37 {
+                // A tangent quarter arc (the line runs along +x; the centre is to the left).
+                let center = [end[0], end[1] + 2e-3];
+                let arc_end = vec![end[0] + 2e-3, end[1] + 2e-3, end[2]];
+                push(
+                    Geometry::Arc {
+                        plane: [0, 1],
+                        center,
+                        clockwise: false,
+                        turns: 0,
+                        end: arc_end.clone(),
+                    },
+                    blend,
+                    &mut segments,
+                );
+                at.copy_from_slice(&arc_end);
+                continue;
+            }
+            at.copy_from_slice(&end);
+        }
+        AxisPath {
+            axes,
+            start: vec![0.0; 3],
+            segments,
+            tool_lever_arms: Vec::new(),
+        }
+    }
+
+    #[test]
+    fn windows_evaluate_bit_identically_to_the_whole_plan() {
+        let path = mixed_path();
+        let whole = plan(&path).unwrap();
+        assert!(
+            whole.pieces.chains.len() > 10,
+            "{}",
+            whole.pieces.chains.len()
+        );
+        let period = 1e-3;
+        let expected = whole.sample(period);
+        let n = path.axes.len();
+        // Windows planned again as they are evaluated, and kept from the timing pass.
+        for (window, most) in [1, 2, 3, 7, 64, 10_000]
+            .into_iter()
+            .flat_map(|w| [(w, 0), (w, usize::MAX)])
+        {
+            let mut windows = PlanWindows::keeping(path.clone(), window, 0, most).unwrap();
+            assert_eq!(windows.duration().to_bits(), whole.duration().to_bits());
+            let (mut p, mut v, mut a) = (vec![0.0; n], vec![0.0; n], vec![0.0; n]);
+            for (k, t) in sample_times(whole.duration(), period).enumerate() {
+                let segment = windows.eval(t, &mut p, &mut v, &mut a);
+                let row = k * n..(k + 1) * n;
+                assert_eq!(segment, expected.segment[k], "window {window} sample {k}");
+                assert_eq!(
+                    p,
+                    expected.position[row.clone()],
+                    "window {window} sample {k}"
+                );
+                assert_eq!(
+                    v,
+                    expected.velocity[row.clone()],
+                    "window {window} sample {k}"
+                );
+                assert_eq!(a, expected.acceleration[row], "window {window} sample {k}");
+            }
+        }
+    }
+
+    #[test]
+    fn windows_of_a_path_that_does_not_move_hold_its_start() {
+        let mut path = mixed_path();
+        path.segments.truncate(3);
+        for s in &mut path.segments {
+            s.geometry = Geometry::Line {
+                end: path.start.clone(),
+            };
+        }
+        let whole = plan(&path).unwrap();
+        let mut windows = PlanWindows::new(path.clone(), 1, 0).unwrap();
+        let (mut p, mut v, mut a) = (vec![1.0; 3], vec![1.0; 3], vec![1.0; 3]);
+        let (mut q, mut w, mut b) = (vec![1.0; 3], vec![1.0; 3], vec![1.0; 3]);
+        let segment = windows.eval(0.0, &mut p, &mut v, &mut a);
+        assert_eq!(segment, whole.eval(0.0, &mut q, &mut w, &mut b));
+        assert_eq!((p, v, a), (q, w, b));
     }
 }

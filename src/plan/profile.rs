@@ -106,7 +106,8 @@ pub fn transfer_distance(v_from: f64, v_to: f64, a: f64, j: f64) -> f64 {
 /// In closed form: a change by Δv covers `T(Δv)·(v_from + Δv/2)`, with `T = Δv/A + A/J` once
 /// it reaches A (Δv ≥ A²/J: a quadratic in Δv) and `T = 2·sqrt(Δv/J)` below (a cubic in
 /// sqrt(Δv), solved by Cardano's formula and polished by Newton steps). The result never needs
-/// more than `distance` (checked; rounding is taken off the top).
+/// more than `distance` (checked; rounding is taken off the top). Never below
+/// `min(v_from, limits.velocity)`.
 pub fn reachable_velocity(v_from: f64, distance: f64, limits: &Limits) -> f64 {
     let (a, j) = (limits.acceleration, limits.jerk);
     if transfer_distance(v_from, limits.velocity, a, j) <= distance {

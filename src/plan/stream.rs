@@ -1,9 +1,10 @@
 //! Setpoint streams computed as they are read: a program's stretches (timed motions and
 //! dwells) are planned first, so the number of samples is known before the first one, and
 //! each sample is evaluated from its stretch when the loop asks for it. Memory grows with the
-//! number of moves, never with the number of servo ticks.
+//! number of moves, never with the number of servo ticks; a jerk-limited motion keeps the plan
+//! of one window of its moves at a time ([`PlanWindows`]).
 
-use super::planner::{Cursor, Plan};
+use super::planner::PlanWindows;
 use super::setpoints::{sample_time, SetpointSample, SetpointStream, Setpoints};
 use super::trapezoid::TrapezoidProfile;
 
@@ -18,10 +19,9 @@ pub(super) enum Stretch {
         segment: u32,
         ticks: usize,
     },
-    /// A jerk-limited plan.
-    Plan {
-        plan: Box<Plan>,
-        cursor: Box<Cursor>,
+    /// A jerk-limited motion planned window by window as it is read.
+    Windows {
+        plan: Box<PlanWindows>,
         ticks: usize,
     },
     /// A straight move with the seed trapezoidal profile.
@@ -40,7 +40,7 @@ impl Stretch {
         match self {
             Stretch::Start { .. } => 0,
             Stretch::Hold { ticks, .. }
-            | Stretch::Plan { ticks, .. }
+            | Stretch::Windows { ticks, .. }
             | Stretch::Trapezoid { ticks, .. } => *ticks,
         }
     }
@@ -54,14 +54,9 @@ impl Stretch {
                 out.acceleration.fill(0.0);
                 out.segment = *segment;
             }
-            Stretch::Plan {
-                plan,
-                cursor,
-                ticks,
-            } => {
+            Stretch::Windows { plan, ticks } => {
                 let t = sample_time(k, *ticks, plan.duration(), period);
-                out.segment = cursor.eval(
-                    plan,
+                out.segment = plan.eval(
                     t,
                     &mut out.position,
                     &mut out.velocity,

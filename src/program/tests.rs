@@ -262,10 +262,17 @@ fn path_control_dwell_spindle_and_feed_modes() {
     assert_eq!(
         moves[1].blend,
         Blend::Continuous {
-            tolerance: Some(0.00002)
+            tolerance: Some(0.00002),
+            naive_cam: None,
         }
     );
-    assert_eq!(moves[2].blend, Blend::Continuous { tolerance: None });
+    assert_eq!(
+        moves[2].blend,
+        Blend::Continuous {
+            tolerance: None,
+            naive_cam: None,
+        }
+    );
     assert_eq!(moves[3].motion, Motion::Dwell { seconds: 1.5 });
     assert_eq!(moves[3].end.linear[0], 0.003);
     assert_eq!(moves[4].spindle, Spindle::Clockwise { rpm: 1200.0 });
@@ -1169,15 +1176,50 @@ fn offsets_tools_and_subroutines_reach_the_machine_position() {
     assert_eq!(program.moves[1].end.linear, [0.101, 0.052, 0.06]);
 }
 
+/// LinuxCNC's G64 P- Q-: the blend tolerance and the naive-CAM tolerance of the moves that
+/// follow, until the next G61/G64 (a G64 without Q gives none).
 #[test]
-fn a_programs_g64_q_is_named_as_not_read() {
-    let program = gcode("G64 P0.05 Q0.03\nG1 X1 F60\nG64 P0.05\nG1 X2");
-    let q: Vec<&str> = program
-        .warnings
+fn a_programs_g64_q_is_carried_with_each_move() {
+    let program =
+        gcode("G64 P0.05 Q0.03\nG1 X1 F60\nX2\nG64 P0.05\nG1 X3\nG20 G64 Q0.001\nX4\nG61 X5");
+    // (P, Q) of each move, in m; None for an exact stop.
+    let blends: Vec<Option<(Option<f64>, Option<f64>)>> = program
+        .moves
         .iter()
-        .map(|w| w.message.as_str())
-        .filter(|m| m.contains("G64 Q"))
+        .map(|m| match m.blend {
+            Blend::Continuous {
+                tolerance,
+                naive_cam,
+            } => Some((tolerance, naive_cam)),
+            Blend::ExactStop => None,
+        })
         .collect();
-    assert_eq!(q.len(), 1, "{:?}", program.warnings);
-    assert!(q[0].contains("naive_cam_tolerance_mm"), "{}", q[0]);
+    let close = |a: Option<f64>, b: Option<f64>| match (a, b) {
+        (Some(a), Some(b)) => (a - b).abs() < 1e-15,
+        (a, b) => a == b,
+    };
+    let expected = [
+        Some((Some(5e-5), Some(3e-5))),
+        Some((Some(5e-5), Some(3e-5))),
+        Some((Some(5e-5), None)),
+        Some((None, Some(0.001 * 0.0254))),
+        None,
+    ];
+    assert_eq!(blends.len(), expected.len(), "{blends:?}");
+    for (found, wanted) in blends.iter().zip(&expected) {
+        let same = match (found, wanted) {
+            (Some((p, q)), Some((wp, wq))) => close(*p, *wp) && close(*q, *wq),
+            (found, wanted) => found == wanted,
+        };
+        assert!(same, "{blends:?}");
+    }
+    assert!(!program.warnings.iter().any(|w| w.message.contains("G64")));
+    let err = crate::program::parse_gcode(
+        "G64 P0.05 Q-1",
+        "bad.ngc",
+        &crate::program::ReadOptions::default(),
+    )
+    .unwrap_err()
+    .to_string();
+    assert!(err.contains("G64 Q tolerance"), "{err}");
 }

@@ -54,15 +54,19 @@ pub enum FeedRule {
     EuclideanAllAxes,
 }
 
-/// Corner behaviour requested for the end of a move (G61 / G64 P).
+/// Corner behaviour requested for the end of a move (G61 / G64 P Q).
 #[derive(Debug, Clone, Copy, PartialEq, Default)]
 pub enum Blend {
     /// Stop exactly at the programmed point.
     #[default]
     ExactStop,
-    /// Pass the corner without stopping, staying within this distance (m) of the programmed
-    /// point; `None` = no tolerance given (G64 without P).
-    Continuous { tolerance: Option<f64> },
+    /// Pass the corner without stopping, staying within `tolerance` (m) of the programmed
+    /// point; `None` = no tolerance given (G64 without P). `naive_cam`: LinuxCNC's naive-CAM
+    /// collinearity tolerance (m, G64 Q), `None` when the program gives no Q.
+    Continuous {
+        tolerance: Option<f64>,
+        naive_cam: Option<f64>,
+    },
 }
 
 /// The geometry of one move.

@@ -786,6 +786,7 @@ fn cl_move(line: u32, end: [f64; 3], tool_axis: Option<[f64; 3]>, motion: Motion
         feed_rule: Default::default(),
         blend: Blend::Continuous {
             tolerance: Some(1e-5),
+            naive_cam: None,
         },
         tool_down: None,
         spindle: Default::default(),

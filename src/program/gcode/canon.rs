@@ -71,7 +71,10 @@ impl Canon {
             units: options.gcode.initial_units,
             offsets: Offsets::default(),
             feed: None,
-            blend: Blend::Continuous { tolerance: None },
+            blend: Blend::Continuous {
+                tolerance: None,
+                naive_cam: None,
+            },
             spindle: Spindle::Off,
             position: Position::default(),
             max_moves: options.gcode.max_moves,

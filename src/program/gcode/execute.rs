@@ -409,16 +409,17 @@ impl Interpreter<'_> {
                     Some(p) if p.value > 0.0 => Some(self.s.units.to_metres(p.value)),
                     _ => None,
                 };
-                self.canon.blend = Blend::Continuous { tolerance };
-                if let Some(q) = block.word(b'q').filter(|q| q.value > 0.0) {
-                    self.canon.program.warnings.push(Warning {
-                        span,
-                        message: format!(
-                            "G64 Q{} (naive-CAM tolerance) is not read from the program: set [planner] naive_cam_tolerance_mm in the scenario",
-                            q.value
-                        ),
-                    });
-                }
+                let naive_cam = match block.word(b'q') {
+                    Some(q) if q.value < 0.0 => {
+                        return Err(q.error("expected a G64 Q tolerance of zero or more"));
+                    }
+                    Some(q) if q.value > 0.0 => Some(self.s.units.to_metres(q.value)),
+                    _ => None,
+                };
+                self.canon.blend = Blend::Continuous {
+                    tolerance,
+                    naive_cam,
+                };
             }
             _ => {}
         }
