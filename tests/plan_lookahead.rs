@@ -354,8 +354,9 @@ fn servo_rate_stream_has_segments_in_order() {
 
 /// A program's own G64 P- Q- (LinuxCNC's naive-CAM tolerance): 40 lines of 1 mm zig-zagging
 /// 5 µm about one line are joined under `G64 P0.05 Q0.01`, exactly as with the scenario's
-/// `naive_cam_tolerance` (which overrides the program's Q, zero turning it off); a G64 without
-/// Q ends the joining where it is programmed.
+/// `naive_cam_tolerance` (which overrides the program's Q, zero turning it off); a G64 Q0
+/// ends the joining where it is programmed; a G64 P without Q joins within P, as LinuxCNC
+/// does (its interpreter sets the naive-CAM tolerance to P).
 #[test]
 fn a_programs_g64_q_joins_collinear_short_lines() {
     use cncsim::kinematics::AxisMap;
@@ -397,17 +398,20 @@ fn a_programs_g64_q_joins_collinear_short_lines() {
         plan_program(program, &axes, &settings).unwrap().duration()
     };
     let with_q = program("G64 P0.05 Q0.01", "");
-    let without_q = program("G64 P0.05", "");
+    let without_q = program("G64 P0.05 Q0", "");
     let joined = duration(&with_q, None);
     let move_by_move = duration(&without_q, None);
-    eprintln!("G64 P0.05 Q0.01: {joined} s; G64 P0.05: {move_by_move} s");
+    eprintln!("G64 P0.05 Q0.01: {joined} s; G64 P0.05 Q0: {move_by_move} s");
     // 0.490 s joined, 0.527 s move by move (the corners are blended within P either way).
     assert!(joined < move_by_move, "{joined} {move_by_move}");
     assert_eq!(duration(&without_q, Some(1e-5)), joined);
     assert_eq!(duration(&with_q, Some(0.0)), move_by_move);
-    let ended = duration(&program("G64 P0.05 Q0.01", "G64 P0.05"), None);
+    let ended = duration(&program("G64 P0.05 Q0.01", "G64 P0.05 Q0"), None);
     assert!(
         joined < ended && ended < move_by_move,
         "{joined} {ended} {move_by_move}"
     );
+    let p_alone = duration(&program("G64 P0.05", ""), None);
+    assert_eq!(p_alone, duration(&program("G64 P0.05 Q0.05", ""), None));
+    assert!(p_alone < move_by_move, "{p_alone} {move_by_move}");
 }

@@ -263,7 +263,7 @@ fn path_control_dwell_spindle_and_feed_modes() {
         moves[1].blend,
         Blend::Continuous {
             tolerance: Some(0.00002),
-            naive_cam: None,
+            naive_cam: Some(0.00002),
         }
     );
     assert_eq!(
@@ -1177,11 +1177,13 @@ fn offsets_tools_and_subroutines_reach_the_machine_position() {
 }
 
 /// LinuxCNC's G64 P- Q-: the blend tolerance and the naive-CAM tolerance of the moves that
-/// follow, until the next G61/G64 (a G64 without Q gives none).
+/// follow, until the next G61/G64. As in LinuxCNC, a G64 with P and no Q takes Q = P, and Q0
+/// gives none.
 #[test]
 fn a_programs_g64_q_is_carried_with_each_move() {
-    let program =
-        gcode("G64 P0.05 Q0.03\nG1 X1 F60\nX2\nG64 P0.05\nG1 X3\nG20 G64 Q0.001\nX4\nG61 X5");
+    let program = gcode(
+        "G64 P0.05 Q0.03\nG1 X1 F60\nX2\nG64 P0.05\nG1 X3\nG20 G64 Q0.001\nX4\nG21 G64 P0.05 Q0 X5\nG61 X6",
+    );
     // (P, Q) of each move, in m; None for an exact stop.
     let blends: Vec<Option<(Option<f64>, Option<f64>)>> = program
         .moves
@@ -1201,8 +1203,9 @@ fn a_programs_g64_q_is_carried_with_each_move() {
     let expected = [
         Some((Some(5e-5), Some(3e-5))),
         Some((Some(5e-5), Some(3e-5))),
-        Some((Some(5e-5), None)),
+        Some((Some(5e-5), Some(5e-5))),
         Some((None, Some(0.001 * 0.0254))),
+        Some((Some(5e-5), None)),
         None,
     ];
     assert_eq!(blends.len(), expected.len(), "{blends:?}");

@@ -413,8 +413,10 @@ impl Interpreter<'_> {
                     Some(q) if q.value < 0.0 => {
                         return Err(q.error("expected a G64 Q tolerance of zero or more"));
                     }
-                    Some(q) if q.value > 0.0 => Some(self.s.units.to_metres(q.value)),
-                    _ => None,
+                    Some(q) => (q.value > 0.0).then(|| self.s.units.to_metres(q.value)),
+                    // As LinuxCNC: G64 P without Q sets the naive-CAM tolerance to P (its
+                    // interpreter test g6164: `G64P1` → SET_NAIVECAM_TOLERANCE(1)).
+                    None => tolerance,
                 };
                 self.canon.blend = Blend::Continuous {
                     tolerance,
