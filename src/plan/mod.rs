@@ -43,11 +43,12 @@ pub use metrics::{
 };
 pub use path::{AxisKind, AxisLimits, AxisPath, AxisSpec, Blend, Geometry, PathError, PathSegment};
 pub use pieces::{SMOOTH_ANGLE, TANGENT_ANGLE};
-pub use planned::{FirstSamples, PlannedProgram};
+pub use planned::PlannedProgram;
 pub use planner::{plan, Plan, SegmentTiming, SPAN_SPREAD};
 pub use profile::{Limits, Profile, Recipe, Regime, VelocityChange};
 pub use setpoints::{
-    sample_count, SetpointCursor, SetpointSample, SetpointStream, Setpoints, MAX_SETPOINT_SAMPLES,
+    sample_count, FirstSamples, SetpointCursor, SetpointSample, SetpointStream, Setpoints,
+    MAX_SETPOINT_SAMPLES,
 };
 pub use stream::collect;
 pub use trapezoid::{trapezoid_line, TrapezoidProfile};

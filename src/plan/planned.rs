@@ -78,68 +78,10 @@ impl PlannedProgram {
     }
 }
 
-/// The first `limit` samples of a stream.
-pub struct FirstSamples<S> {
-    stream: S,
-    left: usize,
-    len: usize,
-}
-
-impl<S: SetpointStream> FirstSamples<S> {
-    pub fn new(stream: S, limit: usize) -> Self {
-        let len = stream.len().min(limit);
-        FirstSamples {
-            stream,
-            left: len,
-            len,
-        }
-    }
-}
-
-impl<S: SetpointStream> SetpointStream for FirstSamples<S> {
-    fn axes(&self) -> usize {
-        self.stream.axes()
-    }
-
-    fn period(&self) -> f64 {
-        self.stream.period()
-    }
-
-    fn len(&self) -> usize {
-        self.len
-    }
-
-    fn next_sample(&mut self, out: &mut SetpointSample) -> bool {
-        if self.left == 0 {
-            return false;
-        }
-        self.left -= 1;
-        self.stream.next_sample(out)
-    }
-}
-
-impl<T: SetpointStream + ?Sized> SetpointStream for Box<T> {
-    fn axes(&self) -> usize {
-        (**self).axes()
-    }
-
-    fn period(&self) -> f64 {
-        (**self).period()
-    }
-
-    fn len(&self) -> usize {
-        (**self).len()
-    }
-
-    fn next_sample(&mut self, out: &mut SetpointSample) -> bool {
-        (**self).next_sample(out)
-    }
-}
-
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::plan::Planner;
+    use crate::plan::{FirstSamples, Planner};
     use crate::program::{Feed, FeedRule, Motion, Move, Position};
 
     fn line_program() -> Program {

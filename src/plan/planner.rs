@@ -294,12 +294,9 @@ impl PlanWindows {
                 Some(kept) => Ok(kept),
                 None => Self::plan_window(&self.path, self.next, &mut self.window, time),
             };
-            // Planned before without error: the same computation cannot fail now; if it
-            // did, the motion would hold where it is.
-            let Ok((plan, next)) = window else {
-                self.next = self.path.segments.len();
-                return false;
-            };
+            // The timing pass planned this window from the same inputs without error.
+            let (plan, next) =
+                window.expect("planning is deterministic: a window planned once plans again");
             self.next = next;
             time = plan.duration;
             if !plan.spans.is_empty() {
