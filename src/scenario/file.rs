@@ -472,7 +472,7 @@ struct RawFeedback {
 struct RawAnalytic {
     #[serde(default = "yes")]
     enabled: bool,
-    /// RK4 steps per servo period.
+    /// Steps per servo period (exact or RK4, see `sim::analytic`).
     #[serde(default = "sixteen")]
     steps_per_period: Spanned<i64>,
 }
@@ -625,7 +625,7 @@ pub struct Scenario {
     pub record_rrd: bool,
     pub record_csv: bool,
     pub decimation: usize,
-    /// RK4 steps per servo period of the analytic reference model; `None` = not run.
+    /// Steps per servo period of the analytic reference model; `None` = not run.
     pub analytic_steps: Option<usize>,
     pub expect: Vec<Expectation>,
     /// `[ab]`: the variants `cncsim ab` runs on this file alone.

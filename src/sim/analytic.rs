@@ -42,15 +42,21 @@
 //!
 //! # Integration and the loop
 //!
-//! Classical RK4 at a fixed step (the servo period over `steps_per_period`), restarted at every
-//! event; the mean motor torque over a hold interval is the integral of the current (a
-//! quadrature state), so it is exact to the integrator's order. [`AnalyticPlant`] puts the
+//! Fixed steps (the servo period over `steps_per_period`), restarted at every event. A mode
+//! whose equations are linear (voltage-mode amplifier or ideal torque, friction without a
+//! Stribeck drop) is solved exactly by its matrix exponential ([`exact`]); a mode that cannot
+//! end (one rigid body, no Coulomb friction) in one step over the whole hold. The other modes
+//! (current-mode amplifier, sliding on a Stribeck curve) are integrated by classical RK4. The
+//! mean motor torque over a hold interval is the integral of the current (a quadrature state),
+//! so it is exact to the method's order. [`AnalyticPlant`] puts the
 //! models behind the loop's plant interface: the loop, the encoder, the trip and the
 //! controller are the very ones the physics runs with.
 
 use super::{Hold, Plant, Sensors};
 use crate::machine::{AmplifierMode, Drive, Feedback, JointKind, Machine, StribeckCurve};
 use nalgebra::{UnitQuaternion, Vector3};
+
+mod exact;
 
 /// Per-axis effects and actuator choice; all off by default.
 #[derive(Debug, Clone, Copy, PartialEq, Default)]
@@ -191,6 +197,7 @@ pub struct AxisModel {
     feedback: Feedback,
     state: AxisState,
     mode: Mode,
+    flows: exact::FlowCache,
 }
 
 /// What an axis did over one hold interval.
@@ -300,6 +307,7 @@ impl AxisModel {
                 contact: Contact::Rigid,
                 guide: Guide::Stuck,
             },
+            flows: exact::FlowCache::default(),
         };
         model.rest_at(0.0);
         Ok(model)
@@ -434,7 +442,7 @@ impl AxisModel {
     }
 
     /// Holds `command` (V at the amplifier input, or N·m for the ideal actuator) for
-    /// `duration` seconds, integrated in `steps` equal RK4 steps.
+    /// `duration` seconds, in `steps` equal steps (exact or RK4, see the module documentation).
     pub fn advance(&mut self, command: f64, duration: f64, steps: usize) -> HoldInterval {
         assert!(
             steps > 0 && duration > 0.0,
@@ -459,9 +467,15 @@ impl AxisModel {
         // A new command is an event: the applied force may have left the stiction band or
         // reversed the contact force.
         self.mode = self.resolve(&mut state, input);
-        let h = duration / steps as f64;
-        for _ in 0..steps {
-            state = self.step(state, input, h);
+        if self.mode_cannot_end() && self.is_linear(self.mode) {
+            // Nothing to locate inside the hold: one exact step over all of it.
+            state = self.propagate(&state, input, duration, true);
+            state = self.project(state);
+        } else {
+            let h = duration / steps as f64;
+            for _ in 0..steps {
+                state = self.step(state, input, h);
+            }
         }
         self.state = state;
         match (self.actuator, input) {
@@ -604,6 +618,38 @@ impl AxisModel {
         rate
     }
 
+    /// The state `duration` after `y` in the current mode: exact where the mode is linear,
+    /// RK4 otherwise. `keep`: the duration recurs (the standard step), so its flow is cached.
+    fn propagate(
+        &mut self,
+        y: &AxisState,
+        input: ActuatorInput,
+        duration: f64,
+        keep: bool,
+    ) -> AxisState {
+        let mode = self.mode;
+        if !self.is_linear(mode) {
+            return self.rk4(y, mode, input, duration);
+        }
+        let w = self.linear_input(input);
+        if let Some(flow) = self.flows.get(mode, duration) {
+            return flow.apply(y, w);
+        }
+        let flow = self
+            .linear_flow(mode, duration)
+            .expect("is_linear: the mode has a linear system");
+        let next = flow.apply(y, w);
+        if keep {
+            self.flows.insert(flow);
+        }
+        next
+    }
+
+    /// Whether no guard of the current mode can fail: one rigid body without Coulomb friction.
+    fn mode_cannot_end(&self) -> bool {
+        self.mode.contact == Contact::Rigid && self.mode.guide == Guide::Sliding { direction: 0.0 }
+    }
+
     fn rk4(&self, y: &AxisState, mode: Mode, input: ActuatorInput, h: f64) -> AxisState {
         let k1 = self.rate(y, mode, input);
         let k2 = self.rate(&y.plus(h / 2.0, &k1), mode, input);
@@ -707,7 +753,7 @@ impl AxisModel {
         let mut remaining = h;
         let mut events = 0;
         loop {
-            let trial = self.rk4(&y, self.mode, input, remaining);
+            let trial = self.propagate(&y, input, remaining, remaining == h);
             if events >= MAX_EVENTS_PER_STEP || self.mode_holds(&trial, self.mode, input) {
                 return self.project(trial);
             }
@@ -715,7 +761,7 @@ impl AxisModel {
             let (mut holds_until, mut fails_at, mut at_fail) = (0.0, remaining, trial);
             for _ in 0..BISECTIONS {
                 let mid = 0.5 * (holds_until + fails_at);
-                let y_mid = self.rk4(&y, self.mode, input, mid);
+                let y_mid = self.propagate(&y, input, mid, false);
                 if self.mode_holds(&y_mid, self.mode, input) {
                     holds_until = mid;
                 } else {
@@ -774,7 +820,7 @@ pub struct AnalyticPlant {
 
 impl AnalyticPlant {
     /// One axis model per machine axis (see [`AxisModel::for_machine`]), each at rest at
-    /// `initial` (joint units), integrated in `steps_per_period` RK4 steps per servo period.
+    /// `initial` (joint units), in `steps_per_period` steps per servo period.
     pub fn new(
         machine: &Machine,
         gravity: [f64; 3],

@@ -65,6 +65,6 @@ pub trait Plant {
     /// Advances one servo period with `command` (one value per axis: amplifier input in V, or
     /// motor torque in N·m for the ideal actuator) held, and says what the actuators did.
     fn hold(&mut self, command: &[f64], out: &mut Hold);
-    /// Integration steps taken so far (physics steps, or RK4 steps of the analytic model).
+    /// Integration steps taken so far (physics steps, or steps of the analytic model).
     fn steps(&self) -> u64;
 }
