@@ -105,6 +105,8 @@ pub struct Plant {
     link_bodies: Vec<RigidBodyHandle>,
     link_offsets: Vec<Isometry3<f64>>,
     axes: Vec<AxisBinding>,
+    /// The dynamic bodies the drives push or react on: the only ones whose forces change.
+    forced_bodies: Vec<RigidBodyHandle>,
     tool_dofs: Vec<ChainDof>,
     guides: Vec<Option<GuidePair>>,
     multibody: Option<MultibodyJointHandle>,
@@ -180,6 +182,9 @@ impl Plant {
                 .is_some_and(|g| g.coefficient().has_stiction())
         });
         world.integration_parameters.contact_recycling = !stiction;
+        // Rapier's statistics (contact and constraint counts) cost a pass over the contact
+        // graph every step; nothing reads them.
+        world.physics_pipeline.counters.disable();
 
         // One body per rigid group (a link and the links fixed to it), at its home pose (all
         // joints at zero); the multibody places them.
@@ -404,11 +409,19 @@ impl Plant {
             link = joint.parent;
         }
 
+        let mut forced_bodies: Vec<RigidBodyHandle> = axes
+            .iter()
+            .flat_map(|a| [a.driven, a.parent])
+            .filter(|&body| world.bodies[body].is_dynamic())
+            .collect();
+        forced_bodies.sort_unstable_by_key(|body| body.into_raw_parts());
+        forced_bodies.dedup();
         let mut plant = Plant {
             world,
             link_bodies,
             link_offsets: groups.offset,
             axes,
+            forced_bodies,
             tool_dofs: Vec::new(),
             guides,
             multibody,
@@ -503,7 +516,9 @@ impl Plant {
     /// (the URDF's axis line), not through the carriage's centre of mass: on a carriage that
     /// pitches, the drive's line decides the moment that shifts the load between the runners.
     pub fn set_joint_forces(&mut self, forces: &[f64]) {
-        for (_, rb) in self.world.bodies.iter_mut() {
+        // Only these bodies: touching a body marks it modified, which Rapier then processes.
+        for &body in &self.forced_bodies {
+            let rb = &mut self.world.bodies[body];
             rb.reset_forces(false);
             rb.reset_torques(false);
         }

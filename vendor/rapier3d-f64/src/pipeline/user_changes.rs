@@ -78,7 +78,12 @@ pub(crate) fn handle_user_changes_to_rigid_bodies(
             let changes = rb.changes;
             let activation = rb.activation;
 
-            if rb.is_enabled() {
+            // cncsim patch: a body touched only through forces or velocities (no change flag
+            // beyond being in the modified set) keeps its island membership; re-checking it
+            // bumped the active-set epoch, which rebuilt the solver's contact graph and
+            // interaction groups every step of a machine whose drives push every step.
+            let membership_may_change = changes != RigidBodyChanges::IN_MODIFIED_SET;
+            if rb.is_enabled() && membership_may_change {
                 // The body's status changed. We need to make sure
                 // it is on the correct active set.
                 if let Some(islands) = islands.as_deref_mut() {

@@ -112,12 +112,17 @@ impl Default for GraphPos {
 #[cfg_attr(feature = "serde-serialize", derive(Serialize, Deserialize))]
 pub(crate) struct SolverContactGraph {
     buckets: Vec<Vec<ContactRef>>,
+    /// cncsim patch: the number of entries in the two-body color buckets (all but the
+    /// generic list), so that a graph without two-body contacts (a machine whose contacts
+    /// all involve its multibody) is not scanned bucket by bucket several times a step.
+    two_body_len: usize,
 }
 
 impl SolverContactGraph {
     pub(crate) fn new() -> Self {
         Self {
             buckets: alloc::vec![Vec::new(); NUM_BUCKETS + 1],
+            two_body_len: 0,
         }
     }
 
@@ -132,6 +137,7 @@ impl SolverContactGraph {
         for b in &mut self.buckets {
             b.clear();
         }
+        self.two_body_len = 0;
     }
 
     /// Inserts a solver-active manifold into its color bucket and returns its
@@ -142,6 +148,9 @@ impl SolverContactGraph {
         let arr = &mut self.buckets[bucket as usize];
         let local = arr.len() as u32;
         arr.push(contact);
+        if bucket != GENERIC_BUCKET {
+            self.two_body_len += 1;
+        }
         GraphPos::new(bucket, local)
     }
 
@@ -164,6 +173,7 @@ impl SolverContactGraph {
             self.buckets.resize_with(NUM_BUCKETS_WITH_GENERIC, Vec::new);
         }
         debug_assert_eq!(lens.len(), self.buckets.len());
+        self.two_body_len = lens[..NUM_BUCKETS].iter().map(|&len| len as usize).sum();
         self.buckets
             .iter_mut()
             .zip(lens.iter())
@@ -193,6 +203,9 @@ impl SolverContactGraph {
         let local = pos.local() as usize;
         let last = arr.len() - 1;
         arr.swap_remove(local);
+        if pos.bucket() != GENERIC_BUCKET {
+            self.two_body_len -= 1;
+        }
         if local != last {
             // The previously-last entry now lives at `local`; its owner's
             // back-ref must be fixed to `pos`.
@@ -207,14 +220,19 @@ impl SolverContactGraph {
     // doesn't need totals.
     #[cfg_attr(not(feature = "parallel"), allow(dead_code))]
     pub(crate) fn len(&self) -> usize {
-        self.buckets.iter().map(|b| b.len()).sum()
+        self.two_body_len
+            + self
+                .buckets
+                .get(GENERIC_BUCKET as usize)
+                .map_or(0, |generic| generic.len())
     }
 
     /// Iterates every non-empty two-body color bucket as `(color, &[ContactRef])`, skipping the
     /// generic list. Colors below [`crate::geometry::SOLVER_COLOR_OVERFLOW`] are body-disjoint;
     /// the overflow color's bucket may share bodies.
     pub(crate) fn buckets(&self) -> impl Iterator<Item = (u8, &[ContactRef])> {
-        self.buckets[..NUM_BUCKETS]
+        let scanned = if self.two_body_len == 0 { 0 } else { NUM_BUCKETS };
+        self.buckets[..scanned]
             .iter()
             .enumerate()
             .filter_map(|(id, arr)| {

@@ -433,13 +433,33 @@ impl PhysicsPipeline {
         soft_bodies.island_events = sb_events;
         self.counters.stages.user_changes.pause();
 
-        // TODO: do this only on user-change.
         // TODO: do we want some kind of automatic inverse kinematics?
+        // cncsim patch: only where the user may have changed something since the forward
+        // kinematics that ended the last step (see `Multibody::kinematics_current`); CCD,
+        // which may clamp link bodies after it, keeps the per-step recomputation.
+        let poses_may_be_stale = |multibody: &crate::dynamics::Multibody, bodies: &RigidBodySet| {
+            !multibody.kinematics_current
+                || integration_parameters.max_ccd_substeps != 0
+                || multibody.links.iter().any(|link| {
+                    bodies.get(link.rigid_body).is_none_or(|rb| {
+                        !rb.changes
+                            .difference(RigidBodyChanges::IN_MODIFIED_SET | RigidBodyChanges::SLEEP)
+                            .is_empty()
+                    })
+                })
+        };
         for multibody in &mut multibody_joints.multibodies {
+            let stale = poses_may_be_stale(multibody.1, bodies);
+            multibody.1.inputs_untouched = !stale;
+            if !stale {
+                continue;
+            }
             multibody.1.forward_kinematics(bodies, true);
             multibody
                 .1
                 .update_rigid_bodies_internal(bodies, true, false, false);
+            // The step's own forward kinematics keeps them so from here on.
+            multibody.1.kinematics_current = true;
         }
 
         // The soft meshes' vertex caches, read by the soft contact passes.

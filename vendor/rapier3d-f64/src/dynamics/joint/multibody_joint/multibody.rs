@@ -140,6 +140,20 @@ pub struct Multibody {
     constant_mass_inputs: Vec<Real>,
     /// Workspace for the inputs of the current step (swapped with the field above).
     constant_mass_inputs_ws: Vec<Real>,
+    /// cncsim patch: the link poses, jacobians and link bodies' poses are those of the joint
+    /// coordinates as the pipeline last left them (its forward kinematics at the end of the
+    /// last step). Cleared by every public mutable access through the `MultibodyJointSet`
+    /// and every change of its topology; while set, the pipeline skips the forward
+    /// kinematics at the start of the step, which would recompute the same values.
+    pub(crate) kinematics_current: bool,
+    /// cncsim patch: nothing of this multibody (joints, damping, armature, topology) nor of
+    /// its link bodies (pose, type, mass properties) was changed from outside the pipeline
+    /// since the last step. Set by the pipeline at the start of a step, cleared with
+    /// `kinematics_current`.
+    pub(crate) inputs_untouched: bool,
+    /// cncsim patch: `body_jacobians` were computed for a translational multibody (every
+    /// joint's angular axes locked), whose jacobians do not depend on its joint coordinates.
+    translational_jacobians: bool,
 }
 impl Default for Multibody {
     fn default() -> Self {
@@ -175,6 +189,9 @@ impl Multibody {
             i_coriolis_dt: Jacobian::zeros(0),
             constant_mass_inputs: Vec::new(),
             constant_mass_inputs_ws: Vec::new(),
+            kinematics_current: false,
+            inputs_untouched: false,
+            translational_jacobians: false,
             root_is_dynamic: false,
             self_contacts_enabled,
             couplings: Vec::new(),
@@ -773,7 +790,24 @@ impl Multibody {
         }
     }
 
+    /// Every joint has all its angular axes locked: no link turns relative to its parent, and
+    /// the root is fixed (a free root joint has none locked).
+    fn is_translational(&self) -> bool {
+        const ANG_MASK: u8 = ((1u8 << ANG_DIM) - 1) << DIM;
+        self.links
+            .iter()
+            .all(|link| link.joint.data.locked_axes.bits() & ANG_MASK == ANG_MASK)
+    }
+
     fn update_body_jacobians(&mut self) {
+        // cncsim patch: a translational multibody's jacobians depend on its joints' frames and
+        // axes and its root's rotation only, not on the coordinates; while nothing was changed
+        // from outside, the last ones hold.
+        let translational = self.is_translational();
+        if translational && self.translational_jacobians && self.inputs_untouched {
+            return;
+        }
+        self.translational_jacobians = translational;
         for i in 0..self.links.len() {
             let link = &self.links[i];
 
@@ -893,6 +927,24 @@ impl Multibody {
     pub(crate) fn update_mass_matrix(&mut self, dt: Real, bodies: &RigidBodySet) {
         if self.ndofs == 0 {
             return; // Nothing to do.
+        }
+
+        // cncsim patch: nothing changed from outside since the last step (so every input but
+        // dt and the angular velocities is as when the key was taken), same dt, no link
+        // turning: the key below would match; skip gathering it.
+        if self.inputs_untouched
+            && self.constant_mass_inputs.first() == Some(&dt)
+            && self.augmented_mass.ncols() == self.ndofs
+            && self.is_translational()
+            && self.links.iter().all(|link| {
+                #[cfg(feature = "dim3")]
+                let still = bodies[link.rigid_body].vels.angvel == AngVector::ZERO;
+                #[cfg(feature = "dim2")]
+                let still = bodies[link.rigid_body].vels.angvel == 0.0;
+                still
+            })
+        {
+            return;
         }
 
         // A multibody whose mass matrix cannot change (see `constant_mass_matrix_inputs`)

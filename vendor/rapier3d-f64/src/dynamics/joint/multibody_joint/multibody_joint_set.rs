@@ -169,7 +169,7 @@ impl MultibodyJointSet {
             .add_edge(link1.graph_id, link2.graph_id, ());
         self.rb2mb.insert(body1.0, link1);
         self.rb2mb.insert(body2.0, link2);
-        self.topology_epoch = self.topology_epoch.wrapping_add(1);
+        self.topology_changed();
 
         let mb2 = self.multibodies.remove(link2.multibody.0).unwrap();
         let multibody1 = &mut self.multibodies[link1.multibody.0];
@@ -202,7 +202,7 @@ impl MultibodyJointSet {
     #[profiling::function]
     pub fn remove(&mut self, handle: MultibodyJointHandle, wake_up: bool) {
         if let Some(removed) = self.rb2mb.get(handle.0).copied() {
-            self.topology_epoch = self.topology_epoch.wrapping_add(1);
+            self.topology_changed();
             let multibody = self.multibodies.remove(removed.multibody.0).unwrap();
             self.island_chain_events.push(removed.multibody);
 
@@ -258,7 +258,7 @@ impl MultibodyJointSet {
     #[profiling::function]
     pub fn remove_multibody_articulations(&mut self, handle: RigidBodyHandle, wake_up: bool) {
         if let Some(removed) = self.rb2mb.get(handle.0).copied() {
-            self.topology_epoch = self.topology_epoch.wrapping_add(1);
+            self.topology_changed();
             // Remove the multibody.
             let multibody = self.multibodies.remove(removed.multibody.0).unwrap();
             self.island_chain_events.push(removed.multibody);
@@ -318,7 +318,19 @@ impl MultibodyJointSet {
     /// `MultibodyJointSet`.
     pub fn get_multibody_mut(&mut self, index: MultibodyIndex) -> Option<&mut Multibody> {
         // TODO: modification tracking.
-        self.multibodies.get_mut(index.0)
+        let multibody = self.multibodies.get_mut(index.0)?;
+        multibody.kinematics_current = false;
+        multibody.inputs_untouched = false;
+        Some(multibody)
+    }
+
+    /// A multibody was inserted, removed or re-linked (cncsim patch: no pose is current).
+    fn topology_changed(&mut self) {
+        self.topology_epoch = self.topology_epoch.wrapping_add(1);
+        for (_, multibody) in self.multibodies.iter_mut() {
+            multibody.kinematics_current = false;
+            multibody.inputs_untouched = false;
+        }
     }
 
     /// Gets a mutable reference to a multibody, based on its temporary index.
@@ -340,6 +352,8 @@ impl MultibodyJointSet {
     pub fn get_mut(&mut self, handle: MultibodyJointHandle) -> Option<(&mut Multibody, usize)> {
         let link = self.rb2mb.get(handle.0)?;
         let multibody = self.multibodies.get_mut(link.multibody.0)?;
+        multibody.kinematics_current = false;
+        multibody.inputs_untouched = false;
         Some((multibody, link.id))
     }
 
@@ -353,6 +367,8 @@ impl MultibodyJointSet {
         // TODO: modification tracking?
         let link = self.rb2mb.get(handle.0)?;
         let multibody = self.multibodies.get_mut(link.multibody.0)?;
+        multibody.kinematics_current = false;
+        multibody.inputs_untouched = false;
         Some((multibody, link.id))
     }
 

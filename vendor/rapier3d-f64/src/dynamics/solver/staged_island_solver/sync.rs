@@ -19,7 +19,7 @@ type CursorInt = u32;
 type AtomicCursor = core::sync::atomic::AtomicU32;
 
 /// Bit position of the stage ordinal in a packed cursor; the claim position takes the low half.
-/// A step builds a fresh [`StageSync`] and every worker restarts at stage 0, so the stage half
+/// A step resets its [`StageSync`] to the fresh state and every worker restarts at stage 0, so the stage half
 /// only has to hold one step's stage count.
 const STAGE_SHIFT: u32 = CursorInt::BITS / 2;
 /// Mask of a packed cursor's position half.
@@ -60,6 +60,21 @@ impl StageSync {
             cursors: (0..num_workers)
                 .map(|_| PaddedCursor(AtomicCursor::new(0)))
                 .collect(),
+        }
+    }
+
+    /// The state of [`Self::new`] for `num_workers`, reusing the cursor allocation when the
+    /// worker count is unchanged (cncsim patch: a step used to allocate a fresh one).
+    pub(super) fn reset(&mut self, num_workers: usize) {
+        if self.cursors.len() != num_workers {
+            *self = Self::new(num_workers);
+            return;
+        }
+        self.published = AtomicUsize::new(0);
+        self.advance_ticket = AtomicUsize::new(0);
+        self.completed = AtomicUsize::new(0);
+        for cursor in &mut self.cursors {
+            cursor.0 = AtomicCursor::new(0);
         }
     }
 
