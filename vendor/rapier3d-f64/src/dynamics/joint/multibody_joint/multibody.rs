@@ -154,6 +154,11 @@ pub struct Multibody {
     /// cncsim patch: `body_jacobians` were computed for a translational multibody (every
     /// joint's angular axes locked), whose jacobians do not depend on its joint coordinates.
     translational_jacobians: bool,
+    /// cncsim patch: bumped whenever `inv_augmented_mass` is refactorised.
+    mass_generation: u64,
+    /// cncsim patch: `M⁻¹·j` of the jacobian rows solved since the last refactorisation.
+    #[cfg_attr(feature = "serde-serialize", serde(skip))]
+    solve_cache: InvMassSolveCache,
 }
 impl Default for Multibody {
     fn default() -> Self {
@@ -192,6 +197,8 @@ impl Multibody {
             kinematics_current: false,
             inputs_untouched: false,
             translational_jacobians: false,
+            mass_generation: 0,
+            solve_cache: InvMassSolveCache::default(),
             root_is_dynamic: false,
             self_contacts_enabled,
             couplings: Vec::new(),
@@ -1215,6 +1222,7 @@ impl Multibody {
         self.augmented_mass_indices
             .rearrange_rows(&mut self.augmented_mass, true);
 
+        self.mass_generation = self.mass_generation.wrapping_add(1);
         // TODO: avoid allocation inside LU at each timestep.
         self.acc_inv_augmented_mass = LU::new(
             self.acc_augmented_mass
@@ -1783,12 +1791,23 @@ impl Multibody {
             jacobians[wj_id + i] = jacobians[*j_id + i];
         }
 
-        {
-            let mut out_invm_j = jacobians.rows_mut(wj_id, self.ndofs);
-            self.augmented_mass_indices
-                .with_rearranged_rows_mut(&mut out_invm_j, |out_invm_j| {
-                    self.inv_augmented_mass.solve_mut(out_invm_j);
-                });
+        // cncsim patch: a row solved before against the same factorisation (a contact or joint
+        // limit of a multibody whose mass matrix is kept) is not solved again.
+        let n = self.ndofs;
+        let (head, tail) = jacobians.as_mut_slice().split_at_mut(wj_id);
+        let j_row = &head[*j_id..*j_id + n];
+        let out = &mut tail[..n];
+        if !self.solve_cache.lookup(self.mass_generation, j_row, out) {
+            {
+                let mut out_invm_j = jacobians.rows_mut(wj_id, self.ndofs);
+                self.augmented_mass_indices
+                    .with_rearranged_rows_mut(&mut out_invm_j, |out_invm_j| {
+                        self.inv_augmented_mass.solve_mut(out_invm_j);
+                    });
+            }
+            let (head, tail) = jacobians.as_slice().split_at(wj_id);
+            self.solve_cache
+                .insert(self.mass_generation, &head[*j_id..*j_id + n], &tail[..n]);
         }
 
         let j = jacobians.rows(*j_id, self.ndofs);
@@ -2194,5 +2213,88 @@ mod test {
             vec,
             DVector::from(vec![0.0, 10.0, 0.0, 0.0, 0.0, 50.0, 60.0, 0.0, 80.0, 0.0])
         );
+    }
+}
+
+/// cncsim patch: a small memo of `M⁻¹·j` for [`Multibody::fill_jacobians`], which takes the
+/// multibody by shared reference. Entries belong to one factorisation (`generation`) and are
+/// looked up by the exact bits of `j`, so a hit returns what the solve would: the same LU on
+/// the same vector. A multibody whose mass matrix is refactorised every step gains nothing and
+/// loses one comparison. Shared between solver threads through a try-lock: a thread that finds
+/// it taken just solves.
+#[derive(Default)]
+struct InvMassSolveCache {
+    busy: core::sync::atomic::AtomicBool,
+    entries: core::cell::UnsafeCell<InvMassSolveEntries>,
+}
+
+#[derive(Default)]
+struct InvMassSolveEntries {
+    generation: u64,
+    /// Rows of `2·ndofs` values: `j`, then `M⁻¹·j`.
+    rows: Vec<Real>,
+}
+
+/// Rows kept per factorisation: the contacts and joint limits of a machine, with room.
+const INV_MASS_SOLVE_CACHE_ROWS: usize = 32;
+
+// SAFETY: `entries` is only reached by the thread that won `busy` (see `with_entries`).
+unsafe impl Sync for InvMassSolveCache {}
+
+impl Clone for InvMassSolveCache {
+    fn clone(&self) -> Self {
+        Self::default()
+    }
+}
+
+impl core::fmt::Debug for InvMassSolveCache {
+    fn fmt(&self, f: &mut core::fmt::Formatter<'_>) -> core::fmt::Result {
+        f.write_str("InvMassSolveCache")
+    }
+}
+
+impl InvMassSolveCache {
+    fn with_entries<R>(&self, f: impl FnOnce(&mut InvMassSolveEntries) -> R) -> Option<R> {
+        use core::sync::atomic::Ordering;
+        if self.busy.swap(true, Ordering::Acquire) {
+            return None;
+        }
+        // SAFETY: this thread holds `busy`, so no other reference to `entries` exists.
+        let result = f(unsafe { &mut *self.entries.get() });
+        self.busy.store(false, Ordering::Release);
+        Some(result)
+    }
+
+    /// Writes the cached `M⁻¹·j` into `out` and returns `true` on a hit.
+    fn lookup(&self, generation: u64, j: &[Real], out: &mut [Real]) -> bool {
+        let n = j.len();
+        self.with_entries(|e| {
+            if e.generation != generation || n == 0 {
+                return false;
+            }
+            for row in e.rows.chunks_exact(2 * n) {
+                let (key, value) = row.split_at(n);
+                if key.iter().zip(j).all(|(a, b)| a.to_bits() == b.to_bits()) {
+                    out.copy_from_slice(value);
+                    return true;
+                }
+            }
+            false
+        })
+        .unwrap_or(false)
+    }
+
+    fn insert(&self, generation: u64, j: &[Real], invm_j: &[Real]) {
+        let n = j.len();
+        let _ = self.with_entries(|e| {
+            if e.generation != generation {
+                e.generation = generation;
+                e.rows.clear();
+            }
+            if n > 0 && e.rows.len() < INV_MASS_SOLVE_CACHE_ROWS * 2 * n {
+                e.rows.extend_from_slice(j);
+                e.rows.extend_from_slice(invm_j);
+            }
+        });
     }
 }
