@@ -120,10 +120,10 @@ impl AxisModel {
             Actuator::IdealTorque { .. } => (0.0, self.ratio),
         };
         a[(Q, I)] = 1.0;
-        // Friction against the direction of sliding: a constant here (is_linear).
+        // Friction against the direction of sliding: a constant here (is_linear; direction 0
+        // means no Coulomb friction at all).
         let friction = match mode.guide {
             Guide::Stuck => 0.0,
-            Guide::Sliding { direction } if direction == 0.0 => 0.0,
             Guide::Sliding { direction } => self.friction.kinetic * direction,
         };
         let sliding = matches!(mode.guide, Guide::Sliding { .. });
