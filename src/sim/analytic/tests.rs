@@ -666,12 +666,21 @@ fn linear_system_is_the_rate_of_every_linear_mode() {
     };
     let options = friction_and_backlash();
     let mut checked = 0;
-    for ideal_actuator in [false, true] {
-        let axis = x_axis(AxisModelOptions {
-            ideal_actuator,
-            ..options
-        });
-        let input = axis.input(0.8);
+    // Gravity along the axis and guide damping (every term of A and B non-zero somewhere), and
+    // one command inside the supply and one far beyond it (the clamp).
+    for (ideal_actuator, command) in [(false, 0.8), (false, 40.0), (true, 0.8)] {
+        let axis = AxisModel::from_drive(
+            &x_drive(),
+            20.0,
+            -9.81,
+            35.0,
+            AxisModelOptions {
+                ideal_actuator,
+                ..options
+            },
+        )
+        .unwrap();
+        let input = axis.input(command);
         let contacts = [
             Contact::Rigid,
             Contact::Open,
@@ -704,7 +713,7 @@ fn linear_system_is_the_rate_of_every_linear_mode() {
             }
         }
     }
-    assert_eq!(checked, 32);
+    assert_eq!(checked, 48);
     // Not linear: the current-mode amplifier, and a Stribeck curve while sliding.
     let current = x_axis_current_mode(options);
     let rigid = |guide| Mode {

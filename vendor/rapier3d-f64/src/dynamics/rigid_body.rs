@@ -1279,6 +1279,8 @@ impl RigidBody {
     pub(crate) fn update_world_mass_properties(&mut self) {
         self.mprops
             .update_world_mass_properties(self.body_type, &self.pos.position);
+        // cncsim patch: the lock setters come through here; let the pipeline see the change.
+        self.changes.insert(RigidBodyChanges::WORLD_MASS_PROPERTIES);
     }
 }
 

@@ -117,6 +117,9 @@ bitflags::bitflags! {
         const LOCAL_MASS_PROPERTIES = 1 << 6;
         /// Flag indicating that the rigid-body was enabled or disabled.
         const ENABLED_OR_DISABLED = 1 << 7;
+        /// cncsim patch: a setter changed the locked axes, and with them the effective mass
+        /// and world-space mass properties (nothing else flagged that).
+        const WORLD_MASS_PROPERTIES = 1 << 8;
     }
 }
 

@@ -440,6 +440,13 @@ impl PhysicsPipeline {
         let poses_may_be_stale = |multibody: &crate::dynamics::Multibody, bodies: &RigidBodySet| {
             !multibody.kinematics_current
                 || integration_parameters.max_ccd_substeps != 0
+                // A root body moved without a flag that survived (e.g. a collision pipeline
+                // step cleared it): the links must follow.
+                || multibody.links.first().is_none_or(|root| {
+                    bodies
+                        .get(root.rigid_body)
+                        .is_none_or(|rb| *rb.position() != root.local_to_world)
+                })
                 || multibody.links.iter().any(|link| {
                     bodies.get(link.rigid_body).is_none_or(|rb| {
                         !rb.changes

@@ -408,6 +408,7 @@ impl Multibody {
     /// Mutable reference to the first link of this multibody.
     #[inline]
     pub fn root_mut(&mut self) -> &mut MultibodyLink {
+        self.mark_touched();
         &mut self.links[0]
     }
 
@@ -424,6 +425,7 @@ impl Multibody {
     /// Return `None` if the given id does not identifies a multibody link part of `self`.
     #[inline]
     pub fn link_mut(&mut self, id: usize) -> Option<&mut MultibodyLink> {
+        self.mark_touched();
         self.links.get_mut(id)
     }
 
@@ -443,6 +445,7 @@ impl Multibody {
     ///
     /// All link are guaranteed to be yielded before its descendant.
     pub fn links_mut(&mut self) -> impl Iterator<Item = &mut MultibodyLink> {
+        self.mark_touched();
         self.links.iter_mut()
     }
 
@@ -455,6 +458,7 @@ impl Multibody {
     /// Mutable vector of damping applied to this multibody.
     #[inline]
     pub fn damping_mut(&mut self) -> &mut DVector {
+        self.mark_touched();
         &mut self.damping
     }
 
@@ -469,6 +473,7 @@ impl Multibody {
     /// multibody.
     #[inline]
     pub fn armature_mut(&mut self) -> &mut DVector {
+        self.mark_touched();
         &mut self.armature
     }
 
@@ -795,6 +800,13 @@ impl Multibody {
 
             bodies.index_mut_internal(link.rigid_body).vels = new_rb_vels;
         }
+    }
+
+    /// cncsim patch: something of this multibody may change through the caller's `&mut`;
+    /// its kinematics and the inputs of its kept matrices are no longer known to be current.
+    pub(crate) fn mark_touched(&mut self) {
+        self.kinematics_current = false;
+        self.inputs_untouched = false;
     }
 
     /// Every joint has all its angular axes locked: no link turns relative to its parent, and
@@ -1434,6 +1446,7 @@ impl Multibody {
     /// Note this does **not** updates the link poses, only their generalized coordinates.
     /// To update the link poses and associated rigid-bodies, call [`Self::forward_kinematics`].
     pub fn apply_displacements(&mut self, disp: &[Real]) {
+        self.mark_touched();
         for link in self.links.iter_mut() {
             link.joint.apply_displacement(&disp[link.assembly_id..])
         }
@@ -2246,6 +2259,11 @@ impl Clone for InvMassSolveCache {
         Self::default()
     }
 }
+
+// The memo holds no invariant a panic could break halfway: a poisoned (still taken) lock only
+// makes later calls solve as unpatched Rapier does.
+#[cfg(feature = "std")]
+impl std::panic::RefUnwindSafe for InvMassSolveCache {}
 
 impl core::fmt::Debug for InvMassSolveCache {
     fn fmt(&self, f: &mut core::fmt::Formatter<'_>) -> core::fmt::Result {

@@ -319,8 +319,7 @@ impl MultibodyJointSet {
     pub fn get_multibody_mut(&mut self, index: MultibodyIndex) -> Option<&mut Multibody> {
         // TODO: modification tracking.
         let multibody = self.multibodies.get_mut(index.0)?;
-        multibody.kinematics_current = false;
-        multibody.inputs_untouched = false;
+        multibody.mark_touched();
         Some(multibody)
     }
 
@@ -328,8 +327,7 @@ impl MultibodyJointSet {
     fn topology_changed(&mut self) {
         self.topology_epoch = self.topology_epoch.wrapping_add(1);
         for (_, multibody) in self.multibodies.iter_mut() {
-            multibody.kinematics_current = false;
-            multibody.inputs_untouched = false;
+            multibody.mark_touched();
         }
     }
 
@@ -352,8 +350,7 @@ impl MultibodyJointSet {
     pub fn get_mut(&mut self, handle: MultibodyJointHandle) -> Option<(&mut Multibody, usize)> {
         let link = self.rb2mb.get(handle.0)?;
         let multibody = self.multibodies.get_mut(link.multibody.0)?;
-        multibody.kinematics_current = false;
-        multibody.inputs_untouched = false;
+        multibody.mark_touched();
         Some((multibody, link.id))
     }
 
@@ -367,8 +364,7 @@ impl MultibodyJointSet {
         // TODO: modification tracking?
         let link = self.rb2mb.get(handle.0)?;
         let multibody = self.multibodies.get_mut(link.multibody.0)?;
-        multibody.kinematics_current = false;
-        multibody.inputs_untouched = false;
+        multibody.mark_touched();
         Some((multibody, link.id))
     }
 
