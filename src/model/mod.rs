@@ -173,15 +173,10 @@ impl Plant {
         parameters.contact_softness = stiff;
         parameters.static_contact_softness = stiff;
         world.gravity = to_vec(&Vector3::from(options.gravity));
-        // A recycled contact pair (one that moved less than a few centimetres since its last
-        // full update) keeps the friction coefficient it was built with; stiction changes the
-        // coefficient every step, so its pairs must be rebuilt every step.
-        let stiction = machine.axes.iter().any(|a| {
-            a.drive
-                .guide
-                .is_some_and(|g| g.coefficient().has_stiction())
-        });
-        world.integration_parameters.contact_recycling = !stiction;
+        // A contact pair that moved less than a few centimetres since its last full update is
+        // recycled, not rebuilt. Stiction sets the guides' friction coefficient every step;
+        // the patched Rapier carries it into recycled pairs (docs/rapier-patch.md, patch 9).
+        world.integration_parameters.contact_recycling = true;
         // Rapier's statistics (contact and constraint counts) cost a pass over the contact
         // graph every step; nothing reads them.
         world.physics_pipeline.counters.disable();

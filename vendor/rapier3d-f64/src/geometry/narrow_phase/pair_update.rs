@@ -164,6 +164,19 @@ pub(super) fn process_pair(
                             *hint & PAIR_HINT_DYN_BIT != 0 && *hint & PAIR_HINT_COUNT_MASK != 0;
                     }
 
+                    // cncsim patch: a recycled pair follows its colliders' friction (a
+                    // material change sets no collider flag, so it would otherwise keep the
+                    // coefficient of its last full update).
+                    let friction = CoefficientCombineRule::combine(
+                        co1.material.friction,
+                        co2.material.friction,
+                        co1.material.friction_combine_rule,
+                        co2.material.friction_combine_rule,
+                    );
+                    for manifold in pair.solver_manifolds_mut() {
+                        manifold.data.friction = friction;
+                    }
+
                     return if requalified {
                         OUTCOME_RECYCLED_REQUALIFIED
                     } else {
