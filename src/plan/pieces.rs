@@ -319,14 +319,8 @@ impl Budget {
     /// The speed ceiling with centripetal share `rho`: `K2·v² ≤ rho·a`, `K3·v³ ≤ rho·j` on
     /// every axis, and the straight ceiling.
     fn ceiling(&self, rho: f64) -> f64 {
-        let v = self.velocity.min((rho * self.curve_acceleration).sqrt());
-        // The jerk term caps v only where v³ exceeds it (a cube is cheaper than a cube root).
-        let jerk_cap = rho * self.curve_jerk;
-        if v * v * v > jerk_cap {
-            jerk_cap.cbrt()
-        } else {
-            v
-        }
+        let v = acceleration_ceiling(self.velocity, self.curve_acceleration, rho);
+        jerk_ceiling(v, self.curve_jerk, rho)
     }
 
     /// The limits of the stretch if it were straight (no share to the curvature).
@@ -346,6 +340,24 @@ impl Budget {
         }
         let v = limits.velocity;
         (v * v / self.curve_acceleration).max(v.powi(3) / self.curve_jerk)
+    }
+}
+
+/// The speed ceiling of [`Budget::ceiling`] before the jerk term: the straight ceiling
+/// `velocity` and `K2·v² ≤ rho·a` on every axis.
+fn acceleration_ceiling(velocity: f64, curve_acceleration: f64, rho: f64) -> f64 {
+    velocity.min((rho * curve_acceleration).sqrt())
+}
+
+/// [`acceleration_ceiling`]'s `v` capped by the jerk term `K3·v³ ≤ rho·j` too. Never more than
+/// one ulp above `v` (the cube root is taken only of a value below the rounded cube of `v`).
+fn jerk_ceiling(v: f64, curve_jerk: f64, rho: f64) -> f64 {
+    // The jerk term caps v only where v³ exceeds it (a cube is cheaper than a cube root).
+    let jerk_cap = rho * curve_jerk;
+    if v * v * v > jerk_cap {
+        jerk_cap.cbrt()
+    } else {
+        v
     }
 }
 
@@ -874,33 +886,61 @@ impl<'a> Builder<'a> {
             (Some(a), Some(b)) => Some(a.min(b)),
             (a, b) => a.or(b),
         };
+        // The straight ceiling of every ramp's bounds (K1 = max(|u1|, |u2|) whatever the
+        // blend's length), reduced as `Budget::reduce` reduces it.
+        let mut velocity = feed.unwrap_or(f64::INFINITY);
+        for (i, axis) in axes.iter().enumerate() {
+            let k1 = u1[i].abs().max(u2[i].abs());
+            if k1 > 0.0 {
+                velocity = velocity.min(axis.limits.velocity / k1);
+            }
+        }
         let mut best: Option<(f64, CornerBlend)> = None;
         for &ramp in &RAMPS {
             let shape = TurnShape::new(ramp);
             let within = tolerance / (shape.midpoint_integral() * du_norm);
-            // The shortest blend whose ceiling reaches the target speed, per axis.
-            let mut needed: f64 = 0.0;
+            // The shortest blend whose ceiling reaches the target speed, per axis: the largest
+            // of the acceleration terms and of the jerk terms' square roots (the square root of
+            // the largest, the same number: rounding keeps the square root monotonic).
+            let (mut needed_by_acceleration, mut needed_by_jerk) = (0.0f64, 0.0f64);
             for (i, axis) in axes.iter().enumerate() {
                 let du = (u2[i] - u1[i]).abs();
                 if du > 0.0 {
                     let l = axis.limits;
-                    needed = needed
-                        .max(target * target * shape.peak() * du / (SIZING_SHARE * l.acceleration))
-                        .max(
-                            (target.powi(3) * shape.peak_rate() * du / (SIZING_SHARE * l.jerk))
-                                .sqrt(),
-                        );
+                    needed_by_acceleration = needed_by_acceleration.max(
+                        target * target * shape.peak() * du / (SIZING_SHARE * l.acceleration),
+                    );
+                    needed_by_jerk = needed_by_jerk.max(
+                        target.powi(3) * shape.peak_rate() * du / (SIZING_SHARE * l.jerk),
+                    );
                 }
             }
+            let needed = needed_by_acceleration.max(needed_by_jerk.sqrt());
             let length = within.min(longest).min(needed);
             if length.is_nan() || length <= 0.0 {
                 continue;
             }
-            self.corner_bounds(u1, u2, length, shape);
-            let ceiling = self
-                .bounds
-                .reduced(self.table.axes(), feed)
-                .ceiling(SIZING_SHARE);
+            // The ceiling of the blend's budget (`corner_bounds`, then `Budget::reduce` and
+            // `Budget::ceiling`), computed from the curvature bounds alone.
+            let (mut curve_acceleration, mut curve_jerk) = (f64::INFINITY, f64::INFINITY);
+            for (i, axis) in axes.iter().enumerate() {
+                let du = (u2[i] - u1[i]).abs();
+                let k2 = shape.peak() * du / length;
+                let k3 = shape.peak_rate() * du / (length * length);
+                if k2 > 0.0 {
+                    curve_acceleration = curve_acceleration.min(axis.limits.acceleration / k2);
+                }
+                if k3 > 0.0 {
+                    curve_jerk = curve_jerk.min(axis.limits.jerk / k3);
+                }
+            }
+            let v = acceleration_ceiling(velocity, curve_acceleration, SIZING_SHARE);
+            // The jerk term only lowers `v` (to at most one ulp above it): a `v` below the best
+            // ceiling cannot beat it, and needs no cube root.
+            if best.is_some_and(|(c, _)| v < c) {
+                continue;
+            }
+            let ceiling = jerk_ceiling(v, curve_jerk, SIZING_SHARE);
             if best.is_none_or(|(c, _)| ceiling > c) {
                 best = Some((ceiling, CornerBlend { length, shape }));
             }
