@@ -204,7 +204,8 @@ pub(super) struct Budget {
     /// min a_i/K2_i, min j_i/K3_i (infinite on a straight stretch).
     curve_acceleration: f64,
     curve_jerk: f64,
-    /// Where K1, K2, K3 (one entry per axis each) start in the table.
+    /// Where K1, K2, K3 (one entry per axis each) start in the table (not stored for a
+    /// straight stretch).
     bounds: usize,
 }
 
@@ -227,13 +228,25 @@ impl Budgets {
         &self.axes
     }
 
-    /// Stores the bounds of a stretch and returns its budget.
+    /// Stores the bounds of a stretch and returns its budget. A straight stretch's limits
+    /// follow from its minima alone, so its bounds are not stored.
     fn add(&mut self, k1: &[f64], k2: &[f64], k3: &[f64], feed: Option<f64>) -> Budget {
         let b = Budget::reduce(&self.axes, k1, k2, k3, feed, self.table.len());
-        self.table.extend_from_slice(k1);
-        self.table.extend_from_slice(k2);
-        self.table.extend_from_slice(k3);
+        if !b.is_straight() {
+            self.table.extend_from_slice(k1);
+            self.table.extend_from_slice(k2);
+            self.table.extend_from_slice(k3);
+        }
         b
+    }
+
+    /// The speed limit of [`Self::limits`] alone.
+    fn velocity_limit(&self, b: &Budget, rho: f64) -> f64 {
+        if b.is_straight() {
+            b.straight().velocity
+        } else {
+            b.ceiling(rho)
+        }
     }
 
     /// Limits with centripetal share `rho` (see the module documentation): the speed ceiling
@@ -858,8 +871,8 @@ impl<'a> Builder<'a> {
         };
         match junction {
             Junction::Corner { budget, .. } | Junction::Tangent { budget, .. } => {
-                let limits = self.table.limits(&budget, SIZING_SHARE);
-                if self.stop_is_faster(p, k, junction.length(), limits) {
+                let speed = self.table.velocity_limit(&budget, SIZING_SHARE);
+                if self.stop_is_faster(p, k, junction.length(), speed) {
                     Junction::Stop
                 } else {
                     junction
@@ -990,11 +1003,11 @@ impl<'a> Builder<'a> {
     }
 
     /// Whether stopping at the junction between `p` and `k` loses less time than a blend of
-    /// `length` with `limits`. Each side would cruise at what it reaches from rest in half its
+    /// `length` with speed limit `speed`. Each side would cruise at what it reaches from rest in half its
     /// length; slowing from cruise `v` to `u` and back loses about `T·(v − u)/(2·v)` (a change
     /// lasting T covers its distance at the mean speed), and the blend itself takes
     /// `length/u` where cruising would take `length/v`.
-    fn stop_is_faster(&mut self, p: usize, k: usize, length: f64, limits: Limits) -> bool {
+    fn stop_is_faster(&mut self, p: usize, k: usize, length: f64, speed: f64) -> bool {
         let mut side = |segment: usize| {
             let l = self.budgets[segment].straight();
             let length = self.shapes.shapes[segment].length;
@@ -1016,7 +1029,7 @@ impl<'a> Builder<'a> {
                 .sum()
         };
         let cruise = sides[0].1.max(sides[1].1);
-        let u = limits.velocity.min(cruise);
+        let u = speed.min(cruise);
         let blend = loss(u) + (length / u - length / cruise).max(0.0);
         loss(0.0) < blend
     }
