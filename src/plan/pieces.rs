@@ -374,6 +374,49 @@ fn jerk_ceiling(v: f64, curve_jerk: f64, rho: f64) -> f64 {
     }
 }
 
+/// The axes of a corner from direction `u1` to `u2` (as bits: axis `i` is bit `i`) that can
+/// give the largest blend size and the lowest ceiling, whatever the ramp and the length: those
+/// whose `a_i/|Δu_i|` (first mask) or `j_i/|Δu_i|` (second) is within 1e-9 of the lowest. Every
+/// term of [`Builder::corner`] on an axis is its ratio times a factor common to all axes, to
+/// within a few roundings (each of at most 2⁻⁵³ relative, while every number stays far from
+/// overflow and underflow), so the other axes can neither hold the extreme nor tie with it.
+/// All axes (every bit set) when the numbers are out of that range; axes past the 64th always
+/// count.
+fn binding_axes(axes: &[AxisSpec], u1: &[f64], u2: &[f64], target: f64) -> (u64, u64) {
+    const RANGE: std::ops::RangeInclusive<f64> = 1e-50..=1e50;
+    let all = (u64::MAX, u64::MAX);
+    if !RANGE.contains(&target) {
+        return all;
+    }
+    let (mut lowest_a, mut lowest_j) = (f64::INFINITY, f64::INFINITY);
+    for (i, axis) in axes.iter().enumerate() {
+        let du = (u2[i] - u1[i]).abs();
+        if du == 0.0 {
+            continue;
+        }
+        let l = axis.limits;
+        if !(RANGE.contains(&du) && RANGE.contains(&l.acceleration) && RANGE.contains(&l.jerk)) {
+            return all;
+        }
+        lowest_a = lowest_a.min(l.acceleration / du);
+        lowest_j = lowest_j.min(l.jerk / du);
+    }
+    let (mut by_acceleration, mut by_jerk) = (0u64, 0u64);
+    for (i, axis) in axes.iter().enumerate().take(64) {
+        let du = (u2[i] - u1[i]).abs();
+        if du == 0.0 {
+            continue;
+        }
+        if axis.limits.acceleration / du <= lowest_a * (1.0 + 1e-9) {
+            by_acceleration |= 1 << i;
+        }
+        if axis.limits.jerk / du <= lowest_j * (1.0 + 1e-9) {
+            by_jerk |= 1 << i;
+        }
+    }
+    (by_acceleration, by_jerk)
+}
+
 /// Per-axis derivative bounds of one stretch (scratch, reused).
 #[derive(Debug, Clone, Default)]
 struct AxisBounds {
@@ -908,6 +951,9 @@ impl<'a> Builder<'a> {
                 velocity = velocity.min(axis.limits.velocity / k1);
             }
         }
+        // Only the axes that can hold the largest size or the lowest ceiling need computing.
+        let (by_acceleration, by_jerk) = binding_axes(axes, u1, u2, target);
+        let binds = |mask: u64, i: usize| i >= 64 || mask & (1 << i) != 0;
         let mut best: Option<(f64, CornerBlend)> = None;
         for &ramp in &RAMPS {
             let shape = TurnShape::new(ramp);
@@ -920,12 +966,16 @@ impl<'a> Builder<'a> {
                 let du = (u2[i] - u1[i]).abs();
                 if du > 0.0 {
                     let l = axis.limits;
-                    needed_by_acceleration = needed_by_acceleration.max(
-                        target * target * shape.peak() * du / (SIZING_SHARE * l.acceleration),
-                    );
-                    needed_by_jerk = needed_by_jerk.max(
-                        target.powi(3) * shape.peak_rate() * du / (SIZING_SHARE * l.jerk),
-                    );
+                    if binds(by_acceleration, i) {
+                        needed_by_acceleration = needed_by_acceleration.max(
+                            target * target * shape.peak() * du / (SIZING_SHARE * l.acceleration),
+                        );
+                    }
+                    if binds(by_jerk, i) {
+                        needed_by_jerk = needed_by_jerk.max(
+                            target.powi(3) * shape.peak_rate() * du / (SIZING_SHARE * l.jerk),
+                        );
+                    }
                 }
             }
             let needed = needed_by_acceleration.max(needed_by_jerk.sqrt());
@@ -936,15 +986,20 @@ impl<'a> Builder<'a> {
             // The ceiling of the blend's budget (`corner_bounds`, then `Budget::reduce` and
             // `Budget::ceiling`), computed from the curvature bounds alone.
             let (mut curve_acceleration, mut curve_jerk) = (f64::INFINITY, f64::INFINITY);
+            let in_range = (1e-50..=1e50).contains(&length);
             for (i, axis) in axes.iter().enumerate() {
                 let du = (u2[i] - u1[i]).abs();
-                let k2 = shape.peak() * du / length;
-                let k3 = shape.peak_rate() * du / (length * length);
-                if k2 > 0.0 {
-                    curve_acceleration = curve_acceleration.min(axis.limits.acceleration / k2);
+                if !in_range || binds(by_acceleration, i) {
+                    let k2 = shape.peak() * du / length;
+                    if k2 > 0.0 {
+                        curve_acceleration = curve_acceleration.min(axis.limits.acceleration / k2);
+                    }
                 }
-                if k3 > 0.0 {
-                    curve_jerk = curve_jerk.min(axis.limits.jerk / k3);
+                if !in_range || binds(by_jerk, i) {
+                    let k3 = shape.peak_rate() * du / (length * length);
+                    if k3 > 0.0 {
+                        curve_jerk = curve_jerk.min(axis.limits.jerk / k3);
+                    }
                 }
             }
             let v = acceleration_ceiling(velocity, curve_acceleration, SIZING_SHARE);
