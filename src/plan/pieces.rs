@@ -887,7 +887,8 @@ impl<'a> Builder<'a> {
     /// `tolerance` (m, infinite: as far as the segments allow).
     fn junction(&mut self, p: usize, k: usize, tolerance: f64) -> Junction {
         let shapes = self.shapes;
-        let junction = match (shapes.line_direction(p), shapes.line_direction(k)) {
+        // The blend, and its speed limit when sizing it found it.
+        let (junction, sized_speed) = match (shapes.line_direction(p), shapes.line_direction(k)) {
             (Some(u1), Some(u2)) => {
                 if u1.iter().zip(u2).all(|(a, b)| (a - b).abs() <= 1e-12) {
                     return Junction::Smooth;
@@ -909,12 +910,15 @@ impl<'a> Builder<'a> {
                 if tolerance == 0.0 {
                     return Junction::Stop;
                 }
-                self.tangent_blend(p, k, tolerance)
+                (self.tangent_blend(p, k, tolerance), None)
             }
         };
         match junction {
             Junction::Corner { budget, .. } | Junction::Tangent { budget, .. } => {
-                let speed = self.table.velocity_limit(&budget, SIZING_SHARE);
+                let speed = match sized_speed {
+                    Some(speed) if !budget.is_straight() => speed,
+                    _ => self.table.velocity_limit(&budget, SIZING_SHARE),
+                };
                 if self.stop_is_faster(p, k, junction.length(), speed) {
                     Junction::Stop
                 } else {
@@ -925,8 +929,9 @@ impl<'a> Builder<'a> {
         }
     }
 
-    /// The corner blend between lines `p` and `k`.
-    fn corner(&mut self, p: usize, k: usize, tolerance: f64) -> Junction {
+    /// The corner blend between lines `p` and `k`, and the speed ceiling of its budget with
+    /// [`SIZING_SHARE`] (`Budget::ceiling`, found while sizing it).
+    fn corner(&mut self, p: usize, k: usize, tolerance: f64) -> (Junction, Option<f64>) {
         let shapes = self.shapes;
         let axes = self.axes;
         let n = axes.len();
@@ -955,6 +960,8 @@ impl<'a> Builder<'a> {
         let (by_acceleration, by_jerk) = binding_axes(axes, u1, u2, target);
         let binds = |mask: u64, i: usize| i >= 64 || mask & (1 << i) != 0;
         let mut best: Option<(f64, CornerBlend)> = None;
+        // The jerk cap whose cube root the best ceiling is, if it is one.
+        let mut best_cap: Option<f64> = None;
         for &ramp in &RAMPS {
             let shape = TurnShape::new(ramp);
             let within = tolerance / (shape.midpoint_integral() * du_norm);
@@ -1008,17 +1015,25 @@ impl<'a> Builder<'a> {
             if best.is_some_and(|(c, _)| v < c) {
                 continue;
             }
+            // Nor can a jerk cap no higher than the best's, when that is the cube root of its
+            // own cap (rounding keeps the cube root monotonic).
+            let jerk_cap = SIZING_SHARE * curve_jerk;
+            let jerk_capped = v * v * v > jerk_cap;
+            if jerk_capped && best_cap.is_some_and(|cap| jerk_cap <= cap) {
+                continue;
+            }
             let ceiling = jerk_ceiling(v, curve_jerk, SIZING_SHARE);
             if best.is_none_or(|(c, _)| ceiling > c) {
                 best = Some((ceiling, CornerBlend { length, shape }));
+                best_cap = jerk_capped.then_some(jerk_cap);
             }
         }
-        let Some((_, blend)) = best else {
-            return Junction::Stop;
+        let Some((ceiling, blend)) = best else {
+            return (Junction::Stop, None);
         };
         self.corner_bounds(u1, u2, blend.length, blend.shape);
         let budget = self.bounds.budget(&mut self.table, feed);
-        Junction::Corner { blend, budget }
+        (Junction::Corner { blend, budget }, Some(ceiling))
     }
 
     fn corner_bounds(&mut self, u1: &[f64], u2: &[f64], length: f64, shape: TurnShape) {
