@@ -257,7 +257,11 @@ impl Budgets {
         if b.is_straight() {
             return b.straight();
         }
-        let v = b.ceiling(rho);
+        self.limits_at(b, b.ceiling(rho))
+    }
+
+    /// [`Self::limits`] of a curved stretch whose speed ceiling `v` is known.
+    fn limits_at(&self, b: &Budget, v: f64) -> Limits {
         let n = self.axes.len();
         let k = &self.table[b.bounds..b.bounds + 3 * n];
         let (mut a, mut j) = (f64::INFINITY, f64::INFINITY);
@@ -280,14 +284,20 @@ impl Budgets {
     }
 
     /// Limits with the smallest share whose speed ceiling reaches `speed` (the rest of the
-    /// budget is left for changing speed), at least [`SHARES`]' smallest and at most `largest`.
-    fn limits_for(&self, b: &Budget, speed: f64, largest: f64) -> Limits {
+    /// budget is left for changing speed), at least [`SHARES`]' smallest and at most `largest`,
+    /// whose ceiling is `ceiling` (`b.ceiling(largest)`).
+    fn limits_for(&self, b: &Budget, speed: f64, largest: f64, ceiling: f64) -> Limits {
         if b.is_straight() {
             return b.straight();
         }
         // The share each curvature term needs at `speed`: K2·v² ≤ ρ·a, K3·v³ ≤ ρ·j.
         let needed = (speed * speed / b.curve_acceleration).max(speed.powi(3) / b.curve_jerk);
-        self.limits(b, needed.clamp(SHARES[0], largest))
+        let rho = needed.clamp(SHARES[0], largest);
+        if rho == largest {
+            self.limits_at(b, ceiling)
+        } else {
+            self.limits(b, rho)
+        }
     }
 }
 
@@ -453,8 +463,9 @@ pub(super) struct Builder<'a> {
     bounds: AxisBounds,
     tangent: TangentJunction,
     scratch: JetScratch,
-    /// Per segment: the budget of the segment on its own.
-    budgets: Vec<Budget>,
+    /// Per segment: the limits of the segment on its own if it were straight (what sizing a
+    /// blend and the stop-or-blend test use of its budget).
+    budgets: Vec<Limits>,
     /// Per segment: the speed it would cruise at between two stops ([`Self::stop_is_faster`]),
     /// once asked for (each segment is on two junctions).
     cruise: Vec<Option<f64>>,
@@ -521,7 +532,7 @@ impl<'a> Builder<'a> {
         let shapes = self.shapes;
         for k in 0..count {
             let budget = self.segment_budget(k);
-            self.budgets.push(budget);
+            self.budgets.push(budget.straight());
         }
         let moving: Vec<usize> = (0..count)
             .filter(|&k| shapes.shapes[k].length > 0.0)
@@ -939,10 +950,7 @@ impl<'a> Builder<'a> {
         let u2 = shapes.line_direction(k).unwrap_or(&[]);
         let du_norm = self.metric.norm_of(n, |i| u2[i] - u1[i]);
         let longest = shapes.shapes[p].length.min(shapes.shapes[k].length);
-        let target = self.budgets[p]
-            .straight()
-            .velocity
-            .min(self.budgets[k].straight().velocity);
+        let target = self.budgets[p].velocity.min(self.budgets[k].velocity);
         let feed = match (self.feed(p), self.feed(k)) {
             (Some(a), Some(b)) => Some(a.min(b)),
             (a, b) => a.or(b),
@@ -1079,7 +1087,7 @@ impl<'a> Builder<'a> {
     /// `length/u` where cruising would take `length/v`.
     fn stop_is_faster(&mut self, p: usize, k: usize, length: f64, speed: f64) -> bool {
         let mut side = |segment: usize| {
-            let l = self.budgets[segment].straight();
+            let l = self.budgets[segment];
             let length = self.shapes.shapes[segment].length;
             let cruise = *self.cruise[segment]
                 .get_or_insert_with(|| reachable_velocity(0.0, 0.5 * length, &l));
@@ -1169,7 +1177,7 @@ pub(super) fn assign_limits(
             (w0 + w1) / 2.0 + a * length
         };
         let peak = peak.min(ceiling[i] * ceiling[i]).sqrt();
-        pieces[i].limits = table.limits_for(&budgets[i], peak, largest_share);
+        pieces[i].limits = table.limits_for(&budgets[i], peak, largest_share, ceiling[i]);
     }
 }
 
