@@ -282,6 +282,17 @@ impl Recipe {
     /// both ends). `None` when the velocities exceed the limit or `length` is too short to
     /// change from one to the other (see [`transfer_distance`]).
     pub fn plan(length: f64, v_start: f64, v_end: f64, limits: &Limits) -> Option<Recipe> {
+        Self::plan_timed(length, v_start, v_end, limits).map(|(recipe, _)| recipe)
+    }
+
+    /// [`Self::plan`] and the recipe's [`Self::duration`] (the same number, from the speed
+    /// changes the plan computes anyway).
+    pub fn plan_timed(
+        length: f64,
+        v_start: f64,
+        v_end: f64,
+        limits: &Limits,
+    ) -> Option<(Recipe, f64)> {
         let (v, a, j) = (limits.velocity, limits.acceleration, limits.jerk);
         let slack = 1e-12 * v;
         if length.is_nan()
@@ -294,7 +305,8 @@ impl Recipe {
         }
         let (v_start, v_end) = (v_start.min(v), v_end.min(v));
         if v_start == 0.0 && v_end == 0.0 {
-            return Some(Self::rest_to_rest(length, limits));
+            let recipe = Self::rest_to_rest(length, limits);
+            return Some((recipe, recipe.duration()));
         }
         let covered = |peak: f64| {
             VelocityChange::new(peak - v_start, a, j).distance(v_start, peak)
@@ -332,12 +344,14 @@ impl Recipe {
         };
         // Whatever the speed changes leave (the cruise, or the last ulps of the bisection) is
         // covered at the peak velocity.
+        let up = VelocityChange::new(peak - v_start, a, j);
+        let down = VelocityChange::new(peak - v_end, a, j);
         let cruise = if peak > 0.0 {
-            ((length - covered(peak)) / peak).max(0.0)
+            ((length - (up.distance(v_start, peak) + down.distance(peak, v_end))) / peak).max(0.0)
         } else {
             0.0
         };
-        Some(Recipe {
+        let recipe = Recipe {
             sign: 1.0,
             length,
             v_start,
@@ -345,7 +359,8 @@ impl Recipe {
             v_end,
             cruise,
             limits: *limits,
-        })
+        };
+        Some((recipe, recipe.duration_of(up, down)))
     }
 
     /// Total duration (s), without building the phases (summed phase by phase, as the built
@@ -354,6 +369,11 @@ impl Recipe {
         let (a, j) = (self.limits.acceleration, self.limits.jerk);
         let up = VelocityChange::new(self.peak - self.v_start, a, j);
         let down = VelocityChange::new(self.peak - self.v_end, a, j);
+        self.duration_of(up, down)
+    }
+
+    /// [`Self::duration`] with the speed-up and the slow-down given.
+    fn duration_of(&self, up: VelocityChange, down: VelocityChange) -> f64 {
         [
             up.ramp,
             up.hold,
