@@ -463,9 +463,8 @@ pub(super) struct Builder<'a> {
     bounds: AxisBounds,
     tangent: TangentJunction,
     scratch: JetScratch,
-    /// Per segment: the limits of the segment on its own if it were straight (what sizing a
-    /// blend and the stop-or-blend test use of its budget).
-    budgets: Vec<Limits>,
+    /// Per segment: the budget of the segment on its own (its per-axis bounds not stored).
+    budgets: Vec<Budget>,
     /// Per segment: the speed it would cruise at between two stops ([`Self::stop_is_faster`]),
     /// once asked for (each segment is on two junctions).
     cruise: Vec<Option<f64>>,
@@ -532,7 +531,7 @@ impl<'a> Builder<'a> {
         let shapes = self.shapes;
         for k in 0..count {
             let budget = self.segment_budget(k);
-            self.budgets.push(budget.straight());
+            self.budgets.push(budget);
         }
         let moving: Vec<usize> = (0..count)
             .filter(|&k| shapes.shapes[k].length > 0.0)
@@ -642,7 +641,14 @@ impl<'a> Builder<'a> {
                         length: middle,
                         limits: placeholder,
                     });
-                    let budget = self.range_budget(k, entry, length - exit);
+                    // A line's bounds are the same all along it: its own budget's.
+                    let budget = match shapes.shapes[k].arc {
+                        None => Budget {
+                            bounds: self.table.table.len(),
+                            ..self.budgets[k]
+                        },
+                        Some(_) => self.range_budget(k, entry, length - exit),
+                    };
                     out.budgets.push(budget);
                     s += middle;
                 }
@@ -950,7 +956,10 @@ impl<'a> Builder<'a> {
         let u2 = shapes.line_direction(k).unwrap_or(&[]);
         let du_norm = self.metric.norm_of(n, |i| u2[i] - u1[i]);
         let longest = shapes.shapes[p].length.min(shapes.shapes[k].length);
-        let target = self.budgets[p].velocity.min(self.budgets[k].velocity);
+        let target = self.budgets[p]
+            .straight()
+            .velocity
+            .min(self.budgets[k].straight().velocity);
         let feed = match (self.feed(p), self.feed(k)) {
             (Some(a), Some(b)) => Some(a.min(b)),
             (a, b) => a.or(b),
@@ -1087,7 +1096,7 @@ impl<'a> Builder<'a> {
     /// `length/u` where cruising would take `length/v`.
     fn stop_is_faster(&mut self, p: usize, k: usize, length: f64, speed: f64) -> bool {
         let mut side = |segment: usize| {
-            let l = self.budgets[segment];
+            let l = self.budgets[segment].straight();
             let length = self.shapes.shapes[segment].length;
             let cruise = *self.cruise[segment]
                 .get_or_insert_with(|| reachable_velocity(0.0, 0.5 * length, &l));
