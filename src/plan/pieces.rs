@@ -996,9 +996,8 @@ impl<'a> Builder<'a> {
                         );
                     }
                     if binds(by_jerk, i) {
-                        needed_by_jerk = needed_by_jerk.max(
-                            target.powi(3) * shape.peak_rate() * du / (SIZING_SHARE * l.jerk),
-                        );
+                        needed_by_jerk = needed_by_jerk
+                            .max(target.powi(3) * shape.peak_rate() * du / (SIZING_SHARE * l.jerk));
                     }
                 }
             }
