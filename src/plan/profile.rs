@@ -282,7 +282,7 @@ impl Recipe {
     /// both ends). `None` when the velocities exceed the limit or `length` is too short to
     /// change from one to the other (see [`transfer_distance`]).
     pub fn plan(length: f64, v_start: f64, v_end: f64, limits: &Limits) -> Option<Recipe> {
-        Self::plan_timed(length, v_start, v_end, limits).map(|(recipe, _)| recipe)
+        Self::plan_with_changes(length, v_start, v_end, limits).map(|(recipe, _)| recipe)
     }
 
     /// [`Self::plan`] and the recipe's [`Self::duration`] (the same number, from the speed
@@ -293,6 +293,24 @@ impl Recipe {
         v_end: f64,
         limits: &Limits,
     ) -> Option<(Recipe, f64)> {
+        Self::plan_with_changes(length, v_start, v_end, limits).map(|(recipe, changes)| {
+            let duration = match changes {
+                Some((up, down)) => recipe.duration_of(up, down),
+                None => recipe.duration(),
+            };
+            (recipe, duration)
+        })
+    }
+
+    /// [`Self::plan`], with its speed-up and slow-down when it computed them (not from rest to
+    /// rest).
+    #[allow(clippy::type_complexity)]
+    fn plan_with_changes(
+        length: f64,
+        v_start: f64,
+        v_end: f64,
+        limits: &Limits,
+    ) -> Option<(Recipe, Option<(VelocityChange, VelocityChange)>)> {
         let (v, a, j) = (limits.velocity, limits.acceleration, limits.jerk);
         let slack = 1e-12 * v;
         if length.is_nan()
@@ -305,8 +323,7 @@ impl Recipe {
         }
         let (v_start, v_end) = (v_start.min(v), v_end.min(v));
         if v_start == 0.0 && v_end == 0.0 {
-            let recipe = Self::rest_to_rest(length, limits);
-            return Some((recipe, recipe.duration()));
+            return Some((Self::rest_to_rest(length, limits), None));
         }
         let covered = |peak: f64| {
             VelocityChange::new(peak - v_start, a, j).distance(v_start, peak)
@@ -360,7 +377,7 @@ impl Recipe {
             cruise,
             limits: *limits,
         };
-        Some((recipe, recipe.duration_of(up, down)))
+        Some((recipe, Some((up, down))))
     }
 
     /// Total duration (s), without building the phases (summed phase by phase, as the built
