@@ -204,7 +204,8 @@ pub(super) struct Budget {
     /// min a_i/K2_i, min j_i/K3_i (infinite on a straight stretch).
     curve_acceleration: f64,
     curve_jerk: f64,
-    /// Where K1, K2, K3 (one entry per axis each) start in the table.
+    /// Where K1, K2, K3 (one entry per axis each) start in the table (not stored for a
+    /// straight stretch).
     bounds: usize,
 }
 
@@ -227,13 +228,25 @@ impl Budgets {
         &self.axes
     }
 
-    /// Stores the bounds of a stretch and returns its budget.
+    /// Stores the bounds of a stretch and returns its budget. A straight stretch's limits
+    /// follow from its minima alone, so its bounds are not stored.
     fn add(&mut self, k1: &[f64], k2: &[f64], k3: &[f64], feed: Option<f64>) -> Budget {
         let b = Budget::reduce(&self.axes, k1, k2, k3, feed, self.table.len());
-        self.table.extend_from_slice(k1);
-        self.table.extend_from_slice(k2);
-        self.table.extend_from_slice(k3);
+        if !b.is_straight() {
+            self.table.extend_from_slice(k1);
+            self.table.extend_from_slice(k2);
+            self.table.extend_from_slice(k3);
+        }
         b
+    }
+
+    /// The speed limit of [`Self::limits`] alone.
+    fn velocity_limit(&self, b: &Budget, rho: f64) -> f64 {
+        if b.is_straight() {
+            b.straight().velocity
+        } else {
+            b.ceiling(rho)
+        }
     }
 
     /// Limits with centripetal share `rho` (see the module documentation): the speed ceiling
@@ -244,7 +257,11 @@ impl Budgets {
         if b.is_straight() {
             return b.straight();
         }
-        let v = b.ceiling(rho);
+        self.limits_at(b, b.ceiling(rho))
+    }
+
+    /// [`Self::limits`] of a curved stretch whose speed ceiling `v` is known.
+    fn limits_at(&self, b: &Budget, v: f64) -> Limits {
         let n = self.axes.len();
         let k = &self.table[b.bounds..b.bounds + 3 * n];
         let (mut a, mut j) = (f64::INFINITY, f64::INFINITY);
@@ -267,14 +284,20 @@ impl Budgets {
     }
 
     /// Limits with the smallest share whose speed ceiling reaches `speed` (the rest of the
-    /// budget is left for changing speed), at least [`SHARES`]' smallest and at most `largest`.
-    fn limits_for(&self, b: &Budget, speed: f64, largest: f64) -> Limits {
+    /// budget is left for changing speed), at least [`SHARES`]' smallest and at most `largest`,
+    /// whose ceiling is `ceiling` (`b.ceiling(largest)`).
+    fn limits_for(&self, b: &Budget, speed: f64, largest: f64, ceiling: f64) -> Limits {
         if b.is_straight() {
             return b.straight();
         }
         // The share each curvature term needs at `speed`: K2·v² ≤ ρ·a, K3·v³ ≤ ρ·j.
         let needed = (speed * speed / b.curve_acceleration).max(speed.powi(3) / b.curve_jerk);
-        self.limits(b, needed.clamp(SHARES[0], largest))
+        let rho = needed.clamp(SHARES[0], largest);
+        if rho == largest {
+            self.limits_at(b, ceiling)
+        } else {
+            self.limits(b, rho)
+        }
     }
 }
 
@@ -319,14 +342,8 @@ impl Budget {
     /// The speed ceiling with centripetal share `rho`: `K2·v² ≤ rho·a`, `K3·v³ ≤ rho·j` on
     /// every axis, and the straight ceiling.
     fn ceiling(&self, rho: f64) -> f64 {
-        let v = self.velocity.min((rho * self.curve_acceleration).sqrt());
-        // The jerk term caps v only where v³ exceeds it (a cube is cheaper than a cube root).
-        let jerk_cap = rho * self.curve_jerk;
-        if v * v * v > jerk_cap {
-            jerk_cap.cbrt()
-        } else {
-            v
-        }
+        let v = acceleration_ceiling(self.velocity, self.curve_acceleration, rho);
+        jerk_ceiling(v, self.curve_jerk, rho)
     }
 
     /// The limits of the stretch if it were straight (no share to the curvature).
@@ -347,6 +364,67 @@ impl Budget {
         let v = limits.velocity;
         (v * v / self.curve_acceleration).max(v.powi(3) / self.curve_jerk)
     }
+}
+
+/// The speed ceiling of [`Budget::ceiling`] before the jerk term: the straight ceiling
+/// `velocity` and `K2·v² ≤ rho·a` on every axis.
+fn acceleration_ceiling(velocity: f64, curve_acceleration: f64, rho: f64) -> f64 {
+    velocity.min((rho * curve_acceleration).sqrt())
+}
+
+/// [`acceleration_ceiling`]'s `v` capped by the jerk term `K3·v³ ≤ rho·j` too. Never more than
+/// one ulp above `v` (the cube root is taken only of a value below the rounded cube of `v`).
+fn jerk_ceiling(v: f64, curve_jerk: f64, rho: f64) -> f64 {
+    // The jerk term caps v only where v³ exceeds it (a cube is cheaper than a cube root).
+    let jerk_cap = rho * curve_jerk;
+    if v * v * v > jerk_cap {
+        jerk_cap.cbrt()
+    } else {
+        v
+    }
+}
+
+/// The axes of a corner from direction `u1` to `u2` (as bits: axis `i` is bit `i`) that can
+/// give the largest blend size and the lowest ceiling, whatever the ramp and the length: those
+/// whose `a_i/|Δu_i|` (first mask) or `j_i/|Δu_i|` (second) is within 1e-9 of the lowest. Every
+/// term of [`Builder::corner`] on an axis is its ratio times a factor common to all axes, to
+/// within a few roundings (each of at most 2⁻⁵³ relative, while every number stays far from
+/// overflow and underflow), so the other axes can neither hold the extreme nor tie with it.
+/// All axes (every bit set) when the numbers are out of that range; axes past the 64th always
+/// count.
+fn binding_axes(axes: &[AxisSpec], u1: &[f64], u2: &[f64], target: f64) -> (u64, u64) {
+    const RANGE: std::ops::RangeInclusive<f64> = 1e-50..=1e50;
+    let all = (u64::MAX, u64::MAX);
+    if !RANGE.contains(&target) {
+        return all;
+    }
+    let (mut lowest_a, mut lowest_j) = (f64::INFINITY, f64::INFINITY);
+    for (i, axis) in axes.iter().enumerate() {
+        let du = (u2[i] - u1[i]).abs();
+        if du == 0.0 {
+            continue;
+        }
+        let l = axis.limits;
+        if !(RANGE.contains(&du) && RANGE.contains(&l.acceleration) && RANGE.contains(&l.jerk)) {
+            return all;
+        }
+        lowest_a = lowest_a.min(l.acceleration / du);
+        lowest_j = lowest_j.min(l.jerk / du);
+    }
+    let (mut by_acceleration, mut by_jerk) = (0u64, 0u64);
+    for (i, axis) in axes.iter().enumerate().take(64) {
+        let du = (u2[i] - u1[i]).abs();
+        if du == 0.0 {
+            continue;
+        }
+        if axis.limits.acceleration / du <= lowest_a * (1.0 + 1e-9) {
+            by_acceleration |= 1 << i;
+        }
+        if axis.limits.jerk / du <= lowest_j * (1.0 + 1e-9) {
+            by_jerk |= 1 << i;
+        }
+    }
+    (by_acceleration, by_jerk)
 }
 
 /// Per-axis derivative bounds of one stretch (scratch, reused).
@@ -385,7 +463,7 @@ pub(super) struct Builder<'a> {
     bounds: AxisBounds,
     tangent: TangentJunction,
     scratch: JetScratch,
-    /// Per segment: the budget of the segment on its own.
+    /// Per segment: the budget of the segment on its own (its per-axis bounds not stored).
     budgets: Vec<Budget>,
     /// Per segment: the speed it would cruise at between two stops ([`Self::stop_is_faster`]),
     /// once asked for (each segment is on two junctions).
@@ -563,7 +641,14 @@ impl<'a> Builder<'a> {
                         length: middle,
                         limits: placeholder,
                     });
-                    let budget = self.range_budget(k, entry, length - exit);
+                    // A line's bounds are the same all along it: its own budget's.
+                    let budget = match shapes.shapes[k].arc {
+                        None => Budget {
+                            bounds: self.table.table.len(),
+                            ..self.budgets[k]
+                        },
+                        Some(_) => self.range_budget(k, entry, length - exit),
+                    };
                     out.budgets.push(budget);
                     s += middle;
                 }
@@ -819,7 +904,8 @@ impl<'a> Builder<'a> {
     /// `tolerance` (m, infinite: as far as the segments allow).
     fn junction(&mut self, p: usize, k: usize, tolerance: f64) -> Junction {
         let shapes = self.shapes;
-        let junction = match (shapes.line_direction(p), shapes.line_direction(k)) {
+        // The blend, and its speed limit when sizing it found it.
+        let (junction, sized_speed) = match (shapes.line_direction(p), shapes.line_direction(k)) {
             (Some(u1), Some(u2)) => {
                 if u1.iter().zip(u2).all(|(a, b)| (a - b).abs() <= 1e-12) {
                     return Junction::Smooth;
@@ -841,13 +927,16 @@ impl<'a> Builder<'a> {
                 if tolerance == 0.0 {
                     return Junction::Stop;
                 }
-                self.tangent_blend(p, k, tolerance)
+                (self.tangent_blend(p, k, tolerance), None)
             }
         };
         match junction {
             Junction::Corner { budget, .. } | Junction::Tangent { budget, .. } => {
-                let limits = self.table.limits(&budget, SIZING_SHARE);
-                if self.stop_is_faster(p, k, junction.length(), limits) {
+                let speed = match sized_speed {
+                    Some(speed) if !budget.is_straight() => speed,
+                    _ => self.table.velocity_limit(&budget, SIZING_SHARE),
+                };
+                if self.stop_is_faster(p, k, junction.length(), speed) {
                     Junction::Stop
                 } else {
                     junction
@@ -857,8 +946,9 @@ impl<'a> Builder<'a> {
         }
     }
 
-    /// The corner blend between lines `p` and `k`.
-    fn corner(&mut self, p: usize, k: usize, tolerance: f64) -> Junction {
+    /// The corner blend between lines `p` and `k`, and the speed ceiling of its budget with
+    /// [`SIZING_SHARE`] (`Budget::ceiling`, found while sizing it).
+    fn corner(&mut self, p: usize, k: usize, tolerance: f64) -> (Junction, Option<f64>) {
         let shapes = self.shapes;
         let axes = self.axes;
         let n = axes.len();
@@ -874,43 +964,92 @@ impl<'a> Builder<'a> {
             (Some(a), Some(b)) => Some(a.min(b)),
             (a, b) => a.or(b),
         };
+        // The straight ceiling of every ramp's bounds (K1 = max(|u1|, |u2|) whatever the
+        // blend's length), reduced as `Budget::reduce` reduces it.
+        let mut velocity = feed.unwrap_or(f64::INFINITY);
+        for (i, axis) in axes.iter().enumerate() {
+            let k1 = u1[i].abs().max(u2[i].abs());
+            if k1 > 0.0 {
+                velocity = velocity.min(axis.limits.velocity / k1);
+            }
+        }
+        // Only the axes that can hold the largest size or the lowest ceiling need computing.
+        let (by_acceleration, by_jerk) = binding_axes(axes, u1, u2, target);
+        let binds = |mask: u64, i: usize| i >= 64 || mask & (1 << i) != 0;
         let mut best: Option<(f64, CornerBlend)> = None;
+        // The jerk cap whose cube root the best ceiling is, if it is one.
+        let mut best_cap: Option<f64> = None;
         for &ramp in &RAMPS {
             let shape = TurnShape::new(ramp);
             let within = tolerance / (shape.midpoint_integral() * du_norm);
-            // The shortest blend whose ceiling reaches the target speed, per axis.
-            let mut needed: f64 = 0.0;
+            // The shortest blend whose ceiling reaches the target speed, per axis: the largest
+            // of the acceleration terms and of the jerk terms' square roots (the square root of
+            // the largest, the same number: rounding keeps the square root monotonic).
+            let (mut needed_by_acceleration, mut needed_by_jerk) = (0.0f64, 0.0f64);
             for (i, axis) in axes.iter().enumerate() {
                 let du = (u2[i] - u1[i]).abs();
                 if du > 0.0 {
                     let l = axis.limits;
-                    needed = needed
-                        .max(target * target * shape.peak() * du / (SIZING_SHARE * l.acceleration))
-                        .max(
-                            (target.powi(3) * shape.peak_rate() * du / (SIZING_SHARE * l.jerk))
-                                .sqrt(),
+                    if binds(by_acceleration, i) {
+                        needed_by_acceleration = needed_by_acceleration.max(
+                            target * target * shape.peak() * du / (SIZING_SHARE * l.acceleration),
                         );
+                    }
+                    if binds(by_jerk, i) {
+                        needed_by_jerk = needed_by_jerk
+                            .max(target.powi(3) * shape.peak_rate() * du / (SIZING_SHARE * l.jerk));
+                    }
                 }
             }
+            let needed = needed_by_acceleration.max(needed_by_jerk.sqrt());
             let length = within.min(longest).min(needed);
             if length.is_nan() || length <= 0.0 {
                 continue;
             }
-            self.corner_bounds(u1, u2, length, shape);
-            let ceiling = self
-                .bounds
-                .reduced(self.table.axes(), feed)
-                .ceiling(SIZING_SHARE);
+            // The ceiling of the blend's budget (`corner_bounds`, then `Budget::reduce` and
+            // `Budget::ceiling`), computed from the curvature bounds alone.
+            let (mut curve_acceleration, mut curve_jerk) = (f64::INFINITY, f64::INFINITY);
+            let in_range = (1e-50..=1e50).contains(&length);
+            for (i, axis) in axes.iter().enumerate() {
+                let du = (u2[i] - u1[i]).abs();
+                if !in_range || binds(by_acceleration, i) {
+                    let k2 = shape.peak() * du / length;
+                    if k2 > 0.0 {
+                        curve_acceleration = curve_acceleration.min(axis.limits.acceleration / k2);
+                    }
+                }
+                if !in_range || binds(by_jerk, i) {
+                    let k3 = shape.peak_rate() * du / (length * length);
+                    if k3 > 0.0 {
+                        curve_jerk = curve_jerk.min(axis.limits.jerk / k3);
+                    }
+                }
+            }
+            let v = acceleration_ceiling(velocity, curve_acceleration, SIZING_SHARE);
+            // The jerk term only lowers `v` (to at most one ulp above it): a `v` below the best
+            // ceiling cannot beat it, and needs no cube root.
+            if best.is_some_and(|(c, _)| v < c) {
+                continue;
+            }
+            // Nor can a jerk cap no higher than the best's, when that is the cube root of its
+            // own cap (rounding keeps the cube root monotonic).
+            let jerk_cap = SIZING_SHARE * curve_jerk;
+            let jerk_capped = v * v * v > jerk_cap;
+            if jerk_capped && best_cap.is_some_and(|cap| jerk_cap <= cap) {
+                continue;
+            }
+            let ceiling = jerk_ceiling(v, curve_jerk, SIZING_SHARE);
             if best.is_none_or(|(c, _)| ceiling > c) {
                 best = Some((ceiling, CornerBlend { length, shape }));
+                best_cap = jerk_capped.then_some(jerk_cap);
             }
         }
-        let Some((_, blend)) = best else {
-            return Junction::Stop;
+        let Some((ceiling, blend)) = best else {
+            return (Junction::Stop, None);
         };
         self.corner_bounds(u1, u2, blend.length, blend.shape);
         let budget = self.bounds.budget(&mut self.table, feed);
-        Junction::Corner { blend, budget }
+        (Junction::Corner { blend, budget }, Some(ceiling))
     }
 
     fn corner_bounds(&mut self, u1: &[f64], u2: &[f64], length: f64, shape: TurnShape) {
@@ -950,11 +1089,11 @@ impl<'a> Builder<'a> {
     }
 
     /// Whether stopping at the junction between `p` and `k` loses less time than a blend of
-    /// `length` with `limits`. Each side would cruise at what it reaches from rest in half its
+    /// `length` with speed limit `speed`. Each side would cruise at what it reaches from rest in half its
     /// length; slowing from cruise `v` to `u` and back loses about `T·(v − u)/(2·v)` (a change
     /// lasting T covers its distance at the mean speed), and the blend itself takes
     /// `length/u` where cruising would take `length/v`.
-    fn stop_is_faster(&mut self, p: usize, k: usize, length: f64, limits: Limits) -> bool {
+    fn stop_is_faster(&mut self, p: usize, k: usize, length: f64, speed: f64) -> bool {
         let mut side = |segment: usize| {
             let l = self.budgets[segment].straight();
             let length = self.shapes.shapes[segment].length;
@@ -976,7 +1115,7 @@ impl<'a> Builder<'a> {
                 .sum()
         };
         let cruise = sides[0].1.max(sides[1].1);
-        let u = limits.velocity.min(cruise);
+        let u = speed.min(cruise);
         let blend = loss(u) + (length / u - length / cruise).max(0.0);
         loss(0.0) < blend
     }
@@ -1046,7 +1185,7 @@ pub(super) fn assign_limits(
             (w0 + w1) / 2.0 + a * length
         };
         let peak = peak.min(ceiling[i] * ceiling[i]).sqrt();
-        pieces[i].limits = table.limits_for(&budgets[i], peak, largest_share);
+        pieces[i].limits = table.limits_for(&budgets[i], peak, largest_share, ceiling[i]);
     }
 }
 

@@ -360,11 +360,10 @@ fn time_chain(
     let speeds = look_ahead(drafts);
     let mut time = start_time;
     for (i, d) in drafts.iter().enumerate() {
-        let recipe = Recipe::plan(d.length, speeds[i], speeds[i + 1], &d.limits).ok_or(
-            PathError::Infeasible {
+        let (recipe, duration) = Recipe::plan_timed(d.length, speeds[i], speeds[i + 1], &d.limits)
+            .ok_or(PathError::Infeasible {
                 segment: pieces.segment_at(&pieces.pieces[d.first], 0.0),
-            },
-        )?;
+            })?;
         spans.push(Span {
             first: d.first,
             end: d.end,
@@ -373,7 +372,7 @@ fn time_chain(
             start_time: time,
             recipe,
         });
-        time += recipe.duration();
+        time += duration;
     }
     Ok(time - start_time)
 }

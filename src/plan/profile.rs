@@ -282,6 +282,35 @@ impl Recipe {
     /// both ends). `None` when the velocities exceed the limit or `length` is too short to
     /// change from one to the other (see [`transfer_distance`]).
     pub fn plan(length: f64, v_start: f64, v_end: f64, limits: &Limits) -> Option<Recipe> {
+        Self::plan_with_changes(length, v_start, v_end, limits).map(|(recipe, _)| recipe)
+    }
+
+    /// [`Self::plan`] and the recipe's [`Self::duration`] (the same number, from the speed
+    /// changes the plan computes anyway).
+    pub fn plan_timed(
+        length: f64,
+        v_start: f64,
+        v_end: f64,
+        limits: &Limits,
+    ) -> Option<(Recipe, f64)> {
+        Self::plan_with_changes(length, v_start, v_end, limits).map(|(recipe, changes)| {
+            let duration = match changes {
+                Some((up, down)) => recipe.duration_of(up, down),
+                None => recipe.duration(),
+            };
+            (recipe, duration)
+        })
+    }
+
+    /// [`Self::plan`], with its speed-up and slow-down when it computed them (not from rest to
+    /// rest).
+    #[allow(clippy::type_complexity)]
+    fn plan_with_changes(
+        length: f64,
+        v_start: f64,
+        v_end: f64,
+        limits: &Limits,
+    ) -> Option<(Recipe, Option<(VelocityChange, VelocityChange)>)> {
         let (v, a, j) = (limits.velocity, limits.acceleration, limits.jerk);
         let slack = 1e-12 * v;
         if length.is_nan()
@@ -294,7 +323,7 @@ impl Recipe {
         }
         let (v_start, v_end) = (v_start.min(v), v_end.min(v));
         if v_start == 0.0 && v_end == 0.0 {
-            return Some(Self::rest_to_rest(length, limits));
+            return Some((Self::rest_to_rest(length, limits), None));
         }
         let covered = |peak: f64| {
             VelocityChange::new(peak - v_start, a, j).distance(v_start, peak)
@@ -332,12 +361,14 @@ impl Recipe {
         };
         // Whatever the speed changes leave (the cruise, or the last ulps of the bisection) is
         // covered at the peak velocity.
+        let up = VelocityChange::new(peak - v_start, a, j);
+        let down = VelocityChange::new(peak - v_end, a, j);
         let cruise = if peak > 0.0 {
-            ((length - covered(peak)) / peak).max(0.0)
+            ((length - (up.distance(v_start, peak) + down.distance(peak, v_end))) / peak).max(0.0)
         } else {
             0.0
         };
-        Some(Recipe {
+        let recipe = Recipe {
             sign: 1.0,
             length,
             v_start,
@@ -345,7 +376,8 @@ impl Recipe {
             v_end,
             cruise,
             limits: *limits,
-        })
+        };
+        Some((recipe, Some((up, down))))
     }
 
     /// Total duration (s), without building the phases (summed phase by phase, as the built
@@ -354,6 +386,11 @@ impl Recipe {
         let (a, j) = (self.limits.acceleration, self.limits.jerk);
         let up = VelocityChange::new(self.peak - self.v_start, a, j);
         let down = VelocityChange::new(self.peak - self.v_end, a, j);
+        self.duration_of(up, down)
+    }
+
+    /// [`Self::duration`] with the speed-up and the slow-down given.
+    fn duration_of(&self, up: VelocityChange, down: VelocityChange) -> f64 {
         [
             up.ramp,
             up.hold,
