@@ -384,6 +384,9 @@ fn jerk_ceiling(v: f64, curve_jerk: f64, rho: f64) -> f64 {
     }
 }
 
+/// Where [`binding_axes`]' rounding argument holds: numbers far from overflow and underflow.
+const BINDING_RANGE: std::ops::RangeInclusive<f64> = 1e-50..=1e50;
+
 /// The axes of a corner from direction `u1` to `u2` (as bits: axis `i` is bit `i`) that can
 /// give the largest blend size and the lowest ceiling, whatever the ramp and the length: those
 /// whose `a_i/|Δu_i|` (first mask) or `j_i/|Δu_i|` (second) is within 1e-9 of the lowest. Every
@@ -393,9 +396,8 @@ fn jerk_ceiling(v: f64, curve_jerk: f64, rho: f64) -> f64 {
 /// All axes (every bit set) when the numbers are out of that range; axes past the 64th always
 /// count.
 fn binding_axes(axes: &[AxisSpec], u1: &[f64], u2: &[f64], target: f64) -> (u64, u64) {
-    const RANGE: std::ops::RangeInclusive<f64> = 1e-50..=1e50;
     let all = (u64::MAX, u64::MAX);
-    if !RANGE.contains(&target) {
+    if !BINDING_RANGE.contains(&target) {
         return all;
     }
     let (mut lowest_a, mut lowest_j) = (f64::INFINITY, f64::INFINITY);
@@ -405,7 +407,10 @@ fn binding_axes(axes: &[AxisSpec], u1: &[f64], u2: &[f64], target: f64) -> (u64,
             continue;
         }
         let l = axis.limits;
-        if !(RANGE.contains(&du) && RANGE.contains(&l.acceleration) && RANGE.contains(&l.jerk)) {
+        if !(BINDING_RANGE.contains(&du)
+            && BINDING_RANGE.contains(&l.acceleration)
+            && BINDING_RANGE.contains(&l.jerk))
+        {
             return all;
         }
         lowest_a = lowest_a.min(l.acceleration / du);
@@ -1009,7 +1014,7 @@ impl<'a> Builder<'a> {
             // The ceiling of the blend's budget (`corner_bounds`, then `Budget::reduce` and
             // `Budget::ceiling`), computed from the curvature bounds alone.
             let (mut curve_acceleration, mut curve_jerk) = (f64::INFINITY, f64::INFINITY);
-            let in_range = (1e-50..=1e50).contains(&length);
+            let in_range = BINDING_RANGE.contains(&length);
             for (i, axis) in axes.iter().enumerate() {
                 let du = (u2[i] - u1[i]).abs();
                 if !in_range || binds(by_acceleration, i) {
