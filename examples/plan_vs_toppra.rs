@@ -94,12 +94,13 @@ fn compare(
     let plans = jerk_limited_plans(program, axes, settings)
         .map_err(|e| e.to_string())?
         .ok_or("not a jerk-limited planner")?;
-    let planned: f64 = plans.iter().map(|p| p.duration()).sum();
+    let planned: f64 = plans.iter().map(|(_, p)| p.duration()).sum();
     let length: f64 = plans
         .iter()
-        .flat_map(|p| p.chain_geometry(1e-4))
+        .flat_map(|(path, plan)| plan.chain_geometry(path, 1e-4))
         .map(|chain| {
             chain
+                .points
                 .windows(2)
                 .map(|w| {
                     (0..3.min(w[0].len()))

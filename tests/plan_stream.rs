@@ -197,7 +197,7 @@ fn jerk_limited_stream_is_each_motion_sampled_and_each_dwell_held() {
         .collect();
     assert_eq!(dwells.len(), 2);
     let mut expected = Setpoints::new(1e-3, 3);
-    for (i, plan) in plans.iter().enumerate() {
+    for (i, (_, plan)) in plans.iter().enumerate() {
         let part = plan.sample(1e-3);
         let skip = usize::from(i > 0);
         for k in skip..part.len() {

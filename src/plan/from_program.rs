@@ -102,13 +102,14 @@ pub fn plan_program_stream<'a>(
     Ok(Box::new(StretchStream::new(n, period, stretches)))
 }
 
-/// The jerk-limited plans of a program's motions (one per stretch between dwells), for
-/// inspecting the planned geometry and timing; `None` for another planner.
+/// The jerk-limited plans of a program's motions (one per stretch between dwells), each with
+/// the machine-axis path it was planned from, for inspecting the planned geometry and timing;
+/// `None` for another planner.
 pub fn jerk_limited_plans(
     program: &Program,
     axes: &AxisMap,
     settings: &PlanSettings,
-) -> Result<Option<Vec<super::Plan>>, PlanError> {
+) -> Result<Option<Vec<(AxisPath, super::Plan)>>, PlanError> {
     let Planner::JerkLimited { limits } = &settings.planner else {
         return Ok(None);
     };
@@ -118,9 +119,9 @@ pub fn jerk_limited_plans(
         if let Stretch::Windows { plan, .. } = stretch {
             // Whole: for inspecting the planned geometry and timing.
             let (path, first_move) = plan.into_path();
-            plans.push(
-                super::plan(&path).map_err(|source| path_error(program, first_move, source))?,
-            );
+            let plan =
+                super::plan(&path).map_err(|source| path_error(program, first_move, source))?;
+            plans.push((path, plan));
         }
     }
     Ok(Some(plans))

@@ -44,7 +44,7 @@ pub use metrics::{
 pub use path::{AxisKind, AxisLimits, AxisPath, AxisSpec, Blend, Geometry, PathError, PathSegment};
 pub use pieces::{SMOOTH_ANGLE, TANGENT_ANGLE};
 pub use planned::PlannedProgram;
-pub use planner::{plan, Plan, SegmentTiming, SPAN_SPREAD};
+pub use planner::{plan, ChainGeometry, Plan, PointFeed, SegmentTiming, SPAN_SPREAD};
 pub use profile::{Limits, Profile, Recipe, Regime, VelocityChange};
 pub use setpoints::{
     sample_count, FirstSamples, SetpointCursor, SetpointSample, SetpointStream, Setpoints,

@@ -384,6 +384,15 @@ fn jerk_ceiling(v: f64, curve_jerk: f64, rho: f64) -> f64 {
     }
 }
 
+/// The lower of two feeds, either of which may not apply (a blend between two segments is
+/// held to the lower).
+pub(super) fn lowest_feed(a: Option<f64>, b: Option<f64>) -> Option<f64> {
+    match (a, b) {
+        (Some(a), Some(b)) => Some(a.min(b)),
+        (a, b) => a.or(b),
+    }
+}
+
 /// Where [`binding_axes`]' rounding argument holds: numbers far from overflow and underflow.
 const BINDING_RANGE: std::ops::RangeInclusive<f64> = 1e-50..=1e50;
 
@@ -965,10 +974,7 @@ impl<'a> Builder<'a> {
             .straight()
             .velocity
             .min(self.budgets[k].straight().velocity);
-        let feed = match (self.feed(p), self.feed(k)) {
-            (Some(a), Some(b)) => Some(a.min(b)),
-            (a, b) => a.or(b),
-        };
+        let feed = lowest_feed(self.feed(p), self.feed(k));
         // The straight ceiling of every ramp's bounds (K1 = max(|u1|, |u2|) whatever the
         // blend's length), reduced as `Budget::reduce` reduces it.
         let mut velocity = feed.unwrap_or(f64::INFINITY);
@@ -1085,10 +1091,7 @@ impl<'a> Builder<'a> {
             &mut self.bounds.k2,
             &mut self.bounds.k3,
         );
-        let feed = match (self.feed(p), self.feed(k)) {
-            (Some(a), Some(b)) => Some(a.min(b)),
-            (a, b) => a.or(b),
-        };
+        let feed = lowest_feed(self.feed(p), self.feed(k));
         let budget = self.bounds.budget(&mut self.table, feed);
         Junction::Tangent { length, budget }
     }

@@ -22,7 +22,9 @@
 
 use super::geometry::{AxisJet, Metric, PathPoint, Shapes};
 use super::path::{AxisPath, Blend, Geometry, PathError};
-use super::pieces::{assign_limits, Builder, Chain, Piece, PieceKind, Pieces, SHARE_CAPS};
+use super::pieces::{
+    assign_limits, lowest_feed, Builder, Chain, Piece, PieceKind, Pieces, SHARE_CAPS,
+};
 use super::profile::{reachable_velocity, Limits, Profile, Recipe};
 use super::quintic;
 use super::setpoints::{sample_times, Setpoints};
@@ -804,21 +806,47 @@ impl Plan {
     }
 
     /// The planned path (blends included) as points along each chain, at most `max_step` apart
-    /// in the path coordinate and at least four per piece: the geometry a time-optimal
-    /// parameterisation of the same path would follow.
-    pub fn chain_geometry(&self, max_step: f64) -> Vec<Vec<Vec<f64>>> {
+    /// in the path coordinate and at least four per piece, each with the programmed feed that
+    /// holds there: the geometry and speed limit a time-optimal parameterisation of the same
+    /// path would follow. `path` is the path this plan was made from ([`plan`]).
+    pub fn chain_geometry(&self, path: &AxisPath, max_step: f64) -> Vec<ChainGeometry> {
+        assert_eq!(
+            path.segments.len(),
+            self.source_index.len(),
+            "chain_geometry needs the path the plan was made from"
+        );
         let n = self.axes;
         let (mut v, mut a) = (vec![0.0; n], vec![0.0; n]);
         let mut scratch = JetScratch::new(n);
+        // The feed of segment k where its feed metric measures it (as the planner caps ṡ).
+        let feed = |k: usize| {
+            path.segments[k]
+                .feed
+                .filter(|_| self.shapes.shapes[k].feed_applies)
+        };
         self.pieces
             .chains
             .iter()
             .map(|chain| {
-                let mut points = Vec::new();
+                let mut out = ChainGeometry::default();
                 for (i, piece) in self.pieces.pieces[chain.first..chain.end]
                     .iter()
                     .enumerate()
                 {
+                    // A blend or a smoothing curve is held to the lowest feed of the segments
+                    // it joins, as the planner holds it.
+                    let piece_feed = match piece.kind {
+                        PieceKind::Segment { segment, .. } => feed(segment),
+                        PieceKind::Corner {
+                            incoming, outgoing, ..
+                        } => lowest_feed(feed(incoming), feed(outgoing)),
+                        PieceKind::Tangent(t) => lowest_feed(feed(t.incoming), feed(t.outgoing)),
+                        PieceKind::Quintic { first, count, .. } => self.pieces.covered
+                            [first..first + count]
+                            .iter()
+                            .map(|&k| feed(k))
+                            .fold(None, lowest_feed),
+                    };
                     let steps = ((piece.length / max_step).ceil() as usize).clamp(4, 1 << 24);
                     for k in usize::from(i > 0)..=steps {
                         let mut p = vec![0.0; n];
@@ -829,13 +857,36 @@ impl Plan {
                             &mut scratch,
                             AxisJet::new(&mut p, &mut v, &mut a),
                         );
-                        points.push(p);
+                        out.points.push(p);
+                        let metric = &path.segments[self.pieces.segment_at(piece, u)].feed_metric;
+                        out.feeds.push(piece_feed.map(|speed| PointFeed {
+                            speed,
+                            weights: metric.clone(),
+                        }));
                     }
                 }
-                points
+                out
             })
             .collect()
     }
+}
+
+/// One chain of a plan's geometry ([`Plan::chain_geometry`]).
+#[derive(Debug, Clone, Default, PartialEq)]
+pub struct ChainGeometry {
+    /// Machine-axis positions along the chain (SI).
+    pub points: Vec<Vec<f64>>,
+    /// Per point, the programmed feed there; `None` where none applies (a rapid, or a move its
+    /// feed metric does not measure): as fast as the axes allow.
+    pub feeds: Vec<Option<PointFeed>>,
+}
+
+/// The programmed path speed at a point: `|W·q̇| ≤ speed`, `W` the per-axis weights of the
+/// feed metric (e.g. 1 on X, Y, Z and 0 on the rotary axes of a move with linear motion).
+#[derive(Debug, Clone, PartialEq)]
+pub struct PointFeed {
+    pub speed: f64,
+    pub weights: Vec<f64>,
 }
 
 impl Plan {

@@ -5,7 +5,7 @@
 use std::path::Path;
 use std::process::Command;
 
-use cncsim::plan::{AxisLimits, Plan};
+use cncsim::plan::{AxisLimits, AxisPath, Plan};
 
 /// Whether `CNCSIM_REQUIRE_ORACLES=1` asks for every oracle to be present.
 pub fn oracles_required() -> bool {
@@ -22,12 +22,24 @@ pub fn toppra_python() -> Option<String> {
     ok.then_some(python)
 }
 
-/// The oracle's input: every chain of every plan as points at most `max_step` apart, with the
-/// axis velocity and acceleration limits.
-pub fn problem_json(plans: &[Plan], limits: &[AxisLimits], max_step: f64) -> String {
-    let chains: Vec<Vec<Vec<f64>>> = plans
+/// The oracle's input: every chain of every plan (with the path it was planned from) as points
+/// at most `max_step` apart with the programmed feed at each, and the axis velocity and
+/// acceleration limits.
+pub fn problem_json(plans: &[(AxisPath, Plan)], limits: &[AxisLimits], max_step: f64) -> String {
+    let chains: Vec<serde_json::Value> = plans
         .iter()
-        .flat_map(|p| p.chain_geometry(max_step))
+        .flat_map(|(path, plan)| plan.chain_geometry(path, max_step))
+        .map(|chain| {
+            let feeds: Vec<serde_json::Value> = chain
+                .feeds
+                .iter()
+                .map(|f| match f {
+                    Some(f) => serde_json::json!({"speed": f.speed, "weights": f.weights}),
+                    None => serde_json::Value::Null,
+                })
+                .collect();
+            serde_json::json!({"points": chain.points, "feeds": feeds})
+        })
         .collect();
     serde_json::json!({
         "velocity": limits.iter().map(|l| l.velocity).collect::<Vec<_>>(),
