@@ -322,11 +322,11 @@ impl PlanWindows {
 
     /// The plan of the whole chains from segment `first` on (made by `plan_until` from the
     /// segments up to the given end, with or without the last chain, as [`plan_segments`]
-    /// makes it), and where the next window starts. A window of `window` segments grows eightfold until it holds a
-    /// whole chain (each try is planned in full: a long chain costs about 8/7 of its planning
-    /// again), and doubles when less than half of it is kept (the chain cut off at its end is
-    /// planned again with the next window), so that no more than about half the work is
-    /// repeated.
+    /// makes it), and where the next window starts. A window of `window` segments grows
+    /// eightfold until it holds a whole chain (each try is planned in full: a long chain costs
+    /// about 8/7 of its planning again), and doubles when less than half of it is kept (the
+    /// chain cut off at its end is planned again with the next window), so that no more than
+    /// about half the work is repeated.
     fn plan_window<T>(
         path: &AxisPath,
         first: usize,
