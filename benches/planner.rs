@@ -1,13 +1,16 @@
-//! Planning throughput on a 100k-block program, and the cost of one profile computation.
+//! Planning throughput on a 100k-block program, whole (`plan`) and as the setpoint stream a
+//! run reads (`plan_path_stream`: every window timed before the first sample), and the cost of
+//! one profile computation.
 //!
 //! Run: `cargo bench --bench planner`
 
 use std::hint::black_box;
 
 use cncsim::plan::{
-    plan, AxisKind, AxisLimits, AxisPath, AxisSpec, Blend, Geometry, Limits, PathSegment, Profile,
+    plan, plan_path_stream, AxisKind, AxisLimits, AxisPath, AxisSpec, Blend, Geometry, Limits,
+    PathSegment, Profile, SetpointSample,
 };
-use criterion::{criterion_group, criterion_main, Criterion, Throughput};
+use criterion::{criterion_group, criterion_main, BatchSize, Criterion, Throughput};
 
 /// A 5-axis program of `blocks` short lines (0.2–2 mm, with direction changes from a few
 /// degrees to sharp corners and some collinear runs), like CAM output for a freeform surface.
@@ -71,12 +74,12 @@ fn program(blocks: usize, blend: Blend) -> AxisPath {
     }
 }
 
-fn planning_throughput(c: &mut Criterion) {
-    let blocks = 100_000;
-    let mut group = c.benchmark_group("plan_100k_blocks");
-    group.sample_size(10);
-    group.throughput(Throughput::Elements(blocks as u64));
-    for (name, blend) in [
+/// Blocks per benchmarked program.
+const BLOCKS: usize = 100_000;
+
+/// The benchmarked blend modes: 0.01 mm corner tolerance, and a stop at every block.
+fn blends() -> [(&'static str, Blend); 2] {
+    [
         (
             "continuous_0.01mm",
             Blend::Continuous {
@@ -84,9 +87,42 @@ fn planning_throughput(c: &mut Criterion) {
             },
         ),
         ("exact_stop", Blend::ExactStop),
-    ] {
-        let path = program(blocks, blend);
+    ]
+}
+
+fn planning_throughput(c: &mut Criterion) {
+    let mut group = c.benchmark_group("plan_100k_blocks");
+    group.sample_size(10);
+    group.throughput(Throughput::Elements(BLOCKS as u64));
+    for (name, blend) in blends() {
+        let path = program(BLOCKS, blend);
         group.bench_function(name, |b| b.iter(|| plan(black_box(&path)).unwrap()));
+    }
+    group.finish();
+}
+
+/// The streaming planner's timing pass: building the stream times every window of the path
+/// (as a run does before its first tick); the first sample is read, no further one. The path
+/// is handed over by value, so its copy is made, and the stream dropped, outside the timing.
+fn streaming_throughput(c: &mut Criterion) {
+    let period = 1e-3;
+    let mut group = c.benchmark_group("stream_100k_blocks");
+    group.sample_size(10);
+    group.throughput(Throughput::Elements(BLOCKS as u64));
+    for (name, blend) in blends() {
+        let path = program(BLOCKS, blend);
+        let mut sample = SetpointSample::zeros(path.axes.len());
+        group.bench_function(name, |b| {
+            b.iter_batched(
+                || path.clone(),
+                |path| {
+                    let mut stream = plan_path_stream(path, period).unwrap();
+                    assert!(stream.next_sample(&mut sample));
+                    stream
+                },
+                BatchSize::PerIteration,
+            )
+        });
     }
     group.finish();
 }
@@ -107,5 +143,10 @@ fn profile_cost(c: &mut Criterion) {
     group.finish();
 }
 
-criterion_group!(benches, planning_throughput, profile_cost);
+criterion_group!(
+    benches,
+    planning_throughput,
+    streaming_throughput,
+    profile_cost
+);
 criterion_main!(benches);

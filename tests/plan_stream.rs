@@ -235,3 +235,77 @@ fn a_ten_hour_program_streams_without_materialising() {
         assert!(sample.position[0] > 0.0);
     }
 }
+
+/// A bare machine-axis path's stream is its start at rest, then the whole plan's samples.
+#[test]
+fn path_stream_samples_the_whole_plan_bit_identically() {
+    use cncsim::plan::{plan, plan_path_stream, AxisPath, AxisSpec, Blend, Geometry, PathSegment};
+    let limits = AxisLimits::from_program_units(AxisKind::Linear, 200.0, 2000.0, 50_000.0);
+    let axes: Vec<AxisSpec> = ["x", "y"]
+        .iter()
+        .map(|name| AxisSpec {
+            name: name.to_string(),
+            kind: AxisKind::Linear,
+            limits,
+        })
+        .collect();
+    // A zigzag of gentle corners with a sharp one every 50 moves: 2000 segments, so that the
+    // stream plans many windows and cuts chains off at their ends.
+    let segments = (0..2000)
+        .map(|k| PathSegment {
+            geometry: Geometry::Line {
+                end: vec![
+                    1e-3 * (k + 1) as f64,
+                    if k % 50 == 49 {
+                        -2e-3
+                    } else {
+                        1e-4 * (k % 2) as f64
+                    },
+                ],
+            },
+            feed: Some(0.05),
+            feed_metric: vec![1.0, 1.0],
+            blend: Blend::Continuous {
+                tolerance: Some(1e-5),
+            },
+            source_index: k as u32,
+        })
+        .collect();
+    let path = AxisPath {
+        axes,
+        start: vec![0.0, 0.0],
+        segments,
+        tool_lever_arms: Vec::new(),
+    };
+    let period = 1e-3;
+    let expected = plan(&path).unwrap().sample(period);
+    let mut stream = plan_path_stream(path.clone(), period).unwrap();
+    assert_eq!(stream.len(), expected.len());
+    let mut sample = SetpointSample::zeros(2);
+    assert!(stream.next_sample(&mut sample));
+    assert_eq!(sample.position, path.start);
+    assert_eq!(sample.velocity, [0.0; 2]);
+    assert_eq!(sample.acceleration, [0.0; 2]);
+    let (n, mut k) = (2, 1);
+    while stream.next_sample(&mut sample) {
+        let row = k * n..(k + 1) * n;
+        assert_eq!(
+            bits(&sample.position),
+            bits(&expected.position[row.clone()]),
+            "{k}"
+        );
+        assert_eq!(
+            bits(&sample.velocity),
+            bits(&expected.velocity[row.clone()]),
+            "{k}"
+        );
+        assert_eq!(
+            bits(&sample.acceleration),
+            bits(&expected.acceleration[row]),
+            "{k}"
+        );
+        assert_eq!(sample.segment, expected.segment[k], "{k}");
+        k += 1;
+    }
+    assert_eq!(k, expected.len());
+}

@@ -102,6 +102,44 @@ pub fn plan_program_stream<'a>(
     Ok(Box::new(StretchStream::new(n, period, stretches)))
 }
 
+/// Plans a machine-axis `path` with the jerk-limited planner as a stream, as
+/// [`plan_program_stream`] plans each motion of a program: every window of the path is timed
+/// here (so the stream's length is known), and planned again when its samples are read.
+/// Sample 0 is the path's start at rest; samples 1.. are bit-identical to those of
+/// [`plan`]`(&path)?.sample(period)`. Errors name no program line (a path has none): a path
+/// error comes as [`PlanError::Path`] from move 0, too many samples at the path's last segment.
+pub fn plan_path_stream(
+    path: AxisPath,
+    period: f64,
+) -> Result<Box<dyn SetpointStream + Send>, PlanError> {
+    if !(period.is_finite() && period > 0.0) {
+        return Err(PlanError::BadPeriod(period));
+    }
+    let n = path.axes.len();
+    let (start, first, last) = (
+        path.start.clone(),
+        path.segments.first().map_or(0, |s| s.source_index),
+        path.segments.last().map_or(0, |s| s.source_index as usize),
+    );
+    let windows = PlanWindows::new(path, WINDOW_SEGMENTS, 0).map_err(|source| PlanError::Path {
+        first_move: 0,
+        line: 0,
+        message: source.to_string(),
+    })?;
+    let ticks = SampleBudget::new(period).add_motion(windows.duration(), last, 0)?;
+    let stretches = vec![
+        Stretch::Start {
+            at: start,
+            segment: first,
+        },
+        Stretch::Windows {
+            plan: Box::new(windows),
+            ticks,
+        },
+    ];
+    Ok(Box::new(StretchStream::new(n, period, stretches)))
+}
+
 /// The jerk-limited plans of a program's motions (one per stretch between dwells), each with
 /// the machine-axis path it was planned from, for inspecting the planned geometry and timing;
 /// `None` for another planner.

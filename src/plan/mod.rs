@@ -34,8 +34,8 @@ pub mod trapezoid;
 pub use constant_velocity::constant_velocity;
 pub use error::PlanError;
 pub use from_program::{
-    jerk_limited_plans, plan_program, plan_program_stream, tool_lever_arms, BlendChoice,
-    PlanSettings, Planner,
+    jerk_limited_plans, plan_path_stream, plan_program, plan_program_stream, tool_lever_arms,
+    BlendChoice, PlanSettings, Planner,
 };
 pub use metrics::{
     finite_difference_extremes, write_setpoint_stream_csv, write_setpoints_csv, AxisExtremes,

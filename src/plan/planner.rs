@@ -94,6 +94,61 @@ fn plan_segments(
     start_time: f64,
     complete_only: bool,
 ) -> Result<(Plan, usize), PathError> {
+    let mut timing = Timing::default();
+    let timed = time_segments(path, first, end, start_time, complete_only, &mut timing)?;
+    let start = match first.checked_sub(1) {
+        Some(previous) => path.segments[previous].geometry.end(),
+        None => &path.start,
+    };
+    let plan = Plan {
+        axes: path.axes.len(),
+        source_index: path.segments[first..end]
+            .iter()
+            .map(|s| s.source_index)
+            .collect(),
+        shapes: timed.shapes,
+        pieces: timed.pieces,
+        spans: timing.spans,
+        start: start.to_vec(),
+        duration: timed.end_time,
+    };
+    Ok((plan, timed.next))
+}
+
+/// The working buffers of [`time_segments`]: the spans it times, and the scratch space of its
+/// chains. The timing pass of [`PlanWindows`] keeps one for all its windows, so that each
+/// window reuses the previous one's allocations.
+#[derive(Debug, Default)]
+struct Timing {
+    /// The spans of every complete chain timed, in order.
+    spans: Vec<Span>,
+    drafts: Vec<Draft>,
+    /// The spans of the share cap being tried, and of the fastest so far, with its limits.
+    trial: Vec<Span>,
+    best: Vec<Span>,
+    best_limits: Vec<Limits>,
+    scratch: Vec<f64>,
+}
+
+/// What [`time_segments`] built and found besides the spans.
+struct Timed {
+    shapes: Shapes,
+    pieces: Pieces,
+    /// When the last chain ends.
+    end_time: f64,
+    /// The segment after the last chain.
+    next: usize,
+}
+
+/// [`plan_segments`]' geometry and timing, with its spans in `timing.spans` (cleared first).
+fn time_segments(
+    path: &AxisPath,
+    first: usize,
+    end: usize,
+    start_time: f64,
+    complete_only: bool,
+    timing: &mut Timing,
+) -> Result<Timed, PathError> {
     let segments = &path.segments[first..end];
     let start = match first.checked_sub(1) {
         Some(previous) => path.segments[previous].geometry.end(),
@@ -111,13 +166,17 @@ fn plan_segments(
     } else {
         end
     };
-    let mut spans = Vec::with_capacity(pieces.pieces.len());
+    let Timing {
+        spans,
+        drafts,
+        trial,
+        best,
+        best_limits,
+        scratch,
+    } = timing;
+    spans.clear();
+    spans.reserve(pieces.pieces.len());
     let mut time = start_time;
-    let mut drafts = Vec::new();
-    let mut trial = Vec::new();
-    let mut best = Vec::new();
-    let mut best_limits = Vec::new();
-    let mut scratch = Vec::new();
     for c in 0..pieces.chains.len() {
         let chain = pieces.chains[c];
         let range = chain.first..chain.end;
@@ -133,33 +192,29 @@ fn plan_segments(
                 &pieces.budgets[range.clone()],
                 &pieces.table,
                 cap,
-                &mut scratch,
+                scratch,
             );
-            let duration = time_chain(&pieces, c, &mut drafts, time, &mut trial)
-                .map_err(|e| e.offset(first))?;
+            let duration =
+                time_chain(&pieces, c, drafts, time, trial).map_err(|e| e.offset(first))?;
             if duration < fastest {
                 fastest = duration;
-                std::mem::swap(&mut best, &mut trial);
+                std::mem::swap(best, trial);
                 best_limits.clear();
                 best_limits.extend(pieces.pieces[range.clone()].iter().map(|p| p.limits));
             }
         }
-        for (piece, limits) in pieces.pieces[range].iter_mut().zip(&best_limits) {
+        for (piece, limits) in pieces.pieces[range].iter_mut().zip(best_limits.iter()) {
             piece.limits = *limits;
         }
         time += fastest;
-        spans.append(&mut best);
+        spans.append(best);
     }
-    let plan = Plan {
-        axes: path.axes.len(),
-        source_index: segments.iter().map(|s| s.source_index).collect(),
+    Ok(Timed {
         shapes,
         pieces,
-        spans,
-        start: start.to_vec(),
-        duration: time,
-    };
-    Ok((plan, next))
+        end_time: time,
+        next,
+    })
 }
 
 /// Segments per window of [`PlanWindows`] at first; a window grows until it holds a whole
@@ -208,19 +263,34 @@ impl PlanWindows {
     ) -> Result<Self, PathError> {
         validate(&path)?;
         let mut window = window.max(1);
-        let mut duration = 0.0;
-        let mut next = 0;
+        let count = path.segments.len();
+        let keep = count <= most;
+        // The first window is kept (the evaluation starts there), the rest only for a short
+        // path; of the others only the end time is needed, and one set of buffers does for all.
         let mut first = None;
         let mut kept = std::collections::VecDeque::new();
-        let keep = path.segments.len() <= most;
-        while next < path.segments.len() {
-            let plan;
-            (plan, next) = Self::plan_window(&path, next, &mut window, duration)?;
-            duration = plan.duration;
-            if first.is_none() {
-                first = Some((plan, next));
-            } else if keep {
-                kept.push_back((plan, next));
+        let mut duration = 0.0;
+        let mut next = 0;
+        let mut timing = Timing::default();
+        while next < count {
+            if first.is_none() || keep {
+                let plan;
+                (plan, next) =
+                    Self::plan_window(&path, next, &mut window, |end, complete_only| {
+                        plan_segments(&path, next, end, duration, complete_only)
+                    })?;
+                duration = plan.duration;
+                if first.is_none() {
+                    first = Some((plan, next));
+                } else {
+                    kept.push_back((plan, next));
+                }
+            } else {
+                (duration, next) =
+                    Self::plan_window(&path, next, &mut window, |end, complete_only| {
+                        time_segments(&path, next, end, duration, complete_only, &mut timing)
+                            .map(|timed| (timed.end_time, timed.next))
+                    })?;
             }
         }
         let rest = (
@@ -252,23 +322,24 @@ impl PlanWindows {
         (self.path, self.first_move)
     }
 
-    /// The plan of the whole chains from segment `first` on, timed from `start_time`, and where
-    /// the next window starts. A window of `window` segments grows eightfold until it holds a
-    /// whole chain (each try is planned in full: a long chain costs about 8/7 of its planning
-    /// again), and doubles when less than half of it is kept (the chain cut off at its end is
-    /// planned again with the next window), so that no more than about half the work is
-    /// repeated.
-    fn plan_window(
+    /// The plan of the whole chains from segment `first` on (made by `plan_until` from the
+    /// segments up to the given end, with or without the last chain, as [`plan_segments`]
+    /// makes it), and where the next window starts. A window of `window` segments grows
+    /// eightfold until it holds a whole chain (each try is planned in full: a long chain costs
+    /// about 8/7 of its planning again), and doubles when less than half of it is kept (the
+    /// chain cut off at its end is planned again with the next window), so that no more than
+    /// about half the work is repeated.
+    fn plan_window<T>(
         path: &AxisPath,
         first: usize,
         window: &mut usize,
-        start_time: f64,
-    ) -> Result<(Plan, usize), PathError> {
+        mut plan_until: impl FnMut(usize, bool) -> Result<(T, usize), PathError>,
+    ) -> Result<(T, usize), PathError> {
         let count = path.segments.len();
         loop {
             let end = first.saturating_add(*window).min(count);
             let last = end == count;
-            let (plan, next) = plan_segments(path, first, end, start_time, !last)?;
+            let (plan, next) = plan_until(end, !last)?;
             if last {
                 return Ok((plan, count));
             }
@@ -294,7 +365,14 @@ impl PlanWindows {
         while self.next < self.path.segments.len() {
             let window = match self.kept.pop_front() {
                 Some(kept) => Ok(kept),
-                None => Self::plan_window(&self.path, self.next, &mut self.window, time),
+                None => Self::plan_window(
+                    &self.path,
+                    self.next,
+                    &mut self.window,
+                    |end, complete_only| {
+                        plan_segments(&self.path, self.next, end, time, complete_only)
+                    },
+                ),
             };
             // The timing pass planned this window from the same inputs without error.
             let (plan, next) =
