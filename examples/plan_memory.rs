@@ -70,7 +70,9 @@ fn main() {
         rapid_speed: 0.05,
         blend: BlendChoice::Program,
         axis_names: machine.axes.iter().map(|a| a.name.clone()).collect(),
-        naive_cam_tolerance: None,
+        // Every line planned as written (G64 P alone would join lines within P, as LinuxCNC's
+        // naive-CAM detector does, and leave far fewer segments to plan).
+        naive_cam_tolerance: Some(0.0),
         tool_lever_arms: Vec::new(),
     };
     let start = Instant::now();
