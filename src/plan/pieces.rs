@@ -384,6 +384,13 @@ fn jerk_ceiling(v: f64, curve_jerk: f64, rho: f64) -> f64 {
     }
 }
 
+/// The feed that caps ṡ on segment `k` (of `segments`, whose shapes are `shapes`): its
+/// programmed feed where its feed metric measures it, none where it does not (e.g. a purely
+/// rotary move under the LinuxCNC rule).
+pub(super) fn applied_feed(segments: &[PathSegment], shapes: &Shapes, k: usize) -> Option<f64> {
+    segments[k].feed.filter(|_| shapes.shapes[k].feed_applies)
+}
+
 /// The lower of two feeds, either of which may not apply (a blend between two segments is
 /// held to the lower).
 pub(super) fn lowest_feed(a: Option<f64>, b: Option<f64>) -> Option<f64> {
@@ -510,11 +517,7 @@ impl<'a> Builder<'a> {
     }
 
     fn feed(&self, k: usize) -> Option<f64> {
-        if self.shapes.shapes[k].feed_applies {
-            self.segments[k].feed
-        } else {
-            None
-        }
+        applied_feed(self.segments, self.shapes, k)
     }
 
     /// The budget of segment `k` on its own. Only its minima are used (for sizing blends), so

@@ -23,7 +23,7 @@
 use super::geometry::{AxisJet, Metric, PathPoint, Shapes};
 use super::path::{AxisPath, Blend, Geometry, PathError};
 use super::pieces::{
-    assign_limits, lowest_feed, Builder, Chain, Piece, PieceKind, Pieces, SHARE_CAPS,
+    applied_feed, assign_limits, lowest_feed, Builder, Chain, Piece, PieceKind, Pieces, SHARE_CAPS,
 };
 use super::profile::{reachable_velocity, Limits, Profile, Recipe};
 use super::quintic;
@@ -896,12 +896,7 @@ impl Plan {
         let n = self.axes;
         let (mut v, mut a) = (vec![0.0; n], vec![0.0; n]);
         let mut scratch = JetScratch::new(n);
-        // The feed of segment k where its feed metric measures it (as the planner caps ṡ).
-        let feed = |k: usize| {
-            path.segments[k]
-                .feed
-                .filter(|_| self.shapes.shapes[k].feed_applies)
-        };
+        let feed = |k: usize| applied_feed(&path.segments, &self.shapes, k);
         self.pieces
             .chains
             .iter()
