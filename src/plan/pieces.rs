@@ -128,6 +128,21 @@ pub(super) struct Pieces {
     pub covered: Vec<usize>,
     /// Segment lengths (for finding the segment at a point of a quintic piece).
     pub lengths: Vec<f64>,
+    /// Per segment: whether a smoothing curve runs through it (what a [`Seed`] freezes).
+    pub smoothed: Vec<bool>,
+}
+
+/// What a window of a long chain planned after a handoff takes over from the window before
+/// it, so that its pieces from the handoff on are the ones that window made: which of the
+/// segments before the handoff that window smoothed (the data at a smoothing curve's ends
+/// depends on them), and the segment a smoothing curve must start at (the first one the
+/// window after the handoff plans; the curves before it are chosen again, and not used).
+#[derive(Debug, Clone, PartialEq)]
+pub(super) struct Seed {
+    /// Per segment from the window's first on: smoothed in the window before.
+    pub smoothed: Vec<bool>,
+    /// The segment (of the window) no smoothing curve may start before and run into.
+    pub curve_start: usize,
 }
 
 impl Pieces {
@@ -543,7 +558,9 @@ impl<'a> Builder<'a> {
         }
     }
 
-    pub fn build(mut self) -> Pieces {
+    /// The pieces of the segments; with a `seed`, the window starts at the margin before a
+    /// handoff (see [`Seed`]).
+    pub fn build(mut self, seed: Option<&Seed>) -> Pieces {
         let count = self.segments.len();
         let shapes = self.shapes;
         for k in 0..count {
@@ -577,7 +594,7 @@ impl<'a> Builder<'a> {
         }
         junctions.push(Junction::Stop);
         tolerances.push(0.0);
-        let smooth = self.smooth_runs(&moving, &junctions, &tolerances);
+        let smooth = self.smooth_runs(&moving, &junctions, &tolerances, seed);
         let corners = junctions
             .iter()
             .filter(|j| matches!(j, Junction::Corner { .. }))
@@ -592,7 +609,11 @@ impl<'a> Builder<'a> {
             covered: Vec::new(),
             lengths: shapes.shapes.iter().map(|s| s.length).collect(),
             table: Budgets::default(),
+            smoothed: vec![false; count],
         };
+        for (m, &k) in moving.iter().enumerate() {
+            out.smoothed[k] = smooth.curve_of[m].is_some();
+        }
         // Each piece's budget; its limits follow once the chain's speeds are estimated.
         let placeholder = Limits::new(1.0, 1.0, 1.0);
         let mut s = 0.0;
@@ -731,12 +752,14 @@ impl<'a> Builder<'a> {
     /// [`SMOOTH_ANGLE`] (or are tangent), and its curve stays within the tolerance of the
     /// programmed line; a line whose curve does not is left straight, which changes the data
     /// at the knots up to two lines away, so those are computed again (each line is dropped at
-    /// most once, so the work stays linear).
+    /// most once, so the work stays linear). A `seed` fixes the choice on the segments it
+    /// covers (the first stays straight: nothing before it is known) and where a curve starts.
     fn smooth_runs(
         &mut self,
         moving: &[usize],
         junctions: &[Junction],
         tolerances: &[f64],
+        seed: Option<&Seed>,
     ) -> Smoothing {
         let shapes = self.shapes;
         let count = moving.len();
@@ -753,8 +776,12 @@ impl<'a> Builder<'a> {
             Junction::Smooth | Junction::Tangent { .. } => true,
             Junction::Stop => false,
         };
+        let frozen = |m: usize| seed.and_then(|seed| seed.smoothed.get(moving[m]).copied());
         let mut flags: Vec<bool> = (0..count)
             .map(|m| {
+                if let Some(flag) = frozen(m) {
+                    return m > 0 && flag;
+                }
                 m > 0
                     && m + 1 < count
                     && shapes.line_direction(moving[m]).is_some()
@@ -774,7 +801,10 @@ impl<'a> Builder<'a> {
         if !flags.contains(&true) {
             return out;
         }
-        let mut work: Vec<usize> = (0..count).filter(|&m| flags[m]).rev().collect();
+        let mut work: Vec<usize> = (0..count)
+            .filter(|&m| flags[m] && frozen(m).is_none())
+            .rev()
+            .collect();
         let mut curve = Vec::new();
         // Stage 1: every line on its own must stay within its tolerance.
         while let Some(m) = work.pop() {
@@ -786,18 +816,22 @@ impl<'a> Builder<'a> {
                 // lines either way: those lines are checked again.
                 flags[m] = false;
                 let around = m.saturating_sub(2)..(m + 3).min(count);
-                work.extend(around.filter(|&neighbour| flags[neighbour]));
+                work.extend(around.filter(|&q| flags[q] && frozen(q).is_none()));
             }
         }
         // Stage 2: along each run, one curve through as many lines as stay within the
         // tolerance (a longer curve averages the points' rounding instead of turning with it).
+        let curve_start = seed.map_or(0, |seed| moving.partition_point(|&k| k < seed.curve_start));
         let mut m = 0;
         while m < count {
             if !flags[m] {
                 m += 1;
                 continue;
             }
-            let run_end = (m..count).find(|&q| !flags[q]).unwrap_or(count);
+            let mut run_end = (m..count).find(|&q| !flags[q]).unwrap_or(count);
+            if m < curve_start {
+                run_end = run_end.min(curve_start);
+            }
             let mut last = (m + MAX_CURVE_LINES - 1).min(run_end - 1);
             while last > m && !self.fits(moving, &flags, m, last, tolerances, &mut curve) {
                 last -= 1;
@@ -1134,7 +1168,7 @@ impl<'a> Builder<'a> {
 
 /// Chooses the centripetal share of every piece of a chain from the speed it will be passed
 /// at, estimated by the acceleration-limited envelope of the chain (no jerk limit): zero at the
-/// chain's ends, capped at the piece boundaries by both neighbours' ceilings (each piece's
+/// chain's ends (at its start, `entry_speed`: a window after a handoff), capped at the piece boundaries by both neighbours' ceilings (each piece's
 /// largest with shares up to `largest_share`), and reachable from either side with the
 /// tangential acceleration the curvature leaves at each speed. With `A = min a_i/K1_i` and
 /// `W = min a_i/K2_i`, the tangential acceleration at speed v is `A·(1 − v²/W)`, so
@@ -1146,6 +1180,7 @@ pub(super) fn assign_limits(
     budgets: &[Budget],
     table: &Budgets,
     largest_share: f64,
+    entry_speed: f64,
     scratch: &mut Vec<f64>,
 ) {
     let m = pieces.len();
@@ -1165,7 +1200,7 @@ pub(super) fn assign_limits(
         };
         reached.min(ceiling[i] * ceiling[i])
     };
-    speeds[0] = 0.0;
+    speeds[0] = entry_speed * entry_speed;
     speeds[m] = 0.0;
     for i in 1..m {
         speeds[i] = (ceiling[i - 1] * ceiling[i - 1]).min(ceiling[i] * ceiling[i]);

@@ -23,12 +23,13 @@
 use super::geometry::{AxisJet, Metric, PathPoint, Shapes};
 use super::path::{AxisPath, Blend, Geometry, PathError};
 use super::pieces::{
-    applied_feed, assign_limits, lowest_feed, Builder, Chain, Piece, PieceKind, Pieces, SHARE_CAPS,
+    applied_feed, assign_limits, lowest_feed, Builder, Chain, Piece, PieceKind, Pieces, Seed,
+    SHARE_CAPS,
 };
-use super::profile::{reachable_velocity, Limits, Profile, Recipe};
+use super::profile::{reachable_velocity, transfer_distance, Limits, Profile, Recipe};
 use super::quintic;
 use super::setpoints::{sample_times, Setpoints};
-use super::tangent::JetScratch;
+use super::tangent::{JetScratch, TangentBlend};
 
 /// Pieces whose speed, acceleration and jerk limits each lie within this fraction of one
 /// another are timed as one span (with the lowest of them).
@@ -37,16 +38,37 @@ pub const SPAN_SPREAD: f64 = 0.05;
 /// A piece shorter than this fraction of a neighbour does not split a span by itself.
 const SHORT_PIECE: f64 = 0.25;
 
-/// A timed trajectory over a whole path.
+/// A timed trajectory over a whole path: the parts its windows planned, one after the other
+/// (see [`PlanWindows`]: a run plans the same windows as it reads them).
 #[derive(Debug, Clone)]
 pub struct Plan {
+    axes: usize,
+    start: Vec<f64>,
+    /// Per path segment, the program move it comes from.
+    source_index: Vec<u32>,
+    parts: Vec<Part>,
+}
+
+/// The plan of one window of a path: its whole chains, or a stretch of a chain longer than
+/// the look-ahead, from its start or a handoff to the next handoff.
+#[derive(Debug, Clone)]
+struct Part {
     axes: usize,
     shapes: Shapes,
     pieces: Pieces,
     spans: Vec<Span>,
     source_index: Vec<u32>,
+    /// The path segment the window's first segment is.
+    first_segment: usize,
+    /// Where the window's first segment starts.
     start: Vec<f64>,
+    /// When its last span ends.
     duration: f64,
+    /// Its last chain runs on in the next part (handed over while moving, not at a stop).
+    handed_off: bool,
+    /// Its last chain runs on in the next part, but no handoff was found: it stops at the
+    /// window's last point (a stop the program does not ask for).
+    stops_short: bool,
 }
 
 /// A stretch of a chain timed by one profile.
@@ -76,51 +98,34 @@ pub struct SegmentTiming {
 
 /// Plans a path. See the module documentation for the method.
 pub fn plan(path: &AxisPath) -> Result<Plan, PathError> {
-    validate(path)?;
-    plan_segments(path, 0, path.segments.len(), 0.0, false).map(|(plan, _)| plan)
+    plan_with_lookahead(path, LOOKAHEAD_SEGMENTS)
 }
 
-/// Plans segments `first..end` of `path` (validated), its first chain starting at
-/// `start_time`. With `complete_only`, the last chain (which ends where the segments are cut
-/// off, not at a stop) is left out. Returns the plan and the segment after its last chain.
-///
-/// A chain's pieces depend only on its own segments and the shapes of the two segments around
-/// it (every junction, blend and smoothing curve looks no further, and none crosses a stop),
-/// so the chains planned here are exactly those of the whole path.
-fn plan_segments(
-    path: &AxisPath,
-    first: usize,
-    end: usize,
-    start_time: f64,
-    complete_only: bool,
-) -> Result<(Plan, usize), PathError> {
-    let mut timing = Timing::default();
-    let timed = time_segments(path, first, end, start_time, complete_only, &mut timing)?;
-    let start = match first.checked_sub(1) {
-        Some(previous) => path.segments[previous].geometry.end(),
-        None => &path.start,
-    };
-    let plan = Plan {
+/// [`plan`] with a look-ahead of `segments` (at least 128) instead of
+/// [`LOOKAHEAD_SEGMENTS`]: for measuring what the look-ahead costs (a look-ahead longer than
+/// the path plans every chain whole).
+#[doc(hidden)]
+pub fn plan_with_lookahead(path: &AxisPath, segments: usize) -> Result<Plan, PathError> {
+    validate(path)?;
+    let mut windows = Windows::new(WINDOW_SEGMENTS, segments);
+    let mut parts = Vec::new();
+    while let Some(part) = windows.next_part(path)? {
+        parts.push(part);
+    }
+    Ok(Plan {
         axes: path.axes.len(),
-        source_index: path.segments[first..end]
-            .iter()
-            .map(|s| s.source_index)
-            .collect(),
-        shapes: timed.shapes,
-        pieces: timed.pieces,
-        spans: timing.spans,
-        start: start.to_vec(),
-        duration: timed.end_time,
-    };
-    Ok((plan, timed.next))
+        start: path.start.clone(),
+        source_index: path.segments.iter().map(|s| s.source_index).collect(),
+        parts,
+    })
 }
 
 /// The working buffers of [`time_segments`]: the spans it times, and the scratch space of its
-/// chains. The timing pass of [`PlanWindows`] keeps one for all its windows, so that each
-/// window reuses the previous one's allocations.
+/// chains. [`Windows`] keeps one for all its windows, so that each window reuses the previous
+/// one's allocations.
 #[derive(Debug, Default)]
 struct Timing {
-    /// The spans of every complete chain timed, in order.
+    /// The spans of every chain timed, in order.
     spans: Vec<Span>,
     drafts: Vec<Draft>,
     /// The spans of the share cap being tried, and of the fastest so far, with its limits.
@@ -134,21 +139,70 @@ struct Timing {
 struct Timed {
     shapes: Shapes,
     pieces: Pieces,
-    /// When the last chain ends.
+    /// When the last chain timed ends.
     end_time: f64,
-    /// The segment after the last chain.
+    /// The segment after the last chain timed.
     next: usize,
+    /// The window holds one chain, which runs on past it: a stretch, to be handed over
+    /// inside it.
+    stretch: bool,
 }
 
-/// [`plan_segments`]' geometry and timing, with its spans in `timing.spans` (cleared first).
+/// How a window's last chain ends.
+#[derive(Debug, Clone, Copy, PartialEq)]
+enum WindowEnd {
+    /// At a stop the program asks for (or the path's end).
+    Stop,
+    /// Handed over to the next window while moving.
+    HandedOff,
+    /// At the window's last point, stopping there although the chain goes on (no handoff
+    /// could be taken over).
+    StopsShort,
+}
+
+/// Which chains of a window [`time_segments`] times.
+#[derive(Debug, Clone, Copy, PartialEq)]
+enum Ending {
+    /// The window reaches the path's end: all.
+    PathEnd,
+    /// All but the last, which may run on past the window (the next window plans it).
+    Complete,
+    /// As `Complete`, unless the last is the only one: then it is timed as a stretch, up to
+    /// the window's end.
+    CompleteOrStretch,
+}
+
+/// Why a window could not be timed.
+#[derive(Debug)]
+enum WindowError {
+    Path(PathError),
+    /// The handoff it starts from is not one it can take over: its piece is not among the
+    /// window's, or the window cannot go on from its speed.
+    Handoff,
+}
+
+impl From<PathError> for WindowError {
+    fn from(error: PathError) -> Self {
+        WindowError::Path(error)
+    }
+}
+
+/// Times segments `first..end` of `path` (validated), its first chain starting at
+/// `start_time` (after `entry`, from the handoff's piece on at the handoff's speed); the
+/// spans go to `timing.spans` (cleared first), the chains `ending` says.
+///
+/// A chain's pieces depend only on its own segments and the shapes of the two segments around
+/// it (every junction, blend and smoothing curve looks no further, and none crosses a stop),
+/// so the whole chains timed here are exactly those of any window that holds them.
 fn time_segments(
     path: &AxisPath,
     first: usize,
     end: usize,
     start_time: f64,
-    complete_only: bool,
+    ending: Ending,
+    entry: Option<&Handoff>,
     timing: &mut Timing,
-) -> Result<Timed, PathError> {
+) -> Result<Timed, WindowError> {
     let segments = &path.segments[first..end];
     let start = match first.checked_sub(1) {
         Some(previous) => path.segments[previous].geometry.end(),
@@ -156,15 +210,35 @@ fn time_segments(
     };
     let shapes = Shapes::new(start, segments, &path.axes).map_err(|e| e.offset(first))?;
     let metric = Metric::new(&path.axes, &path.tool_lever_arms);
-    let mut pieces = Builder::new(&path.axes, segments, &shapes, &metric).build();
-    let next = if complete_only {
-        pieces.chains.pop();
-        pieces
-            .chains
-            .last()
-            .map_or(first, |c| first + c.last_segment + 1)
-    } else {
-        end
+    let seed = entry.map(|handoff| &handoff.seed);
+    let mut pieces = Builder::new(&path.axes, segments, &shapes, &metric).build(seed);
+    let entry_speed = match entry {
+        Some(handoff) => {
+            let (c, q) = handoff
+                .find(&pieces, first, path.axes.len())
+                .ok_or(WindowError::Handoff)?;
+            pieces.chains.drain(..c);
+            pieces.chains[0].first = q;
+            Some(handoff.speed)
+        }
+        None => None,
+    };
+    let mut stretch = false;
+    let next = match ending {
+        Ending::PathEnd => end,
+        // Nothing moves in a window this long: it is complete.
+        Ending::CompleteOrStretch if pieces.chains.is_empty() => end,
+        Ending::CompleteOrStretch if pieces.chains.len() == 1 => {
+            stretch = true;
+            end
+        }
+        Ending::Complete | Ending::CompleteOrStretch => {
+            pieces.chains.pop();
+            pieces
+                .chains
+                .last()
+                .map_or(first, |c| first + c.last_segment + 1)
+        }
     };
     let Timing {
         spans,
@@ -180,6 +254,7 @@ fn time_segments(
     for c in 0..pieces.chains.len() {
         let chain = pieces.chains[c];
         let range = chain.first..chain.end;
+        let entry = if c == 0 { entry_speed } else { None };
         // The fastest of the share caps. A smaller cap changes nothing when no piece used more
         // than it.
         let mut fastest = f64::INFINITY;
@@ -192,16 +267,24 @@ fn time_segments(
                 &pieces.budgets[range.clone()],
                 &pieces.table,
                 cap,
+                entry.unwrap_or(0.0),
                 scratch,
             );
-            let duration =
-                time_chain(&pieces, c, drafts, time, trial).map_err(|e| e.offset(first))?;
+            let duration = match time_chain(&pieces, c, entry, drafts, time, trial) {
+                Ok(duration) => duration,
+                // Limits under which the handoff's speed cannot be held: try the next cap.
+                Err(_) if entry.is_some() => continue,
+                Err(error) => return Err(error.offset(first).into()),
+            };
             if duration < fastest {
                 fastest = duration;
                 std::mem::swap(best, trial);
                 best_limits.clear();
                 best_limits.extend(pieces.pieces[range.clone()].iter().map(|p| p.limits));
             }
+        }
+        if fastest == f64::INFINITY {
+            return Err(WindowError::Handoff);
         }
         for (piece, limits) in pieces.pieces[range].iter_mut().zip(best_limits.iter()) {
             piece.limits = *limits;
@@ -214,104 +297,535 @@ fn time_segments(
         pieces,
         end_time: time,
         next,
+        stretch,
     })
 }
 
-/// Segments per window of [`PlanWindows`] at first; a window grows until it holds a whole
-/// chain.
+/// Segments per window at a stop at first; a window grows until it holds a whole chain, up
+/// to [`LOOKAHEAD_SEGMENTS`].
 pub(super) const WINDOW_SEGMENTS: usize = 512;
 
-/// Most segments whose window plans the timing pass of [`PlanWindows`] keeps for evaluation
-/// (a path this short is planned once, not twice).
-const KEPT_SEGMENTS: usize = 16_384;
+/// The planner's look-ahead (segments): a chain that ends within this many segments of its
+/// start is planned whole, exactly time-optimal; a longer one is planned this many segments
+/// at a time, each window assuming a stop at its end and handing over to the next between
+/// one half and three quarters of the way in, so that every point is planned with at least a
+/// quarter of this ahead of it (as a CNC's look-ahead queue of fixed depth). The planner's
+/// memory is bounded by it, however long the chain.
+pub const LOOKAHEAD_SEGMENTS: usize = 4096;
+
+/// Segments before a handoff that the window after it builds again (and does not use): its
+/// pieces from the handoff on depend on them.
+const HANDOFF_MARGIN: usize = 16;
+
+/// Places tried as a handoff per window: this many of those the plan passes at zero
+/// acceleration anyway (the slowest first), then as many of the others.
+const HANDOFF_TRIES: usize = 3;
+
+/// How much slower than its span would pass it a handoff inside a span is passed (relative):
+/// the next window's limits for the same pieces may come out a few ulps lower.
+const HANDOFF_SPEED_MARGIN: f64 = 1e-9;
+
+/// Where a stretch of a long chain hands over to the next window: at the start of a piece,
+/// at zero path acceleration and a known speed.
+#[derive(Debug, Clone, PartialEq)]
+struct Handoff {
+    /// The segment the next window starts from ([`HANDOFF_MARGIN`] before the piece).
+    first: usize,
+    /// What the next window's geometry takes over from the one before.
+    seed: Seed,
+    /// The piece the next window starts with, as the window before made it.
+    piece: PieceKey,
+    /// Path speed ṡ there.
+    speed: f64,
+}
+
+/// A piece as it is in the path, whatever window made it (segments as path segments, its
+/// vectors copied).
+#[derive(Debug, Clone, PartialEq)]
+struct PieceKey {
+    kind: PieceKind,
+    length: f64,
+    data: Vec<f64>,
+    covered: Vec<usize>,
+}
+
+impl PieceKey {
+    /// Piece `index` of `pieces`, made by a window from segment `first` on.
+    fn of(pieces: &Pieces, index: usize, first: usize, axes: usize) -> PieceKey {
+        let piece = &pieces.pieces[index];
+        let (kind, data, covered) = match piece.kind {
+            PieceKind::Segment { segment, from } => (
+                PieceKind::Segment {
+                    segment: first + segment,
+                    from,
+                },
+                &[][..],
+                Vec::new(),
+            ),
+            PieceKind::Corner {
+                incoming,
+                outgoing,
+                blend,
+                data,
+            } => (
+                PieceKind::Corner {
+                    incoming: first + incoming,
+                    outgoing: first + outgoing,
+                    blend,
+                    data: 0,
+                },
+                &pieces.arena[data..data + 3 * axes],
+                Vec::new(),
+            ),
+            PieceKind::Tangent(t) => (
+                PieceKind::Tangent(TangentBlend {
+                    incoming: first + t.incoming,
+                    outgoing: first + t.outgoing,
+                    length: t.length,
+                }),
+                &[][..],
+                Vec::new(),
+            ),
+            PieceKind::Quintic {
+                data,
+                first: covered,
+                count,
+            } => (
+                PieceKind::Quintic {
+                    data: 0,
+                    first: 0,
+                    count,
+                },
+                &pieces.arena[data..data + quintic::COEFFICIENTS * axes],
+                pieces.covered[covered..covered + count]
+                    .iter()
+                    .map(|&k| first + k)
+                    .collect(),
+            ),
+        };
+        PieceKey {
+            kind,
+            length: piece.length,
+            data: data.to_vec(),
+            covered,
+        }
+    }
+}
+
+/// The first segment (of its window) piece `index` runs through.
+fn first_segment_of(pieces: &Pieces, index: usize) -> usize {
+    match pieces.pieces[index].kind {
+        PieceKind::Segment { segment, .. } => segment,
+        PieceKind::Corner { incoming, .. } => incoming,
+        PieceKind::Tangent(t) => t.incoming,
+        PieceKind::Quintic { first, .. } => pieces.covered[first],
+    }
+}
+
+impl Handoff {
+    /// The handoff at piece `index` of `pieces` (a window from segment `first`) at `speed`.
+    fn at(pieces: &Pieces, first: usize, index: usize, speed: f64, axes: usize) -> Handoff {
+        let at = first_segment_of(pieces, index);
+        let margin = at.saturating_sub(HANDOFF_MARGIN);
+        Handoff {
+            first: first + margin,
+            seed: Seed {
+                smoothed: pieces.smoothed[margin..at].to_vec(),
+                curve_start: at - margin,
+            },
+            piece: PieceKey::of(pieces, index, first, axes),
+            speed,
+        }
+    }
+
+    /// The chain and the index of the handoff's piece in `pieces` (a window from segment
+    /// `first`), if it is there.
+    fn find(&self, pieces: &Pieces, first: usize, axes: usize) -> Option<(usize, usize)> {
+        pieces.chains.iter().enumerate().find_map(|(c, chain)| {
+            (chain.first..chain.end)
+                .find(|&q| PieceKey::of(pieces, q, first, axes) == self.piece)
+                .map(|q| (c, q))
+        })
+    }
+}
+
+/// Where the next window starts.
+#[derive(Debug, Clone)]
+enum Next {
+    /// At a stop: segment `0` starts a chain.
+    Stop(usize),
+    /// Inside a chain longer than the look-ahead.
+    Handoff(Box<Handoff>),
+}
+
+/// A path's windows in order, each planned from where the one before ended: [`plan`] keeps
+/// them all, [`PlanWindows`] one at a time. Windows at a stop hold whole chains; a chain
+/// longer than [`LOOKAHEAD_SEGMENTS`] is planned a window at a time and handed over inside
+/// each. A chain is planned whole or not whatever the windows around it (a window at a stop
+/// is never longer than the look-ahead), so every sequence of windows plans the same.
+#[derive(Debug)]
+struct Windows {
+    /// [`LOOKAHEAD_SEGMENTS`], or another look-ahead (for comparing).
+    lookahead: usize,
+    /// Segments of the next window at a stop (it grows to hold a whole chain).
+    window: usize,
+    /// Where the next window starts (`None`: after the last).
+    next: Option<Next>,
+    /// When the windows planned so far end.
+    time: f64,
+    timing: Timing,
+    /// Buffers for checking a handoff.
+    check: Timing,
+}
+
+impl Windows {
+    fn new(window: usize, lookahead: usize) -> Self {
+        // Each window after a handoff must reach past the margin before it.
+        let lookahead = lookahead.max(8 * HANDOFF_MARGIN);
+        Windows {
+            lookahead,
+            window: window.clamp(1, lookahead),
+            next: Some(Next::Stop(0)),
+            time: 0.0,
+            timing: Timing::default(),
+            check: Timing::default(),
+        }
+    }
+
+    /// The windows after those planned so far, planned again from here.
+    fn resume(&self) -> Self {
+        Windows {
+            lookahead: self.lookahead,
+            window: self.window,
+            next: self.next.clone(),
+            time: self.time,
+            timing: Timing::default(),
+            check: Timing::default(),
+        }
+    }
+
+    /// Plans the next window; `None` after the last.
+    fn next_part(&mut self, path: &AxisPath) -> Result<Option<Part>, PathError> {
+        let Some((timed, first, window_end)) = self.step(path)? else {
+            return Ok(None);
+        };
+        let start = match first.checked_sub(1) {
+            Some(previous) => path.segments[previous].geometry.end(),
+            None => &path.start,
+        };
+        Ok(Some(Part {
+            axes: path.axes.len(),
+            source_index: path.segments[first..first + timed.shapes.len()]
+                .iter()
+                .map(|s| s.source_index)
+                .collect(),
+            shapes: timed.shapes,
+            pieces: timed.pieces,
+            spans: std::mem::take(&mut self.timing.spans),
+            first_segment: first,
+            start: start.to_vec(),
+            duration: timed.end_time,
+            handed_off: window_end == WindowEnd::HandedOff,
+            stops_short: window_end == WindowEnd::StopsShort,
+        }))
+    }
+
+    /// Times the next window (to `self.time`); false after the last.
+    fn next_time(&mut self, path: &AxisPath) -> Result<bool, PathError> {
+        Ok(self.step(path)?.is_some())
+    }
+
+    /// The next window's geometry and timing (its spans in `self.timing.spans`), its first
+    /// segment, and how it ends.
+    fn step(&mut self, path: &AxisPath) -> Result<Option<(Timed, usize, WindowEnd)>, PathError> {
+        let count = path.segments.len();
+        let (first, entry) = match self.next.take() {
+            None => return Ok(None),
+            Some(Next::Stop(first)) if first >= count => return Ok(None),
+            Some(Next::Stop(first)) => (first, None),
+            Some(Next::Handoff(handoff)) => (handoff.first, Some(handoff)),
+        };
+        loop {
+            // After a handoff, always the whole look-ahead (where the handoff was checked).
+            let size = if entry.is_some() {
+                self.lookahead
+            } else {
+                self.window
+            };
+            let end = first.saturating_add(size).min(count);
+            let ending = if end == count {
+                Ending::PathEnd
+            } else if size >= self.lookahead {
+                Ending::CompleteOrStretch
+            } else {
+                Ending::Complete
+            };
+            let timed = match time_segments(
+                path,
+                first,
+                end,
+                self.time,
+                ending,
+                entry.as_deref(),
+                &mut self.timing,
+            ) {
+                Ok(timed) => timed,
+                Err(WindowError::Path(error)) => return Err(error),
+                // The same call checked it when the handoff was made.
+                Err(WindowError::Handoff) => {
+                    unreachable!("planning is deterministic: a handoff checked once holds")
+                }
+            };
+            if timed.stretch {
+                return self.hand_over(path, first, timed).map(Some);
+            }
+            if timed.next > first {
+                // Doubled when less than half of it is kept (the chain cut off at its end is
+                // planned again with the next window), so that no more than about half the
+                // work is repeated.
+                if entry.is_none() && 2 * (timed.next - first) < end - first {
+                    self.window = self.window.saturating_mul(2).min(self.lookahead);
+                }
+                self.time = timed.end_time;
+                self.next = Some(Next::Stop(timed.next));
+                return Ok(Some((timed, first, WindowEnd::Stop)));
+            }
+            // No whole chain in the window: it grows (each try is planned in full: a long
+            // chain costs about 8/7 of its planning again).
+            self.window = self.window.saturating_mul(8).min(self.lookahead);
+        }
+    }
+
+    /// A stretch of a long chain (`timed` from segment `first`, its spans in
+    /// `self.timing.spans`) up to its handoff: the first place between one half and three
+    /// quarters of the way in that the next window can take over from ([`handoff_places`],
+    /// [`HANDOFF_TRIES`]). If none can be taken over, the stretch stops at the window's last
+    /// point, and the next window starts from rest there.
+    fn hand_over(
+        &mut self,
+        path: &AxisPath,
+        first: usize,
+        mut timed: Timed,
+    ) -> Result<(Timed, usize, WindowEnd), PathError> {
+        let count = path.segments.len();
+        let region = first + self.lookahead / 2..first + 3 * self.lookahead / 4;
+        let places = handoff_places(&timed.pieces, &self.timing.spans, |piece| {
+            region.contains(&(first + first_segment_of(&timed.pieces, piece)))
+        });
+        let (mut exact, mut others): (Vec<_>, Vec<_>) = places.into_iter().partition(|p| p.exact);
+        exact.sort_by(|a, b| a.speed.total_cmp(&b.speed).then(a.piece.cmp(&b.piece)));
+        exact.truncate(HANDOFF_TRIES);
+        // Of the others, the fastest: the least slowed down by the handoff.
+        others.sort_by(|a, b| b.speed.total_cmp(&a.speed).then(a.piece.cmp(&b.piece)));
+        others.truncate(HANDOFF_TRIES);
+        let cuts = exact.into_iter().chain(others);
+        for cut in cuts {
+            // The span that ends at the handoff.
+            let span = self.timing.spans[cut.span];
+            let last = if cut.piece == span.first {
+                // A span boundary: the plan as it is.
+                None
+            } else {
+                let length = timed.pieces.pieces[cut.piece].start - span.start;
+                let Some((recipe, duration)) =
+                    Recipe::plan_timed(length, span.recipe.v_start, cut.speed, &span.recipe.limits)
+                else {
+                    continue;
+                };
+                Some((
+                    Span {
+                        end: cut.piece,
+                        recipe,
+                        ..span
+                    },
+                    span.start_time + duration,
+                ))
+            };
+            let time = last.map_or(span.start_time, |(_, end)| end);
+            let handoff = Handoff::at(&timed.pieces, first, cut.piece, cut.speed, path.axes.len());
+            let end = handoff.first.saturating_add(self.lookahead).min(count);
+            let ending = if end == count {
+                Ending::PathEnd
+            } else {
+                Ending::CompleteOrStretch
+            };
+            let check = time_segments(
+                path,
+                handoff.first,
+                end,
+                time,
+                ending,
+                Some(&handoff),
+                &mut self.check,
+            );
+            match check {
+                Ok(_) => {
+                    self.timing.spans.truncate(cut.span);
+                    self.timing.spans.extend(last.map(|(span, _)| span));
+                    timed.pieces.chains[0].end = cut.piece;
+                    timed.end_time = time;
+                    self.time = time;
+                    self.next = Some(Next::Handoff(Box::new(handoff)));
+                    return Ok((timed, first, WindowEnd::HandedOff));
+                }
+                Err(WindowError::Handoff) => continue,
+                Err(WindowError::Path(error)) => return Err(error),
+            }
+        }
+        self.time = timed.end_time;
+        self.next = Some(Next::Stop(timed.next));
+        Ok((timed, first, WindowEnd::StopsShort))
+    }
+}
+
+/// A place a stretch can hand over at: the start of piece `piece`, in span `span`, passed at
+/// `speed` with zero path acceleration. Exact: the span passes it so (at its start, or
+/// cruising); otherwise the span is planned again up to it, to end there at `speed`.
+#[derive(Debug, Clone, Copy)]
+struct HandoffPlace {
+    span: usize,
+    piece: usize,
+    speed: f64,
+    exact: bool,
+}
+
+/// The places in `spans` (of one chain of `pieces`) at pieces that `wanted` accepts: every
+/// span boundary and every piece boundary a span passes while cruising (exact), and every
+/// other piece boundary, at the speed the span could pass it at without acceleration: the
+/// lower of the fastest it reaches from its start and the fastest from which it still slows
+/// to its exit in time.
+fn handoff_places(
+    pieces: &Pieces,
+    spans: &[Span],
+    wanted: impl Fn(usize) -> bool,
+) -> Vec<HandoffPlace> {
+    let mut places = Vec::new();
+    for (i, span) in spans.iter().enumerate() {
+        if i > 0 && wanted(span.first) {
+            places.push(HandoffPlace {
+                span: i,
+                piece: span.first,
+                speed: span.recipe.v_start,
+                exact: true,
+            });
+        }
+        let r = &span.recipe;
+        let (a, j) = (r.limits.acceleration, r.limits.jerk);
+        let cruise_from = transfer_distance(r.v_start, r.peak, a, j);
+        let cruise_to = r.length - transfer_distance(r.peak, r.v_end, a, j);
+        for q in span.first + 1..span.end {
+            if !wanted(q) {
+                continue;
+            }
+            let at = pieces.pieces[q].start - span.start;
+            let exact = r.cruise > 0.0 && cruise_from < at && at < cruise_to;
+            let speed = if exact {
+                r.peak
+            } else {
+                reachable_velocity(r.v_start, at, &r.limits).min(reachable_velocity(
+                    r.v_end,
+                    r.length - at,
+                    &r.limits,
+                ))
+            };
+            places.push(HandoffPlace {
+                span: i,
+                piece: q,
+                // A hair below: the next window's limits there may round lower.
+                speed: speed * (1.0 - HANDOFF_SPEED_MARGIN),
+                exact,
+            });
+        }
+    }
+    places
+}
 
 /// A path planned window by window, as it is evaluated: the plans of a few hundred segments at
-/// a time, never the whole path. Samples are bit-identical to [`plan`]'s: each window holds
-/// whole chains of the path, timed from where the previous window ended.
+/// a time (at most [`LOOKAHEAD_SEGMENTS`]), never the whole path. Samples are bit-identical to
+/// [`plan`]'s: the same windows, each timed from where the previous one ended.
 #[derive(Debug)]
 pub(super) struct PlanWindows {
     path: AxisPath,
-    window: usize,
     duration: f64,
-    /// Windows after the current one planned by the timing pass, with where each is followed
-    /// (none when they would hold more than [`KEPT_SEGMENTS`]).
-    kept: std::collections::VecDeque<(Plan, usize)>,
+    /// Windows after the current one planned by the timing pass (none when they would hold
+    /// more than [`KEPT_SEGMENTS`]).
+    kept: std::collections::VecDeque<Part>,
     /// The window being evaluated (None before the first evaluation, or when no chain moves),
-    /// with its cursor; and where the next window starts.
-    current: Option<(Plan, Cursor)>,
-    next: usize,
+    /// with its cursor.
+    current: Option<(Part, Cursor)>,
+    /// The windows after it, when they are not kept.
+    windows: Windows,
     /// The start point and program move reported when nothing moves.
     rest: (Vec<f64>, u32),
     /// The program move the path starts with (for error messages).
     first_move: usize,
 }
 
+/// Most segments whose windows the timing pass of [`PlanWindows`] keeps for evaluation
+/// (a path this short is planned once, not twice).
+const KEPT_SEGMENTS: usize = 16_384;
+
 impl PlanWindows {
     /// Plans every window once for the path's duration (keeping the first, where the
     /// evaluation starts, and the rest only for a short path), and reports the errors [`plan`]
     /// would.
     pub fn new(path: AxisPath, window: usize, first_move: usize) -> Result<Self, PathError> {
-        Self::keeping(path, window, first_move, KEPT_SEGMENTS)
+        Self::keeping(path, window, first_move, KEPT_SEGMENTS, LOOKAHEAD_SEGMENTS)
     }
 
-    /// [`Self::new`], keeping the timing pass's windows for a path of at most `most` segments.
+    /// [`Self::new`], keeping the timing pass's windows for a path of at most `most` segments,
+    /// with a look-ahead of `lookahead` segments.
     fn keeping(
         path: AxisPath,
         window: usize,
         first_move: usize,
         most: usize,
+        lookahead: usize,
     ) -> Result<Self, PathError> {
         validate(&path)?;
-        let mut window = window.max(1);
-        let count = path.segments.len();
-        let keep = count <= most;
+        let keep = path.segments.len() <= most;
         // The first window is kept (the evaluation starts there), the rest only for a short
         // path; of the others only the end time is needed, and one set of buffers does for all.
+        let mut timing = Windows::new(window, lookahead);
         let mut first = None;
         let mut kept = std::collections::VecDeque::new();
-        let mut duration = 0.0;
-        let mut next = 0;
-        let mut timing = Timing::default();
-        while next < count {
+        loop {
             if first.is_none() || keep {
-                let plan;
-                (plan, next) =
-                    Self::plan_window(&path, next, &mut window, |end, complete_only| {
-                        plan_segments(&path, next, end, duration, complete_only)
-                    })?;
-                duration = plan.duration;
+                let Some(part) = timing.next_part(&path)? else {
+                    break;
+                };
                 if first.is_none() {
-                    first = Some((plan, next));
+                    first = Some((part, (!keep).then(|| timing.resume())));
                 } else {
-                    kept.push_back((plan, next));
+                    kept.push_back(part);
                 }
-            } else {
-                (duration, next) =
-                    Self::plan_window(&path, next, &mut window, |end, complete_only| {
-                        time_segments(&path, next, end, duration, complete_only, &mut timing)
-                            .map(|timed| (timed.end_time, timed.next))
-                    })?;
+            } else if !timing.next_time(&path)? {
+                break;
             }
         }
+        let duration = timing.time;
         let rest = (
             path.start.clone(),
             path.segments.first().map_or(0, |s| s.source_index),
         );
-        let (current, next) = match first {
-            Some((plan, next)) if !plan.spans.is_empty() => {
-                let cursor = Cursor::new(&plan);
-                (Some((plan, cursor)), next)
+        // The evaluation goes on from the first window, or (every window kept) from the end.
+        let (current, windows) = match first {
+            Some((part, resumed)) => {
+                let windows = resumed.unwrap_or(timing);
+                let current = (!part.spans.is_empty()).then(|| {
+                    let cursor = Cursor::new(&part);
+                    (part, cursor)
+                });
+                (current, windows)
             }
-            Some((_, next)) => (None, next),
-            None => (None, 0),
+            None => (None, timing),
         };
         Ok(PlanWindows {
             path,
-            window,
             duration,
             kept,
             current,
-            next,
+            windows,
             rest,
             first_move,
         })
@@ -322,70 +836,38 @@ impl PlanWindows {
         (self.path, self.first_move)
     }
 
-    /// The plan of the whole chains from segment `first` on (made by `plan_until` from the
-    /// segments up to the given end, with or without the last chain, as [`plan_segments`]
-    /// makes it), and where the next window starts. A window of `window` segments grows
-    /// eightfold until it holds a whole chain (each try is planned in full: a long chain costs
-    /// about 8/7 of its planning again), and doubles when less than half of it is kept (the
-    /// chain cut off at its end is planned again with the next window), so that no more than
-    /// about half the work is repeated.
-    fn plan_window<T>(
-        path: &AxisPath,
-        first: usize,
-        window: &mut usize,
-        mut plan_until: impl FnMut(usize, bool) -> Result<(T, usize), PathError>,
-    ) -> Result<(T, usize), PathError> {
-        let count = path.segments.len();
-        loop {
-            let end = first.saturating_add(*window).min(count);
-            let last = end == count;
-            let (plan, next) = plan_until(end, !last)?;
-            if last {
-                return Ok((plan, count));
-            }
-            if next > first {
-                if 2 * (next - first) < end - first {
-                    *window = window.saturating_mul(2);
-                }
-                return Ok((plan, next));
-            }
-            *window = window.saturating_mul(8);
-        }
-    }
-
     /// Total duration (s), the same as [`plan`]'s.
     pub fn duration(&self) -> f64 {
         self.duration
     }
 
+    /// Whether windows after the current one remain.
+    fn has_more(&self) -> bool {
+        !self.kept.is_empty() || self.windows.next.is_some()
+    }
+
     /// Moves on to the next window that has spans, if there is one; false at the end (the
     /// current window stays).
     fn advance(&mut self) -> bool {
-        let mut time = self.current.as_ref().map_or(0.0, |(p, _)| p.duration);
-        while self.next < self.path.segments.len() {
-            let window = match self.kept.pop_front() {
-                Some(kept) => Ok(kept),
-                None => Self::plan_window(
-                    &self.path,
-                    self.next,
-                    &mut self.window,
-                    |end, complete_only| {
-                        plan_segments(&self.path, self.next, end, time, complete_only)
-                    },
-                ),
+        loop {
+            let part = match self.kept.pop_front() {
+                Some(part) => part,
+                // The timing pass planned this window from the same inputs without error.
+                None => match self
+                    .windows
+                    .next_part(&self.path)
+                    .expect("planning is deterministic: a window planned once plans again")
+                {
+                    Some(part) => part,
+                    None => return false,
+                },
             };
-            // The timing pass planned this window from the same inputs without error.
-            let (plan, next) =
-                window.expect("planning is deterministic: a window planned once plans again");
-            self.next = next;
-            time = plan.duration;
-            if !plan.spans.is_empty() {
-                let cursor = Cursor::new(&plan);
-                self.current = Some((plan, cursor));
+            if !part.spans.is_empty() {
+                let cursor = Cursor::new(&part);
+                self.current = Some((part, cursor));
                 return true;
             }
         }
-        false
     }
 
     /// As [`Cursor::eval`] on the whole path's plan (times not decreasing).
@@ -404,17 +886,15 @@ impl PlanWindows {
         }
         // The next window's first span starts where this one ends: move on once `t` is there
         // (as the whole plan's cursor moves on to a span starting at or before `t`).
-        while self.current.as_ref().is_some_and(|(p, _)| p.duration <= t)
-            && self.next < self.path.segments.len()
-        {
+        while self.current.as_ref().is_some_and(|(p, _)| p.duration <= t) && self.has_more() {
             if !self.advance() {
                 break;
             }
         }
-        let Some((plan, cursor)) = self.current.as_mut() else {
+        let Some((part, cursor)) = self.current.as_mut() else {
             return self.rest.1;
         };
-        cursor.eval(plan, t, position, velocity, acceleration)
+        cursor.eval(part, t, position, velocity, acceleration)
     }
 }
 
@@ -427,17 +907,19 @@ fn largest_share_used(pieces: &Pieces, range: std::ops::Range<usize>) -> f64 {
         .fold(0.0, f64::max)
 }
 
-/// Times chain `c` from `start_time` into `spans` (cleared first); returns its duration.
+/// Times chain `c` from `start_time` into `spans` (cleared first), from rest or from `entry`
+/// (a handoff's speed); returns its duration.
 fn time_chain(
     pieces: &Pieces,
     c: usize,
+    entry: Option<f64>,
     drafts: &mut Vec<Draft>,
     start_time: f64,
     spans: &mut Vec<Span>,
 ) -> Result<f64, PathError> {
     spans.clear();
     group_into_spans(&pieces.pieces, &pieces.chains[c], drafts);
-    let speeds = look_ahead(drafts);
+    let speeds = look_ahead(drafts, entry.unwrap_or(0.0));
     let mut time = start_time;
     for (i, d) in drafts.iter().enumerate() {
         let (recipe, duration) = Recipe::plan_timed(d.length, speeds[i], speeds[i + 1], &d.limits)
@@ -529,11 +1011,14 @@ fn group_into_spans(pieces: &[Piece], chain: &Chain, drafts: &mut Vec<Draft>) {
     }
 }
 
-/// Speeds at the span boundaries of a chain: zero at both ends, capped by both neighbours'
-/// speed limits, and reachable from each other within the spans (backward, then forward).
-fn look_ahead(drafts: &[Draft]) -> Vec<f64> {
+/// Speeds at the span boundaries of a chain: `entry` at its start (zero, or a handoff's
+/// speed, which the first span may not be able to hold: then its profile fails), zero at its
+/// end, capped by both neighbours' speed limits, and reachable from each other within the
+/// spans (backward, then forward).
+fn look_ahead(drafts: &[Draft], entry: f64) -> Vec<f64> {
     let m = drafts.len();
     let mut speeds = vec![0.0; m + 1];
+    speeds[0] = entry;
     for i in 1..m {
         speeds[i] = drafts[i - 1].limits.velocity.min(drafts[i].limits.velocity);
     }
@@ -622,7 +1107,7 @@ fn validate(path: &AxisPath) -> Result<(), PathError> {
     Ok(())
 }
 
-/// A position in a plan for evaluating it at non-decreasing times: the current span with its
+/// A position in a part for evaluating it at non-decreasing times: the current span with its
 /// profile, the current piece, and scratch space.
 #[derive(Debug, Clone)]
 pub(super) struct Cursor {
@@ -633,31 +1118,31 @@ pub(super) struct Cursor {
 }
 
 impl Cursor {
-    pub fn new(plan: &Plan) -> Self {
+    fn new(part: &Part) -> Self {
         Cursor {
             span: 0,
             profile: None,
             piece: 0,
-            scratch: JetScratch::new(plan.axes),
+            scratch: JetScratch::new(part.axes),
         }
     }
 
     /// Axis positions, velocities and accelerations at time `t` (not before the previous
     /// call's); returns the program move (`source_index`) the instant belongs to.
-    pub fn eval(
+    fn eval(
         &mut self,
-        plan: &Plan,
+        part: &Part,
         t: f64,
         position: &mut [f64],
         velocity: &mut [f64],
         acceleration: &mut [f64],
     ) -> u32 {
-        let spans = &plan.spans;
+        let spans = &part.spans;
         if spans.is_empty() {
-            position.copy_from_slice(&plan.start);
+            position.copy_from_slice(&part.start);
             velocity.fill(0.0);
             acceleration.fill(0.0);
-            return plan.source_index.first().copied().unwrap_or(0);
+            return part.source_index.first().copied().unwrap_or(0);
         }
         // Times only grow: walk the spans instead of searching.
         while self.span + 1 < spans.len() && spans[self.span + 1].start_time <= t {
@@ -667,54 +1152,40 @@ impl Cursor {
         let span = spans[self.span];
         let end_time = spans
             .get(self.span + 1)
-            .map_or(plan.duration, |next| next.start_time);
-        let chain = &plan.pieces.chains[span.chain];
+            .map_or(part.duration, |next| next.start_time);
+        let chain = &part.pieces.chains[span.chain];
         // Past the end of a span only at the end of the plan (otherwise the walk moved on).
         let done = t >= end_time;
         let chain_end = self.span + 1 == spans.len() || spans[self.span + 1].chain != span.chain;
-        if done && chain_end {
+        let handed_off = part.handed_off && span.chain + 1 == part.pieces.chains.len();
+        if done && chain_end && !handed_off {
             // Exactly on the programmed end point, at rest.
-            position.copy_from_slice(plan.shapes.end(chain.last_segment));
+            position.copy_from_slice(part.shapes.end(chain.last_segment));
             velocity.fill(0.0);
             acceleration.fill(0.0);
-            return plan.source_index[chain.last_segment];
+            return part.source_index[chain.last_segment];
         }
         let profile = self.profile.get_or_insert_with(|| span.recipe.build());
         let state = profile.state(t - span.start_time);
         let s = span.start + state.position;
         self.piece = self.piece.max(span.first);
-        let pieces = &plan.pieces.pieces;
+        let pieces = &part.pieces.pieces;
         while self.piece + 1 < span.end && pieces[self.piece + 1].start <= s {
             self.piece += 1;
         }
         let piece = &pieces[self.piece];
         let u = (s - piece.start).clamp(0.0, piece.length);
-        plan.eval_piece(
+        part.eval_piece(
             piece,
             PathPoint::new(u, state.velocity, state.acceleration),
             &mut self.scratch,
             AxisJet::new(position, velocity, acceleration),
         );
-        plan.source_index[plan.pieces.segment_at(piece, u)]
+        part.source_index[part.pieces.segment_at(piece, u)]
     }
 }
 
-impl Plan {
-    /// Number of machine axes.
-    pub fn axes(&self) -> usize {
-        self.axes
-    }
-
-    /// Total duration (s), exact (not rounded to a servo period).
-    pub fn duration(&self) -> f64 {
-        self.duration
-    }
-
-    /// Where the path starts.
-    pub fn start(&self) -> &[f64] {
-        &self.start
-    }
-
+impl Part {
     /// Evaluates `piece` at `at` (σ measured from the piece's start).
     fn eval_piece(&self, piece: &Piece, at: PathPoint, scratch: &mut JetScratch, out: AxisJet) {
         match piece.kind {
@@ -738,36 +1209,47 @@ impl Plan {
         }
     }
 
-    /// The limits each segment is planned with: those of its first piece (zero-length
-    /// segments: none, given as 1, 1, 1).
-    fn segment_limits(&self) -> Vec<Limits> {
+    /// The pieces of each chain this part plans (after a handoff from its piece on, before one
+    /// up to it).
+    fn chains(&self) -> impl Iterator<Item = (usize, &[Piece])> {
+        self.pieces
+            .chains
+            .iter()
+            .enumerate()
+            .map(|(c, chain)| (c, &self.pieces.pieces[chain.first..chain.end]))
+    }
+
+    /// Per segment of the window, the limits it is planned with here: those of its first
+    /// piece (`None` for a segment with no piece in this part).
+    fn segment_limits(&self) -> Vec<Option<Limits>> {
         let mut limits = vec![None; self.shapes.len()];
-        for piece in &self.pieces.pieces {
-            match piece.kind {
-                PieceKind::Segment { segment, .. } => {
-                    limits[segment].get_or_insert(piece.limits);
-                }
-                PieceKind::Quintic { first, count, .. } => {
-                    for &segment in &self.pieces.covered[first..first + count] {
+        for (_, pieces) in self.chains() {
+            for piece in pieces {
+                match piece.kind {
+                    PieceKind::Segment { segment, .. } => {
                         limits[segment].get_or_insert(piece.limits);
                     }
+                    PieceKind::Quintic { first, count, .. } => {
+                        for &segment in &self.pieces.covered[first..first + count] {
+                            limits[segment].get_or_insert(piece.limits);
+                        }
+                    }
+                    _ => {}
                 }
-                _ => {}
             }
         }
         limits
-            .into_iter()
-            .map(|l| l.unwrap_or(Limits::new(1.0, 1.0, 1.0)))
-            .collect()
     }
 
-    /// Where each segment ends: its chain and the chain's path coordinate there (its
-    /// programmed end point, or the middle of the blend out of it), `None` at the chain's end;
-    /// `None` altogether for segments that do not move.
+    /// Per segment of the window, where it ends in this part: its chain and the chain's path
+    /// coordinate there (its programmed end point, or the middle of the blend out of it),
+    /// `None` at the chain's end; `None` altogether for segments that do not move or end in
+    /// another part.
     fn segment_ends(&self) -> Vec<Option<(usize, Option<f64>)>> {
         let mut ends = vec![None; self.shapes.len()];
-        for (c, chain) in self.pieces.chains.iter().enumerate() {
-            for piece in &self.pieces.pieces[chain.first..chain.end] {
+        let last = self.pieces.chains.len().saturating_sub(1);
+        for (c, pieces) in self.chains() {
+            for piece in pieces {
                 let (segment, at) = match piece.kind {
                     PieceKind::Segment { segment, .. } => (segment, piece.start + piece.length),
                     PieceKind::Quintic { first, count, .. } => {
@@ -786,7 +1268,9 @@ impl Plan {
                 };
                 ends[segment] = Some((c, Some(at)));
             }
-            ends[chain.last_segment] = Some((c, None));
+            if !(self.handed_off && c == last) {
+                ends[self.pieces.chains[c].last_segment] = Some((c, None));
+            }
         }
         ends
     }
@@ -809,15 +1293,153 @@ impl Plan {
         (span.start_time + local, profile.state(local).velocity)
     }
 
+    /// Axis positions, velocities and accelerations at time `t` (clamped to the part).
+    fn eval(
+        &self,
+        t: f64,
+        position: &mut [f64],
+        velocity: &mut [f64],
+        acceleration: &mut [f64],
+    ) -> u32 {
+        let mut cursor = Cursor::new(self);
+        cursor.span = self
+            .spans
+            .partition_point(|s| s.start_time <= t)
+            .saturating_sub(1);
+        cursor.piece = self.spans.get(cursor.span).map_or(0, |s| s.first);
+        cursor.eval(self, t, position, velocity, acceleration)
+    }
+
+    /// Chain `chain`'s geometry ([`Plan::chain_geometry`]); `path` is the path planned.
+    fn chain_geometry(&self, path: &AxisPath, chain: usize, max_step: f64) -> ChainGeometry {
+        let n = self.axes;
+        let (mut v, mut a) = (vec![0.0; n], vec![0.0; n]);
+        let mut scratch = JetScratch::new(n);
+        let segments = &path.segments[self.first_segment..self.first_segment + self.shapes.len()];
+        let feed = |k: usize| applied_feed(segments, &self.shapes, k);
+        let chain = self.pieces.chains[chain];
+        let mut out = ChainGeometry::default();
+        for (i, piece) in self.pieces.pieces[chain.first..chain.end]
+            .iter()
+            .enumerate()
+        {
+            // A blend or a smoothing curve is held to the lowest feed of the segments it
+            // joins, as the planner holds it.
+            let piece_feed = match piece.kind {
+                PieceKind::Segment { segment, .. } => feed(segment),
+                PieceKind::Corner {
+                    incoming, outgoing, ..
+                } => lowest_feed(feed(incoming), feed(outgoing)),
+                PieceKind::Tangent(t) => lowest_feed(feed(t.incoming), feed(t.outgoing)),
+                PieceKind::Quintic { first, count, .. } => self.pieces.covered
+                    [first..first + count]
+                    .iter()
+                    .map(|&k| feed(k))
+                    .fold(None, lowest_feed),
+            };
+            let steps = ((piece.length / max_step).ceil() as usize).clamp(4, 1 << 24);
+            for k in usize::from(i > 0)..=steps {
+                let mut p = vec![0.0; n];
+                let u = piece.length * k as f64 / steps as f64;
+                self.eval_piece(
+                    piece,
+                    PathPoint::new(u, 0.0, 0.0),
+                    &mut scratch,
+                    AxisJet::new(&mut p, &mut v, &mut a),
+                );
+                out.points.push(p);
+                let metric = &segments[self.pieces.segment_at(piece, u)].feed_metric;
+                out.feeds.push(piece_feed.map(|speed| PointFeed {
+                    speed,
+                    weights: metric.clone(),
+                }));
+            }
+        }
+        out
+    }
+}
+
+impl Plan {
+    /// Number of machine axes.
+    pub fn axes(&self) -> usize {
+        self.axes
+    }
+
+    /// Total duration (s), exact (not rounded to a servo period).
+    pub fn duration(&self) -> f64 {
+        self.parts.last().map_or(0.0, |p| p.duration)
+    }
+
+    /// Where the path starts.
+    pub fn start(&self) -> &[f64] {
+        &self.start
+    }
+
+    /// Number of chains (stretches between stops; a chain handed over between windows counts
+    /// once).
+    pub fn chain_count(&self) -> usize {
+        let chains: usize = self.parts.iter().map(|p| p.pieces.chains.len()).sum();
+        chains - self.handoffs()
+    }
+
+    /// Number of handoffs inside chains longer than [`LOOKAHEAD_SEGMENTS`].
+    pub fn handoffs(&self) -> usize {
+        self.parts.iter().filter(|p| p.handed_off).count()
+    }
+
+    /// Number of stops the look-ahead made inside chains longer than it, where no handoff
+    /// could be taken over (stops the program does not ask for).
+    pub fn stops_short(&self) -> usize {
+        self.parts.iter().filter(|p| p.stops_short).count()
+    }
+
+    /// Most segments any window of the plan holds (at most [`LOOKAHEAD_SEGMENTS`]).
+    pub fn largest_window(&self) -> usize {
+        self.parts.iter().map(|p| p.shapes.len()).max().unwrap_or(0)
+    }
+
+    /// The parts that move, in order.
+    fn moving_parts(&self) -> impl Iterator<Item = &Part> {
+        self.parts.iter().filter(|p| !p.spans.is_empty())
+    }
+
+    /// Per path segment: its limits (its first piece's; zero-length segments: none, given as
+    /// 1, 1, 1), and the part, chain and chain coordinate where it ends
+    /// ([`Part::segment_ends`]).
+    #[allow(clippy::type_complexity)]
+    fn segment_data(&self) -> (Vec<Limits>, Vec<Option<(usize, usize, Option<f64>)>>) {
+        let count = self.source_index.len();
+        let mut limits = vec![None; count];
+        let mut ends = vec![None; count];
+        for (p, part) in self.parts.iter().enumerate() {
+            let at = part.first_segment;
+            for (k, l) in part.segment_limits().into_iter().enumerate() {
+                if let Some(l) = l {
+                    limits[at + k].get_or_insert(l);
+                }
+            }
+            for (k, end) in part.segment_ends().into_iter().enumerate() {
+                if let Some((c, s)) = end {
+                    ends[at + k] = Some((p, c, s));
+                }
+            }
+        }
+        let limits = limits
+            .into_iter()
+            .map(|l| l.unwrap_or(Limits::new(1.0, 1.0, 1.0)))
+            .collect();
+        (limits, ends)
+    }
+
     /// Path speed ṡ at every programmed point: the path start, then the end of every segment
     /// (zero at stops; on a blend, the speed of the path coordinate where the blend passes the
     /// corner).
     pub fn junction_speeds(&self) -> Vec<f64> {
         let mut speeds = vec![0.0];
         let mut previous = 0.0;
-        for end in self.segment_ends() {
+        for end in self.segment_data().1 {
             let v = match end {
-                Some((chain, s)) => self.crossing(chain, s).1,
+                Some((p, chain, s)) => self.parts[p].crossing(chain, s).1,
                 None => previous,
             };
             speeds.push(v);
@@ -829,14 +1451,13 @@ impl Plan {
     /// Timing of every segment: from the moment the motion passes its start (its programmed
     /// start point, or the middle of the blend into it) to the moment it passes its end.
     pub fn segment_timings(&self) -> Vec<SegmentTiming> {
-        let limits = self.segment_limits();
+        let (limits, ends) = self.segment_data();
         let mut previous = 0.0;
-        self.segment_ends()
-            .into_iter()
+        ends.into_iter()
             .enumerate()
             .map(|(k, end)| {
                 let t = match end {
-                    Some((chain, s)) => self.crossing(chain, s).0,
+                    Some((p, chain, s)) => self.parts[p].crossing(chain, s).0,
                     None => previous,
                 };
                 let timing = SegmentTiming {
@@ -860,13 +1481,20 @@ impl Plan {
         velocity: &mut [f64],
         acceleration: &mut [f64],
     ) -> u32 {
-        let mut cursor = Cursor::new(self);
-        cursor.span = self
-            .spans
-            .partition_point(|s| s.start_time <= t)
-            .saturating_sub(1);
-        cursor.piece = self.spans.get(cursor.span).map_or(0, |s| s.first);
-        cursor.eval(self, t, position, velocity, acceleration)
+        // As a run moves on: to the next part once `t` is where it starts.
+        let part = self
+            .moving_parts()
+            .find(|p| p.duration > t)
+            .or_else(|| self.moving_parts().last());
+        match part {
+            Some(part) => part.eval(t, position, velocity, acceleration),
+            None => {
+                position.copy_from_slice(&self.start);
+                velocity.fill(0.0);
+                acceleration.fill(0.0);
+                self.source_index.first().copied().unwrap_or(0)
+            }
+        }
     }
 
     /// The trajectory sampled every `period` from t = 0 up to the first tick at or after the
@@ -875,9 +1503,20 @@ impl Plan {
         let n = self.axes;
         let mut out = Setpoints::new(period, n);
         let (mut p, mut v, mut a) = (vec![0.0; n], vec![0.0; n], vec![0.0; n]);
-        let mut cursor = Cursor::new(self);
-        for t in sample_times(self.duration, period) {
-            let segment = cursor.eval(self, t, &mut p, &mut v, &mut a);
+        let moving: Vec<&Part> = self.moving_parts().collect();
+        let mut k = 0;
+        let mut cursor = moving.first().map(|part| Cursor::new(part));
+        for t in sample_times(self.duration(), period) {
+            let segment = match cursor.as_mut() {
+                Some(cursor) => {
+                    while moving[k].duration <= t && k + 1 < moving.len() {
+                        k += 1;
+                        *cursor = Cursor::new(moving[k]);
+                    }
+                    cursor.eval(moving[k], t, &mut p, &mut v, &mut a)
+                }
+                None => self.eval(t, &mut p, &mut v, &mut a),
+            };
             out.push(&p, &v, &a, segment);
         }
         out
@@ -893,54 +1532,23 @@ impl Plan {
             self.source_index.len(),
             "chain_geometry needs the path the plan was made from"
         );
-        let n = self.axes;
-        let (mut v, mut a) = (vec![0.0; n], vec![0.0; n]);
-        let mut scratch = JetScratch::new(n);
-        let feed = |k: usize| applied_feed(&path.segments, &self.shapes, k);
-        self.pieces
-            .chains
-            .iter()
-            .map(|chain| {
-                let mut out = ChainGeometry::default();
-                for (i, piece) in self.pieces.pieces[chain.first..chain.end]
-                    .iter()
-                    .enumerate()
-                {
-                    // A blend or a smoothing curve is held to the lowest feed of the segments
-                    // it joins, as the planner holds it.
-                    let piece_feed = match piece.kind {
-                        PieceKind::Segment { segment, .. } => feed(segment),
-                        PieceKind::Corner {
-                            incoming, outgoing, ..
-                        } => lowest_feed(feed(incoming), feed(outgoing)),
-                        PieceKind::Tangent(t) => lowest_feed(feed(t.incoming), feed(t.outgoing)),
-                        PieceKind::Quintic { first, count, .. } => self.pieces.covered
-                            [first..first + count]
-                            .iter()
-                            .map(|&k| feed(k))
-                            .fold(None, lowest_feed),
-                    };
-                    let steps = ((piece.length / max_step).ceil() as usize).clamp(4, 1 << 24);
-                    for k in usize::from(i > 0)..=steps {
-                        let mut p = vec![0.0; n];
-                        let u = piece.length * k as f64 / steps as f64;
-                        self.eval_piece(
-                            piece,
-                            PathPoint::new(u, 0.0, 0.0),
-                            &mut scratch,
-                            AxisJet::new(&mut p, &mut v, &mut a),
-                        );
-                        out.points.push(p);
-                        let metric = &path.segments[self.pieces.segment_at(piece, u)].feed_metric;
-                        out.feeds.push(piece_feed.map(|speed| PointFeed {
-                            speed,
-                            weights: metric.clone(),
-                        }));
+        let mut out: Vec<ChainGeometry> = Vec::new();
+        let mut continued = false;
+        for part in &self.parts {
+            for c in 0..part.pieces.chains.len() {
+                let geometry = part.chain_geometry(path, c, max_step);
+                match out.last_mut() {
+                    // A chain handed over goes on from its handoff point (already there).
+                    Some(last) if c == 0 && continued => {
+                        last.points.extend(geometry.points.into_iter().skip(1));
+                        last.feeds.extend(geometry.feeds.into_iter().skip(1));
                     }
+                    _ => out.push(geometry),
                 }
-                out
-            })
-            .collect()
+            }
+            continued = part.handed_off;
+        }
+        out
     }
 }
 
@@ -965,6 +1573,20 @@ pub struct PointFeed {
 impl Plan {
     #[doc(hidden)]
     pub fn debug_dump(&self) -> String {
+        let mut out = String::new();
+        for (i, part) in self.parts.iter().enumerate() {
+            out.push_str(&format!(
+                "part {i}: segments from {}, handed off {}\n",
+                part.first_segment, part.handed_off
+            ));
+            out.push_str(&part.debug_dump());
+        }
+        out
+    }
+}
+
+impl Part {
+    fn debug_dump(&self) -> String {
         let mut out = String::new();
         for (c, chain) in self.pieces.chains.iter().enumerate() {
             out.push_str(&format!(
@@ -1001,8 +1623,9 @@ mod tests {
     use crate::plan::path::{AxisKind, AxisLimits, AxisSpec, PathSegment};
 
     /// Lines with sharp corners (stops), gentle corners (blends), a smoothed run, a tangent arc,
-    /// a zero-length segment and an exact stop, in a few hundred segments.
-    fn mixed_path() -> AxisPath {
+    /// a zero-length segment and an exact stop, in a few hundred segments; without `stops`, a
+    /// gentle corner, a blend and a line instead of the stops and the arc: one chain.
+    fn mixed_path(stops: bool) -> AxisPath {
         let axes = (0..3)
             .map(|i| AxisSpec {
                 name: format!("q{i}"),
@@ -1033,7 +1656,8 @@ mod tests {
             let kind = k % 40;
             let step = match kind {
                 // A sharp reversal: a stop.
-                0 => [-1e-3, 2e-4, 0.0],
+                0 if stops => [-1e-3, 2e-4, 0.0],
+                0 => [1e-3, 1e-4, 0.0],
                 // A short run on a smooth curve.
                 1..=15 => {
                     let x = k as f64 * 0.1;
@@ -1044,13 +1668,17 @@ mod tests {
                 _ => [2e-3, 0.0, 0.0],
             };
             let end: Vec<f64> = (0..3).map(|i| at[i] + step[i]).collect();
-            let mode = if kind == 33 { Blend::ExactStop } else { blend };
+            let mode = if kind == 33 && stops {
+                Blend::ExactStop
+            } else {
+                blend
+            };
             push(Geometry::Line { end: end.clone() }, mode, &mut segments);
             if kind == 35 {
                 // Nothing moves.
                 push(Geometry::Line { end: end.clone() }, blend, &mut segments);
             }
-            if kind == 37 {
+            if kind == 37 && stops {
                 // A tangent quarter arc (the line runs along +x; the centre is to the left).
                 let center = [end[0], end[1] + 2e-3];
                 let arc_end = vec![end[0] + 2e-3, end[1] + 2e-3, end[2]];
@@ -1080,46 +1708,48 @@ mod tests {
 
     #[test]
     fn windows_evaluate_bit_identically_to_the_whole_plan() {
-        let path = mixed_path();
-        let whole = plan(&path).unwrap();
-        assert!(
-            whole.pieces.chains.len() > 10,
-            "{}",
-            whole.pieces.chains.len()
-        );
-        let period = 1e-3;
-        let expected = whole.sample(period);
-        let n = path.axes.len();
-        // Windows planned again as they are evaluated, and kept from the timing pass.
-        for (window, most) in [1, 2, 3, 7, 64, 10_000]
-            .into_iter()
-            .flat_map(|w| [(w, 0), (w, usize::MAX)])
-        {
-            let mut windows = PlanWindows::keeping(path.clone(), window, 0, most).unwrap();
-            assert_eq!(windows.duration().to_bits(), whole.duration().to_bits());
-            let (mut p, mut v, mut a) = (vec![0.0; n], vec![0.0; n], vec![0.0; n]);
-            for (k, t) in sample_times(whole.duration(), period).enumerate() {
-                let segment = windows.eval(t, &mut p, &mut v, &mut a);
-                let row = k * n..(k + 1) * n;
-                assert_eq!(segment, expected.segment[k], "window {window} sample {k}");
-                assert_eq!(
-                    p,
-                    expected.position[row.clone()],
-                    "window {window} sample {k}"
-                );
-                assert_eq!(
-                    v,
-                    expected.velocity[row.clone()],
-                    "window {window} sample {k}"
-                );
-                assert_eq!(a, expected.acceleration[row], "window {window} sample {k}");
+        // Many chains; and one chain handed over between windows of a short look-ahead.
+        for (path, lookahead) in [
+            (mixed_path(true), LOOKAHEAD_SEGMENTS),
+            (mixed_path(false), 128),
+        ] {
+            let whole = plan_with_lookahead(&path, lookahead).unwrap();
+            if lookahead == LOOKAHEAD_SEGMENTS {
+                assert!(whole.chain_count() > 10, "{}", whole.chain_count());
+            } else {
+                assert_eq!(whole.chain_count(), 1);
+                assert!(whole.handoffs() >= 2, "{}", whole.handoffs());
+                assert_eq!(whole.stops_short(), 0);
+                assert!(whole.largest_window() <= lookahead);
+            }
+            let period = 1e-3;
+            let expected = whole.sample(period);
+            let n = path.axes.len();
+            // Windows planned again as they are evaluated, and kept from the timing pass.
+            for (window, most) in [1, 2, 3, 7, 64, 10_000]
+                .into_iter()
+                .flat_map(|w| [(w, 0), (w, usize::MAX)])
+            {
+                let mut windows =
+                    PlanWindows::keeping(path.clone(), window, 0, most, lookahead).unwrap();
+                assert_eq!(windows.duration().to_bits(), whole.duration().to_bits());
+                let (mut p, mut v, mut a) = (vec![0.0; n], vec![0.0; n], vec![0.0; n]);
+                for (k, t) in sample_times(whole.duration(), period).enumerate() {
+                    let segment = windows.eval(t, &mut p, &mut v, &mut a);
+                    let row = k * n..(k + 1) * n;
+                    let what = format!("look-ahead {lookahead} window {window} sample {k}");
+                    assert_eq!(segment, expected.segment[k], "{what}");
+                    assert_eq!(p, expected.position[row.clone()], "{what}");
+                    assert_eq!(v, expected.velocity[row.clone()], "{what}");
+                    assert_eq!(a, expected.acceleration[row], "{what}");
+                }
             }
         }
     }
 
     #[test]
     fn windows_of_a_path_that_does_not_move_hold_its_start() {
-        let mut path = mixed_path();
+        let mut path = mixed_path(true);
         path.segments.truncate(3);
         for s in &mut path.segments {
             s.geometry = Geometry::Line {

@@ -1,0 +1,279 @@
+//! Chains longer than the planner's look-ahead: planned a window at a time and handed over
+//! while moving, never stopping where the program does not ask for it, within every limit and
+//! tolerance, and close to the plan of the whole chain at once.
+
+mod common;
+
+use cncsim::plan::planner::{plan_with_lookahead, LOOKAHEAD_SEGMENTS};
+use cncsim::plan::{
+    plan, plan_path_stream, AxisKind, AxisLimits, AxisPath, AxisSpec, Blend, Geometry, PathSegment,
+    SetpointSample,
+};
+use common::*;
+
+/// The planner benchmark's path without its sharp corners (which stop): a pseudo-random walk
+/// on five axes (20 % collinear, 80 % gentle turns), 0.2–2 mm blocks, corners blended within
+/// 0.01 mm, the rotary axes turning steadily.
+fn gentle_random_walk(blocks: usize) -> AxisPath {
+    let axes: Vec<AxisSpec> = [
+        ("x", AxisKind::Linear, 150.0, 1000.0, 10_000.0),
+        ("y", AxisKind::Linear, 150.0, 1000.0, 10_000.0),
+        ("z", AxisKind::Linear, 100.0, 800.0, 8_000.0),
+        ("a", AxisKind::Rotary, 90.0, 500.0, 5_000.0),
+        ("c", AxisKind::Rotary, 180.0, 1000.0, 10_000.0),
+    ]
+    .iter()
+    .map(|&(name, kind, v, a, j)| AxisSpec {
+        name: name.into(),
+        kind,
+        limits: AxisLimits::from_program_units(kind, v, a, j),
+    })
+    .collect();
+    let mut state: u64 = 0x2545_f491_4f6c_dd1d;
+    let mut random = move || {
+        state = state
+            .wrapping_mul(6_364_136_223_846_793_005)
+            .wrapping_add(1_442_695_040_888_963_407);
+        (state >> 11) as f64 / (1u64 << 53) as f64
+    };
+    let mut position = vec![0.0; 5];
+    let mut heading: f64 = 0.0;
+    let segments = (0..blocks)
+        .map(|k| {
+            let r = random();
+            if r > 0.2 {
+                heading += (random() - 0.5) * 0.3;
+            }
+            let step = 0.2e-3 + 1.8e-3 * random();
+            position[0] += step * heading.cos();
+            position[1] += step * heading.sin();
+            position[2] += 0.1 * step * (random() - 0.5);
+            position[3] += 0.2 * step;
+            position[4] += 0.3 * step;
+            PathSegment {
+                geometry: Geometry::Line {
+                    end: position.clone(),
+                },
+                feed: Some(0.1),
+                feed_metric: vec![1.0, 1.0, 1.0, 0.0, 0.0],
+                blend: Blend::Continuous {
+                    tolerance: Some(1e-5),
+                },
+                source_index: k as u32,
+            }
+        })
+        .collect();
+    AxisPath {
+        axes,
+        start: vec![0.0; 5],
+        segments,
+        tool_lever_arms: Vec::new(),
+    }
+}
+
+/// CAM finishing output: 1 mm lines on a smooth curve in XZ, rows 0.5 mm apart joined by a
+/// blended step, G64 P0.05 (the lines are smoothed into quintics).
+fn cam_raster(lines: usize, row: usize) -> AxisPath {
+    let axes = linear_axes(&[(0.2, 2.0, 50.0), (0.2, 2.0, 50.0), (0.1, 1.0, 30.0)]);
+    let segments = (0..lines)
+        .map(|k| {
+            let (r, step) = (k / row, k % row);
+            let x = if r % 2 == 0 { step } else { row - 1 - step } as f64;
+            let z = 2.0 * (x * 0.02).sin() + (x * 0.0031).cos();
+            line(
+                &[x * 1e-3, r as f64 * 0.5e-3, z * 1e-3],
+                Some(0.1),
+                Blend::Continuous {
+                    tolerance: Some(5e-5),
+                },
+                k as u32,
+            )
+        })
+        .collect();
+    AxisPath {
+        axes,
+        start: vec![0.0, 0.0, 1e-3],
+        segments,
+        tool_lever_arms: Vec::new(),
+    }
+}
+
+/// Arcs of 5 mm radius turning 0.3 rad each, alternately left and right: a wavy chain of
+/// tangent arcs.
+fn tangent_arcs(count: usize) -> AxisPath {
+    let axes = linear_axes(&[(0.2, 2.0, 50.0), (0.2, 2.0, 50.0)]);
+    let (radius, turn) = (5e-3, 0.3f64);
+    let mut at = [0.0f64, 0.0];
+    let mut heading = -0.15f64;
+    let segments = (0..count)
+        .map(|k| {
+            let left = k % 2 == 0;
+            let side = if left { 1.0 } else { -1.0 };
+            // The centre lies on the left (or right) normal of the heading.
+            let normal = heading + side * std::f64::consts::FRAC_PI_2;
+            let center = [at[0] + radius * normal.cos(), at[1] + radius * normal.sin()];
+            heading += side * turn;
+            let back = heading - side * std::f64::consts::FRAC_PI_2;
+            at = [
+                center[0] + radius * back.cos(),
+                center[1] + radius * back.sin(),
+            ];
+            PathSegment {
+                geometry: Geometry::Arc {
+                    plane: [0, 1],
+                    center,
+                    clockwise: !left,
+                    turns: 0,
+                    end: at.to_vec(),
+                },
+                feed: Some(0.1),
+                feed_metric: vec![1.0; 2],
+                blend: Blend::Continuous {
+                    tolerance: Some(1e-5),
+                },
+                source_index: k as u32,
+            }
+        })
+        .collect();
+    AxisPath {
+        axes,
+        start: vec![0.0, 0.0],
+        segments,
+        tool_lever_arms: Vec::new(),
+    }
+}
+
+/// Collinear 0.01 mm lines: too short for the look-ahead to reach cruise, with no span
+/// boundary inside: every handoff is inside an accelerating span.
+fn fine_collinear(count: usize) -> AxisPath {
+    let axes = linear_axes(&[(0.2, 2.0, 50.0), (0.2, 2.0, 50.0)]);
+    let segments = (0..count)
+        .map(|k| {
+            let s = (k + 1) as f64 * 1e-5;
+            line(
+                &[0.8 * s, 0.6 * s],
+                Some(0.1),
+                Blend::Continuous {
+                    tolerance: Some(1e-5),
+                },
+                k as u32,
+            )
+        })
+        .collect();
+    AxisPath {
+        axes,
+        start: vec![0.0, 0.0],
+        segments,
+        tool_lever_arms: Vec::new(),
+    }
+}
+
+/// Checks the plan of `path` with a look-ahead of `lookahead` segments against the plan of
+/// each chain whole: the same chains and geometry (no point moved, no stop added), every
+/// window within the look-ahead, every axis limit kept; returns the two durations.
+fn check_against_whole(name: &str, path: &AxisPath, lookahead: usize) -> (f64, f64) {
+    let windowed = plan_with_lookahead(path, lookahead).unwrap();
+    let whole = plan_with_lookahead(path, usize::MAX).unwrap();
+    assert_eq!(windowed.chain_count(), whole.chain_count(), "{name}");
+    assert!(
+        windowed.handoffs() >= 2,
+        "{name}: {} handoffs, {} chains",
+        windowed.handoffs(),
+        windowed.chain_count()
+    );
+    assert_eq!(windowed.stops_short(), 0, "{name}");
+    assert!(
+        windowed.largest_window() <= lookahead,
+        "{name}: {}",
+        windowed.largest_window()
+    );
+    assert!(whole.largest_window() > lookahead, "{name}");
+    // The same pieces, point for point, with the same feeds.
+    assert!(
+        windowed.chain_geometry(path, 2e-4) == whole.chain_geometry(path, 2e-4),
+        "{name}: the geometry differs"
+    );
+    // No stop inside a chain that the whole plan does not make.
+    let (speeds, whole_speeds) = (windowed.junction_speeds(), whole.junction_speeds());
+    for (k, (v, w)) in speeds.iter().zip(&whole_speeds).enumerate() {
+        assert!(*v > 0.0 || *w == 0.0, "{name}: stops at point {k}");
+    }
+    assert_within_limits(&fine(&windowed), &path.axes, 1e-9);
+    println!(
+        "{name}: {} segments, {} handoffs, {:.6} s with a look-ahead of {lookahead}, {:.6} s whole \
+         (ratio {:.8})",
+        path.segments.len(),
+        windowed.handoffs(),
+        windowed.duration(),
+        whole.duration(),
+        windowed.duration() / whole.duration()
+    );
+    (windowed.duration(), whole.duration())
+}
+
+#[test]
+fn long_chains_are_handed_over_between_windows_without_stopping() {
+    for (name, path) in [
+        ("random walk", gentle_random_walk(3 * LOOKAHEAD_SEGMENTS)),
+        ("cam raster", cam_raster(3 * LOOKAHEAD_SEGMENTS, 1000)),
+        ("tangent arcs", tangent_arcs(3 * LOOKAHEAD_SEGMENTS)),
+    ] {
+        let (windowed, whole) = check_against_whole(name, &path, LOOKAHEAD_SEGMENTS);
+        // Measured: the same to 1e-7 (handoffs where the plan passes at zero acceleration).
+        assert!(
+            (windowed / whole - 1.0).abs() < 1e-5,
+            "{name}: {windowed} s against {whole} s whole"
+        );
+        assert_eq!(plan(&path).unwrap().duration(), windowed, "{name}");
+    }
+}
+
+#[test]
+fn a_look_ahead_too_short_to_cruise_hands_over_inside_accelerations() {
+    // 0.4 mm of look-ahead past every handoff, far less than the 2.5 mm the feed needs:
+    // every handoff is planned to zero acceleration inside a speed change.
+    let path = fine_collinear(2000);
+    let (windowed, whole) = check_against_whole("collinear", &path, 160);
+    // The look-ahead caps the speed at what stops within it (measured: 2.50 times as long).
+    assert!(
+        windowed > 1.5 * whole && windowed < 4.0 * whole,
+        "{windowed} s against {whole} s whole"
+    );
+}
+
+#[test]
+fn a_run_streams_a_long_chain_as_the_plan_samples_it() {
+    let path = cam_raster(2 * LOOKAHEAD_SEGMENTS + 500, 1000);
+    let period = 1e-3;
+    let expected = plan(&path).unwrap().sample(period);
+    let n = path.axes.len();
+    let mut stream = plan_path_stream(path, period).unwrap();
+    assert_eq!(stream.len(), expected.len());
+    let mut sample = SetpointSample::zeros(n);
+    // Sample 0 of the stream is the start at rest, as the plan's.
+    let mut k = 0;
+    let bits = |v: &[f64]| v.iter().map(|x| x.to_bits()).collect::<Vec<_>>();
+    while stream.next_sample(&mut sample) {
+        let row = k * n..(k + 1) * n;
+        assert_eq!(
+            bits(&sample.position),
+            bits(&expected.position[row.clone()]),
+            "{k}"
+        );
+        assert_eq!(
+            bits(&sample.velocity),
+            bits(&expected.velocity[row.clone()]),
+            "{k}"
+        );
+        assert_eq!(
+            bits(&sample.acceleration),
+            bits(&expected.acceleration[row]),
+            "{k}"
+        );
+        if k > 0 {
+            assert_eq!(sample.segment, expected.segment[k], "{k}");
+        }
+        k += 1;
+    }
+    assert_eq!(k, expected.len());
+}
