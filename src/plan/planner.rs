@@ -17,6 +17,17 @@
 //!    exit speed. Span boundaries are passed at zero path acceleration, so the axis
 //!    acceleration is continuous everywhere and the jerk bounded.
 //!
+//! 5. Windows: the look-ahead reaches [`LOOKAHEAD_SEGMENTS`] segments. A chain that ends within
+//!    that many segments of its start is planned whole, as above. A longer one is planned that
+//!    many segments at a time, each window as if the chain stopped at its end, and handed over
+//!    to the next window between one half and three quarters of the way in, at the start of a
+//!    piece passed at zero path acceleration (a span boundary, a cruise, or a speed change
+//!    planned again to end there). The next window builds its geometry from a margin before the
+//!    handoff with the smoothing choices there frozen ([`super::pieces::Seed`]); a handoff is
+//!    made only once that window, planned in full, holds the very same piece and can go on from
+//!    the handoff's speed. The geometry is thus the whole chain's, and memory is bounded by the
+//!    look-ahead, whatever the program.
+//!
 //! Every chain ends exactly on its programmed end point; the programmed points inside a chain
 //! are passed within the corner tolerance (through them, on a tangent blend).
 
@@ -136,6 +147,7 @@ struct Timing {
 }
 
 /// What [`time_segments`] built and found besides the spans.
+#[derive(Debug)]
 struct Timed {
     shapes: Shapes,
     pieces: Pieces,
@@ -476,6 +488,9 @@ struct Windows {
     timing: Timing,
     /// Buffers for checking a handoff.
     check: Timing,
+    /// The window after the handoff in `next`, planned when the handoff was checked (its
+    /// spans in `check`).
+    checked: Option<Timed>,
 }
 
 impl Windows {
@@ -489,6 +504,7 @@ impl Windows {
             time: 0.0,
             timing: Timing::default(),
             check: Timing::default(),
+            checked: None,
         }
     }
 
@@ -501,6 +517,7 @@ impl Windows {
             time: self.time,
             timing: Timing::default(),
             check: Timing::default(),
+            checked: None,
         }
     }
 
@@ -560,15 +577,25 @@ impl Windows {
             } else {
                 Ending::Complete
             };
-            let timed = match time_segments(
-                path,
-                first,
-                end,
-                self.time,
-                ending,
-                entry.as_deref(),
-                &mut self.timing,
-            ) {
+            // A window after a handoff was planned when the handoff was checked, from the same
+            // inputs.
+            let checked = self.checked.take().filter(|_| entry.is_some());
+            let timed = match checked {
+                Some(timed) => {
+                    std::mem::swap(&mut self.timing, &mut self.check);
+                    Ok(timed)
+                }
+                None => time_segments(
+                    path,
+                    first,
+                    end,
+                    self.time,
+                    ending,
+                    entry.as_deref(),
+                    &mut self.timing,
+                ),
+            };
+            let timed = match timed {
                 Ok(timed) => timed,
                 Err(WindowError::Path(error)) => return Err(error),
                 // The same call checked it when the handoff was made.
@@ -613,10 +640,11 @@ impl Windows {
             region.contains(&(first + first_segment_of(&timed.pieces, piece)))
         });
         let (mut exact, mut others): (Vec<_>, Vec<_>) = places.into_iter().partition(|p| p.exact);
-        exact.sort_by(|a, b| a.speed.total_cmp(&b.speed).then(a.piece.cmp(&b.piece)));
+        // Among equally slow ones (a cruise), the latest: the most planned per window.
+        exact.sort_by(|a, b| a.speed.total_cmp(&b.speed).then(b.piece.cmp(&a.piece)));
         exact.truncate(HANDOFF_TRIES);
         // Of the others, the fastest: the least slowed down by the handoff.
-        others.sort_by(|a, b| b.speed.total_cmp(&a.speed).then(a.piece.cmp(&b.piece)));
+        others.sort_by(|a, b| b.speed.total_cmp(&a.speed).then(b.piece.cmp(&a.piece)));
         others.truncate(HANDOFF_TRIES);
         let cuts = exact.into_iter().chain(others);
         for cut in cuts {
@@ -659,7 +687,8 @@ impl Windows {
                 &mut self.check,
             );
             match check {
-                Ok(_) => {
+                Ok(checked) => {
+                    self.checked = Some(checked);
                     self.timing.spans.truncate(cut.span);
                     self.timing.spans.extend(last.map(|(span, _)| span));
                     timed.pieces.chains[0].end = cut.piece;
