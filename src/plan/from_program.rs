@@ -5,6 +5,7 @@
 
 use super::constant_velocity::ConstantVelocityStream;
 use super::path::{AxisLimits, AxisPath, AxisSpec, Blend, Geometry, PathError, PathSegment};
+use super::path_reader::{PathReader, SegmentSource};
 use super::planner::{PlanWindows, WINDOW_SEGMENTS};
 use super::setpoints::{sample_count, SetpointStream, Setpoints, MAX_SETPOINT_SAMPLES};
 use super::stream::{collect, Stretch, StretchStream};
@@ -121,11 +122,13 @@ pub fn plan_path_stream(
         path.segments.first().map_or(0, |s| s.source_index),
         path.segments.last().map_or(0, |s| s.source_index as usize),
     );
-    let windows = PlanWindows::new(path, WINDOW_SEGMENTS, 0).map_err(|source| PlanError::Path {
-        first_move: 0,
-        line: 0,
-        message: source.to_string(),
-    })?;
+    let reader = PathReader::Shared(std::sync::Arc::new(path));
+    let windows =
+        PlanWindows::new(reader, WINDOW_SEGMENTS, 0).map_err(|source| PlanError::Path {
+            first_move: 0,
+            line: 0,
+            message: source.to_string(),
+        })?;
     let ticks = SampleBudget::new(period).add_motion(windows.duration(), last, 0)?;
     let stretches = vec![
         Stretch::Start {
@@ -156,7 +159,9 @@ pub fn jerk_limited_plans(
     for stretch in stretches {
         if let Stretch::Windows { plan, .. } = stretch {
             // Whole: for inspecting the planned geometry and timing.
-            let (path, first_move) = plan.into_path();
+            let (path, first_move) = plan
+                .whole_path()
+                .map_err(|source| path_error(program, plan.first_move(), source))?;
             let plan =
                 super::plan(&path).map_err(|source| path_error(program, first_move, source))?;
             plans.push((path, plan));
@@ -236,12 +241,12 @@ impl SampleBudget {
     }
 }
 
-fn trapezoid_stretches(
+fn trapezoid_stretches<'a>(
     program: &Program,
     axes: &AxisMap,
     settings: &PlanSettings,
     acceleration: f64,
-) -> Result<Vec<Stretch>, PlanError> {
+) -> Result<Vec<Stretch<'a>>, PlanError> {
     let n = axes.axes();
     let mut budget = SampleBudget::new(settings.period);
     let (mut from, mut to) = (vec![0.0; n], vec![0.0; n]);
@@ -288,46 +293,146 @@ fn trapezoid_stretches(
     Ok(stretches)
 }
 
-/// Collects program moves into machine-axis paths for the jerk-limited planner, one per stretch
-/// between dwells, joining naive-CAM runs on the way.
-struct PathCollector<'a> {
+/// The machine-axis segments of a program's moves `first..end` (a motion between dwells) for
+/// the jerk-limited planner, made in order as the planner reads them: each move on the machine
+/// axes, straight runs joined as LinuxCNC's naive-CAM detector joins them.
+#[derive(Debug, Clone)]
+struct MoveSegments<'a> {
     program: &'a Program,
     axes: &'a AxisMap,
-    path: AxisPath,
-    /// First program move of the path being collected, for error messages.
-    first_move: usize,
+    blend: BlendChoice,
+    naive_cam_tolerance: Option<f64>,
+    /// The moves, and where the motion starts (program and machine coordinates).
+    first: usize,
+    end: usize,
+    start_at: program::Position,
+    start: Vec<f64>,
+    /// The next move to read, and where the previous one ended.
+    next: usize,
+    at: program::Position,
+    /// The segment made last, held back until the next move shows whether it joins it, with
+    /// the naive-CAM tolerance it was programmed with.
+    last: Option<PathSegment>,
+    last_q: Option<f64>,
     /// The naive-CAM run the last segment is: where it starts and the programmed points it
     /// has absorbed.
     run_start: Vec<f64>,
     run_points: Vec<Vec<f64>>,
-    /// The naive-CAM tolerance the last segment was programmed with.
-    last_q: Option<f64>,
 }
 
-impl PathCollector<'_> {
-    /// Where the path being collected currently ends.
-    fn end(&self) -> &[f64] {
-        self.path
-            .segments
-            .last()
-            .map_or(&self.path.start, |s| s.geometry.end())
+impl<'a> MoveSegments<'a> {
+    #[allow(clippy::too_many_arguments)]
+    fn new(
+        program: &'a Program,
+        axes: &'a AxisMap,
+        settings: &PlanSettings,
+        moves: std::ops::Range<usize>,
+        start_at: program::Position,
+        start: Vec<f64>,
+    ) -> Self {
+        MoveSegments {
+            program,
+            axes,
+            blend: settings.blend,
+            naive_cam_tolerance: settings.naive_cam_tolerance,
+            first: moves.start,
+            end: moves.end,
+            start_at,
+            start,
+            next: moves.start,
+            at: start_at,
+            last: None,
+            last_q: None,
+            run_start: Vec::new(),
+            run_points: Vec::new(),
+        }
     }
 
-    /// Appends a segment, joining it to the previous straight segment when both belong to one
-    /// naive-CAM run.
-    /// `q`: the segment's naive-CAM tolerance.
-    fn push(&mut self, segment: PathSegment, q: Option<f64>) {
-        let joins = self.joins_run(&segment, q);
-        self.last_q = q;
-        if joins {
-            let last = self.path.segments.last_mut().expect("a run has a segment");
-            self.run_points.push(last.geometry.end().to_vec());
-            *last = segment;
-            return;
-        }
-        self.run_start = self.end().to_vec();
-        self.run_points.clear();
-        self.path.segments.push(segment);
+    /// Where the segments made so far end.
+    fn path_end(&self) -> &[f64] {
+        self.last.as_ref().map_or(&self.start, |s| s.geometry.end())
+    }
+
+    /// Move `index` (a line or an arc, its plane checked) as a segment from where the path
+    /// ends, with its naive-CAM tolerance.
+    fn segment(&self, index: usize) -> (PathSegment, Option<f64>) {
+        let m = &self.program.moves[index];
+        let (axes, n) = (self.axes, self.axes.axes());
+        let mut end = vec![0.0; n];
+        axes.machine_axes(&m.end, &mut end);
+        let has_linear = program::move_length(&self.at, m) > 0.0;
+        let weights: Vec<f64> = (0..n)
+            .map(|i| match (axes.is_rotary(i), m.feed_rule) {
+                (false, _) => 1.0,
+                (true, FeedRule::EuclideanAllAxes) => DEGREE_AS_METRE,
+                (true, FeedRule::LinuxCnc) => {
+                    if has_linear {
+                        0.0
+                    } else {
+                        DEGREE_AS_METRE
+                    }
+                }
+            })
+            .collect();
+        let geometry = match m.motion {
+            Motion::Arc {
+                center,
+                plane,
+                clockwise,
+                turns,
+            } => {
+                let (first, second, _) = plane_axes(plane);
+                let (i, j) = arc_plane(axes, plane)
+                    .expect("arc planes are checked before the motion is planned");
+                Geometry::Arc {
+                    plane: [i, j],
+                    center: [center[first], center[second]],
+                    clockwise,
+                    turns,
+                    end,
+                }
+            }
+            Motion::Linear | Motion::Dwell { .. } => Geometry::Line { end },
+        };
+        let feed = match m.feed {
+            Feed::Rapid => None,
+            Feed::PathSpeed(v) => Some(v),
+            Feed::InverseTime(seconds) => {
+                // Inverse time: the path speed that makes the move take `seconds`.
+                let from = self.path_end();
+                let length = if matches!(m.motion, Motion::Arc { .. }) {
+                    program::move_length(&self.at, m)
+                } else {
+                    (0..n)
+                        .map(|i| (weights[i] * (geometry.end()[i] - from[i])).powi(2))
+                        .sum::<f64>()
+                        .sqrt()
+                };
+                Some(length / seconds)
+            }
+        };
+        let blend = match (self.blend, m.blend) {
+            (BlendChoice::ExactStop, _) | (BlendChoice::Program, program::Blend::ExactStop) => {
+                Blend::ExactStop
+            }
+            (BlendChoice::Continuous { tolerance }, _) => Blend::Continuous { tolerance },
+            (BlendChoice::Program, program::Blend::Continuous { tolerance, .. }) => {
+                Blend::Continuous { tolerance }
+            }
+        };
+        let q = match (self.naive_cam_tolerance, m.blend) {
+            (Some(q), _) => Some(q),
+            (None, program::Blend::Continuous { naive_cam, .. }) => naive_cam,
+            (None, program::Blend::ExactStop) => None,
+        };
+        let segment = PathSegment {
+            geometry,
+            feed,
+            feed_metric: weights,
+            blend,
+            source_index: index as u32,
+        };
+        (segment, q)
     }
 
     fn joins_run(&self, next: &PathSegment, q: Option<f64>) -> bool {
@@ -337,7 +442,7 @@ impl PathCollector<'_> {
         if self.last_q != Some(q) {
             return false;
         }
-        let Some(last) = self.path.segments.last() else {
+        let Some(last) = self.last.as_ref() else {
             return false;
         };
         let continuous = |s: &PathSegment| matches!(s.blend, Blend::Continuous { .. });
@@ -382,52 +487,62 @@ impl PathCollector<'_> {
         };
         self.run_points.iter().all(|p| within(p)) && within(a)
     }
+}
 
-    /// Plans the collected path (if any) and starts a new one where it ended.
-    fn flush(
-        &mut self,
-        stretches: &mut Vec<Stretch>,
-        budget: &mut SampleBudget,
-    ) -> Result<(), PlanError> {
-        if self.path.segments.is_empty() {
-            return Ok(());
-        }
-        let last = self
-            .path
-            .segments
-            .last()
-            .map_or(0, |s| s.source_index as usize);
-        let line = self.program.moves.get(last).map_or(0, |m| m.span.line);
-        if std::env::var_os("CNCSIM_PLAN_DEBUG").is_some() {
-            if let Ok(planned) = plan(&self.path) {
-                eprintln!("{}", planned.debug_dump());
+impl<'a> SegmentSource<'a> for MoveSegments<'a> {
+    fn next_segment(&mut self) -> Option<PathSegment> {
+        while self.next < self.end {
+            let index = self.next;
+            self.next += 1;
+            let (segment, q) = self.segment(index);
+            self.at = self.program.moves[index].end;
+            let joins = self.joins_run(&segment, q);
+            self.last_q = q;
+            if joins {
+                let last = self.last.as_mut().expect("a run has a segment");
+                self.run_points.push(last.geometry.end().to_vec());
+                *last = segment;
+                continue;
+            }
+            self.run_start = self.path_end().to_vec();
+            self.run_points.clear();
+            if let Some(made) = self.last.replace(segment) {
+                return Some(made);
             }
         }
-        let end = self.end().to_vec();
-        let path = AxisPath {
-            axes: self.path.axes.clone(),
-            start: std::mem::replace(&mut self.path.start, end),
-            segments: std::mem::take(&mut self.path.segments),
-            tool_lever_arms: self.path.tool_lever_arms.clone(),
-        };
-        let windows = PlanWindows::new(path, WINDOW_SEGMENTS, self.first_move)
-            .map_err(|source| path_error(self.program, self.first_move, source))?;
-        let ticks = budget.add_motion(windows.duration(), last, line)?;
-        stretches.push(Stretch::Windows {
-            plan: Box::new(windows),
-            ticks,
-        });
-        self.run_points.clear();
-        Ok(())
+        self.last.take()
+    }
+
+    fn restart(&self) -> Box<dyn SegmentSource<'a> + 'a> {
+        Box::new(MoveSegments {
+            next: self.first,
+            at: self.start_at,
+            last: None,
+            last_q: None,
+            run_start: Vec::new(),
+            run_points: Vec::new(),
+            ..self.clone()
+        })
     }
 }
 
-fn jerk_limited_stretches(
-    program: &Program,
-    axes: &AxisMap,
+/// The machine axes of an arc's plane, if the machine has both.
+fn arc_plane(axes: &AxisMap, plane: program::Plane) -> Option<(usize, usize)> {
+    let (first, second, _) = plane_axes(plane);
+    Some((
+        axes.machine_axis(true, first)?,
+        axes.machine_axis(true, second)?,
+    ))
+}
+
+/// The jerk-limited planner's stretches of a program: one motion per run of moves between
+/// dwells, each planned window by window from its moves as it is read.
+fn jerk_limited_stretches<'a>(
+    program: &'a Program,
+    axes: &'a AxisMap,
     settings: &PlanSettings,
     limits: &[AxisLimits],
-) -> Result<Vec<Stretch>, PlanError> {
+) -> Result<Vec<Stretch<'a>>, PlanError> {
     let n = axes.axes();
     let specs: Vec<AxisSpec> = (0..n)
         .map(|i| AxisSpec {
@@ -447,124 +562,83 @@ fn jerk_limited_stretches(
         at: start.clone(),
         segment: 0,
     }];
-    let mut collector = PathCollector {
-        program,
-        axes,
-        path: AxisPath {
-            axes: specs,
-            start,
+    // The motion being read: its first move and where it starts.
+    let (mut first, mut first_at) = (0, program.start);
+    let mut at = program.start;
+    let plan_motion = |moves: std::ops::Range<usize>,
+                       first_at: program::Position,
+                       start: &mut Vec<f64>,
+                       stretches: &mut Vec<Stretch<'a>>,
+                       budget: &mut SampleBudget|
+     -> Result<(), PlanError> {
+        if moves.is_empty() {
+            return Ok(());
+        }
+        let first_move = moves.start;
+        let header = AxisPath {
+            axes: specs.clone(),
+            start: start.clone(),
             segments: Vec::new(),
             tool_lever_arms: settings.tool_lever_arms.clone(),
-        },
-        first_move: 0,
-        run_start: Vec::new(),
-        run_points: Vec::new(),
-        last_q: None,
-    };
-    let mut at = program.start;
-
-    for (index, m) in program.moves.iter().enumerate() {
-        if collector.path.segments.is_empty() {
-            collector.first_move = index;
-        }
-        let mut end = vec![0.0; n];
-        axes.machine_axes(&m.end, &mut end);
-        let has_linear = program::move_length(&at, m) > 0.0;
-        let weights: Vec<f64> = (0..n)
-            .map(|i| match (axes.is_rotary(i), m.feed_rule) {
-                (false, _) => 1.0,
-                (true, FeedRule::EuclideanAllAxes) => DEGREE_AS_METRE,
-                (true, FeedRule::LinuxCnc) => {
-                    if has_linear {
-                        0.0
-                    } else {
-                        DEGREE_AS_METRE
-                    }
-                }
-            })
-            .collect();
-        let geometry = match m.motion {
-            Motion::Linear => Geometry::Line { end },
-            Motion::Arc {
-                center,
-                plane,
-                clockwise,
-                turns,
-            } => {
-                let (first, second, _) = plane_axes(plane);
-                let (Some(i), Some(j)) = (
-                    axes.machine_axis(true, first),
-                    axes.machine_axis(true, second),
-                ) else {
-                    return Err(PlanError::Unsupported {
-                        index,
-                        line: m.span.line,
-                        what: "an arc in a plane the machine has no axes for",
-                    });
-                };
-                Geometry::Arc {
-                    plane: [i, j],
-                    center: [center[first], center[second]],
-                    clockwise,
-                    turns,
-                    end,
-                }
+        };
+        let source = MoveSegments::new(program, axes, settings, moves, first_at, start.clone());
+        let error = |source| path_error(program, first_move, source);
+        let reader = PathReader::streamed(header, Box::new(source)).map_err(error)?;
+        let windows = PlanWindows::new(reader, WINDOW_SEGMENTS, first_move).map_err(error)?;
+        if std::env::var_os("CNCSIM_PLAN_DEBUG").is_some() {
+            if let Ok(planned) = windows.whole_path().and_then(|(path, _)| plan(&path)) {
+                eprintln!("{}", planned.debug_dump());
             }
+        }
+        let (end, last) = windows.end();
+        start.clear();
+        start.extend_from_slice(end);
+        let line = program.moves.get(last as usize).map_or(0, |m| m.span.line);
+        let ticks = budget.add_motion(windows.duration(), last as usize, line)?;
+        stretches.push(Stretch::Windows {
+            plan: Box::new(windows),
+            ticks,
+        });
+        Ok(())
+    };
+    for (index, m) in program.moves.iter().enumerate() {
+        match m.motion {
             Motion::Dwell { seconds } => {
-                collector.flush(&mut stretches, &mut budget)?;
+                plan_motion(
+                    first..index,
+                    first_at,
+                    &mut start,
+                    &mut stretches,
+                    &mut budget,
+                )?;
                 let ticks = budget.add_dwell(seconds, index, m.span.line)?;
                 stretches.push(Stretch::Hold {
-                    at: collector.end().to_vec(),
+                    at: start.clone(),
                     segment: index as u32,
                     ticks,
                 });
+                (first, first_at) = (index + 1, at);
                 continue;
             }
-        };
-        let feed = match m.feed {
-            Feed::Rapid => None,
-            Feed::PathSpeed(v) => Some(v),
-            Feed::InverseTime(seconds) => {
-                // Inverse time: the path speed that makes the move take `seconds`.
-                let from = collector.end();
-                let length = if matches!(m.motion, Motion::Arc { .. }) {
-                    program::move_length(&at, m)
-                } else {
-                    (0..n)
-                        .map(|i| (weights[i] * (geometry.end()[i] - from[i])).powi(2))
-                        .sum::<f64>()
-                        .sqrt()
-                };
-                Some(length / seconds)
+            Motion::Arc { plane, .. } if arc_plane(axes, plane).is_none() => {
+                return Err(PlanError::Unsupported {
+                    index,
+                    line: m.span.line,
+                    what: "an arc in a plane the machine has no axes for",
+                });
             }
-        };
-        let blend = match (settings.blend, m.blend) {
-            (BlendChoice::ExactStop, _) | (BlendChoice::Program, program::Blend::ExactStop) => {
-                Blend::ExactStop
-            }
-            (BlendChoice::Continuous { tolerance }, _) => Blend::Continuous { tolerance },
-            (BlendChoice::Program, program::Blend::Continuous { tolerance, .. }) => {
-                Blend::Continuous { tolerance }
-            }
-        };
-        let q = match (settings.naive_cam_tolerance, m.blend) {
-            (Some(q), _) => Some(q),
-            (None, program::Blend::Continuous { naive_cam, .. }) => naive_cam,
-            (None, program::Blend::ExactStop) => None,
-        };
-        collector.push(
-            PathSegment {
-                geometry,
-                feed,
-                feed_metric: weights,
-                blend,
-                source_index: index as u32,
-            },
-            q,
-        );
+            Motion::Arc { .. } | Motion::Linear => {}
+        }
         at = m.end;
     }
-    collector.flush(&mut stretches, &mut budget)?;
+    let end = program.moves.len();
+    plan_motion(
+        first..end,
+        first_at,
+        &mut start,
+        &mut stretches,
+        &mut budget,
+    )?;
     Ok(stretches)
 }
 

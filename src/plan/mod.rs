@@ -21,6 +21,7 @@ mod from_program;
 mod geometry;
 pub mod metrics;
 pub mod path;
+mod path_reader;
 mod pieces;
 mod planned;
 pub mod planner;

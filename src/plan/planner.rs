@@ -32,7 +32,8 @@
 //! are passed within the corner tolerance (through them, on a tangent blend).
 
 use super::geometry::{AxisJet, Metric, PathPoint, Shapes};
-use super::path::{AxisPath, Blend, Geometry, PathError};
+use super::path::{AxisPath, PathError};
+use super::path_reader::{validate, PathReader};
 use super::pieces::{
     applied_feed, assign_limits, lowest_feed, Builder, Chain, Piece, PieceKind, Pieces, Seed,
     SHARE_CAPS,
@@ -118,9 +119,10 @@ pub fn plan(path: &AxisPath) -> Result<Plan, PathError> {
 #[doc(hidden)]
 pub fn plan_with_lookahead(path: &AxisPath, segments: usize) -> Result<Plan, PathError> {
     validate(path)?;
+    let mut reader = PathReader::Whole(path);
     let mut windows = Windows::new(WINDOW_SEGMENTS, segments);
     let mut parts = Vec::new();
-    while let Some(part) = windows.next_part(path)? {
+    while let Some(part) = windows.next_part(&mut reader)? {
         parts.push(part);
     }
     Ok(Plan {
@@ -199,15 +201,18 @@ impl From<PathError> for WindowError {
     }
 }
 
-/// Times segments `first..end` of `path` (validated), its first chain starting at
+/// Times segments `first..end` of a path (validated; its segment `k` is `path`'s `k - base`,
+/// and `path.start` the point before segment `base`), its first chain starting at
 /// `start_time` (after `entry`, from the handoff's piece on at the handoff's speed); the
 /// spans go to `timing.spans` (cleared first), the chains `ending` says.
 ///
 /// A chain's pieces depend only on its own segments and the shapes of the two segments around
 /// it (every junction, blend and smoothing curve looks no further, and none crosses a stop),
 /// so the whole chains timed here are exactly those of any window that holds them.
+#[allow(clippy::too_many_arguments)]
 fn time_segments(
     path: &AxisPath,
+    base: usize,
     first: usize,
     end: usize,
     start_time: f64,
@@ -215,11 +220,8 @@ fn time_segments(
     entry: Option<&Handoff>,
     timing: &mut Timing,
 ) -> Result<Timed, WindowError> {
-    let segments = &path.segments[first..end];
-    let start = match first.checked_sub(1) {
-        Some(previous) => path.segments[previous].geometry.end(),
-        None => &path.start,
-    };
+    let segments = &path.segments[first - base..end - base];
+    let start = point_before(path, base, first);
     let shapes = Shapes::new(start, segments, &path.axes).map_err(|e| e.offset(first))?;
     let metric = Metric::new(&path.axes, &path.tool_lever_arms);
     let seed = entry.map(|handoff| &handoff.seed);
@@ -311,6 +313,14 @@ fn time_segments(
         next,
         stretch,
     })
+}
+
+/// Where segment `first` starts, in a path whose segment `k` is `path`'s `k - base`.
+fn point_before(path: &AxisPath, base: usize, first: usize) -> &[f64] {
+    match first.checked_sub(base + 1) {
+        Some(previous) => path.segments[previous].geometry.end(),
+        None => &path.start,
+    }
 }
 
 /// Segments per window at a stop at first; a window grows until it holds a whole chain, up
@@ -522,17 +532,15 @@ impl Windows {
     }
 
     /// Plans the next window; `None` after the last.
-    fn next_part(&mut self, path: &AxisPath) -> Result<Option<Part>, PathError> {
-        let Some((timed, first, window_end)) = self.step(path)? else {
+    fn next_part(&mut self, reader: &mut PathReader) -> Result<Option<Part>, PathError> {
+        let Some((timed, first, window_end)) = self.step(reader)? else {
             return Ok(None);
         };
-        let start = match first.checked_sub(1) {
-            Some(previous) => path.segments[previous].geometry.end(),
-            None => &path.start,
-        };
+        let (path, base) = reader.view();
+        let start = point_before(path, base, first);
         Ok(Some(Part {
             axes: path.axes.len(),
-            source_index: path.segments[first..first + timed.shapes.len()]
+            source_index: path.segments[first - base..first - base + timed.shapes.len()]
                 .iter()
                 .map(|s| s.source_index)
                 .collect(),
@@ -548,20 +556,25 @@ impl Windows {
     }
 
     /// Times the next window (to `self.time`); false after the last.
-    fn next_time(&mut self, path: &AxisPath) -> Result<bool, PathError> {
-        Ok(self.step(path)?.is_some())
+    fn next_time(&mut self, reader: &mut PathReader) -> Result<bool, PathError> {
+        Ok(self.step(reader)?.is_some())
     }
 
     /// The next window's geometry and timing (its spans in `self.timing.spans`), its first
     /// segment, and how it ends.
-    fn step(&mut self, path: &AxisPath) -> Result<Option<(Timed, usize, WindowEnd)>, PathError> {
-        let count = path.segments.len();
+    fn step(
+        &mut self,
+        reader: &mut PathReader,
+    ) -> Result<Option<(Timed, usize, WindowEnd)>, PathError> {
         let (first, entry) = match self.next.take() {
             None => return Ok(None),
-            Some(Next::Stop(first)) if first >= count => return Ok(None),
             Some(Next::Stop(first)) => (first, None),
             Some(Next::Handoff(handoff)) => (handoff.first, Some(handoff)),
         };
+        reader.release(first);
+        if reader.reach(first + 1)? == first {
+            return Ok(None);
+        }
         loop {
             // After a handoff, always the whole look-ahead (where the handoff was checked).
             let size = if entry.is_some() {
@@ -569,8 +582,10 @@ impl Windows {
             } else {
                 self.window
             };
-            let end = first.saturating_add(size).min(count);
-            let ending = if end == count {
+            // One segment more than the window: whether the path ends with it.
+            let reached = reader.reach(first.saturating_add(size).saturating_add(1))?;
+            let end = reached.min(first.saturating_add(size));
+            let ending = if reached == end {
                 Ending::PathEnd
             } else if size >= self.lookahead {
                 Ending::CompleteOrStretch
@@ -586,7 +601,8 @@ impl Windows {
                     Ok(timed)
                 }
                 None => time_segments(
-                    path,
+                    reader.view().0,
+                    reader.view().1,
                     first,
                     end,
                     self.time,
@@ -604,7 +620,7 @@ impl Windows {
                 }
             };
             if timed.stretch {
-                return self.hand_over(path, first, timed).map(Some);
+                return self.hand_over(reader, first, timed).map(Some);
             }
             if timed.next > first {
                 // Doubled when less than half of it is kept (the chain cut off at its end is
@@ -630,11 +646,11 @@ impl Windows {
     /// point, and the next window starts from rest there.
     fn hand_over(
         &mut self,
-        path: &AxisPath,
+        reader: &mut PathReader,
         first: usize,
         mut timed: Timed,
     ) -> Result<(Timed, usize, WindowEnd), PathError> {
-        let count = path.segments.len();
+        let axes = reader.view().0.axes.len();
         let region = first + self.lookahead / 2..first + 3 * self.lookahead / 4;
         let places = handoff_places(&timed.pieces, &self.timing.spans, |piece| {
             region.contains(&(first + first_segment_of(&timed.pieces, piece)))
@@ -670,15 +686,19 @@ impl Windows {
                 ))
             };
             let time = last.map_or(span.start_time, |(_, end)| end);
-            let handoff = Handoff::at(&timed.pieces, first, cut.piece, cut.speed, path.axes.len());
-            let end = handoff.first.saturating_add(self.lookahead).min(count);
-            let ending = if end == count {
+            let handoff = Handoff::at(&timed.pieces, first, cut.piece, cut.speed, axes);
+            let size = handoff.first.saturating_add(self.lookahead);
+            let reached = reader.reach(size.saturating_add(1))?;
+            let end = reached.min(size);
+            let ending = if reached == end {
                 Ending::PathEnd
             } else {
                 Ending::CompleteOrStretch
             };
+            let (path, base) = reader.view();
             let check = time_segments(
                 path,
+                base,
                 handoff.first,
                 end,
                 time,
@@ -770,11 +790,13 @@ fn handoff_places(
 }
 
 /// A path planned window by window, as it is evaluated: the plans of a few hundred segments at
-/// a time (at most [`LOOKAHEAD_SEGMENTS`]), never the whole path. Samples are bit-identical to
-/// [`plan`]'s: the same windows, each timed from where the previous one ended.
+/// a time (at most [`LOOKAHEAD_SEGMENTS`]), never the whole path, which may itself be made as
+/// it is read ([`PathReader::Streamed`]). Samples are bit-identical to [`plan`]'s: the same
+/// windows, each timed from where the previous one ended.
 #[derive(Debug)]
-pub(super) struct PlanWindows {
-    path: AxisPath,
+pub(super) struct PlanWindows<'a> {
+    /// The path, read from its start again as the windows are evaluated.
+    reader: PathReader<'a>,
     duration: f64,
     /// Windows after the current one planned by the timing pass (none when they would hold
     /// more than [`KEPT_SEGMENTS`]).
@@ -786,6 +808,8 @@ pub(super) struct PlanWindows {
     windows: Windows,
     /// The start point and program move reported when nothing moves.
     rest: (Vec<f64>, u32),
+    /// The path's end point and last program move.
+    end: (Vec<f64>, u32),
     /// The program move the path starts with (for error messages).
     first_move: usize,
 }
@@ -794,53 +818,77 @@ pub(super) struct PlanWindows {
 /// (a path this short is planned once, not twice).
 const KEPT_SEGMENTS: usize = 16_384;
 
-impl PlanWindows {
+impl<'a> PlanWindows<'a> {
     /// Plans every window once for the path's duration (keeping the first, where the
     /// evaluation starts, and the rest only for a short path), and reports the errors [`plan`]
     /// would.
-    pub fn new(path: AxisPath, window: usize, first_move: usize) -> Result<Self, PathError> {
-        Self::keeping(path, window, first_move, KEPT_SEGMENTS, LOOKAHEAD_SEGMENTS)
+    pub fn new(
+        reader: PathReader<'a>,
+        window: usize,
+        first_move: usize,
+    ) -> Result<Self, PathError> {
+        Self::keeping(
+            reader,
+            window,
+            first_move,
+            KEPT_SEGMENTS,
+            LOOKAHEAD_SEGMENTS,
+        )
     }
 
     /// [`Self::new`], keeping the timing pass's windows for a path of at most `most` segments,
     /// with a look-ahead of `lookahead` segments.
     fn keeping(
-        path: AxisPath,
+        reader: PathReader<'a>,
         window: usize,
         first_move: usize,
         most: usize,
         lookahead: usize,
     ) -> Result<Self, PathError> {
-        validate(&path)?;
-        let keep = path.segments.len() <= most;
+        reader.validate()?;
+        let mut timing_reader = reader.restart();
         // The first window is kept (the evaluation starts there), the rest only for a short
         // path; of the others only the end time is needed, and one set of buffers does for all.
         let mut timing = Windows::new(window, lookahead);
         let mut first = None;
         let mut kept = std::collections::VecDeque::new();
+        let mut keep = true;
         loop {
             if first.is_none() || keep {
-                let Some(part) = timing.next_part(&path)? else {
+                let Some(part) = timing.next_part(&mut timing_reader)? else {
                     break;
                 };
                 if first.is_none() {
-                    first = Some((part, (!keep).then(|| timing.resume())));
+                    first = Some((part, timing.resume()));
                 } else {
                     kept.push_back(part);
                 }
-            } else if !timing.next_time(&path)? {
+                // Only a short path is kept whole.
+                if timing_reader.reach(most.saturating_add(1))? > most {
+                    keep = false;
+                    kept.clear();
+                }
+            } else if !timing.next_time(&mut timing_reader)? {
                 break;
             }
         }
         let duration = timing.time;
+        let (path, _) = timing_reader.view();
+        let end = match path.segments.last() {
+            Some(last) => (last.geometry.end().to_vec(), last.source_index),
+            None => (path.start.clone(), 0),
+        };
+        let mut start_reader = reader.restart();
+        start_reader.reach(1)?;
+        let (start, _) = start_reader.view();
         let rest = (
-            path.start.clone(),
-            path.segments.first().map_or(0, |s| s.source_index),
+            start.start.clone(),
+            start.segments.first().map_or(0, |s| s.source_index),
         );
-        // The evaluation goes on from the first window, or (every window kept) from the end.
+        // The evaluation goes on from the first window (or, every window kept, from the end).
         let (current, windows) = match first {
             Some((part, resumed)) => {
-                let windows = resumed.unwrap_or(timing);
+                let windows = if keep { timing } else { resumed };
                 let current = (!part.spans.is_empty()).then(|| {
                     let cursor = Cursor::new(&part);
                     (part, cursor)
@@ -850,19 +898,34 @@ impl PlanWindows {
             None => (None, timing),
         };
         Ok(PlanWindows {
-            path,
+            reader,
             duration,
             kept,
             current,
             windows,
             rest,
+            end,
             first_move,
         })
     }
 
-    /// The path, and the program move it starts with.
-    pub fn into_path(self) -> (AxisPath, usize) {
-        (self.path, self.first_move)
+    /// The whole path (made again, for inspecting it), and the program move it starts with.
+    pub fn whole_path(&self) -> Result<(AxisPath, usize), PathError> {
+        let mut reader = self.reader.restart();
+        let count = reader.reach(usize::MAX)?;
+        let (path, base) = reader.view();
+        debug_assert_eq!((base, path.segments.len()), (0, count));
+        Ok((path.clone(), self.first_move))
+    }
+
+    /// The program move the path starts with.
+    pub fn first_move(&self) -> usize {
+        self.first_move
+    }
+
+    /// Where the path ends, and the program move of its last segment.
+    pub fn end(&self) -> (&[f64], u32) {
+        (&self.end.0, self.end.1)
     }
 
     /// Total duration (s), the same as [`plan`]'s.
@@ -884,7 +947,7 @@ impl PlanWindows {
                 // The timing pass planned this window from the same inputs without error.
                 None => match self
                     .windows
-                    .next_part(&self.path)
+                    .next_part(&mut self.reader)
                     .expect("planning is deterministic: a window planned once plans again")
                 {
                     Some(part) => part,
@@ -1067,73 +1130,6 @@ fn look_ahead(drafts: &[Draft], entry: f64) -> Vec<f64> {
         }
     }
     speeds
-}
-
-fn validate(path: &AxisPath) -> Result<(), PathError> {
-    let n = path.axes.len();
-    for (axis, spec) in path.axes.iter().enumerate() {
-        let l = spec.limits;
-        if !Limits::new(l.velocity, l.acceleration, l.jerk).is_valid() {
-            return Err(PathError::InvalidLimits { axis });
-        }
-    }
-    let check_len = |segment: Option<usize>, found: usize| {
-        if found == n {
-            Ok(())
-        } else {
-            Err(PathError::AxisCountMismatch {
-                segment,
-                expected: n,
-                found,
-            })
-        }
-    };
-    let finite = |segment: Option<usize>, what: &'static str, values: &[f64]| {
-        if values.iter().all(|x| x.is_finite()) {
-            Ok(())
-        } else {
-            Err(PathError::InvalidValue { segment, what })
-        }
-    };
-    check_len(None, path.start.len())?;
-    finite(None, "start position", &path.start)?;
-    if !path.tool_lever_arms.is_empty() {
-        check_len(None, path.tool_lever_arms.len())?;
-        if !path
-            .tool_lever_arms
-            .iter()
-            .all(|x| x.is_finite() && *x >= 0.0)
-        {
-            return Err(PathError::InvalidValue {
-                segment: None,
-                what: "tool lever arm",
-            });
-        }
-    }
-    for (k, segment) in path.segments.iter().enumerate() {
-        let s = Some(k);
-        check_len(s, segment.geometry.end().len())?;
-        check_len(s, segment.feed_metric.len())?;
-        finite(s, "end position", segment.geometry.end())?;
-        finite(s, "feed metric", &segment.feed_metric)?;
-        if let Geometry::Arc { center, .. } = &segment.geometry {
-            finite(s, "arc centre", center)?;
-        }
-        if matches!(segment.feed, Some(f) if !(f.is_finite() && f > 0.0)) {
-            return Err(PathError::InvalidValue {
-                segment: s,
-                what: "feed",
-            });
-        }
-        let negative = |t: f64| t.is_nan() || t < 0.0;
-        if matches!(segment.blend, Blend::Continuous { tolerance: Some(t) } if negative(t)) {
-            return Err(PathError::InvalidValue {
-                segment: s,
-                what: "tolerance",
-            });
-        }
-    }
-    Ok(())
 }
 
 /// A position in a part for evaluating it at non-decreasing times: the current span with its
@@ -1649,7 +1645,47 @@ impl Part {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::plan::path::{AxisKind, AxisLimits, AxisSpec, PathSegment};
+    use crate::plan::path::{AxisKind, AxisLimits, AxisSpec, Blend, Geometry, PathSegment};
+    use crate::plan::path_reader::SegmentSource;
+    use std::sync::Arc;
+
+    /// A path's segments made again one by one, as a program's are.
+    #[derive(Debug, Clone)]
+    struct Replay {
+        segments: Arc<Vec<PathSegment>>,
+        next: usize,
+    }
+
+    impl<'a> SegmentSource<'a> for Replay {
+        fn next_segment(&mut self) -> Option<PathSegment> {
+            let segment = self.segments.get(self.next).cloned();
+            self.next += 1;
+            segment
+        }
+
+        fn restart(&self) -> Box<dyn SegmentSource<'a> + 'a> {
+            Box::new(Replay {
+                next: 0,
+                ..self.clone()
+            })
+        }
+    }
+
+    /// `path` read as a whole, and made as it is read.
+    fn readers(path: &AxisPath) -> [PathReader<'static>; 2] {
+        let header = AxisPath {
+            segments: Vec::new(),
+            ..path.clone()
+        };
+        let replay = Replay {
+            segments: Arc::new(path.segments.clone()),
+            next: 0,
+        };
+        [
+            PathReader::Shared(Arc::new(path.clone())),
+            PathReader::streamed(header, Box::new(replay)).unwrap(),
+        ]
+    }
 
     /// Lines with sharp corners (stops), gentle corners (blends), a smoothed run, a tangent arc,
     /// a zero-length segment and an exact stop, in a few hundred segments; without `stops`, a
@@ -1754,24 +1790,35 @@ mod tests {
             let period = 1e-3;
             let expected = whole.sample(period);
             let n = path.axes.len();
-            // Windows planned again as they are evaluated, and kept from the timing pass.
-            for (window, most) in [1, 2, 3, 7, 64, 10_000]
+            // Windows planned again as they are evaluated, and kept from the timing pass; the
+            // path whole, or made as it is read.
+            for (window, most, streamed) in [1, 2, 3, 7, 64, 10_000]
                 .into_iter()
                 .flat_map(|w| [(w, 0), (w, usize::MAX)])
+                .flat_map(|(w, most)| [(w, most, false), (w, most, true)])
             {
-                let mut windows =
-                    PlanWindows::keeping(path.clone(), window, 0, most, lookahead).unwrap();
+                let [whole_reader, streamed_reader] = readers(&path);
+                let reader = if streamed {
+                    streamed_reader
+                } else {
+                    whole_reader
+                };
+                let mut windows = PlanWindows::keeping(reader, window, 0, most, lookahead).unwrap();
                 assert_eq!(windows.duration().to_bits(), whole.duration().to_bits());
                 let (mut p, mut v, mut a) = (vec![0.0; n], vec![0.0; n], vec![0.0; n]);
                 for (k, t) in sample_times(whole.duration(), period).enumerate() {
                     let segment = windows.eval(t, &mut p, &mut v, &mut a);
                     let row = k * n..(k + 1) * n;
-                    let what = format!("look-ahead {lookahead} window {window} sample {k}");
+                    let what = format!(
+                        "look-ahead {lookahead} window {window} streamed {streamed} sample {k}"
+                    );
                     assert_eq!(segment, expected.segment[k], "{what}");
                     assert_eq!(p, expected.position[row.clone()], "{what}");
                     assert_eq!(v, expected.velocity[row.clone()], "{what}");
                     assert_eq!(a, expected.acceleration[row], "{what}");
                 }
+                let end = path.segments.last().unwrap();
+                assert_eq!(windows.end(), (end.geometry.end(), end.source_index));
             }
         }
     }
@@ -1786,7 +1833,8 @@ mod tests {
             };
         }
         let whole = plan(&path).unwrap();
-        let mut windows = PlanWindows::new(path.clone(), 1, 0).unwrap();
+        let [_, reader] = readers(&path);
+        let mut windows = PlanWindows::new(reader, 1, 0).unwrap();
         let (mut p, mut v, mut a) = (vec![1.0; 3], vec![1.0; 3], vec![1.0; 3]);
         let (mut q, mut w, mut b) = (vec![1.0; 3], vec![1.0; 3], vec![1.0; 3]);
         let segment = windows.eval(0.0, &mut p, &mut v, &mut a);

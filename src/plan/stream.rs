@@ -10,7 +10,7 @@ use super::trapezoid::TrapezoidProfile;
 
 /// One stretch of a program's setpoints. Its sample 0 is where the previous stretch ended (or
 /// the program start); samples `1..=ticks` follow at the servo period.
-pub(super) enum Stretch {
+pub(super) enum Stretch<'a> {
     /// The start of the program, alone: one sample at rest.
     Start { at: Vec<f64>, segment: u32 },
     /// Holding still at `at` (a dwell).
@@ -21,7 +21,7 @@ pub(super) enum Stretch {
     },
     /// A jerk-limited motion planned window by window as it is read.
     Windows {
-        plan: Box<PlanWindows>,
+        plan: Box<PlanWindows<'a>>,
         ticks: usize,
     },
     /// A straight move with the seed trapezoidal profile.
@@ -34,7 +34,7 @@ pub(super) enum Stretch {
     },
 }
 
-impl Stretch {
+impl Stretch<'_> {
     /// Samples after sample 0.
     pub fn ticks(&self) -> usize {
         match self {
@@ -93,19 +93,19 @@ impl Stretch {
 }
 
 /// Stretches played one after the other, each from where the previous one ended.
-pub(super) struct StretchStream {
+pub(super) struct StretchStream<'a> {
     axes: usize,
     period: f64,
-    stretches: Vec<Stretch>,
+    stretches: Vec<Stretch<'a>>,
     len: usize,
     /// The stretch being read, and its next sample.
     current: usize,
     k: usize,
 }
 
-impl StretchStream {
+impl<'a> StretchStream<'a> {
     /// The stream of `stretches`; the first must be a `Start` (the rest drop their sample 0).
-    pub fn new(axes: usize, period: f64, stretches: Vec<Stretch>) -> Self {
+    pub fn new(axes: usize, period: f64, stretches: Vec<Stretch<'a>>) -> Self {
         let len = 1 + stretches.iter().map(Stretch::ticks).sum::<usize>();
         StretchStream {
             axes,
@@ -118,7 +118,7 @@ impl StretchStream {
     }
 }
 
-impl SetpointStream for StretchStream {
+impl SetpointStream for StretchStream<'_> {
     fn axes(&self) -> usize {
         self.axes
     }
