@@ -8,7 +8,9 @@
 //! - `geometry`, `blend`, `tangent`, `pieces`: the path's segments, corner blends between
 //!   lines, tangent blends between curves, and the chains of pieces they form with their
 //!   limits on the path coordinate.
-//! - [`planner`]: look-ahead over the chains, time-optimal profiles per span.
+//! - [`planner`]: look-ahead over the chains (whole up to [`planner::LOOKAHEAD_SEGMENTS`],
+//!   window by window with handoffs beyond), time-optimal profiles per span; `path_reader`: the
+//!   path as the windows read it, made from the program's moves as they go.
 //! - [`setpoints`] and `stream`: the output, a stream at the servo period computed as it is
 //!   read (every move timed first); [`PlannedProgram`]: a program planned once and streamed
 //!   again for every run, no sample kept.
