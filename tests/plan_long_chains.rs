@@ -277,3 +277,60 @@ fn a_run_streams_a_long_chain_as_the_plan_samples_it() {
     }
     assert_eq!(k, expected.len());
 }
+
+#[test]
+fn a_program_with_a_long_chain_streams_as_its_whole_plan_samples_it() {
+    use cncsim::kinematics::AxisMap;
+    use cncsim::machine::Machine;
+    use cncsim::plan::{
+        jerk_limited_plans, plan_program_stream, BlendChoice, PlanSettings, Planner,
+    };
+    use cncsim::program::{parse_gcode, ReadOptions};
+    use std::fmt::Write;
+    // CAM raster output in G-code: 9 000 lines of 1 mm on a curve, one chain (the path is made
+    // from the moves as the windows read it), then a dwell and a second, short chain.
+    let mut text = String::from("G21 G90 G64 P0.05\nG0 X0 Y0 Z1\nF6000\n");
+    for k in 0..9000 {
+        let (row, step) = (k / 1000, k % 1000);
+        let x = if row % 2 == 0 { step } else { 999 - step } as f64;
+        let z = 2.0 * (x * 0.02).sin() + (x * 0.0031).cos();
+        writeln!(text, "G1 X{x:.3} Y{:.3} Z{z:.4}", row as f64 * 0.5).unwrap();
+    }
+    text.push_str("G4 P0.2\nG1 X5 Y10 Z3\nG1 X10 Y12\nM2\n");
+    let program = parse_gcode(&text, "raster.ngc", &ReadOptions::default()).unwrap();
+    let root = std::path::Path::new(env!("CARGO_MANIFEST_DIR"));
+    let machine = Machine::load(&root.join("models/xyz_table.urdf")).unwrap();
+    let axes = AxisMap::cartesian(&machine).unwrap();
+    let settings = PlanSettings {
+        planner: Planner::JerkLimited {
+            limits: vec![AxisLimits::from_program_units(AxisKind::Linear, 200.0, 2000.0, 5e4); 3],
+        },
+        period: 1e-3,
+        rapid_speed: 0.05,
+        blend: BlendChoice::Program,
+        axis_names: machine.axes.iter().map(|a| a.name.clone()).collect(),
+        naive_cam_tolerance: Some(0.0),
+        tool_lever_arms: Vec::new(),
+    };
+    let mut stream = plan_program_stream(&program, &axes, &settings).unwrap();
+    let look_ahead = stream.look_ahead();
+    assert!(look_ahead.handoffs >= 2, "{look_ahead:?}");
+    assert_eq!(look_ahead.stops_added, 0);
+    // The motions planned whole (for inspection), sampled on the stream's grid.
+    let plans = jerk_limited_plans(&program, &axes, &settings)
+        .unwrap()
+        .unwrap();
+    assert_eq!(plans.len(), 2);
+    assert_eq!(plans[0].0.segments.len(), 9001);
+    assert_eq!(plans[0].1.handoffs(), look_ahead.handoffs);
+    let first = plans[0].1.sample(1e-3);
+    let mut sample = SetpointSample::zeros(3);
+    let n = 3;
+    for k in 0..first.len() {
+        assert!(stream.next_sample(&mut sample));
+        let row = k * n..(k + 1) * n;
+        assert_eq!(sample.position, first.position[row.clone()], "{k}");
+        assert_eq!(sample.velocity, first.velocity[row.clone()], "{k}");
+        assert_eq!(sample.acceleration, first.acceleration[row], "{k}");
+    }
+}

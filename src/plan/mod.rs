@@ -50,8 +50,8 @@ pub use planned::PlannedProgram;
 pub use planner::{plan, ChainGeometry, Plan, PointFeed, SegmentTiming, SPAN_SPREAD};
 pub use profile::{Limits, Profile, Recipe, Regime, VelocityChange};
 pub use setpoints::{
-    sample_count, FirstSamples, SetpointCursor, SetpointSample, SetpointStream, Setpoints,
-    MAX_SETPOINT_SAMPLES,
+    sample_count, FirstSamples, LookAhead, SetpointCursor, SetpointSample, SetpointStream,
+    Setpoints, MAX_SETPOINT_SAMPLES,
 };
 pub use stream::collect;
 pub use trapezoid::{trapezoid_line, TrapezoidProfile};

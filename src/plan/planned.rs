@@ -3,7 +3,7 @@
 //! kept and a run's memory does not grow with the program's duration.
 
 use super::from_program::{plan_program_stream, PlanSettings};
-use super::setpoints::{SetpointSample, SetpointStream, Setpoints};
+use super::setpoints::{LookAhead, SetpointSample, SetpointStream, Setpoints};
 use super::stream::collect;
 use super::PlanError;
 use crate::kinematics::AxisMap;
@@ -20,6 +20,7 @@ pub struct PlannedProgram {
     settings: PlanSettings,
     samples: usize,
     first: Option<Vec<f64>>,
+    look_ahead: LookAhead,
 }
 
 impl PlannedProgram {
@@ -29,11 +30,11 @@ impl PlannedProgram {
         axes: AxisMap,
         settings: PlanSettings,
     ) -> Result<PlannedProgram, PlanError> {
-        let (samples, first) = {
+        let (samples, first, look_ahead) = {
             let mut stream = plan_program_stream(&program, &axes, &settings)?;
             let mut sample = SetpointSample::zeros(stream.axes());
             let first = stream.next_sample(&mut sample).then_some(sample.position);
-            (stream.len(), first)
+            (stream.len(), first, stream.look_ahead())
         };
         Ok(PlannedProgram {
             program: Arc::new(program),
@@ -41,6 +42,7 @@ impl PlannedProgram {
             settings,
             samples,
             first,
+            look_ahead,
         })
     }
 
@@ -59,6 +61,11 @@ impl PlannedProgram {
 
     pub fn is_empty(&self) -> bool {
         self.samples == 0
+    }
+
+    /// What the jerk-limited planner's look-ahead did with chains longer than it.
+    pub fn look_ahead(&self) -> LookAhead {
+        self.look_ahead
     }
 
     /// The first setpoint's position, if there is one.

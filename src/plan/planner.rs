@@ -40,7 +40,7 @@ use super::pieces::{
 };
 use super::profile::{reachable_velocity, transfer_distance, Limits, Profile, Recipe};
 use super::quintic;
-use super::setpoints::{sample_times, Setpoints};
+use super::setpoints::{sample_times, LookAhead, Setpoints};
 use super::tangent::{JetScratch, TangentBlend};
 
 /// Pieces whose speed, acceleration and jerk limits each lie within this fraction of one
@@ -160,6 +160,17 @@ struct Timed {
     /// The window holds one chain, which runs on past it: a stretch, to be handed over
     /// inside it.
     stretch: bool,
+}
+
+impl LookAhead {
+    /// Counts a window that ends so.
+    fn count(&mut self, end: WindowEnd) {
+        match end {
+            WindowEnd::Stop => {}
+            WindowEnd::HandedOff => self.handoffs += 1,
+            WindowEnd::StopsShort => self.stops_added += 1,
+        }
+    }
 }
 
 /// How a window's last chain ends.
@@ -555,9 +566,9 @@ impl Windows {
         }))
     }
 
-    /// Times the next window (to `self.time`); false after the last.
-    fn next_time(&mut self, reader: &mut PathReader) -> Result<bool, PathError> {
-        Ok(self.step(reader)?.is_some())
+    /// Times the next window (to `self.time`): how it ends; `None` after the last.
+    fn next_time(&mut self, reader: &mut PathReader) -> Result<Option<WindowEnd>, PathError> {
+        Ok(self.step(reader)?.map(|(_, _, end)| end))
     }
 
     /// The next window's geometry and timing (its spans in `self.timing.spans`), its first
@@ -797,6 +808,8 @@ fn handoff_places(
 pub(super) struct PlanWindows<'a> {
     /// The path, read from its start again as the windows are evaluated.
     reader: PathReader<'a>,
+    /// What the timing pass's windows did with chains longer than the look-ahead.
+    look_ahead: LookAhead,
     duration: f64,
     /// Windows after the current one planned by the timing pass (none when they would hold
     /// more than [`KEPT_SEGMENTS`]).
@@ -853,11 +866,13 @@ impl<'a> PlanWindows<'a> {
         let mut first = None;
         let mut kept = std::collections::VecDeque::new();
         let mut keep = true;
+        let mut look_ahead = LookAhead::default();
         loop {
             if first.is_none() || keep {
                 let Some(part) = timing.next_part(&mut timing_reader)? else {
                     break;
                 };
+                look_ahead.count(part.end());
                 if first.is_none() {
                     first = Some((part, timing.resume()));
                 } else {
@@ -868,8 +883,11 @@ impl<'a> PlanWindows<'a> {
                     keep = false;
                     kept.clear();
                 }
-            } else if !timing.next_time(&mut timing_reader)? {
-                break;
+            } else {
+                match timing.next_time(&mut timing_reader)? {
+                    Some(end) => look_ahead.count(end),
+                    None => break,
+                }
             }
         }
         let duration = timing.time;
@@ -899,6 +917,7 @@ impl<'a> PlanWindows<'a> {
         };
         Ok(PlanWindows {
             reader,
+            look_ahead,
             duration,
             kept,
             current,
@@ -931,6 +950,11 @@ impl<'a> PlanWindows<'a> {
     /// Total duration (s), the same as [`plan`]'s.
     pub fn duration(&self) -> f64 {
         self.duration
+    }
+
+    /// What the look-ahead did with chains longer than it.
+    pub fn look_ahead(&self) -> LookAhead {
+        self.look_ahead
     }
 
     /// Whether windows after the current one remain.
@@ -1211,6 +1235,17 @@ impl Cursor {
 }
 
 impl Part {
+    /// How its last chain ends.
+    fn end(&self) -> WindowEnd {
+        if self.handed_off {
+            WindowEnd::HandedOff
+        } else if self.stops_short {
+            WindowEnd::StopsShort
+        } else {
+            WindowEnd::Stop
+        }
+    }
+
     /// Evaluates `piece` at `at` (σ measured from the piece's start).
     fn eval_piece(&self, piece: &Piece, at: PathPoint, scratch: &mut JetScratch, out: AxisJet) {
         match piece.kind {

@@ -170,6 +170,30 @@ pub trait SetpointStream {
     /// Writes the next sample into `out` (whose vectors have `axes()` entries); `false` once
     /// all `len()` samples have been read.
     fn next_sample(&mut self, out: &mut SetpointSample) -> bool;
+    /// What the jerk-limited planner's look-ahead did with chains longer than it (nothing for
+    /// other planners).
+    fn look_ahead(&self) -> LookAhead {
+        LookAhead::default()
+    }
+}
+
+/// How the jerk-limited planner's look-ahead of
+/// [`LOOKAHEAD_SEGMENTS`](super::planner::LOOKAHEAD_SEGMENTS) blocks passed chains longer than
+/// it.
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq)]
+pub struct LookAhead {
+    /// Handoffs between windows while moving.
+    pub handoffs: usize,
+    /// Stops the look-ahead added where no handoff could be made (at a window's last
+    /// programmed point; the program asks for none there).
+    pub stops_added: usize,
+}
+
+impl std::ops::AddAssign for LookAhead {
+    fn add_assign(&mut self, other: LookAhead) {
+        self.handoffs += other.handoffs;
+        self.stops_added += other.stops_added;
+    }
 }
 
 /// Reads a materialised [`Setpoints`] as a stream.
@@ -255,6 +279,10 @@ impl<S: SetpointStream> SetpointStream for FirstSamples<S> {
         self.left -= 1;
         self.stream.next_sample(out)
     }
+
+    fn look_ahead(&self) -> LookAhead {
+        self.stream.look_ahead()
+    }
 }
 
 impl<T: SetpointStream + ?Sized> SetpointStream for Box<T> {
@@ -272,5 +300,9 @@ impl<T: SetpointStream + ?Sized> SetpointStream for Box<T> {
 
     fn next_sample(&mut self, out: &mut SetpointSample) -> bool {
         (**self).next_sample(out)
+    }
+
+    fn look_ahead(&self) -> LookAhead {
+        (**self).look_ahead()
     }
 }

@@ -5,7 +5,7 @@
 //! of one window of its moves at a time ([`PlanWindows`]).
 
 use super::planner::PlanWindows;
-use super::setpoints::{sample_time, SetpointSample, SetpointStream, Setpoints};
+use super::setpoints::{sample_time, LookAhead, SetpointSample, SetpointStream, Setpoints};
 use super::trapezoid::TrapezoidProfile;
 
 /// One stretch of a program's setpoints. Its sample 0 is where the previous stretch ended (or
@@ -129,6 +129,16 @@ impl SetpointStream for StretchStream<'_> {
 
     fn len(&self) -> usize {
         self.len
+    }
+
+    fn look_ahead(&self) -> LookAhead {
+        let mut total = LookAhead::default();
+        for stretch in &self.stretches {
+            if let Stretch::Windows { plan, .. } = stretch {
+                total += plan.look_ahead();
+            }
+        }
+        total
     }
 
     fn next_sample(&mut self, out: &mut SetpointSample) -> bool {
