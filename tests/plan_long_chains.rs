@@ -181,7 +181,7 @@ fn check_against_whole(name: &str, path: &AxisPath, lookahead: usize) -> (f64, f
         windowed.handoffs(),
         windowed.chain_count()
     );
-    assert_eq!(windowed.stops_short(), 0, "{name}");
+    assert_eq!(windowed.stops_added(), 0, "{name}");
     assert!(
         windowed.largest_window() <= lookahead,
         "{name}: {}",

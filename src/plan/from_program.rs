@@ -6,7 +6,7 @@
 use super::constant_velocity::ConstantVelocityStream;
 use super::path::{AxisLimits, AxisPath, AxisSpec, Blend, Geometry, PathError, PathSegment};
 use super::path_reader::{PathReader, SegmentSource};
-use super::planner::{PlanWindows, WINDOW_SEGMENTS};
+use super::planner::{PlanWindows, KEPT_SEGMENTS, WINDOW_SEGMENTS};
 use super::setpoints::{sample_count, SetpointStream, Setpoints, MAX_SETPOINT_SAMPLES};
 use super::stream::{collect, Stretch, StretchStream};
 use super::trapezoid::TrapezoidProfile;
@@ -123,8 +123,8 @@ pub fn plan_path_stream(
         path.segments.last().map_or(0, |s| s.source_index as usize),
     );
     let reader = PathReader::Shared(std::sync::Arc::new(path));
-    let windows =
-        PlanWindows::new(reader, WINDOW_SEGMENTS, 0).map_err(|source| PlanError::Path {
+    let windows = PlanWindows::new(reader, WINDOW_SEGMENTS, 0, &mut KEPT_SEGMENTS.clone())
+        .map_err(|source| PlanError::Path {
             first_move: 0,
             line: 0,
             message: source.to_string(),
@@ -564,12 +564,15 @@ fn jerk_limited_stretches<'a>(
     }];
     // The motion being read: its first move and where it starts.
     let (mut first, mut first_at) = (0, program.start);
+    // Segments whose windows may be kept for evaluation, all motions together.
+    let mut kept = KEPT_SEGMENTS;
     let mut at = program.start;
     let plan_motion = |moves: std::ops::Range<usize>,
                        first_at: program::Position,
                        start: &mut Vec<f64>,
                        stretches: &mut Vec<Stretch<'a>>,
-                       budget: &mut SampleBudget|
+                       budget: &mut SampleBudget,
+                       kept: &mut usize|
      -> Result<(), PlanError> {
         if moves.is_empty() {
             return Ok(());
@@ -584,7 +587,7 @@ fn jerk_limited_stretches<'a>(
         let source = MoveSegments::new(program, axes, settings, moves, first_at, start.clone());
         let error = |source| path_error(program, first_move, source);
         let reader = PathReader::streamed(header, Box::new(source)).map_err(error)?;
-        let windows = PlanWindows::new(reader, WINDOW_SEGMENTS, first_move).map_err(error)?;
+        let windows = PlanWindows::new(reader, WINDOW_SEGMENTS, first_move, kept).map_err(error)?;
         if std::env::var_os("CNCSIM_PLAN_DEBUG").is_some() {
             if let Ok(planned) = windows.whole_path().and_then(|(path, _)| plan(&path)) {
                 eprintln!("{}", planned.debug_dump());
@@ -610,6 +613,7 @@ fn jerk_limited_stretches<'a>(
                     &mut start,
                     &mut stretches,
                     &mut budget,
+                    &mut kept,
                 )?;
                 let ticks = budget.add_dwell(seconds, index, m.span.line)?;
                 stretches.push(Stretch::Hold {
@@ -638,6 +642,7 @@ fn jerk_limited_stretches<'a>(
         &mut start,
         &mut stretches,
         &mut budget,
+        &mut kept,
     )?;
     Ok(stretches)
 }

@@ -34,6 +34,8 @@ pub(super) struct StreamedPath<'a> {
     /// the point before segment `base`.
     kept: AxisPath,
     base: usize,
+    /// The first segment still needed (those before it are made but not kept).
+    keep_from: usize,
     /// The source has no more segments.
     done: bool,
     /// The path's own start, for reading it again.
@@ -56,6 +58,7 @@ impl<'a> PathReader<'a> {
                 ..header
             },
             base: 0,
+            keep_from: 0,
             done: false,
         }))
     }
@@ -74,18 +77,29 @@ impl<'a> PathReader<'a> {
                     tool_lever_arms: s.kept.tool_lever_arms.clone(),
                 },
                 base: 0,
+                keep_from: 0,
                 done: false,
                 start: s.start.clone(),
             }),
         }
     }
 
-    /// Checks a whole path (a streamed one checks each segment as it is made).
+    /// Checks the whole path, segment by segment (a streamed one made once for it, not kept),
+    /// so that the first bad segment is found before any is planned.
     pub fn validate(&self) -> Result<(), PathError> {
         match self {
             PathReader::Whole(path) => validate(path),
             PathReader::Shared(path) => validate(path),
-            PathReader::Streamed(_) => Ok(()),
+            PathReader::Streamed(s) => {
+                let mut source = s.source.restart();
+                let n = s.kept.axes.len();
+                let mut k = 0;
+                while let Some(segment) = source.next_segment() {
+                    validate_segment(n, k, &segment)?;
+                    k += 1;
+                }
+                Ok(())
+            }
         }
     }
 
@@ -101,7 +115,13 @@ impl<'a> PathReader<'a> {
                         Some(segment) => {
                             let k = s.base + s.kept.segments.len();
                             validate_segment(s.kept.axes.len(), k, &segment)?;
-                            s.kept.segments.push(segment);
+                            if k < s.keep_from {
+                                // Not needed: only where it ends, the next one's start.
+                                s.kept.start = segment.geometry.end().to_vec();
+                                s.base = k + 1;
+                            } else {
+                                s.kept.segments.push(segment);
+                            }
                         }
                         None => s.done = true,
                     }
@@ -115,6 +135,7 @@ impl<'a> PathReader<'a> {
     /// and the path's last segment once all are read).
     pub fn release(&mut self, first: usize) {
         if let PathReader::Streamed(s) = self {
+            s.keep_from = s.keep_from.max(first.saturating_sub(1));
             let k = first
                 .saturating_sub(1)
                 .saturating_sub(s.base)

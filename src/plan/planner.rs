@@ -18,15 +18,18 @@
 //!    acceleration is continuous everywhere and the jerk bounded.
 //!
 //! 5. Windows: the look-ahead reaches [`LOOKAHEAD_SEGMENTS`] segments. A chain that ends within
-//!    that many segments of its start is planned whole, as above. A longer one is planned that
+//!    the window it starts in (that many segments from the end of the previous chain, zero-length
+//!    segments between them included) is planned whole, as above. A longer one is planned that
 //!    many segments at a time, each window as if the chain stopped at its end, and handed over
 //!    to the next window between one half and three quarters of the way in, at the start of a
 //!    piece passed at zero path acceleration (a span boundary, a cruise, or a speed change
 //!    planned again to end there). The next window builds its geometry from a margin before the
-//!    handoff with the smoothing choices there frozen ([`super::pieces::Seed`]); a handoff is
+//!    handoff with the smoothing choices there frozen (`Seed`); a handoff is
 //!    made only once that window, planned in full, holds the very same piece and can go on from
-//!    the handoff's speed. The geometry is thus the whole chain's, and memory is bounded by the
-//!    look-ahead, whatever the program.
+//!    the handoff's speed; if none can, the window stops at its last point (counted in
+//!    [`LookAhead::stops_added`]). The geometry is thus the whole chain's, and a run's planning
+//!    memory (`PlanWindows`, which reads the path as it is made) is bounded by the look-ahead,
+//!    whatever the program; [`plan`] keeps every window, for inspection.
 //!
 //! Every chain ends exactly on its programmed end point; the programmed points inside a chain
 //! are passed within the corner tolerance (through them, on a tangent blend).
@@ -76,11 +79,9 @@ struct Part {
     start: Vec<f64>,
     /// When its last span ends.
     duration: f64,
-    /// Its last chain runs on in the next part (handed over while moving, not at a stop).
-    handed_off: bool,
-    /// Its last chain runs on in the next part, but no handoff was found: it stops at the
-    /// window's last point (a stop the program does not ask for).
-    stops_short: bool,
+    /// How its last chain ends: at a stop, handed over to the next part while moving, or
+    /// stopping at the window's last point where no handoff could be made.
+    end: WindowEnd,
 }
 
 /// A stretch of a chain timed by one profile.
@@ -360,7 +361,7 @@ const HANDOFF_SPEED_MARGIN: f64 = 1e-9;
 
 /// Where a stretch of a long chain hands over to the next window: at the start of a piece,
 /// at zero path acceleration and a known speed.
-#[derive(Debug, Clone, PartialEq)]
+#[derive(Debug, Clone)]
 struct Handoff {
     /// The segment the next window starts from ([`HANDOFF_MARGIN`] before the piece).
     first: usize,
@@ -474,9 +475,13 @@ impl Handoff {
     /// The chain and the index of the handoff's piece in `pieces` (a window from segment
     /// `first`), if it is there.
     fn find(&self, pieces: &Pieces, first: usize, axes: usize) -> Option<(usize, usize)> {
+        let at = self.first + self.seed.curve_start;
         pieces.chains.iter().enumerate().find_map(|(c, chain)| {
             (chain.first..chain.end)
-                .find(|&q| PieceKey::of(pieces, q, first, axes) == self.piece)
+                .find(|&q| {
+                    first + first_segment_of(pieces, q) == at
+                        && PieceKey::of(pieces, q, first, axes) == self.piece
+                })
                 .map(|q| (c, q))
         })
     }
@@ -561,8 +566,7 @@ impl Windows {
             first_segment: first,
             start: start.to_vec(),
             duration: timed.end_time,
-            handed_off: window_end == WindowEnd::HandedOff,
-            stops_short: window_end == WindowEnd::StopsShort,
+            end: window_end,
         }))
     }
 
@@ -662,7 +666,8 @@ impl Windows {
         mut timed: Timed,
     ) -> Result<(Timed, usize, WindowEnd), PathError> {
         let axes = reader.view().0.axes.len();
-        let region = first + self.lookahead / 2..first + 3 * self.lookahead / 4;
+        let region =
+            first.saturating_add(self.lookahead / 2)..first.saturating_add(self.lookahead / 4 * 3);
         let places = handoff_places(&timed.pieces, &self.timing.spans, |piece| {
             region.contains(&(first + first_segment_of(&timed.pieces, piece)))
         });
@@ -739,8 +744,9 @@ impl Windows {
 }
 
 /// A place a stretch can hand over at: the start of piece `piece`, in span `span`, passed at
-/// `speed` with zero path acceleration. Exact: the span passes it so (at its start, or
-/// cruising); otherwise the span is planned again up to it, to end there at `speed`.
+/// `speed` with zero path acceleration. Exact: the plan passes it so already (at a span's
+/// start; or cruising, where the span is planned again to end there a hair slower, the same
+/// motion up to it); otherwise the span is planned again up to it, to end there at `speed`.
 #[derive(Debug, Clone, Copy)]
 struct HandoffPlace {
     span: usize,
@@ -811,13 +817,13 @@ pub(super) struct PlanWindows<'a> {
     /// What the timing pass's windows did with chains longer than the look-ahead.
     look_ahead: LookAhead,
     duration: f64,
-    /// Windows after the current one planned by the timing pass (none when they would hold
-    /// more than [`KEPT_SEGMENTS`]).
+    /// The first windows as the timing pass planned them, kept for the evaluation while the
+    /// budget of [`KEPT_SEGMENTS`] lasted.
     kept: std::collections::VecDeque<Part>,
     /// The window being evaluated (None before the first evaluation, or when no chain moves),
     /// with its cursor.
     current: Option<(Part, Cursor)>,
-    /// The windows after it, when they are not kept.
+    /// The windows after the kept ones, planned again as they are evaluated.
     windows: Windows,
     /// The start point and program move reported when nothing moves.
     rest: (Vec<f64>, u32),
@@ -827,61 +833,53 @@ pub(super) struct PlanWindows<'a> {
     first_move: usize,
 }
 
-/// Most segments whose windows the timing pass of [`PlanWindows`] keeps for evaluation
-/// (a path this short is planned once, not twice).
-const KEPT_SEGMENTS: usize = 16_384;
+/// Most segments whose windows the timing passes of a program's [`PlanWindows`] keep for
+/// evaluation, all motions together: a program this short is planned once, not twice.
+pub(super) const KEPT_SEGMENTS: usize = 16_384;
 
 impl<'a> PlanWindows<'a> {
-    /// Plans every window once for the path's duration (keeping the first, where the
-    /// evaluation starts, and the rest only for a short path), and reports the errors [`plan`]
-    /// would.
+    /// Plans every window once for the path's duration, keeping windows of up to `budget`
+    /// segments in all for the evaluation (and taking them off it); reports the errors
+    /// [`plan`] would.
     pub fn new(
         reader: PathReader<'a>,
         window: usize,
         first_move: usize,
+        budget: &mut usize,
     ) -> Result<Self, PathError> {
-        Self::keeping(
-            reader,
-            window,
-            first_move,
-            KEPT_SEGMENTS,
-            LOOKAHEAD_SEGMENTS,
-        )
+        Self::keeping(reader, window, first_move, budget, LOOKAHEAD_SEGMENTS)
     }
 
-    /// [`Self::new`], keeping the timing pass's windows for a path of at most `most` segments,
-    /// with a look-ahead of `lookahead` segments.
+    /// [`Self::new`] with a look-ahead of `lookahead` segments.
     fn keeping(
         reader: PathReader<'a>,
         window: usize,
         first_move: usize,
-        most: usize,
+        budget: &mut usize,
         lookahead: usize,
     ) -> Result<Self, PathError> {
         reader.validate()?;
         let mut timing_reader = reader.restart();
-        // The first window is kept (the evaluation starts there), the rest only for a short
-        // path; of the others only the end time is needed, and one set of buffers does for all.
+        // Of the windows after the kept ones only the end time is needed, and one set of
+        // buffers does for all.
         let mut timing = Windows::new(window, lookahead);
-        let mut first = None;
         let mut kept = std::collections::VecDeque::new();
-        let mut keep = true;
+        // Where the evaluation goes on after the kept windows (none: they are all).
+        let mut resume = None;
         let mut look_ahead = LookAhead::default();
         loop {
-            if first.is_none() || keep {
+            if resume.is_none() {
+                let before = timing.resume();
                 let Some(part) = timing.next_part(&mut timing_reader)? else {
                     break;
                 };
-                look_ahead.count(part.end());
-                if first.is_none() {
-                    first = Some((part, timing.resume()));
-                } else {
+                look_ahead.count(part.end);
+                let size = part.shapes.len();
+                if size <= *budget {
+                    *budget -= size;
                     kept.push_back(part);
-                }
-                // Only a short path is kept whole.
-                if timing_reader.reach(most.saturating_add(1))? > most {
-                    keep = false;
-                    kept.clear();
+                } else {
+                    resume = Some(before);
                 }
             } else {
                 match timing.next_time(&mut timing_reader)? {
@@ -903,25 +901,13 @@ impl<'a> PlanWindows<'a> {
             start.start.clone(),
             start.segments.first().map_or(0, |s| s.source_index),
         );
-        // The evaluation goes on from the first window (or, every window kept, from the end).
-        let (current, windows) = match first {
-            Some((part, resumed)) => {
-                let windows = if keep { timing } else { resumed };
-                let current = (!part.spans.is_empty()).then(|| {
-                    let cursor = Cursor::new(&part);
-                    (part, cursor)
-                });
-                (current, windows)
-            }
-            None => (None, timing),
-        };
         Ok(PlanWindows {
             reader,
             look_ahead,
             duration,
             kept,
-            current,
-            windows,
+            current: None,
+            windows: resume.unwrap_or(timing),
             rest,
             end,
             first_move,
@@ -1206,7 +1192,7 @@ impl Cursor {
         // Past the end of a span only at the end of the plan (otherwise the walk moved on).
         let done = t >= end_time;
         let chain_end = self.span + 1 == spans.len() || spans[self.span + 1].chain != span.chain;
-        let handed_off = part.handed_off && span.chain + 1 == part.pieces.chains.len();
+        let handed_off = part.handed_off() && span.chain + 1 == part.pieces.chains.len();
         if done && chain_end && !handed_off {
             // Exactly on the programmed end point, at rest.
             position.copy_from_slice(part.shapes.end(chain.last_segment));
@@ -1235,15 +1221,9 @@ impl Cursor {
 }
 
 impl Part {
-    /// How its last chain ends.
-    fn end(&self) -> WindowEnd {
-        if self.handed_off {
-            WindowEnd::HandedOff
-        } else if self.stops_short {
-            WindowEnd::StopsShort
-        } else {
-            WindowEnd::Stop
-        }
+    /// Its last chain runs on in the next part.
+    fn handed_off(&self) -> bool {
+        self.end == WindowEnd::HandedOff
     }
 
     /// Evaluates `piece` at `at` (σ measured from the piece's start).
@@ -1328,7 +1308,7 @@ impl Part {
                 };
                 ends[segment] = Some((c, Some(at)));
             }
-            if !(self.handed_off && c == last) {
+            if !(self.handed_off() && c == last) {
                 ends[self.pieces.chains[c].last_segment] = Some((c, None));
             }
         }
@@ -1444,13 +1424,16 @@ impl Plan {
 
     /// Number of handoffs inside chains longer than [`LOOKAHEAD_SEGMENTS`].
     pub fn handoffs(&self) -> usize {
-        self.parts.iter().filter(|p| p.handed_off).count()
+        self.parts.iter().filter(|p| p.handed_off()).count()
     }
 
     /// Number of stops the look-ahead made inside chains longer than it, where no handoff
     /// could be taken over (stops the program does not ask for).
-    pub fn stops_short(&self) -> usize {
-        self.parts.iter().filter(|p| p.stops_short).count()
+    pub fn stops_added(&self) -> usize {
+        self.parts
+            .iter()
+            .filter(|p| p.end == WindowEnd::StopsShort)
+            .count()
     }
 
     /// Most segments any window of the plan holds (at most [`LOOKAHEAD_SEGMENTS`]).
@@ -1606,7 +1589,7 @@ impl Plan {
                     _ => out.push(geometry),
                 }
             }
-            continued = part.handed_off;
+            continued = part.handed_off();
         }
         out
     }
@@ -1637,7 +1620,8 @@ impl Plan {
         for (i, part) in self.parts.iter().enumerate() {
             out.push_str(&format!(
                 "part {i}: segments from {}, handed off {}\n",
-                part.first_segment, part.handed_off
+                part.first_segment,
+                part.handed_off()
             ));
             out.push_str(&part.debug_dump());
         }
@@ -1819,7 +1803,7 @@ mod tests {
             } else {
                 assert_eq!(whole.chain_count(), 1);
                 assert!(whole.handoffs() >= 2, "{}", whole.handoffs());
-                assert_eq!(whole.stops_short(), 0);
+                assert_eq!(whole.stops_added(), 0);
                 assert!(whole.largest_window() <= lookahead);
             }
             let period = 1e-3;
@@ -1838,7 +1822,9 @@ mod tests {
                 } else {
                     whole_reader
                 };
-                let mut windows = PlanWindows::keeping(reader, window, 0, most, lookahead).unwrap();
+                let mut budget = most;
+                let mut windows =
+                    PlanWindows::keeping(reader, window, 0, &mut budget, lookahead).unwrap();
                 assert_eq!(windows.duration().to_bits(), whole.duration().to_bits());
                 let (mut p, mut v, mut a) = (vec![0.0; n], vec![0.0; n], vec![0.0; n]);
                 for (k, t) in sample_times(whole.duration(), period).enumerate() {
@@ -1869,7 +1855,7 @@ mod tests {
         }
         let whole = plan(&path).unwrap();
         let [_, reader] = readers(&path);
-        let mut windows = PlanWindows::new(reader, 1, 0).unwrap();
+        let mut windows = PlanWindows::new(reader, 1, 0, &mut KEPT_SEGMENTS.clone()).unwrap();
         let (mut p, mut v, mut a) = (vec![1.0; 3], vec![1.0; 3], vec![1.0; 3]);
         let (mut q, mut w, mut b) = (vec![1.0; 3], vec![1.0; 3], vec![1.0; 3]);
         let segment = windows.eval(0.0, &mut p, &mut v, &mut a);
