@@ -54,7 +54,7 @@ pub const SPAN_SPREAD: f64 = 0.05;
 const SHORT_PIECE: f64 = 0.25;
 
 /// A timed trajectory over a whole path: the parts its windows planned, one after the other
-/// (see [`PlanWindows`]: a run plans the same windows as it reads them).
+/// (a run plans the same windows as it reads them).
 #[derive(Debug, Clone)]
 pub struct Plan {
     axes: usize,

@@ -24,6 +24,8 @@ pub(super) enum Stretch<'a> {
         plan: Box<PlanWindows<'a>>,
         ticks: usize,
     },
+    /// A stretch read to its end, its plan let go.
+    Finished,
     /// A straight move with the seed trapezoidal profile.
     Trapezoid {
         from: Vec<f64>,
@@ -38,7 +40,7 @@ impl Stretch<'_> {
     /// Samples after sample 0.
     pub fn ticks(&self) -> usize {
         match self {
-            Stretch::Start { .. } => 0,
+            Stretch::Start { .. } | Stretch::Finished => 0,
             Stretch::Hold { ticks, .. }
             | Stretch::Windows { ticks, .. }
             | Stretch::Trapezoid { ticks, .. } => *ticks,
@@ -48,6 +50,8 @@ impl Stretch<'_> {
     /// Writes sample `k` (called with increasing `k`).
     fn sample(&mut self, k: usize, period: f64, out: &mut SetpointSample) {
         match self {
+            // Never sampled (sample 0 of the next stretch is its last).
+            Stretch::Finished => {}
             Stretch::Start { at, segment } | Stretch::Hold { at, segment, .. } => {
                 out.position.copy_from_slice(at);
                 out.velocity.fill(0.0);
@@ -98,6 +102,8 @@ pub(super) struct StretchStream<'a> {
     period: f64,
     stretches: Vec<Stretch<'a>>,
     len: usize,
+    /// What the planner's look-ahead did, over all stretches.
+    look_ahead: LookAhead,
     /// The stretch being read, and its next sample.
     current: usize,
     k: usize,
@@ -107,11 +113,18 @@ impl<'a> StretchStream<'a> {
     /// The stream of `stretches`; the first must be a `Start` (the rest drop their sample 0).
     pub fn new(axes: usize, period: f64, stretches: Vec<Stretch<'a>>) -> Self {
         let len = 1 + stretches.iter().map(Stretch::ticks).sum::<usize>();
+        let mut look_ahead = LookAhead::default();
+        for stretch in &stretches {
+            if let Stretch::Windows { plan, .. } = stretch {
+                look_ahead += plan.look_ahead();
+            }
+        }
         StretchStream {
             axes,
             period,
             stretches,
             len,
+            look_ahead,
             current: 0,
             k: 0,
         }
@@ -132,13 +145,7 @@ impl SetpointStream for StretchStream<'_> {
     }
 
     fn look_ahead(&self) -> LookAhead {
-        let mut total = LookAhead::default();
-        for stretch in &self.stretches {
-            if let Stretch::Windows { plan, .. } = stretch {
-                total += plan.look_ahead();
-            }
-        }
-        total
+        self.look_ahead
     }
 
     fn next_sample(&mut self, out: &mut SetpointSample) -> bool {
@@ -148,6 +155,8 @@ impl SetpointStream for StretchStream<'_> {
                 self.k += 1;
                 return true;
             }
+            // Its samples are all read: what it holds (a window's plan, its path) goes.
+            *stretch = Stretch::Finished;
             self.current += 1;
             self.k = 1;
         }
