@@ -238,16 +238,11 @@ physics_step_ms = 0.25
 fn a_chain_longer_than_the_look_ahead_is_reported_with_its_handoffs() {
     // 12 000 lines of 1 mm on a curve (CAM raster rows, G64 P0.05 with naive-CAM joining off):
     // one chain, three times the look-ahead.
-    use std::fmt::Write;
     let dir = tempfile::tempdir().unwrap();
-    let mut program = String::from("G21 G90 G64 P0.05 Q0\nG0 X0 Y0 Z1\nF6000\n");
-    for k in 0..12_000 {
-        let (row, step) = (k / 1000, k % 1000);
-        let x = if row % 2 == 0 { step } else { 999 - step } as f64;
-        let z = 2.0 * (x * 0.02).sin() + (x * 0.0031).cos();
-        writeln!(program, "G1 X{x:.3} Y{:.3} Z{z:.4}", row as f64 * 0.5).unwrap();
-    }
-    program.push_str("M2\n");
+    let program = format!(
+        "G21 G90 G64 P0.05 Q0\nG0 X0 Y0 Z1\nF6000\n{}M2\n",
+        common::raster_gcode(12_000)
+    );
     std::fs::write(dir.path().join("raster.ngc"), program).unwrap();
     let root = Path::new(env!("CARGO_MANIFEST_DIR"));
     let scenario = format!(

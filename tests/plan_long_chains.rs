@@ -6,70 +6,10 @@ mod common;
 
 use cncsim::plan::planner::{plan_with_lookahead, LOOKAHEAD_SEGMENTS};
 use cncsim::plan::{
-    plan, plan_path_stream, AxisKind, AxisLimits, AxisPath, AxisSpec, Blend, Geometry, PathSegment,
+    plan, plan_path_stream, AxisKind, AxisLimits, AxisPath, Blend, Geometry, PathSegment,
     SetpointSample,
 };
 use common::*;
-
-/// The planner benchmark's path without its sharp corners (which stop): a pseudo-random walk
-/// on five axes (20 % collinear, 80 % gentle turns), 0.2–2 mm blocks, corners blended within
-/// 0.01 mm, the rotary axes turning steadily.
-fn gentle_random_walk(blocks: usize) -> AxisPath {
-    let axes: Vec<AxisSpec> = [
-        ("x", AxisKind::Linear, 150.0, 1000.0, 10_000.0),
-        ("y", AxisKind::Linear, 150.0, 1000.0, 10_000.0),
-        ("z", AxisKind::Linear, 100.0, 800.0, 8_000.0),
-        ("a", AxisKind::Rotary, 90.0, 500.0, 5_000.0),
-        ("c", AxisKind::Rotary, 180.0, 1000.0, 10_000.0),
-    ]
-    .iter()
-    .map(|&(name, kind, v, a, j)| AxisSpec {
-        name: name.into(),
-        kind,
-        limits: AxisLimits::from_program_units(kind, v, a, j),
-    })
-    .collect();
-    let mut state: u64 = 0x2545_f491_4f6c_dd1d;
-    let mut random = move || {
-        state = state
-            .wrapping_mul(6_364_136_223_846_793_005)
-            .wrapping_add(1_442_695_040_888_963_407);
-        (state >> 11) as f64 / (1u64 << 53) as f64
-    };
-    let mut position = vec![0.0; 5];
-    let mut heading: f64 = 0.0;
-    let segments = (0..blocks)
-        .map(|k| {
-            let r = random();
-            if r > 0.2 {
-                heading += (random() - 0.5) * 0.3;
-            }
-            let step = 0.2e-3 + 1.8e-3 * random();
-            position[0] += step * heading.cos();
-            position[1] += step * heading.sin();
-            position[2] += 0.1 * step * (random() - 0.5);
-            position[3] += 0.2 * step;
-            position[4] += 0.3 * step;
-            PathSegment {
-                geometry: Geometry::Line {
-                    end: position.clone(),
-                },
-                feed: Some(0.1),
-                feed_metric: vec![1.0, 1.0, 1.0, 0.0, 0.0],
-                blend: Blend::Continuous {
-                    tolerance: Some(1e-5),
-                },
-                source_index: k as u32,
-            }
-        })
-        .collect();
-    AxisPath {
-        axes,
-        start: vec![0.0; 5],
-        segments,
-        tool_lever_arms: Vec::new(),
-    }
-}
 
 /// CAM finishing output: 1 mm lines on a smooth curve in XZ, rows 0.5 mm apart joined by a
 /// blended step, G64 P0.05 (the lines are smoothed into quintics).
@@ -214,7 +154,17 @@ fn check_against_whole(name: &str, path: &AxisPath, lookahead: usize) -> (f64, f
 #[test]
 fn long_chains_are_handed_over_between_windows_without_stopping() {
     for (name, path) in [
-        ("random walk", gentle_random_walk(3 * LOOKAHEAD_SEGMENTS)),
+        // The planner benchmark's path without its sharp corners (which stop).
+        (
+            "random walk",
+            random_walk(
+                3 * LOOKAHEAD_SEGMENTS,
+                Blend::Continuous {
+                    tolerance: Some(1e-5),
+                },
+                false,
+            ),
+        ),
         ("cam raster", cam_raster(3 * LOOKAHEAD_SEGMENTS, 1000)),
         ("tangent arcs", tangent_arcs(3 * LOOKAHEAD_SEGMENTS)),
     ] {
@@ -246,36 +196,9 @@ fn a_run_streams_a_long_chain_as_the_plan_samples_it() {
     let path = cam_raster(2 * LOOKAHEAD_SEGMENTS + 500, 1000);
     let period = 1e-3;
     let expected = plan(&path).unwrap().sample(period);
-    let n = path.axes.len();
+    // Sample 0 is the start at rest (as the plan's); the rest are the plan's.
     let mut stream = plan_path_stream(path, period).unwrap();
-    assert_eq!(stream.len(), expected.len());
-    let mut sample = SetpointSample::zeros(n);
-    // Sample 0 of the stream is the start at rest, as the plan's.
-    let mut k = 0;
-    let bits = |v: &[f64]| v.iter().map(|x| x.to_bits()).collect::<Vec<_>>();
-    while stream.next_sample(&mut sample) {
-        let row = k * n..(k + 1) * n;
-        assert_eq!(
-            bits(&sample.position),
-            bits(&expected.position[row.clone()]),
-            "{k}"
-        );
-        assert_eq!(
-            bits(&sample.velocity),
-            bits(&expected.velocity[row.clone()]),
-            "{k}"
-        );
-        assert_eq!(
-            bits(&sample.acceleration),
-            bits(&expected.acceleration[row]),
-            "{k}"
-        );
-        if k > 0 {
-            assert_eq!(sample.segment, expected.segment[k], "{k}");
-        }
-        k += 1;
-    }
-    assert_eq!(k, expected.len());
+    assert_stream_equals(stream.as_mut(), &expected, 1, "long chain");
 }
 
 #[test]
@@ -286,17 +209,12 @@ fn a_program_with_a_long_chain_streams_as_its_whole_plan_samples_it() {
         jerk_limited_plans, plan_program_stream, BlendChoice, PlanSettings, Planner,
     };
     use cncsim::program::{parse_gcode, ReadOptions};
-    use std::fmt::Write;
     // CAM raster output in G-code: 9 000 lines of 1 mm on a curve, one chain (the path is made
     // from the moves as the windows read it), then a dwell and a second, short chain.
-    let mut text = String::from("G21 G90 G64 P0.05\nG0 X0 Y0 Z1\nF6000\n");
-    for k in 0..9000 {
-        let (row, step) = (k / 1000, k % 1000);
-        let x = if row % 2 == 0 { step } else { 999 - step } as f64;
-        let z = 2.0 * (x * 0.02).sin() + (x * 0.0031).cos();
-        writeln!(text, "G1 X{x:.3} Y{:.3} Z{z:.4}", row as f64 * 0.5).unwrap();
-    }
-    text.push_str("G4 P0.2\nG1 X5 Y10 Z3\nG1 X10 Y12\nM2\n");
+    let text = format!(
+        "G21 G90 G64 P0.05\nG0 X0 Y0 Z1\nF6000\n{}G4 P0.2\nG1 X5 Y10 Z3\nG1 X10 Y12\nM2\n",
+        raster_gcode(9000)
+    );
     let program = parse_gcode(&text, "raster.ngc", &ReadOptions::default()).unwrap();
     let root = std::path::Path::new(env!("CARGO_MANIFEST_DIR"));
     let machine = Machine::load(&root.join("models/xyz_table.urdf")).unwrap();

@@ -2,6 +2,8 @@
 //! sample, its samples are computed as they are read, and they are bit-identical to the
 //! materialised setpoints, for every planner.
 
+mod common;
+
 use std::path::Path;
 
 use cncsim::kinematics::AxisMap;
@@ -11,6 +13,7 @@ use cncsim::plan::{
     PlanSettings, Planner, SetpointSample, SetpointStream, Setpoints,
 };
 use cncsim::program::{parse_gcode, Motion, Program, ReadOptions};
+use common::{assert_stream_equals, bits};
 
 /// Lines, arcs, dwells and a rapid, in both blend modes.
 const PROGRAM: &str = "G21 G90 G64 P0.05
@@ -100,46 +103,6 @@ fn cases(machine: &Machine) -> Vec<(&'static str, Program, PlanSettings)> {
     ]
 }
 
-fn bits(v: &[f64]) -> Vec<u64> {
-    v.iter().map(|x| x.to_bits()).collect()
-}
-
-/// Reads `stream` to its end, checking each sample against `expected` bit for bit.
-fn assert_stream_equals(stream: &mut dyn SetpointStream, expected: &Setpoints, what: &str) {
-    assert_eq!(
-        stream.len(),
-        expected.len(),
-        "{what}: length known up front"
-    );
-    assert_eq!(stream.axes(), expected.axes);
-    assert_eq!(stream.period(), expected.period);
-    let mut sample = SetpointSample::zeros(stream.axes());
-    let mut k = 0;
-    while stream.next_sample(&mut sample) {
-        assert!(k < expected.len(), "{what}: more samples than announced");
-        assert_eq!(
-            bits(&sample.position),
-            bits(expected.position(k)),
-            "{what}: {k}"
-        );
-        assert_eq!(
-            bits(&sample.velocity),
-            bits(expected.velocity(k)),
-            "{what}: {k}"
-        );
-        assert_eq!(
-            bits(&sample.acceleration),
-            bits(expected.acceleration(k)),
-            "{what}: {k}"
-        );
-        assert_eq!(sample.segment, expected.segment[k], "{what}: {k}");
-        k += 1;
-    }
-    assert_eq!(k, expected.len(), "{what}: fewer samples than announced");
-    // An exhausted stream stays exhausted.
-    assert!(!stream.next_sample(&mut sample));
-}
-
 #[test]
 fn streamed_and_materialised_setpoints_are_bit_identical() {
     let (machine, axes) = machine();
@@ -153,7 +116,7 @@ fn streamed_and_materialised_setpoints_are_bit_identical() {
         for _ in 0..100 {
             assert!(a.next_sample(&mut first));
         }
-        assert_stream_equals(b.as_mut(), &materialised, what);
+        assert_stream_equals(b.as_mut(), &materialised, 0, what);
         // The first stream continues where it was.
         let mut rest = SetpointSample::zeros(3);
         let mut k = 100;
@@ -216,7 +179,7 @@ fn jerk_limited_stream_is_each_motion_sampled_and_each_dwell_held() {
         }
     }
     let mut stream = plan_program_stream(&program, &axes, &settings).unwrap();
-    assert_stream_equals(stream.as_mut(), &expected, "jerk-limited");
+    assert_stream_equals(stream.as_mut(), &expected, 0, "jerk-limited");
 }
 
 #[test]
@@ -279,33 +242,13 @@ fn path_stream_samples_the_whole_plan_bit_identically() {
     };
     let period = 1e-3;
     let expected = plan(&path).unwrap().sample(period);
+    // Sample 0 is the path's start at rest; the rest are the plan's.
     let mut stream = plan_path_stream(path.clone(), period).unwrap();
-    assert_eq!(stream.len(), expected.len());
     let mut sample = SetpointSample::zeros(2);
     assert!(stream.next_sample(&mut sample));
     assert_eq!(sample.position, path.start);
     assert_eq!(sample.velocity, [0.0; 2]);
     assert_eq!(sample.acceleration, [0.0; 2]);
-    let (n, mut k) = (2, 1);
-    while stream.next_sample(&mut sample) {
-        let row = k * n..(k + 1) * n;
-        assert_eq!(
-            bits(&sample.position),
-            bits(&expected.position[row.clone()]),
-            "{k}"
-        );
-        assert_eq!(
-            bits(&sample.velocity),
-            bits(&expected.velocity[row.clone()]),
-            "{k}"
-        );
-        assert_eq!(
-            bits(&sample.acceleration),
-            bits(&expected.acceleration[row]),
-            "{k}"
-        );
-        assert_eq!(sample.segment, expected.segment[k], "{k}");
-        k += 1;
-    }
-    assert_eq!(k, expected.len());
+    let mut stream = plan_path_stream(path, period).unwrap();
+    assert_stream_equals(stream.as_mut(), &expected, 1, "path stream");
 }

@@ -3,7 +3,10 @@
 #![allow(dead_code)]
 
 use cncsim::machine::Machine;
-use cncsim::plan::{AxisKind, AxisLimits, AxisSpec, Blend, Geometry, PathSegment, Plan, Setpoints};
+use cncsim::plan::{
+    AxisKind, AxisLimits, AxisPath, AxisSpec, Blend, Geometry, PathSegment, Plan, SetpointSample,
+    SetpointStream, Setpoints,
+};
 
 pub fn axis(name: &str, kind: AxisKind, v: f64, a: f64, j: f64) -> AxisSpec {
     AxisSpec {
@@ -245,4 +248,138 @@ pub fn uniform_axes(machine: &Machine, v: f64, a: f64, j: f64) -> Vec<AxisSpec> 
             }
         })
         .collect()
+}
+
+pub fn bits(v: &[f64]) -> Vec<u64> {
+    v.iter().map(|x| x.to_bits()).collect()
+}
+
+/// Reads `stream` to its end, checking its length, and each sample from `from` on against
+/// `expected` bit for bit.
+pub fn assert_stream_equals(
+    stream: &mut dyn SetpointStream,
+    expected: &Setpoints,
+    from: usize,
+    what: &str,
+) {
+    assert_eq!(
+        stream.len(),
+        expected.len(),
+        "{what}: length known up front"
+    );
+    assert_eq!(stream.axes(), expected.axes);
+    assert_eq!(stream.period(), expected.period);
+    let mut sample = SetpointSample::zeros(stream.axes());
+    let mut k = 0;
+    while stream.next_sample(&mut sample) {
+        assert!(k < expected.len(), "{what}: more samples than announced");
+        if k < from {
+            k += 1;
+            continue;
+        }
+        assert_eq!(
+            bits(&sample.position),
+            bits(expected.position(k)),
+            "{what}: {k}"
+        );
+        assert_eq!(
+            bits(&sample.velocity),
+            bits(expected.velocity(k)),
+            "{what}: {k}"
+        );
+        assert_eq!(
+            bits(&sample.acceleration),
+            bits(expected.acceleration(k)),
+            "{what}: {k}"
+        );
+        assert_eq!(sample.segment, expected.segment[k], "{what}: {k}");
+        k += 1;
+    }
+    assert_eq!(k, expected.len(), "{what}: fewer samples than announced");
+    // An exhausted stream stays exhausted.
+    assert!(!stream.next_sample(&mut sample));
+}
+
+/// A 5-axis program of `blocks` short lines (0.2–2 mm, with direction changes of a few degrees
+/// and some collinear runs), like CAM output for a freeform surface, every junction `blend`:
+/// the planner benchmark's path. With `sharp_corners`, a fifth of the turns are sharp (up to
+/// 86°) and the rotary axes wander at random (corners that stop: chains of a few blocks);
+/// without, the rotary axes turn steadily (one long chain).
+pub fn random_walk(blocks: usize, blend: Blend, sharp_corners: bool) -> AxisPath {
+    let axes: Vec<AxisSpec> = [
+        ("x", AxisKind::Linear, 150.0, 1000.0, 10_000.0),
+        ("y", AxisKind::Linear, 150.0, 1000.0, 10_000.0),
+        ("z", AxisKind::Linear, 100.0, 800.0, 8_000.0),
+        ("a", AxisKind::Rotary, 90.0, 500.0, 5_000.0),
+        ("c", AxisKind::Rotary, 180.0, 1000.0, 10_000.0),
+    ]
+    .iter()
+    .map(|&(name, kind, v, a, j)| AxisSpec {
+        name: name.into(),
+        kind,
+        limits: AxisLimits::from_program_units(kind, v, a, j),
+    })
+    .collect();
+    // Deterministic pseudo-random walk (64-bit LCG).
+    let mut state: u64 = 0x2545_f491_4f6c_dd1d;
+    let mut random = move || {
+        state = state
+            .wrapping_mul(6_364_136_223_846_793_005)
+            .wrapping_add(1_442_695_040_888_963_407);
+        (state >> 11) as f64 / (1u64 << 53) as f64
+    };
+    let mut position = vec![0.0; 5];
+    let mut heading: f64 = 0.0;
+    let mut segments = Vec::with_capacity(blocks);
+    for k in 0..blocks {
+        let r = random();
+        // 20 % collinear, 60 % gentle turns, 20 % sharp corners.
+        if r > 0.2 {
+            heading += if r < 0.8 || !sharp_corners {
+                (random() - 0.5) * 0.3
+            } else {
+                (random() - 0.5) * 3.0
+            };
+        }
+        let step = 0.2e-3 + 1.8e-3 * random();
+        position[0] += step * heading.cos();
+        position[1] += step * heading.sin();
+        position[2] += 0.1 * step * (random() - 0.5);
+        if sharp_corners {
+            position[3] += 0.002 * (random() - 0.5);
+            position[4] += 0.004 * (random() - 0.5);
+        } else {
+            position[3] += 0.2 * step;
+            position[4] += 0.3 * step;
+        }
+        segments.push(PathSegment {
+            geometry: Geometry::Line {
+                end: position.clone(),
+            },
+            feed: Some(0.1),
+            feed_metric: vec![1.0, 1.0, 1.0, 0.0, 0.0],
+            blend,
+            source_index: k as u32,
+        });
+    }
+    AxisPath {
+        axes,
+        start: vec![0.0; 5],
+        segments,
+        tool_lever_arms: Vec::new(),
+    }
+}
+
+/// CAM raster output in G-code: `lines` moves of 1 mm along X on a smooth curve in Z, in rows
+/// of 1000 alternating in direction, 0.5 mm apart in Y (no header, no end).
+pub fn raster_gcode(lines: usize) -> String {
+    use std::fmt::Write;
+    let mut text = String::new();
+    for k in 0..lines {
+        let (row, step) = (k / 1000, k % 1000);
+        let x = if row % 2 == 0 { step } else { 999 - step } as f64;
+        let z = 2.0 * (x * 0.02).sin() + (x * 0.0031).cos();
+        writeln!(text, "G1 X{x:.3} Y{:.3} Z{z:.4}", row as f64 * 0.5).unwrap();
+    }
+    text
 }
