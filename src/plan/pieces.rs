@@ -137,7 +137,7 @@ pub(super) struct Pieces {
 /// segments before the handoff that window smoothed (the data at a smoothing curve's ends
 /// depends on them), and the segment a smoothing curve must start at (the first one the
 /// window after the handoff plans; the curves before it are chosen again, and not used).
-#[derive(Debug, Clone, PartialEq)]
+#[derive(Debug, Clone)]
 pub(super) struct Seed {
     /// Per segment from the window's first on: smoothed in the window before.
     pub smoothed: Vec<bool>,
@@ -1168,10 +1168,11 @@ impl<'a> Builder<'a> {
 
 /// Chooses the centripetal share of every piece of a chain from the speed it will be passed
 /// at, estimated by the acceleration-limited envelope of the chain (no jerk limit): zero at the
-/// chain's ends (at its start, `entry_speed`: a window after a handoff), capped at the piece boundaries by both neighbours' ceilings (each piece's
-/// largest with shares up to `largest_share`), and reachable from either side with the
-/// tangential acceleration the curvature leaves at each speed. With `A = min a_i/K1_i` and
-/// `W = min a_i/K2_i`, the tangential acceleration at speed v is `A·(1 − v²/W)`, so
+/// chain's ends (at its start, `entry_speed`: a window after a handoff), capped at the piece
+/// boundaries by both neighbours' ceilings (each piece's largest with shares up to
+/// `largest_share`), and reachable from either side with the tangential acceleration the
+/// curvature leaves at each speed. With `A = min a_i/K1_i` and `W = min a_i/K2_i`, the
+/// tangential acceleration at speed v is `A·(1 − v²/W)`, so
 /// `d(v²)/ds = 2·A·(1 − v²/W)` and `v²(s) = W + (v0² − W)·e^(−2·A·s/W)` (on a straight piece
 /// `v0² + 2·A·s`). Each piece then gets the share its envelope peak needs, leaving the rest of
 /// its budget for speeding up and slowing down.
