@@ -88,8 +88,7 @@ impl<'a> PathReader<'a> {
     /// so that the first bad segment is found before any is planned.
     pub fn validate(&self) -> Result<(), PathError> {
         match self {
-            PathReader::Whole(path) => validate(path),
-            PathReader::Shared(path) => validate(path),
+            PathReader::Whole(_) | PathReader::Shared(_) => validate(self.at_hand()),
             PathReader::Streamed(s) => {
                 let mut source = s.source.restart();
                 let n = s.kept.axes.len();
@@ -107,8 +106,9 @@ impl<'a> PathReader<'a> {
     /// reaches (`end`, or the path's length if shorter).
     pub fn reach(&mut self, end: usize) -> Result<usize, PathError> {
         match self {
-            PathReader::Whole(path) => Ok(end.min(path.segments.len())),
-            PathReader::Shared(path) => Ok(end.min(path.segments.len())),
+            PathReader::Whole(_) | PathReader::Shared(_) => {
+                Ok(end.min(self.at_hand().segments.len()))
+            }
             PathReader::Streamed(s) => {
                 while !s.done && s.base + s.kept.segments.len() < end {
                     match s.source.next_segment() {
@@ -152,9 +152,17 @@ impl<'a> PathReader<'a> {
     /// point before them as its start; and `base`.
     pub fn view(&self) -> (&AxisPath, usize) {
         match self {
-            PathReader::Whole(path) => (path, 0),
-            PathReader::Shared(path) => (path, 0),
             PathReader::Streamed(s) => (&s.kept, s.base),
+            PathReader::Whole(_) | PathReader::Shared(_) => (self.at_hand(), 0),
+        }
+    }
+
+    /// The segments at hand as a path: all of a whole one, those kept of a streamed one.
+    fn at_hand(&self) -> &AxisPath {
+        match self {
+            PathReader::Whole(path) => path,
+            PathReader::Shared(path) => path,
+            PathReader::Streamed(s) => &s.kept,
         }
     }
 }

@@ -339,12 +339,12 @@ fn point_before(path: &AxisPath, base: usize, first: usize) -> &[f64] {
 /// to [`LOOKAHEAD_SEGMENTS`].
 pub(super) const WINDOW_SEGMENTS: usize = 512;
 
-/// The planner's look-ahead (segments): a chain that ends within this many segments of its
-/// start is planned whole, exactly time-optimal; a longer one is planned this many segments
-/// at a time, each window assuming a stop at its end and handing over to the next between
-/// one half and three quarters of the way in, so that every point is planned with at least a
-/// quarter of this ahead of it (as a CNC's look-ahead queue of fixed depth). The planner's
-/// memory is bounded by it, however long the chain.
+/// The planner's look-ahead (segments): a chain that ends within the window it starts in
+/// (this many segments from the end of the chain before) is planned whole; a longer one is
+/// planned this many segments at a time, each window assuming a stop at its end and handing
+/// over to the next between one half and three quarters of the way in, so that every point is
+/// planned with at least a quarter of this ahead of it (as a CNC's look-ahead queue of fixed
+/// depth). A run's planning memory is bounded by it, however long the chain.
 pub const LOOKAHEAD_SEGMENTS: usize = 4096;
 
 /// Segments before a handoff that the window after it builds again (and does not use): its
@@ -597,16 +597,7 @@ impl Windows {
             } else {
                 self.window
             };
-            // One segment more than the window: whether the path ends with it.
-            let reached = reader.reach(first.saturating_add(size).saturating_add(1))?;
-            let end = reached.min(first.saturating_add(size));
-            let ending = if reached == end {
-                Ending::PathEnd
-            } else if size >= self.lookahead {
-                Ending::CompleteOrStretch
-            } else {
-                Ending::Complete
-            };
+            let (end, ending) = self.window_end(reader, first, size)?;
             // A window after a handoff was planned when the handoff was checked, from the same
             // inputs.
             let checked = self.checked.take().filter(|_| entry.is_some());
@@ -652,6 +643,28 @@ impl Windows {
             // chain costs about 8/7 of its planning again).
             self.window = self.window.saturating_mul(8).min(self.lookahead);
         }
+    }
+
+    /// Where a window of `size` segments from `first` ends, and which of its chains are
+    /// timed: all at the path's end; else, in a window of the whole look-ahead, a chain
+    /// running on past it is a stretch when it is the only one.
+    fn window_end(
+        &self,
+        reader: &mut PathReader,
+        first: usize,
+        size: usize,
+    ) -> Result<(usize, Ending), PathError> {
+        // One segment more than the window: whether the path ends with it.
+        let reached = reader.reach(first.saturating_add(size).saturating_add(1))?;
+        let end = reached.min(first.saturating_add(size));
+        let ending = if reached == end {
+            Ending::PathEnd
+        } else if size >= self.lookahead {
+            Ending::CompleteOrStretch
+        } else {
+            Ending::Complete
+        };
+        Ok((end, ending))
     }
 
     /// A stretch of a long chain (`timed` from segment `first`, its spans in
@@ -703,14 +716,7 @@ impl Windows {
             };
             let time = last.map_or(span.start_time, |(_, end)| end);
             let handoff = Handoff::at(&timed.pieces, first, cut.piece, cut.speed, axes);
-            let size = handoff.first.saturating_add(self.lookahead);
-            let reached = reader.reach(size.saturating_add(1))?;
-            let end = reached.min(size);
-            let ending = if reached == end {
-                Ending::PathEnd
-            } else {
-                Ending::CompleteOrStretch
-            };
+            let (end, ending) = self.window_end(reader, handoff.first, self.lookahead)?;
             let (path, base) = reader.view();
             let check = time_segments(
                 path,
@@ -852,7 +858,7 @@ impl<'a> PlanWindows<'a> {
 
     /// [`Self::new`] with a look-ahead of `lookahead` segments.
     fn keeping(
-        reader: PathReader<'a>,
+        mut reader: PathReader<'a>,
         window: usize,
         first_move: usize,
         budget: &mut usize,
@@ -894,9 +900,9 @@ impl<'a> PlanWindows<'a> {
             Some(last) => (last.geometry.end().to_vec(), last.source_index),
             None => (path.start.clone(), 0),
         };
-        let mut start_reader = reader.restart();
-        start_reader.reach(1)?;
-        let (start, _) = start_reader.view();
+        // The evaluation reads the path from its start: its first segment is made here.
+        reader.reach(1)?;
+        let (start, _) = reader.view();
         let rest = (
             start.start.clone(),
             start.segments.first().map_or(0, |s| s.source_index),
@@ -1525,9 +1531,10 @@ impl Plan {
         acceleration: &mut [f64],
     ) -> u32 {
         // As a run moves on: to the next part once `t` is where it starts.
-        let part = self
-            .moving_parts()
-            .find(|p| p.duration > t)
+        let after = self.parts.partition_point(|p| p.duration <= t);
+        let part = self.parts[after..]
+            .iter()
+            .find(|p| !p.spans.is_empty())
             .or_else(|| self.moving_parts().last());
         match part {
             Some(part) => part.eval(t, position, velocity, acceleration),
