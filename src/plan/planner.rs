@@ -26,10 +26,14 @@
 //!    planned again to end there). The next window builds its geometry from a margin before the
 //!    handoff with the smoothing choices there frozen (`Seed`); a handoff is
 //!    made only once that window, planned in full, holds the very same piece and can go on from
-//!    the handoff's speed; if none can, the window stops at its last point (counted in
-//!    [`LookAhead::stops_added`]). The geometry is thus the whole chain's, and a run's planning
-//!    memory (`PlanWindows`, which reads the path as it is made) is bounded by the look-ahead,
-//!    whatever the program; [`plan`] keeps every window, for inspection.
+//!    the handoff's speed (else other places are tried, then the speeds the next window admits);
+//!    if none can, the window stops at its last point (counted in
+//!    [`LookAhead::stops_added`]). The geometry is continuous across every handoff, and a run's
+//!    planning memory (`PlanWindows`, which reads the path as it is made) is bounded by the
+//!    look-ahead, whatever the program; [`plan`] keeps every window, for inspection. Past a
+//!    handoff a window chooses the smoothing of the lines itself: which lines can be smoothed
+//!    depends on their neighbours (greedily, see `pieces`), so a choice can come out otherwise
+//!    than with an unbounded look-ahead, always within the tolerance.
 //!
 //! Every chain ends exactly on its programmed end point; the programmed points inside a chain
 //! are passed within the corner tolerance (through them, on a tangent blend).
@@ -119,9 +123,14 @@ pub fn plan(path: &AxisPath) -> Result<Plan, PathError> {
 /// the path plans every chain whole).
 #[doc(hidden)]
 pub fn plan_with_lookahead(path: &AxisPath, segments: usize) -> Result<Plan, PathError> {
+    plan_at_depth(path, Depth::of(segments))
+}
+
+/// [`plan`] at a look-ahead `depth`.
+fn plan_at_depth(path: &AxisPath, depth: Depth) -> Result<Plan, PathError> {
     validate(path)?;
     let mut reader = PathReader::Whole(path);
-    let mut windows = Windows::new(WINDOW_SEGMENTS, segments);
+    let mut windows = Windows::new(WINDOW_SEGMENTS, depth);
     let mut parts = Vec::new();
     while let Some(part) = windows.next_part(&mut reader)? {
         parts.push(part);
@@ -203,8 +212,11 @@ enum Ending {
 enum WindowError {
     Path(PathError),
     /// The handoff it starts from is not one it can take over: its piece is not among the
-    /// window's, or the window cannot go on from its speed.
-    Handoff,
+    /// window's, or the window cannot go on from its speed, only from `admissible` or slower
+    /// (zero: not at all).
+    Handoff {
+        admissible: f64,
+    },
 }
 
 impl From<PathError> for WindowError {
@@ -242,7 +254,7 @@ fn time_segments(
         Some(handoff) => {
             let (c, q) = handoff
                 .find(&pieces, first, path.axes.len())
-                .ok_or(WindowError::Handoff)?;
+                .ok_or(WindowError::Handoff { admissible: 0.0 })?;
             pieces.chains.drain(..c);
             pieces.chains[0].first = q;
             Some(handoff.speed)
@@ -284,6 +296,8 @@ fn time_segments(
         // The fastest of the share caps. A smaller cap changes nothing when no piece used more
         // than it.
         let mut fastest = f64::INFINITY;
+        // The fastest entry any cap admits, where none admits the handoff's speed.
+        let mut admissible: f64 = 0.0;
         for (k, &cap) in SHARE_CAPS.iter().enumerate() {
             if k > 0 && largest_share_used(&pieces, range.clone()) <= cap {
                 break;
@@ -299,7 +313,10 @@ fn time_segments(
             let duration = match time_chain(&pieces, c, entry, drafts, time, trial) {
                 Ok(duration) => duration,
                 // Limits under which the handoff's speed cannot be held: try the next cap.
-                Err(_) if entry.is_some() => continue,
+                Err(_) if entry.is_some() => {
+                    admissible = admissible.max(admissible_entry(drafts));
+                    continue;
+                }
                 Err(error) => return Err(error.offset(first).into()),
             };
             if duration < fastest {
@@ -310,7 +327,7 @@ fn time_segments(
             }
         }
         if fastest == f64::INFINITY {
-            return Err(WindowError::Handoff);
+            return Err(WindowError::Handoff { admissible });
         }
         for (piece, limits) in pieces.pieces[range].iter_mut().zip(best_limits.iter()) {
             piece.limits = *limits;
@@ -354,6 +371,35 @@ const HANDOFF_MARGIN: usize = 16;
 /// Places tried as a handoff per window: this many of those the plan passes at zero
 /// acceleration anyway (the slowest first), then as many of the others.
 const HANDOFF_TRIES: usize = 3;
+
+/// How far the look-ahead reaches, and how hard it tries to hand a long chain over.
+#[derive(Debug, Clone, Copy, PartialEq)]
+struct Depth {
+    /// [`LOOKAHEAD_SEGMENTS`], or another look-ahead (for comparing).
+    segments: usize,
+    /// [`HANDOFF_TRIES`], or fewer (none: every window of a long chain stops at its end).
+    handoff_tries: usize,
+}
+
+impl Depth {
+    /// A look-ahead of `segments` (at least `8 * HANDOFF_MARGIN`: each window after a handoff
+    /// must reach past the margin before it), trying [`HANDOFF_TRIES`] places of each kind.
+    fn of(segments: usize) -> Self {
+        Depth {
+            segments: segments.max(8 * HANDOFF_MARGIN),
+            handoff_tries: HANDOFF_TRIES,
+        }
+    }
+}
+
+/// Segments either side of a refused handoff place whose places are not tried: the smoothing
+/// choice of a line depends on the lines up to two either side of it.
+const REFUSED_NEIGHBOURHOOD: usize = 3;
+
+/// How many times a handoff the next window can take over only more slowly is tried at the
+/// speed it admits (which itself changes with the speed: the limits it gives the curves
+/// depend on it).
+const HANDOFF_SLOWDOWNS: usize = 3;
 
 /// How much slower than its span would pass it a handoff inside a span is passed (relative):
 /// the next window's limits for the same pieces may come out a few ulps lower.
@@ -503,8 +549,9 @@ enum Next {
 /// is never longer than the look-ahead), so every sequence of windows plans the same.
 #[derive(Debug)]
 struct Windows {
-    /// [`LOOKAHEAD_SEGMENTS`], or another look-ahead (for comparing).
+    /// The look-ahead (segments), and the handoff places tried per window.
     lookahead: usize,
+    handoff_tries: usize,
     /// Segments of the next window at a stop (it grows to hold a whole chain).
     window: usize,
     /// Where the next window starts (`None`: after the last).
@@ -520,11 +567,11 @@ struct Windows {
 }
 
 impl Windows {
-    fn new(window: usize, lookahead: usize) -> Self {
-        // Each window after a handoff must reach past the margin before it.
-        let lookahead = lookahead.max(8 * HANDOFF_MARGIN);
+    fn new(window: usize, depth: Depth) -> Self {
+        let lookahead = depth.segments;
         Windows {
             lookahead,
+            handoff_tries: depth.handoff_tries,
             window: window.clamp(1, lookahead),
             next: Some(Next::Stop(0)),
             time: 0.0,
@@ -538,6 +585,7 @@ impl Windows {
     fn resume(&self) -> Self {
         Windows {
             lookahead: self.lookahead,
+            handoff_tries: self.handoff_tries,
             window: self.window,
             next: self.next.clone(),
             time: self.time,
@@ -621,7 +669,7 @@ impl Windows {
                 Ok(timed) => timed,
                 Err(WindowError::Path(error)) => return Err(error),
                 // The same call checked it when the handoff was made.
-                Err(WindowError::Handoff) => {
+                Err(WindowError::Handoff { .. }) => {
                     unreachable!("planning is deterministic: a handoff checked once holds")
                 }
             };
@@ -670,15 +718,16 @@ impl Windows {
     /// A stretch of a long chain (`timed` from segment `first`, its spans in
     /// `self.timing.spans`) up to its handoff: the first place between one half and three
     /// quarters of the way in that the next window can take over from ([`handoff_places`],
-    /// [`HANDOFF_TRIES`]). If none can be taken over, the stretch stops at the window's last
-    /// point, and the next window starts from rest there.
+    /// [`HANDOFF_TRIES`] of each kind, none near one refused); failing that, the first of them the next window can take over from
+    /// at a lower speed (the speed it admits there, [`HANDOFF_SLOWDOWNS`] times at most). If
+    /// none can be taken over, the stretch stops at the window's last point, and the next
+    /// window starts from rest there.
     fn hand_over(
         &mut self,
         reader: &mut PathReader,
         first: usize,
         mut timed: Timed,
     ) -> Result<(Timed, usize, WindowEnd), PathError> {
-        let axes = reader.view().0.axes.len();
         let region =
             first.saturating_add(self.lookahead / 2)..first.saturating_add(self.lookahead / 4 * 3);
         let places = handoff_places(&timed.pieces, &self.timing.spans, |piece| {
@@ -687,66 +736,128 @@ impl Windows {
         let (mut exact, mut others): (Vec<_>, Vec<_>) = places.into_iter().partition(|p| p.exact);
         // Among equally slow ones (a cruise), the latest: the most planned per window.
         exact.sort_by(|a, b| a.speed.total_cmp(&b.speed).then(b.piece.cmp(&a.piece)));
-        exact.truncate(HANDOFF_TRIES);
         // Of the others, the fastest: the least slowed down by the handoff.
         others.sort_by(|a, b| b.speed.total_cmp(&a.speed).then(b.piece.cmp(&a.piece)));
-        others.truncate(HANDOFF_TRIES);
-        let cuts = exact.into_iter().chain(others);
-        for cut in cuts {
-            // The span that ends at the handoff.
-            let span = self.timing.spans[cut.span];
-            let last = if cut.piece == span.first {
-                // A span boundary: the plan as it is.
-                None
-            } else {
-                let length = timed.pieces.pieces[cut.piece].start - span.start;
-                let Some((recipe, duration)) =
-                    Recipe::plan_timed(length, span.recipe.v_start, cut.speed, &span.recipe.limits)
-                else {
-                    continue;
-                };
-                Some((
-                    Span {
-                        end: cut.piece,
-                        recipe,
-                        ..span
-                    },
-                    span.start_time + duration,
-                ))
-            };
-            let time = last.map_or(span.start_time, |(_, end)| end);
-            let handoff = Handoff::at(&timed.pieces, first, cut.piece, cut.speed, axes);
-            let (end, ending) = self.window_end(reader, handoff.first, self.lookahead)?;
-            let (path, base) = reader.view();
-            let check = time_segments(
-                path,
-                base,
-                handoff.first,
-                end,
-                time,
-                ending,
-                Some(&handoff),
-                &mut self.check,
-            );
-            match check {
-                Ok(checked) => {
-                    self.checked = Some(checked);
-                    self.timing.spans.truncate(cut.span);
-                    self.timing.spans.extend(last.map(|(span, _)| span));
-                    timed.pieces.chains[0].end = cut.piece;
-                    timed.end_time = time;
-                    self.time = time;
-                    self.next = Some(Next::Handoff(Box::new(handoff)));
-                    return Ok((timed, first, WindowEnd::HandedOff));
+        // The places the next window could take over only more slowly, at the speed it admits.
+        let mut slower = Vec::new();
+        // Where a place was refused: the next window's pieces differ around it (its smoothing
+        // choices there came out otherwise), so the places near it are not tried.
+        let mut refused: Vec<usize> = Vec::new();
+        let mut tries = [0; 2];
+        for cut in exact.into_iter().chain(others) {
+            let at = first_segment_of(&timed.pieces, cut.piece);
+            let kind = usize::from(!cut.exact);
+            if tries[kind] == self.handoff_tries
+                || refused
+                    .iter()
+                    .any(|r| r.abs_diff(at) <= REFUSED_NEIGHBOURHOOD)
+            {
+                continue;
+            }
+            tries[kind] += 1;
+            match self.try_handoff(reader, first, &mut timed, cut, cut.speed)? {
+                Tried::HandedOff => return Ok((timed, first, WindowEnd::HandedOff)),
+                Tried::TooFast { admissible } => slower.push((cut, admissible)),
+                Tried::Refused => refused.push(at),
+            }
+        }
+        for (cut, mut admissible) in slower {
+            for _ in 0..HANDOFF_SLOWDOWNS {
+                let speed = admissible * (1.0 - HANDOFF_SPEED_MARGIN);
+                match self.try_handoff(reader, first, &mut timed, cut, speed)? {
+                    Tried::HandedOff => return Ok((timed, first, WindowEnd::HandedOff)),
+                    // Its limits depend on the speed it starts at: they may come out lower.
+                    Tried::TooFast { admissible: lower } if lower < speed => admissible = lower,
+                    Tried::TooFast { .. } | Tried::Refused => break,
                 }
-                Err(WindowError::Handoff) => continue,
-                Err(WindowError::Path(error)) => return Err(error),
             }
         }
         self.time = timed.end_time;
         self.next = Some(Next::Stop(timed.next));
         Ok((timed, first, WindowEnd::StopsShort))
     }
+
+    /// Hands the stretch `timed` (a window from segment `first`) over at `cut`, passed at
+    /// `speed` (at most the place's own), if the next window, planned in full, takes it over:
+    /// its spans then end there and the next window is kept for the next step.
+    fn try_handoff(
+        &mut self,
+        reader: &mut PathReader,
+        first: usize,
+        timed: &mut Timed,
+        cut: HandoffPlace,
+        speed: f64,
+    ) -> Result<Tried, PathError> {
+        // The spans kept (those before `kept`, then `last`), and when the handoff is passed.
+        let span = self.timing.spans[cut.span];
+        let (kept, last, time) = if cut.piece == span.first && speed == cut.speed {
+            // A span boundary as planned.
+            (cut.span, None, span.start_time)
+        } else {
+            // The span that ends at the handoff, planned again to end there at `speed`: the
+            // one before it at a span boundary, else its part up to the handoff.
+            let (index, ending) = if cut.piece == span.first {
+                (cut.span - 1, self.timing.spans[cut.span - 1])
+            } else {
+                (cut.span, span)
+            };
+            let length = timed.pieces.pieces[cut.piece].start - ending.start;
+            let r = &ending.recipe;
+            let Some((recipe, duration)) = Recipe::plan_timed(length, r.v_start, speed, &r.limits)
+            else {
+                return Ok(Tried::Refused);
+            };
+            let last = Span {
+                end: cut.piece,
+                recipe,
+                ..ending
+            };
+            (index, Some(last), ending.start_time + duration)
+        };
+        let axes = reader.view().0.axes.len();
+        let handoff = Handoff::at(&timed.pieces, first, cut.piece, speed, axes);
+        let (end, ending) = self.window_end(reader, handoff.first, self.lookahead)?;
+        let (path, base) = reader.view();
+        let check = time_segments(
+            path,
+            base,
+            handoff.first,
+            end,
+            time,
+            ending,
+            Some(&handoff),
+            &mut self.check,
+        );
+        match check {
+            Ok(checked) => {
+                self.checked = Some(checked);
+                self.timing.spans.truncate(kept);
+                self.timing.spans.extend(last);
+                timed.pieces.chains[0].end = cut.piece;
+                timed.end_time = time;
+                self.time = time;
+                self.next = Some(Next::Handoff(Box::new(handoff)));
+                Ok(Tried::HandedOff)
+            }
+            Err(WindowError::Handoff { admissible }) if admissible > 0.0 && admissible < speed => {
+                Ok(Tried::TooFast { admissible })
+            }
+            Err(WindowError::Handoff { .. }) => Ok(Tried::Refused),
+            Err(WindowError::Path(error)) => Err(error),
+        }
+    }
+}
+
+/// What trying a handoff came to.
+#[derive(Debug, Clone, Copy)]
+enum Tried {
+    HandedOff,
+    /// The next window can go on from the handoff only at `admissible` or slower.
+    TooFast {
+        admissible: f64,
+    },
+    /// The next window cannot take it over (or the stretch cannot slow down to it in time).
+    Refused,
 }
 
 /// A place a stretch can hand over at: the start of piece `piece`, in span `span`, passed at
@@ -853,22 +964,28 @@ impl<'a> PlanWindows<'a> {
         first_move: usize,
         budget: &mut usize,
     ) -> Result<Self, PathError> {
-        Self::keeping(reader, window, first_move, budget, LOOKAHEAD_SEGMENTS)
+        Self::keeping(
+            reader,
+            window,
+            first_move,
+            budget,
+            Depth::of(LOOKAHEAD_SEGMENTS),
+        )
     }
 
-    /// [`Self::new`] with a look-ahead of `lookahead` segments.
+    /// [`Self::new`] at a look-ahead `depth`.
     fn keeping(
         mut reader: PathReader<'a>,
         window: usize,
         first_move: usize,
         budget: &mut usize,
-        lookahead: usize,
+        depth: Depth,
     ) -> Result<Self, PathError> {
         reader.validate()?;
         let mut timing_reader = reader.restart();
         // Of the windows after the kept ones only the end time is needed, and one set of
         // buffers does for all.
-        let mut timing = Windows::new(window, lookahead);
+        let mut timing = Windows::new(window, depth);
         let mut kept = std::collections::VecDeque::new();
         // Where the evaluation goes on after the kept windows (none: they are all).
         let mut resume = None;
@@ -1146,6 +1263,24 @@ fn look_ahead(drafts: &[Draft], entry: f64) -> Vec<f64> {
         }
     }
     speeds
+}
+
+/// The fastest a chain of `drafts` (as [`time_chain`] grouped them) can be entered at: within
+/// its first span's speed limit, and slow enough to slow down for every boundary after it and
+/// stop at its end (the backward pass of [`look_ahead`]).
+fn admissible_entry(drafts: &[Draft]) -> f64 {
+    let Some(first) = drafts.first() else {
+        return 0.0;
+    };
+    let mut next = 0.0;
+    for (before, d) in drafts.iter().zip(&drafts[1..]).rev() {
+        let boundary = before.limits.velocity.min(d.limits.velocity);
+        next = boundary.min(reachable_velocity(next, d.length, &d.limits));
+    }
+    first
+        .limits
+        .velocity
+        .min(reachable_velocity(next, first.length, &first.limits))
 }
 
 /// A position in a part for evaluating it at non-decreasing times: the current span with its
@@ -1799,19 +1934,30 @@ mod tests {
 
     #[test]
     fn windows_evaluate_bit_identically_to_the_whole_plan() {
-        // Many chains; and one chain handed over between windows of a short look-ahead.
-        for (path, lookahead) in [
-            (mixed_path(true), LOOKAHEAD_SEGMENTS),
-            (mixed_path(false), 128),
+        // Many chains; one chain handed over between windows of a short look-ahead; and the
+        // same chain stopped at the end of each window where no handoff is allowed.
+        let no_handoffs = Depth {
+            handoff_tries: 0,
+            ..Depth::of(128)
+        };
+        for (path, depth) in [
+            (mixed_path(true), Depth::of(LOOKAHEAD_SEGMENTS)),
+            (mixed_path(false), Depth::of(128)),
+            (mixed_path(false), no_handoffs),
         ] {
-            let whole = plan_with_lookahead(&path, lookahead).unwrap();
+            let lookahead = depth.segments;
+            let whole = plan_at_depth(&path, depth).unwrap();
             if lookahead == LOOKAHEAD_SEGMENTS {
                 assert!(whole.chain_count() > 10, "{}", whole.chain_count());
-            } else {
+            } else if depth.handoff_tries > 0 {
                 assert_eq!(whole.chain_count(), 1);
                 assert!(whole.handoffs() >= 2, "{}", whole.handoffs());
                 assert_eq!(whole.stops_added(), 0);
                 assert!(whole.largest_window() <= lookahead);
+            } else {
+                assert_eq!(whole.handoffs(), 0);
+                assert!(whole.stops_added() >= 2, "{}", whole.stops_added());
+                assert_eq!(whole.chain_count(), 1 + whole.stops_added());
             }
             let period = 1e-3;
             let expected = whole.sample(period);
@@ -1831,15 +1977,13 @@ mod tests {
                 };
                 let mut budget = most;
                 let mut windows =
-                    PlanWindows::keeping(reader, window, 0, &mut budget, lookahead).unwrap();
+                    PlanWindows::keeping(reader, window, 0, &mut budget, depth).unwrap();
                 assert_eq!(windows.duration().to_bits(), whole.duration().to_bits());
                 let (mut p, mut v, mut a) = (vec![0.0; n], vec![0.0; n], vec![0.0; n]);
                 for (k, t) in sample_times(whole.duration(), period).enumerate() {
                     let segment = windows.eval(t, &mut p, &mut v, &mut a);
                     let row = k * n..(k + 1) * n;
-                    let what = format!(
-                        "look-ahead {lookahead} window {window} streamed {streamed} sample {k}"
-                    );
+                    let what = format!("{depth:?} window {window} streamed {streamed} sample {k}");
                     assert_eq!(segment, expected.segment[k], "{what}");
                     assert_eq!(p, expected.position[row.clone()], "{what}");
                     assert_eq!(v, expected.velocity[row.clone()], "{what}");
@@ -1849,6 +1993,64 @@ mod tests {
                 assert_eq!(windows.end(), (end.geometry.end(), end.source_index));
             }
         }
+    }
+
+    #[test]
+    fn a_long_chain_that_cannot_be_handed_over_stops_at_the_end_of_each_window() {
+        let path = mixed_path(false);
+        let depth = Depth {
+            handoff_tries: 0,
+            ..Depth::of(128)
+        };
+        let windowed = plan_at_depth(&path, depth).unwrap();
+        let whole = plan_with_lookahead(&path, usize::MAX).unwrap();
+        assert_eq!(whole.chain_count(), 1);
+        // Each window stops at its last programmed point, at rest, and nowhere else.
+        let stops: Vec<usize> = windowed
+            .parts
+            .iter()
+            .filter(|p| p.end == WindowEnd::StopsShort)
+            .map(|p| p.first_segment + p.shapes.len())
+            .collect();
+        assert_eq!(stops.len(), windowed.stops_added());
+        assert!(stops.len() >= 2, "{stops:?}");
+        let speeds = windowed.junction_speeds();
+        for (k, (v, w)) in speeds.iter().zip(whole.junction_speeds()).enumerate() {
+            if stops.contains(&k) {
+                assert_eq!(*v, 0.0, "point {k}");
+            } else {
+                assert!(
+                    *v > 0.0 || w == 0.0,
+                    "point {k}: stops, the whole plan does not"
+                );
+            }
+        }
+        let n = path.axes.len();
+        let (mut p, mut v, mut a) = (vec![0.0; n], vec![0.0; n], vec![0.0; n]);
+        for part in windowed
+            .parts
+            .iter()
+            .filter(|p| p.end == WindowEnd::StopsShort)
+        {
+            windowed.eval(part.duration, &mut p, &mut v, &mut a);
+            let last = &path.segments[part.first_segment + part.shapes.len() - 1];
+            assert_eq!(p, last.geometry.end(), "at {} s", part.duration);
+            assert!(v.iter().chain(&a).all(|x| x.abs() < 1e-12), "{v:?} {a:?}");
+        }
+        // Every axis limit kept (third differences of the samples) and the stops cost time.
+        let period = 2e-4;
+        let samples = windowed.sample(period);
+        let mut differences = crate::plan::FiniteDifferences::new(n, period);
+        for k in 0..samples.len() {
+            differences.push(samples.position(k));
+        }
+        for (e, axis) in differences.extremes().iter().zip(&path.axes) {
+            let l = axis.limits;
+            assert!(e.velocity <= l.velocity * (1.0 + 1e-9), "{e:?}");
+            assert!(e.acceleration <= l.acceleration * (1.0 + 1e-6), "{e:?}");
+            assert!(e.jerk <= l.jerk * (1.0 + 1e-3), "{e:?}");
+        }
+        assert!(windowed.duration() > whole.duration());
     }
 
     #[test]

@@ -189,6 +189,34 @@ pub struct LookAhead {
     pub stops_added: usize,
 }
 
+impl LookAhead {
+    /// A line for reports; `None` when no chain was longer than the look-ahead.
+    pub fn summary(&self) -> Option<String> {
+        (*self != LookAhead::default()).then(|| {
+            format!(
+                "look-ahead {} blocks: {} handoffs inside longer chains, {} stops added where no \
+                 handoff could be made",
+                super::planner::LOOKAHEAD_SEGMENTS,
+                self.handoffs,
+                self.stops_added
+            )
+        })
+    }
+
+    /// A warning when the look-ahead made the motion stop where the program does not ask it to.
+    pub fn warning(&self) -> Option<String> {
+        (self.stops_added > 0).then(|| {
+            format!(
+                "the planner's look-ahead ({} blocks) stopped the motion {} times inside chains \
+                 longer than it, where no handoff to the next window could be made: the cycle \
+                 time and the motion there are not those of a continuous pass",
+                super::planner::LOOKAHEAD_SEGMENTS,
+                self.stops_added
+            )
+        })
+    }
+}
+
 impl std::ops::AddAssign for LookAhead {
     fn add_assign(&mut self, other: LookAhead) {
         self.handoffs += other.handoffs;
@@ -304,5 +332,34 @@ impl<T: SetpointStream + ?Sized> SetpointStream for Box<T> {
 
     fn look_ahead(&self) -> LookAhead {
         (**self).look_ahead()
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::LookAhead;
+
+    #[test]
+    fn look_ahead_reports_only_what_happened() {
+        assert_eq!(LookAhead::default().summary(), None);
+        assert_eq!(LookAhead::default().warning(), None);
+        let handed = LookAhead {
+            handoffs: 3,
+            stops_added: 0,
+        };
+        assert_eq!(
+            handed.summary().as_deref(),
+            Some(
+                "look-ahead 4096 blocks: 3 handoffs inside longer chains, 0 stops added where \
+                 no handoff could be made"
+            )
+        );
+        assert_eq!(handed.warning(), None);
+        let stopped = LookAhead {
+            handoffs: 1,
+            stops_added: 2,
+        };
+        let warning = stopped.warning().unwrap();
+        assert!(warning.contains("stopped the motion 2 times"), "{warning}");
     }
 }

@@ -146,15 +146,8 @@ impl PlanReport {
             self.plan.len(),
             self.plan.settings().period * 1e3
         );
-        let look_ahead = self.plan.look_ahead();
-        if look_ahead != crate::plan::LookAhead::default() {
-            out.push_str(&format!(
-                "  look-ahead {} blocks: {} handoffs inside longer chains, {} stops added where \
-                 no handoff could be made\n",
-                crate::plan::planner::LOOKAHEAD_SEGMENTS,
-                look_ahead.handoffs,
-                look_ahead.stops_added
-            ));
+        if let Some(line) = self.plan.look_ahead().summary() {
+            out.push_str(&format!("  {line}\n"));
         }
         out.push_str("  move  line   duration s   (to the servo period)\n");
         for (index, line, d) in &self.move_durations {

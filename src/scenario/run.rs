@@ -33,7 +33,8 @@ pub struct RunOutput {
     pub verdict: Verdict,
     /// Files written, in the order written.
     pub files: Vec<PathBuf>,
-    /// The machine's plausibility warnings (values that loaded but look wrong).
+    /// The machine's plausibility warnings (values that loaded but look wrong), and the
+    /// planner's (stops its look-ahead added).
     pub warnings: Vec<FileError>,
 }
 
@@ -208,9 +209,19 @@ pub fn run_assembly_observed(
         contour_envelope,
         verdict,
         files,
-        warnings: assembly.machine.warnings.clone(),
+        warnings: warnings_of(assembly),
     };
     Ok((output, outcome))
+}
+
+/// What loaded or planned but looks wrong: the machine's implausible values, and stops the
+/// planner's look-ahead added.
+fn warnings_of(assembly: &Assembly) -> Vec<FileError> {
+    let mut warnings = assembly.machine.warnings.clone();
+    if let Some(warning) = assembly.plan.look_ahead().warning() {
+        warnings.push(FileError::new(&assembly.program().source, None, warning));
+    }
+    warnings
 }
 
 /// The summary document of a recording: what ran, its figures, its bounds.
@@ -223,7 +234,7 @@ pub fn summary_markdown(assembly: &Assembly, metrics: &Metrics, verdict: &Verdic
         t += &format!("{}\n\n", s.description);
     }
     t += &format!(
-        "- machine: **{}** ({} axes: {})\n- controller: **{controller}**; actuator: {:?}; servo period {} ms, physics step {} ms\n- program: {} ({} moves)\n- status: **{}**\n\n",
+        "- machine: **{}** ({} axes: {})\n- controller: **{controller}**; actuator: {:?}; servo period {} ms, physics step {} ms\n- program: {} ({} moves)\n- status: **{}**\n",
         m.name,
         m.axes.len(),
         assembly.labels.iter().map(|l| l.name.as_str()).collect::<Vec<_>>().join(", "),
@@ -234,6 +245,10 @@ pub fn summary_markdown(assembly: &Assembly, metrics: &Metrics, verdict: &Verdic
         assembly.program().moves.len(),
         metrics.stopped.as_deref().unwrap_or("completed"),
     );
+    if let Some(line) = assembly.plan.look_ahead().summary() {
+        t += &format!("- {line}\n");
+    }
+    t += "\n";
     t += "| figure | value |\n|---|---:|\n";
     t += &format!(
         "| max contour error | {:.3} µm |\n",
