@@ -6,8 +6,7 @@ mod common;
 
 use cncsim::plan::planner::{plan_with_lookahead, LOOKAHEAD_SEGMENTS};
 use cncsim::plan::{
-    plan, plan_path_stream, AxisKind, AxisLimits, AxisPath, Blend, Geometry, PathSegment, Plan,
-    SetpointSample,
+    plan, plan_path_stream, AxisPath, Blend, Geometry, PathSegment, Plan, SetpointSample,
 };
 use common::*;
 use proptest::prelude::*;
@@ -359,9 +358,7 @@ fn a_run_streams_a_long_chain_as_the_plan_samples_it() {
 fn a_program_with_a_long_chain_streams_as_its_whole_plan_samples_it() {
     use cncsim::kinematics::AxisMap;
     use cncsim::machine::Machine;
-    use cncsim::plan::{
-        jerk_limited_plans, plan_program_stream, BlendChoice, PlanSettings, Planner,
-    };
+    use cncsim::plan::{jerk_limited_plans, plan_program_stream};
     use cncsim::program::{parse_gcode, ReadOptions};
     // CAM raster output in G-code: 9 000 lines of 1 mm on a curve, one chain (the path is made
     // from the moves as the windows read it), then a dwell and a second, short chain.
@@ -373,17 +370,7 @@ fn a_program_with_a_long_chain_streams_as_its_whole_plan_samples_it() {
     let root = std::path::Path::new(env!("CARGO_MANIFEST_DIR"));
     let machine = Machine::load(&root.join("models/xyz_table.urdf")).unwrap();
     let axes = AxisMap::cartesian(&machine).unwrap();
-    let settings = PlanSettings {
-        planner: Planner::JerkLimited {
-            limits: vec![AxisLimits::from_program_units(AxisKind::Linear, 200.0, 2000.0, 5e4); 3],
-        },
-        period: 1e-3,
-        rapid_speed: 0.05,
-        blend: BlendChoice::Program,
-        axis_names: machine.axes.iter().map(|a| a.name.clone()).collect(),
-        naive_cam_tolerance: Some(0.0),
-        tool_lever_arms: Vec::new(),
-    };
+    let settings = raster_settings(&machine);
     let mut stream = plan_program_stream(&program, &axes, &settings).unwrap();
     let look_ahead = stream.look_ahead();
     assert!(look_ahead.handoffs >= 2, "{look_ahead:?}");

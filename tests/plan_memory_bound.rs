@@ -11,9 +11,7 @@ use std::sync::atomic::{AtomicUsize, Ordering::Relaxed};
 
 use cncsim::kinematics::AxisMap;
 use cncsim::machine::Machine;
-use cncsim::plan::{
-    plan_program_stream, AxisKind, AxisLimits, BlendChoice, PlanSettings, Planner, SetpointSample,
-};
+use cncsim::plan::{plan_program_stream, SetpointSample};
 use cncsim::program::{parse_gcode, ReadOptions};
 
 /// The system allocator, counting the bytes live and their peak.
@@ -87,21 +85,7 @@ fn planning_peak(lines: usize, stops: bool) -> (usize, usize) {
     let root = Path::new(env!("CARGO_MANIFEST_DIR"));
     let machine = Machine::load(&root.join("models/xyz_table.urdf")).unwrap();
     let axes = AxisMap::cartesian(&machine).unwrap();
-    let settings = PlanSettings {
-        planner: Planner::JerkLimited {
-            limits: vec![
-                AxisLimits::from_program_units(AxisKind::Linear, 200.0, 2000.0, 5e4);
-                machine.axes.len()
-            ],
-        },
-        period: 1e-3,
-        rapid_speed: 0.05,
-        blend: BlendChoice::Program,
-        axis_names: machine.axes.iter().map(|a| a.name.clone()).collect(),
-        // Every line planned as written.
-        naive_cam_tolerance: Some(0.0),
-        tool_lever_arms: Vec::new(),
-    };
+    let settings = common::raster_settings(&machine);
     let before = LIVE.load(Relaxed);
     let program = parse_gcode(&text, "raster.ngc", &ReadOptions::default()).unwrap();
     drop(text);

@@ -4,8 +4,8 @@
 
 use cncsim::machine::Machine;
 use cncsim::plan::{
-    AxisKind, AxisLimits, AxisPath, AxisSpec, Blend, Geometry, PathSegment, Plan, SetpointSample,
-    SetpointStream, Setpoints,
+    AxisKind, AxisLimits, AxisPath, AxisSpec, Blend, BlendChoice, Geometry, PathSegment, Plan,
+    PlanSettings, Planner, SetpointSample, SetpointStream, Setpoints,
 };
 
 pub fn axis(name: &str, kind: AxisKind, v: f64, a: f64, j: f64) -> AxisSpec {
@@ -366,6 +366,26 @@ pub fn random_walk(blocks: usize, blend: Blend, sharp_corners: bool) -> AxisPath
         axes,
         start: vec![0.0; 5],
         segments,
+        tool_lever_arms: Vec::new(),
+    }
+}
+
+/// The jerk-limited planner for [`raster_gcode`] programs on `machine`: v = 200 mm/s,
+/// a = 2000 mm/s², j = 5·10⁴ mm/s³ on every axis, 1 ms, corners as programmed, every line planned
+/// as written (naive-CAM joining off).
+pub fn raster_settings(machine: &Machine) -> PlanSettings {
+    PlanSettings {
+        planner: Planner::JerkLimited {
+            limits: vec![
+                AxisLimits::from_program_units(AxisKind::Linear, 200.0, 2000.0, 5e4);
+                machine.axes.len()
+            ],
+        },
+        period: 1e-3,
+        rapid_speed: 0.05,
+        blend: BlendChoice::Program,
+        axis_names: machine.axes.iter().map(|a| a.name.clone()).collect(),
+        naive_cam_tolerance: Some(0.0),
         tool_lever_arms: Vec::new(),
     }
 }
