@@ -120,20 +120,6 @@ fn check_against_whole(
 ) -> (Plan, Plan) {
     let windowed = plan_with_lookahead(path, lookahead).unwrap();
     let whole = plan_with_lookahead(path, usize::MAX).unwrap();
-    if windowed.chain_count() != whole.chain_count() {
-        std::fs::write("/tmp/dbg_windowed.txt", windowed.debug_dump()).unwrap();
-        std::fs::write("/tmp/dbg_whole.txt", whole.debug_dump()).unwrap();
-        let sp = windowed.junction_speeds();
-        eprintln!(
-            "DEBUG zeros windowed {:?} whole {:?} n {}",
-            (0..sp.len()).filter(|&k| sp[k] == 0.0).collect::<Vec<_>>(),
-            {
-                let w = whole.junction_speeds();
-                (0..w.len()).filter(|&k| w[k] == 0.0).collect::<Vec<_>>()
-            },
-            path.segments.len()
-        );
-    }
     assert_eq!(windowed.chain_count(), whole.chain_count(), "{name}");
     assert!(
         windowed.handoffs() >= handoffs,
@@ -156,10 +142,11 @@ fn check_against_whole(
     assert_within_limits(&fine(&windowed), &path.axes, 1e-9);
     assert_points_within_tolerance(name, &windowed, path);
     println!(
-        "{name}: {} segments, {} handoffs, {:.6} s with a look-ahead of {lookahead}, {:.6} s whole \
-         (ratio {:.8})",
+        "{name}: {} segments, {} handoffs ({} slowed), {:.6} s with a look-ahead of {lookahead}, \
+         {:.6} s whole (ratio {:.8})",
         path.segments.len(),
         windowed.handoffs(),
+        windowed.slowed_handoffs(),
         windowed.duration(),
         whole.duration(),
         windowed.duration() / whole.duration()
@@ -242,7 +229,7 @@ fn long_chains_are_handed_over_between_windows_without_stopping() {
         let (windowed, whole) = check_against_whole(name, &path, LOOKAHEAD_SEGMENTS, 2);
         assert_same_geometry(name, &path, &windowed, &whole);
         let (windowed, whole) = (windowed.duration(), whole.duration());
-        // Measured: the same to 1e-7 (handoffs where the plan passes at zero acceleration).
+        // Measured: the same to 1e-8 (handoffs where the plan passes at zero acceleration).
         assert!(
             (windowed / whole - 1.0).abs() < 1e-5,
             "{name}: {windowed} s against {whole} s whole"
@@ -292,34 +279,7 @@ proptest! {
         tolerance in decades(1e-6, 1e-3),
         feeds in prop::collection::vec(prop::option::of(decades(0.01, 0.5)), 1..4),
     ) {
-        // A random walk with gentle turns, blended at every junction, its feed changing every
-        // 50 segments, with a few zero-length segments: long chains (the planner stops only
-        // where stopping is faster than the blend, which such corners never are).
-        let (mut at, mut heading) = ([0.0f64; 3], 0.0f64);
-        let segments = steps
-            .iter()
-            .enumerate()
-            .map(|(k, &(length, turn, climb, empty))| {
-                if !empty {
-                    heading += turn;
-                    at[0] += length * heading.cos();
-                    at[1] += length * heading.sin();
-                    at[2] += length * climb;
-                }
-                line(
-                    &at,
-                    feeds[k / 50 % feeds.len()],
-                    Blend::Continuous { tolerance: Some(tolerance) },
-                    k as u32,
-                )
-            })
-            .collect();
-        let path = AxisPath {
-            axes: linear_axes(&axis_limits),
-            start: vec![0.0; 3],
-            segments,
-            tool_lever_arms: Vec::new(),
-        };
+        let path = gentle_walk(&axis_limits, &steps, tolerance, &feeds);
         // Only paths with a chain longer than the look-ahead (the planner stops at a corner
         // where that is faster than blending it: at low limits, many do).
         let stops: Vec<usize> = plan_with_lookahead(&path, usize::MAX)
@@ -340,8 +300,104 @@ proptest! {
             windowed.chain_geometry(&path, 2e-4) == whole.chain_geometry(&path, 2e-4)
         );
         let end = windowed.sample(1e-3);
-        prop_assert_eq!(end.position(end.len() - 1), &at[..]);
+        prop_assert_eq!(end.position(end.len() - 1), path.segments.last().unwrap().geometry.end());
     }
+}
+
+/// A walk with gentle turns: per segment its length (m), turn (rad), climb (z per length) and
+/// whether it is empty (zero length); blended at every junction with `tolerance`, its feed
+/// changing every 50 segments through `feeds`. Long chains: the planner stops only where
+/// stopping is faster than the blend, which such corners rarely are.
+fn gentle_walk(
+    axis_limits: &[(f64, f64, f64)],
+    steps: &[(f64, f64, f64, bool)],
+    tolerance: f64,
+    feeds: &[Option<f64>],
+) -> AxisPath {
+    let (mut at, mut heading) = ([0.0f64; 3], 0.0f64);
+    let segments = steps
+        .iter()
+        .enumerate()
+        .map(|(k, &(length, turn, climb, empty))| {
+            if !empty {
+                heading += turn;
+                at[0] += length * heading.cos();
+                at[1] += length * heading.sin();
+                at[2] += length * climb;
+            }
+            line(
+                &at,
+                feeds[k / 50 % feeds.len()],
+                Blend::Continuous {
+                    tolerance: Some(tolerance),
+                },
+                k as u32,
+            )
+        })
+        .collect();
+    AxisPath {
+        axes: linear_axes(axis_limits),
+        start: vec![0.0; 3],
+        segments,
+        tool_lever_arms: Vec::new(),
+    }
+}
+
+#[test]
+fn handoffs_where_the_next_window_differs_are_found_elsewhere_or_more_slowly() {
+    // Walks the property test above once found to stop short (shrunk, as proptest saved them
+    // in plan_long_chains.proptest-regressions): the next window's smoothing differs around the
+    // first places tried, or it admits only a lower speed there.
+    let text = std::fs::read_to_string(
+        std::path::Path::new(env!("CARGO_MANIFEST_DIR"))
+            .join("tests/fixtures/plan/handoff_cases.json"),
+    )
+    .unwrap();
+    let cases: Vec<serde_json::Value> = serde_json::from_str(&text).unwrap();
+    // The first three numbers of an array.
+    let triple = |v: &serde_json::Value| {
+        let x: Vec<f64> = v.as_array().unwrap()[..3]
+            .iter()
+            .map(|x| x.as_f64().unwrap())
+            .collect();
+        (x[0], x[1], x[2])
+    };
+    let mut slowed = 0;
+    for (k, case) in cases.iter().enumerate() {
+        let axis_limits: Vec<_> = case["axis_limits"]
+            .as_array()
+            .unwrap()
+            .iter()
+            .map(triple)
+            .collect();
+        let steps: Vec<_> = case["steps"]
+            .as_array()
+            .unwrap()
+            .iter()
+            .map(|step| {
+                let s = step.as_array().unwrap();
+                let (length, turn, climb) = triple(step);
+                (length, turn, climb, s[3].as_bool().unwrap())
+            })
+            .collect();
+        let feeds: Vec<Option<f64>> = case["feeds"]
+            .as_array()
+            .unwrap()
+            .iter()
+            .map(|f| f.as_f64())
+            .collect();
+        let path = gentle_walk(
+            &axis_limits,
+            &steps,
+            case["tolerance"].as_f64().unwrap(),
+            &feeds,
+        );
+        let (windowed, _) = check_against_whole(&format!("case {k}"), &path, 128, 1);
+        slowed += windowed.slowed_handoffs();
+    }
+    // Case 0 stops short unless a handoff is slowed to what the next window admits (one is);
+    // case 1 unless the places next to one the next window does not hold are passed over.
+    assert!(slowed >= 1, "{slowed} handoffs slowed");
 }
 
 #[test]

@@ -1,7 +1,8 @@
 //! Planning memory is bounded by the look-ahead, not the program: the most heap the planner's
 //! stream holds beyond the decoded program (every allocation counted by this binary's global
-//! allocator) is the same for a program four times as long, whether it is one chain planned
-//! window by window or many chains. (One test: the counters are shared by the whole binary.)
+//! allocator, so live heap, not resident memory) is the same for a program four times as long,
+//! whether it is one chain planned window by window or many chains. (One test: the counters are
+//! shared by the whole binary.)
 
 mod common;
 
@@ -121,9 +122,12 @@ fn planning_memory_does_not_grow_with_the_program() {
         let (short_program, short) = planning_peak(20_000, stops);
         let (long_program, long) = planning_peak(80_000, stops);
         assert!(long_program > 3 * short_program);
-        // The same look-ahead, and the same first windows kept for the evaluation.
+        // The same look-ahead, and the same first windows kept for the evaluation: less than
+        // 2 bytes more per line (anything kept per segment takes more). Measured: 63 kB more in
+        // one chain (where the windows fall; 160 000 lines need no more than 80 000), none with
+        // the stops.
         assert!(
-            long as f64 <= 1.1 * short as f64,
+            long.saturating_sub(short) < 2 * 60_000,
             "{long} bytes for 80 000 lines, {short} for 20 000"
         );
     }

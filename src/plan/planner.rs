@@ -177,7 +177,10 @@ impl LookAhead {
     fn count(&mut self, end: WindowEnd) {
         match end {
             WindowEnd::Stop => {}
-            WindowEnd::HandedOff => self.handoffs += 1,
+            WindowEnd::HandedOff { slowed } => {
+                self.handoffs += 1;
+                self.slowed += usize::from(slowed);
+            }
             WindowEnd::StopsShort => self.stops_added += 1,
         }
     }
@@ -188,8 +191,9 @@ impl LookAhead {
 enum WindowEnd {
     /// At a stop the program asks for (or the path's end).
     Stop,
-    /// Handed over to the next window while moving.
-    HandedOff,
+    /// Handed over to the next window while moving; `slowed`: more slowly than this window
+    /// planned, at the speed the next one admits.
+    HandedOff { slowed: bool },
     /// At the window's last point, stopping there although the chain goes on (no handoff
     /// could be taken over).
     StopsShort,
@@ -211,9 +215,10 @@ enum Ending {
 #[derive(Debug)]
 enum WindowError {
     Path(PathError),
-    /// The handoff it starts from is not one it can take over: its piece is not among the
-    /// window's, or the window cannot go on from its speed, only from `admissible` or slower
-    /// (zero: not at all).
+    /// The handoff it starts from is not among the window's pieces (its geometry differs).
+    Unmatched,
+    /// The window cannot go on from the handoff's speed under any share cap: the fastest entry
+    /// one of them admits where that was what failed (zero: none).
     Handoff {
         admissible: f64,
     },
@@ -254,7 +259,7 @@ fn time_segments(
         Some(handoff) => {
             let (c, q) = handoff
                 .find(&pieces, first, path.axes.len())
-                .ok_or(WindowError::Handoff { admissible: 0.0 })?;
+                .ok_or(WindowError::Unmatched)?;
             pieces.chains.drain(..c);
             pieces.chains[0].first = q;
             Some(handoff.speed)
@@ -314,7 +319,10 @@ fn time_segments(
                 Ok(duration) => duration,
                 // Limits under which the handoff's speed cannot be held: try the next cap.
                 Err(_) if entry.is_some() => {
-                    admissible = admissible.max(admissible_entry(drafts));
+                    let entry_limit = admissible_entry(drafts);
+                    if entry.is_some_and(|speed| entry_limit < speed) {
+                        admissible = admissible.max(entry_limit);
+                    }
                     continue;
                 }
                 Err(error) => return Err(error.offset(first).into()),
@@ -549,9 +557,8 @@ enum Next {
 /// is never longer than the look-ahead), so every sequence of windows plans the same.
 #[derive(Debug)]
 struct Windows {
-    /// The look-ahead (segments), and the handoff places tried per window.
-    lookahead: usize,
-    handoff_tries: usize,
+    /// How far the look-ahead reaches, and how hard it tries to hand a long chain over.
+    depth: Depth,
     /// Segments of the next window at a stop (it grows to hold a whole chain).
     window: usize,
     /// Where the next window starts (`None`: after the last).
@@ -568,11 +575,13 @@ struct Windows {
 
 impl Windows {
     fn new(window: usize, depth: Depth) -> Self {
-        let lookahead = depth.segments;
+        let depth = Depth {
+            segments: depth.segments.max(8 * HANDOFF_MARGIN),
+            ..depth
+        };
         Windows {
-            lookahead,
-            handoff_tries: depth.handoff_tries,
-            window: window.clamp(1, lookahead),
+            depth,
+            window: window.clamp(1, depth.segments),
             next: Some(Next::Stop(0)),
             time: 0.0,
             timing: Timing::default(),
@@ -584,8 +593,7 @@ impl Windows {
     /// The windows after those planned so far, planned again from here.
     fn resume(&self) -> Self {
         Windows {
-            lookahead: self.lookahead,
-            handoff_tries: self.handoff_tries,
+            depth: self.depth,
             window: self.window,
             next: self.next.clone(),
             time: self.time,
@@ -641,7 +649,7 @@ impl Windows {
         loop {
             // After a handoff, always the whole look-ahead (where the handoff was checked).
             let size = if entry.is_some() {
-                self.lookahead
+                self.depth.segments
             } else {
                 self.window
             };
@@ -669,7 +677,7 @@ impl Windows {
                 Ok(timed) => timed,
                 Err(WindowError::Path(error)) => return Err(error),
                 // The same call checked it when the handoff was made.
-                Err(WindowError::Handoff { .. }) => {
+                Err(WindowError::Handoff { .. } | WindowError::Unmatched) => {
                     unreachable!("planning is deterministic: a handoff checked once holds")
                 }
             };
@@ -681,7 +689,7 @@ impl Windows {
                 // planned again with the next window), so that no more than about half the
                 // work is repeated.
                 if entry.is_none() && 2 * (timed.next - first) < end - first {
-                    self.window = self.window.saturating_mul(2).min(self.lookahead);
+                    self.window = self.window.saturating_mul(2).min(self.depth.segments);
                 }
                 self.time = timed.end_time;
                 self.next = Some(Next::Stop(timed.next));
@@ -689,7 +697,7 @@ impl Windows {
             }
             // No whole chain in the window: it grows (each try is planned in full: a long
             // chain costs about 8/7 of its planning again).
-            self.window = self.window.saturating_mul(8).min(self.lookahead);
+            self.window = self.window.saturating_mul(8).min(self.depth.segments);
         }
     }
 
@@ -707,7 +715,7 @@ impl Windows {
         let end = reached.min(first.saturating_add(size));
         let ending = if reached == end {
             Ending::PathEnd
-        } else if size >= self.lookahead {
+        } else if size >= self.depth.segments {
             Ending::CompleteOrStretch
         } else {
             Ending::Complete
@@ -718,18 +726,19 @@ impl Windows {
     /// A stretch of a long chain (`timed` from segment `first`, its spans in
     /// `self.timing.spans`) up to its handoff: the first place between one half and three
     /// quarters of the way in that the next window can take over from ([`handoff_places`],
-    /// [`HANDOFF_TRIES`] of each kind, none near one refused); failing that, the first of them the next window can take over from
-    /// at a lower speed (the speed it admits there, [`HANDOFF_SLOWDOWNS`] times at most). If
-    /// none can be taken over, the stretch stops at the window's last point, and the next
-    /// window starts from rest there.
+    /// [`HANDOFF_TRIES`] of each kind, none within [`REFUSED_NEIGHBOURHOOD`] of one whose
+    /// piece the next window does not hold); failing that, the first of them the next window
+    /// can take over from more slowly (at the speed it admits there, [`HANDOFF_SLOWDOWNS`]
+    /// times at most). If none can be taken over, the stretch stops at the window's last point,
+    /// and the next window starts from rest there.
     fn hand_over(
         &mut self,
         reader: &mut PathReader,
         first: usize,
         mut timed: Timed,
     ) -> Result<(Timed, usize, WindowEnd), PathError> {
-        let region =
-            first.saturating_add(self.lookahead / 2)..first.saturating_add(self.lookahead / 4 * 3);
+        let region = first.saturating_add(self.depth.segments / 2)
+            ..first.saturating_add(self.depth.segments / 4 * 3);
         let places = handoff_places(&timed.pieces, &self.timing.spans, |piece| {
             region.contains(&(first + first_segment_of(&timed.pieces, piece)))
         });
@@ -740,14 +749,14 @@ impl Windows {
         others.sort_by(|a, b| b.speed.total_cmp(&a.speed).then(b.piece.cmp(&a.piece)));
         // The places the next window could take over only more slowly, at the speed it admits.
         let mut slower = Vec::new();
-        // Where a place was refused: the next window's pieces differ around it (its smoothing
-        // choices there came out otherwise), so the places near it are not tried.
+        // Where the next window's pieces differ from this one's (its smoothing choices there
+        // came out otherwise): the places near them are not tried.
         let mut refused: Vec<usize> = Vec::new();
         let mut tries = [0; 2];
         for cut in exact.into_iter().chain(others) {
             let at = first_segment_of(&timed.pieces, cut.piece);
             let kind = usize::from(!cut.exact);
-            if tries[kind] == self.handoff_tries
+            if tries[kind] == self.depth.handoff_tries
                 || refused
                     .iter()
                     .any(|r| r.abs_diff(at) <= REFUSED_NEIGHBOURHOOD)
@@ -755,20 +764,24 @@ impl Windows {
                 continue;
             }
             tries[kind] += 1;
+            let handed_off = WindowEnd::HandedOff { slowed: false };
             match self.try_handoff(reader, first, &mut timed, cut, cut.speed)? {
-                Tried::HandedOff => return Ok((timed, first, WindowEnd::HandedOff)),
+                Tried::HandedOff => return Ok((timed, first, handed_off)),
                 Tried::TooFast { admissible } => slower.push((cut, admissible)),
-                Tried::Refused => refused.push(at),
+                Tried::Unmatched => refused.push(at),
+                Tried::Refused => {}
             }
         }
         for (cut, mut admissible) in slower {
             for _ in 0..HANDOFF_SLOWDOWNS {
                 let speed = admissible * (1.0 - HANDOFF_SPEED_MARGIN);
                 match self.try_handoff(reader, first, &mut timed, cut, speed)? {
-                    Tried::HandedOff => return Ok((timed, first, WindowEnd::HandedOff)),
+                    Tried::HandedOff => {
+                        return Ok((timed, first, WindowEnd::HandedOff { slowed: true }))
+                    }
                     // Its limits depend on the speed it starts at: they may come out lower.
-                    Tried::TooFast { admissible: lower } if lower < speed => admissible = lower,
-                    Tried::TooFast { .. } | Tried::Refused => break,
+                    Tried::TooFast { admissible: lower } => admissible = lower,
+                    Tried::Unmatched | Tried::Refused => break,
                 }
             }
         }
@@ -796,13 +809,13 @@ impl Windows {
         } else {
             // The span that ends at the handoff, planned again to end there at `speed`: the
             // one before it at a span boundary, else its part up to the handoff.
-            let (index, ending) = if cut.piece == span.first {
+            let (index, replanned) = if cut.piece == span.first {
                 (cut.span - 1, self.timing.spans[cut.span - 1])
             } else {
                 (cut.span, span)
             };
-            let length = timed.pieces.pieces[cut.piece].start - ending.start;
-            let r = &ending.recipe;
+            let length = timed.pieces.pieces[cut.piece].start - replanned.start;
+            let r = &replanned.recipe;
             let Some((recipe, duration)) = Recipe::plan_timed(length, r.v_start, speed, &r.limits)
             else {
                 return Ok(Tried::Refused);
@@ -810,13 +823,13 @@ impl Windows {
             let last = Span {
                 end: cut.piece,
                 recipe,
-                ..ending
+                ..replanned
             };
-            (index, Some(last), ending.start_time + duration)
+            (index, Some(last), replanned.start_time + duration)
         };
         let axes = reader.view().0.axes.len();
         let handoff = Handoff::at(&timed.pieces, first, cut.piece, speed, axes);
-        let (end, ending) = self.window_end(reader, handoff.first, self.lookahead)?;
+        let (end, ending) = self.window_end(reader, handoff.first, self.depth.segments)?;
         let (path, base) = reader.view();
         let check = time_segments(
             path,
@@ -839,6 +852,7 @@ impl Windows {
                 self.next = Some(Next::Handoff(Box::new(handoff)));
                 Ok(Tried::HandedOff)
             }
+            Err(WindowError::Unmatched) => Ok(Tried::Unmatched),
             Err(WindowError::Handoff { admissible }) if admissible > 0.0 && admissible < speed => {
                 Ok(Tried::TooFast { admissible })
             }
@@ -856,7 +870,10 @@ enum Tried {
     TooFast {
         admissible: f64,
     },
-    /// The next window cannot take it over (or the stretch cannot slow down to it in time).
+    /// The next window does not hold the handoff's piece: its geometry differs there.
+    Unmatched,
+    /// The next window cannot go on from the handoff at all, or the stretch cannot slow down
+    /// to the speed in time.
     Refused,
 }
 
@@ -1364,7 +1381,7 @@ impl Cursor {
 impl Part {
     /// Its last chain runs on in the next part.
     fn handed_off(&self) -> bool {
-        self.end == WindowEnd::HandedOff
+        matches!(self.end, WindowEnd::HandedOff { .. })
     }
 
     /// Evaluates `piece` at `at` (σ measured from the piece's start).
@@ -1566,6 +1583,13 @@ impl Plan {
     /// Number of handoffs inside chains longer than [`LOOKAHEAD_SEGMENTS`].
     pub fn handoffs(&self) -> usize {
         self.parts.iter().filter(|p| p.handed_off()).count()
+    }
+
+    /// Number of those handoffs made more slowly than the window before planned, at the speed
+    /// the next window admits there.
+    pub fn slowed_handoffs(&self) -> usize {
+        let slowed = WindowEnd::HandedOff { slowed: true };
+        self.parts.iter().filter(|p| p.end == slowed).count()
     }
 
     /// Number of stops the look-ahead made inside chains longer than it, where no handoff

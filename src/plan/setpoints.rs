@@ -184,6 +184,9 @@ pub trait SetpointStream {
 pub struct LookAhead {
     /// Handoffs between windows while moving.
     pub handoffs: usize,
+    /// Of those, the ones made more slowly than the window before planned, at the speed the
+    /// next window admits.
+    pub slowed: usize,
     /// Stops the look-ahead added where no handoff could be made (at a window's last
     /// programmed point; the program asks for none there).
     pub stops_added: usize,
@@ -193,9 +196,14 @@ impl LookAhead {
     /// A line for reports; `None` when no chain was longer than the look-ahead.
     pub fn summary(&self) -> Option<String> {
         (*self != LookAhead::default()).then(|| {
+            let slowed = if self.slowed > 0 {
+                format!(" ({} slowed to what the next window admits)", self.slowed)
+            } else {
+                String::new()
+            };
             format!(
-                "look-ahead {} blocks: {} handoffs inside longer chains, {} stops added where no \
-                 handoff could be made",
+                "look-ahead {} blocks: {} handoffs inside longer chains{slowed}, {} stops added \
+                 where no handoff could be made",
                 super::planner::LOOKAHEAD_SEGMENTS,
                 self.handoffs,
                 self.stops_added
@@ -207,9 +215,9 @@ impl LookAhead {
     pub fn warning(&self) -> Option<String> {
         (self.stops_added > 0).then(|| {
             format!(
-                "the planner's look-ahead ({} blocks) stopped the motion {} times inside chains \
-                 longer than it, where no handoff to the next window could be made: the cycle \
-                 time and the motion there are not those of a continuous pass",
+                "the planner's look-ahead ({} blocks) added {} stops inside chains longer than \
+                 it, where no handoff to the next window could be made: the cycle time and the \
+                 motion there are not those of a continuous pass",
                 super::planner::LOOKAHEAD_SEGMENTS,
                 self.stops_added
             )
@@ -220,6 +228,7 @@ impl LookAhead {
 impl std::ops::AddAssign for LookAhead {
     fn add_assign(&mut self, other: LookAhead) {
         self.handoffs += other.handoffs;
+        self.slowed += other.slowed;
         self.stops_added += other.stops_added;
     }
 }
@@ -345,7 +354,7 @@ mod tests {
         assert_eq!(LookAhead::default().warning(), None);
         let handed = LookAhead {
             handoffs: 3,
-            stops_added: 0,
+            ..LookAhead::default()
         };
         assert_eq!(
             handed.summary().as_deref(),
@@ -356,10 +365,18 @@ mod tests {
         );
         assert_eq!(handed.warning(), None);
         let stopped = LookAhead {
-            handoffs: 1,
+            handoffs: 2,
+            slowed: 1,
             stops_added: 2,
         };
         let warning = stopped.warning().unwrap();
-        assert!(warning.contains("stopped the motion 2 times"), "{warning}");
+        assert!(warning.contains("added 2 stops"), "{warning}");
+        let summary = stopped.summary().unwrap();
+        assert!(
+            summary.contains(
+                "2 handoffs inside longer chains (1 slowed to what the next window admits)"
+            ),
+            "{summary}"
+        );
     }
 }
