@@ -229,3 +229,47 @@ fn an_ab_recording_overlays_both_variants() {
         .iter()
         .any(|(e, t)| e == "/ab_summary" && t.contains("| max contour error |")));
 }
+
+#[test]
+fn a_run_with_a_chain_longer_than_the_look_ahead_says_so_in_its_summary() {
+    // 5 000 lines of 0.2 mm on a curve (CAM raster rows, every line planned): one chain, a
+    // handoff between two windows of the look-ahead.
+    let dir = tempfile::tempdir().unwrap();
+    let program = format!(
+        "G21 G90 G17 G64 P0.05 Q0\nG0 X0 Y0 Z1\nF3000\n{}M2\n",
+        common::raster_gcode(5000)
+    );
+    std::fs::write(dir.path().join("raster.ngc"), program).unwrap();
+    let mut text = std::fs::read_to_string(root().join("scenarios/xyz_circle_5mms.toml")).unwrap();
+    text = text
+        .replace("../models/", &format!("{}/models/", root().display()))
+        .replace(
+            "circle = { center_mm = [100.0, 100.0], radius_mm = 30.0, start_angle_deg = 0.0, \
+             direction = \"ccw\", z_mm = 0.0 }\nfeed_mm_s = 5.0",
+            "file = \"raster.ngc\"",
+        )
+        .replace(
+            "profile = \"constant-velocity\"",
+            "profile = \"jerk-limited\"\n\
+             limits.x = { velocity = 200.0, acceleration = 2000.0, jerk = 50000.0 }\n\
+             limits.y = { velocity = 200.0, acceleration = 2000.0, jerk = 50000.0 }\n\
+             limits.z = { velocity = 200.0, acceleration = 2000.0, jerk = 50000.0 }",
+        );
+    let file = dir.path().join("raster.toml");
+    std::fs::write(&file, text).unwrap();
+    let scenario = Scenario::load(&file).unwrap();
+    let out = dir.path().join("out");
+    let run = run_scenario_traced(&scenario, &out, &mut |_, _| true).unwrap();
+    assert!(run.stop.is_none(), "{:?}", run.stop);
+    assert!(run.warnings.is_empty(), "{:?}", run.warnings);
+    let all = rrd_strings(&out.join("run.rrd"));
+    let summary = &strings(&all, "TextDocument:text")[0].1;
+    assert!(summary.contains("(5001 moves)"), "{summary}");
+    assert!(
+        summary.contains(
+            "- look-ahead 4096 blocks: 1 handoff inside longer chains, 0 stops added where no \
+             handoff could be made\n"
+        ),
+        "{summary}"
+    );
+}

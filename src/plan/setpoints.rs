@@ -202,11 +202,11 @@ impl LookAhead {
                 String::new()
             };
             format!(
-                "look-ahead {} blocks: {} handoffs inside longer chains{slowed}, {} stops added \
-                 where no handoff could be made",
+                "look-ahead {} blocks: {} inside longer chains{slowed}, {} added where no \
+                 handoff could be made",
                 super::planner::LOOKAHEAD_SEGMENTS,
-                self.handoffs,
-                self.stops_added
+                counted(self.handoffs, "handoff"),
+                counted(self.stops_added, "stop")
             )
         })
     }
@@ -215,13 +215,22 @@ impl LookAhead {
     pub fn warning(&self) -> Option<String> {
         (self.stops_added > 0).then(|| {
             format!(
-                "the planner's look-ahead ({} blocks) added {} stops inside chains longer than \
-                 it, where no handoff to the next window could be made: the cycle time and the \
+                "the planner's look-ahead ({} blocks) added {} inside chains longer than it, \
+                 where no handoff to the next window could be made: the cycle time and the \
                  motion there are not those of a continuous pass",
                 super::planner::LOOKAHEAD_SEGMENTS,
-                self.stops_added
+                counted(self.stops_added, "stop")
             )
         })
+    }
+}
+
+/// `n` and the noun, plural but for one.
+fn counted(n: usize, noun: &str) -> String {
+    if n == 1 {
+        format!("1 {noun}")
+    } else {
+        format!("{n} {noun}s")
     }
 }
 
