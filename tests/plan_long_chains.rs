@@ -121,13 +121,13 @@ fn check_against_whole(
     let windowed = plan_with_lookahead(path, lookahead).unwrap();
     let whole = plan_with_lookahead(path, usize::MAX).unwrap();
     assert_eq!(windowed.chain_count(), whole.chain_count(), "{name}");
+    let look_ahead = windowed.look_ahead();
     assert!(
-        windowed.handoffs() >= handoffs,
-        "{name}: {} handoffs, {} chains",
-        windowed.handoffs(),
+        look_ahead.handoffs >= handoffs,
+        "{name}: {look_ahead:?}, {} chains",
         windowed.chain_count()
     );
-    assert_eq!(windowed.stops_added(), 0, "{name}");
+    assert_eq!(look_ahead.stops_added, 0, "{name}");
     assert!(
         windowed.largest_window() <= lookahead,
         "{name}: {}",
@@ -145,8 +145,8 @@ fn check_against_whole(
         "{name}: {} segments, {} handoffs ({} slowed), {:.6} s with a look-ahead of {lookahead}, \
          {:.6} s whole (ratio {:.8})",
         path.segments.len(),
-        windowed.handoffs(),
-        windowed.slowed_handoffs(),
+        look_ahead.handoffs,
+        look_ahead.slowed,
         windowed.duration(),
         whole.duration(),
         windowed.duration() / whole.duration()
@@ -393,7 +393,7 @@ fn handoffs_where_the_next_window_differs_are_found_elsewhere_or_more_slowly() {
             &feeds,
         );
         let (windowed, _) = check_against_whole(&format!("case {k}"), &path, 128, 1);
-        slowed += windowed.slowed_handoffs();
+        slowed += windowed.look_ahead().slowed;
     }
     // Case 0 stops short unless a handoff is slowed to what the next window admits (one is);
     // case 1 unless the places next to one the next window does not hold are passed over.
@@ -437,7 +437,7 @@ fn a_program_with_a_long_chain_streams_as_its_whole_plan_samples_it() {
         .unwrap();
     assert_eq!(plans.len(), 2);
     assert_eq!(plans[0].0.segments.len(), 9001);
-    assert_eq!(plans[0].1.handoffs(), look_ahead.handoffs);
+    assert_eq!(plans[0].1.look_ahead(), look_ahead);
     let first = plans[0].1.sample(1e-3);
     let mut sample = SetpointSample::zeros(3);
     let n = 3;

@@ -344,8 +344,16 @@ fn a_chain_longer_than_the_look_ahead_stays_near_the_toppra_bound() {
             ceiling,
         };
         let planned = plan_case(&case);
-        let handoffs: usize = planned.plans.iter().map(|(_, p)| p.handoffs()).sum();
-        let stops: usize = planned.plans.iter().map(|(_, p)| p.stops_added()).sum();
+        let handoffs: usize = planned
+            .plans
+            .iter()
+            .map(|(_, p)| p.look_ahead().handoffs)
+            .sum();
+        let stops: usize = planned
+            .plans
+            .iter()
+            .map(|(_, p)| p.look_ahead().stops_added)
+            .sum();
         assert!(handoffs >= 1, "{}: no handoff", case.key());
         assert_eq!(stops, 0, "{}", case.key());
         assert_limits_kept(&case, &planned);

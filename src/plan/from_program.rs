@@ -159,11 +159,10 @@ pub fn jerk_limited_plans(
     for stretch in stretches {
         if let Stretch::Windows { plan, .. } = stretch {
             // Whole: for inspecting the planned geometry and timing.
-            let (path, first_move) = plan
-                .whole_path()
-                .map_err(|source| path_error(program, plan.first_move(), source))?;
-            let plan =
-                super::plan(&path).map_err(|source| path_error(program, first_move, source))?;
+            let first_move = plan.first_move();
+            let error = |source| path_error(program, first_move, source);
+            let path = plan.whole_path().map_err(error)?;
+            let plan = super::plan(&path).map_err(error)?;
             plans.push((path, plan));
         }
     }
@@ -562,65 +561,13 @@ fn jerk_limited_stretches<'a>(
         at: start.clone(),
         segment: 0,
     }];
-    // The motion being read: its first move and where it starts.
-    let (mut first, mut first_at) = (0, program.start);
-    // Segments whose windows may be kept for evaluation, all motions together.
-    let mut kept = KEPT_SEGMENTS;
-    let mut at = program.start;
-    let plan_motion = |moves: std::ops::Range<usize>,
-                       first_at: program::Position,
-                       start: &mut Vec<f64>,
-                       stretches: &mut Vec<Stretch<'a>>,
-                       budget: &mut SampleBudget,
-                       kept: &mut usize|
-     -> Result<(), PlanError> {
-        if moves.is_empty() {
-            return Ok(());
-        }
-        let first_move = moves.start;
-        let header = AxisPath {
-            axes: specs.clone(),
-            start: start.clone(),
-            segments: Vec::new(),
-            tool_lever_arms: settings.tool_lever_arms.clone(),
-        };
-        let source = MoveSegments::new(program, axes, settings, moves, first_at, start.clone());
-        let error = |source| path_error(program, first_move, source);
-        let reader = PathReader::streamed(header, Box::new(source)).map_err(error)?;
-        let windows = PlanWindows::new(reader, WINDOW_SEGMENTS, first_move, kept).map_err(error)?;
-        if std::env::var_os("CNCSIM_PLAN_DEBUG").is_some() {
-            if let Ok(planned) = windows.whole_path().and_then(|(path, _)| plan(&path)) {
-                eprintln!("{}", planned.debug_dump());
-            }
-        }
-        let (end, last) = windows.end();
-        start.clear();
-        start.extend_from_slice(end);
-        let line = program.moves.get(last as usize).map_or(0, |m| m.span.line);
-        let ticks = budget.add_motion(windows.duration(), last as usize, line)?;
-        stretches.push(Stretch::Windows {
-            plan: Box::new(windows),
-            ticks,
-        });
-        Ok(())
-    };
+    // The motions: the moves between dwells, where each starts, and the dwell after it.
+    let mut motions = Vec::new();
+    let (mut first, mut first_at, mut at) = (0, program.start, program.start);
     for (index, m) in program.moves.iter().enumerate() {
         match m.motion {
             Motion::Dwell { seconds } => {
-                plan_motion(
-                    first..index,
-                    first_at,
-                    &mut start,
-                    &mut stretches,
-                    &mut budget,
-                    &mut kept,
-                )?;
-                let ticks = budget.add_dwell(seconds, index, m.span.line)?;
-                stretches.push(Stretch::Hold {
-                    at: start.clone(),
-                    segment: index as u32,
-                    ticks,
-                });
+                motions.push((first..index, first_at, Some((index, seconds))));
                 (first, first_at) = (index + 1, at);
                 continue;
             }
@@ -635,15 +582,47 @@ fn jerk_limited_stretches<'a>(
         }
         at = m.end;
     }
-    let end = program.moves.len();
-    plan_motion(
-        first..end,
-        first_at,
-        &mut start,
-        &mut stretches,
-        &mut budget,
-        &mut kept,
-    )?;
+    motions.push((first..program.moves.len(), first_at, None));
+    // Segments whose windows may be kept for evaluation, all motions together.
+    let mut kept = KEPT_SEGMENTS;
+    for (moves, first_at, dwell) in motions {
+        if !moves.is_empty() {
+            let first_move = moves.start;
+            let header = AxisPath {
+                axes: specs.clone(),
+                start: start.clone(),
+                segments: Vec::new(),
+                tool_lever_arms: settings.tool_lever_arms.clone(),
+            };
+            let source = MoveSegments::new(program, axes, settings, moves, first_at, start.clone());
+            let error = |source| path_error(program, first_move, source);
+            let reader = PathReader::streamed(header, Box::new(source)).map_err(error)?;
+            let windows =
+                PlanWindows::new(reader, WINDOW_SEGMENTS, first_move, &mut kept).map_err(error)?;
+            if std::env::var_os("CNCSIM_PLAN_DEBUG").is_some() {
+                if let Ok(planned) = windows.whole_path().and_then(|path| plan(&path)) {
+                    eprintln!("{}", planned.debug_dump());
+                }
+            }
+            let (end, last) = windows.end();
+            start.clear();
+            start.extend_from_slice(end);
+            let line = program.moves.get(last as usize).map_or(0, |m| m.span.line);
+            let ticks = budget.add_motion(windows.duration(), last as usize, line)?;
+            stretches.push(Stretch::Windows {
+                plan: Box::new(windows),
+                ticks,
+            });
+        }
+        if let Some((index, seconds)) = dwell {
+            let ticks = budget.add_dwell(seconds, index, program.moves[index].span.line)?;
+            stretches.push(Stretch::Hold {
+                at: start.clone(),
+                segment: index as u32,
+                ticks,
+            });
+        }
+    }
     Ok(stretches)
 }
 

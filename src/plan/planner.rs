@@ -1054,13 +1054,13 @@ impl<'a> PlanWindows<'a> {
         })
     }
 
-    /// The whole path (made again, for inspecting it), and the program move it starts with.
-    pub fn whole_path(&self) -> Result<(AxisPath, usize), PathError> {
+    /// The whole path (made again, for inspecting it).
+    pub fn whole_path(&self) -> Result<AxisPath, PathError> {
         let mut reader = self.reader.restart();
         let count = reader.reach(usize::MAX)?;
         let (path, base) = reader.view();
         debug_assert_eq!((base, path.segments.len()), (0, count));
-        Ok((path.clone(), self.first_move))
+        Ok(path.clone())
     }
 
     /// The program move the path starts with.
@@ -1577,28 +1577,17 @@ impl Plan {
     /// once).
     pub fn chain_count(&self) -> usize {
         let chains: usize = self.parts.iter().map(|p| p.pieces.chains.len()).sum();
-        chains - self.handoffs()
+        chains - self.look_ahead().handoffs
     }
 
-    /// Number of handoffs inside chains longer than [`LOOKAHEAD_SEGMENTS`].
-    pub fn handoffs(&self) -> usize {
-        self.parts.iter().filter(|p| p.handed_off()).count()
-    }
-
-    /// Number of those handoffs made more slowly than the window before planned, at the speed
-    /// the next window admits there.
-    pub fn slowed_handoffs(&self) -> usize {
-        let slowed = WindowEnd::HandedOff { slowed: true };
-        self.parts.iter().filter(|p| p.end == slowed).count()
-    }
-
-    /// Number of stops the look-ahead made inside chains longer than it, where no handoff
-    /// could be taken over (stops the program does not ask for).
-    pub fn stops_added(&self) -> usize {
-        self.parts
-            .iter()
-            .filter(|p| p.end == WindowEnd::StopsShort)
-            .count()
+    /// What the look-ahead did with chains longer than [`LOOKAHEAD_SEGMENTS`]: its handoffs
+    /// (slowed or not) and the stops it added, as a run's stream reports them.
+    pub fn look_ahead(&self) -> LookAhead {
+        let mut look_ahead = LookAhead::default();
+        for part in &self.parts {
+            look_ahead.count(part.end);
+        }
+        look_ahead
     }
 
     /// Most segments any window of the plan holds (at most [`LOOKAHEAD_SEGMENTS`]).
@@ -1971,17 +1960,18 @@ mod tests {
         ] {
             let lookahead = depth.segments;
             let whole = plan_at_depth(&path, depth).unwrap();
+            let look_ahead = whole.look_ahead();
             if lookahead == LOOKAHEAD_SEGMENTS {
                 assert!(whole.chain_count() > 10, "{}", whole.chain_count());
             } else if depth.handoff_tries > 0 {
                 assert_eq!(whole.chain_count(), 1);
-                assert!(whole.handoffs() >= 2, "{}", whole.handoffs());
-                assert_eq!(whole.stops_added(), 0);
+                assert!(look_ahead.handoffs >= 2, "{look_ahead:?}");
+                assert_eq!(look_ahead.stops_added, 0);
                 assert!(whole.largest_window() <= lookahead);
             } else {
-                assert_eq!(whole.handoffs(), 0);
-                assert!(whole.stops_added() >= 2, "{}", whole.stops_added());
-                assert_eq!(whole.chain_count(), 1 + whole.stops_added());
+                assert_eq!(look_ahead.handoffs, 0);
+                assert!(look_ahead.stops_added >= 2, "{look_ahead:?}");
+                assert_eq!(whole.chain_count(), 1 + look_ahead.stops_added);
             }
             let period = 1e-3;
             let expected = whole.sample(period);
@@ -2036,7 +2026,7 @@ mod tests {
             .filter(|p| p.end == WindowEnd::StopsShort)
             .map(|p| p.first_segment + p.shapes.len())
             .collect();
-        assert_eq!(stops.len(), windowed.stops_added());
+        assert_eq!(stops.len(), windowed.look_ahead().stops_added);
         assert!(stops.len() >= 2, "{stops:?}");
         let speeds = windowed.junction_speeds();
         for (k, (v, w)) in speeds.iter().zip(whole.junction_speeds()).enumerate() {
