@@ -59,6 +59,13 @@ pub enum Command {
         #[arg(long)]
         rrd: Option<PathBuf>,
     },
+    /// Your own machine: `check` shows how cncsim reads a URDF and its drive file (letter →
+    /// joint, direction, sign, travel, masses, meshes, what is missing); `init` writes a
+    /// commented drive file for a URDF, its letters guessed from the kinematics.
+    Machine {
+        #[command(subcommand)]
+        action: MachineCommand,
+    },
     /// Rigid-body inverse dynamics of a URDF at one state: joint torques τ, M(q), C(q,q̇)q̇ and
     /// g(q) (SI units, joints in URDF order).
     Dynamics {
@@ -221,5 +228,26 @@ pub enum Command {
         /// Output root (default: out/); each scenario writes to <root>/<name>.
         #[arg(long)]
         out: Option<PathBuf>,
+    },
+}
+
+#[derive(Subcommand, Debug)]
+pub enum MachineCommand {
+    /// Load a URDF with its drive file and print the mapping from program letters to joints.
+    Check {
+        urdf: PathBuf,
+        /// Print the report as JSON.
+        #[arg(long)]
+        json: bool,
+    },
+    /// Write a drive file for a URDF (default: next to it, `<name>.drives.toml`).
+    Init {
+        urdf: PathBuf,
+        /// Where to write it (`-` for standard output).
+        #[arg(long)]
+        out: Option<PathBuf>,
+        /// Replace an existing file.
+        #[arg(long)]
+        force: bool,
     },
 }

@@ -7,6 +7,7 @@
 //! inverse-dynamics controller). A stage never imports a later one.
 
 pub mod control;
+pub(crate) mod convert;
 pub mod diagnostics;
 pub mod dynamics;
 pub mod kinematics;

@@ -16,7 +16,7 @@ use std::sync::atomic::{AtomicBool, Ordering};
 use std::time::Duration;
 
 mod cli;
-use cli::{Cli, Command};
+use cli::{Cli, Command, MachineCommand};
 
 /// The bundled scenario `cncsim` runs without arguments.
 const DEFAULT_SCENARIO: &str = "scenarios/xyz_circle_5mms.toml";
@@ -72,6 +72,7 @@ fn main() -> ExitCode {
             csv,
             rrd,
         }) => plan_one(&scenario, profile, csv, rrd),
+        Some(Command::Machine { action }) => machine_cli(action),
         Some(Command::Dynamics {
             urdf,
             q,
@@ -835,6 +836,52 @@ fn execute(scenario: &Scenario, out: &Path) -> Result<RunOutput, cncsim::scenari
     let result = run_scenario(scenario, out, &mut progress);
     bar.finish_and_clear();
     result
+}
+
+/// `cncsim machine check|init`.
+fn machine_cli(action: MachineCommand) -> ExitCode {
+    match action {
+        MachineCommand::Check { urdf, json } => match cncsim::scenario::check_machine(&urdf) {
+            Ok(report) if json => {
+                println!(
+                    "{}",
+                    serde_json::to_string_pretty(&report.json()).expect("JSON of plain values")
+                );
+                ExitCode::SUCCESS
+            }
+            Ok(report) => {
+                print!("{}", report.text());
+                ExitCode::SUCCESS
+            }
+            Err(e) => fail_input(&e),
+        },
+        MachineCommand::Init { urdf, out, force } => {
+            let text = match cncsim::scenario::drive_file_template(&urdf) {
+                Ok(t) => t,
+                Err(e) => return fail_input(&e),
+            };
+            let out = out.unwrap_or_else(|| cncsim::machine::DrivesFile::path_for(&urdf));
+            if out == Path::new("-") {
+                print!("{text}");
+                return ExitCode::SUCCESS;
+            }
+            if out.exists() && !force {
+                return fail_input(&format!(
+                    "{}: exists already; --force replaces it, --out writes elsewhere",
+                    out.display()
+                ));
+            }
+            if let Err(e) = std::fs::write(&out, text) {
+                return fail_input(&format!("{}: cannot write: {e}", out.display()));
+            }
+            eprintln!(
+                "wrote {}: fill in the values marked ASSUMED, then `cncsim machine check {}`",
+                out.display(),
+                urdf.display()
+            );
+            ExitCode::SUCCESS
+        }
+    }
 }
 
 fn fail_input(e: &dyn std::fmt::Display) -> ExitCode {

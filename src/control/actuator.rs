@@ -127,6 +127,8 @@ mod tests {
             guide: None,
             feedback: Default::default(),
             encoder_counts_per_rev: None,
+            sign: 1,
+            home: 0.0,
         }
     }
 

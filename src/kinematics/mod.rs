@@ -5,6 +5,9 @@
 //! kinematics here.
 
 pub mod ac_table;
+mod frame;
+
+pub use frame::{carrier_link, chain_joints, ProgramFrame, ORTHOGONALITY_TOLERANCE};
 
 pub use ac_table::{
     AcAxes, AcAxis, AcInverseError, AcSolution, AcTableKinematics, AcTopologyError, Branch,
@@ -14,11 +17,15 @@ pub use ac_table::{
 use crate::machine::Machine;
 use crate::program::Position;
 
-/// Where each machine axis takes its coordinate from in a program [`Position`].
+/// Where each machine axis takes its coordinate from in a program [`Position`], and how: joint
+/// = home + sign × (program coordinate + work offset), the work offset (G54) for X, Y, Z only.
+/// On a plain machine (sign +1, home 0, no offset) the program's numbers are the joints'.
 #[derive(Debug, Clone, PartialEq)]
 pub struct AxisMap {
     /// For machine axis i: (linear?, index into `Position::linear` or `Position::rotary`).
     sources: Vec<(bool, usize)>,
+    /// For machine axis i: (sign, joint coordinate at program zero), where not (1, 0).
+    affine: Vec<Option<(f64, f64)>>,
 }
 
 #[derive(Debug, Clone, thiserror::Error, PartialEq)]
@@ -26,9 +33,26 @@ pub struct AxisMap {
 pub struct UnknownAxis(pub String);
 
 impl AxisMap {
-    /// Trivial kinematics: machine axis `x` takes program X, and so on.
-    pub fn cartesian(machine: &Machine) -> Result<AxisMap, UnknownAxis> {
-        let sources = machine
+    /// Trivial kinematics: machine axis `x` takes program X, and so on, each with its drive's
+    /// sign and home; program zero at `work_offset` (m, machine coordinates of X, Y, Z).
+    pub fn new(machine: &Machine, work_offset: [f64; 3]) -> Result<AxisMap, UnknownAxis> {
+        let mut map = Self::joint_coordinates(machine)?;
+        for (i, axis) in machine.axes.iter().enumerate() {
+            let (linear, index) = map.sources[i];
+            let offset = if linear { work_offset[index] } else { 0.0 };
+            let sign = f64::from(axis.drive.sign);
+            let zero = axis.drive.home + sign * offset;
+            if sign != 1.0 || zero != 0.0 {
+                map.affine[i] = Some((sign, zero));
+            }
+        }
+        Ok(map)
+    }
+
+    /// Program coordinates that are joint coordinates (the A-C table's inverse kinematics
+    /// gives joint coordinates).
+    pub fn joint_coordinates(machine: &Machine) -> Result<AxisMap, UnknownAxis> {
+        let sources: Vec<(bool, usize)> = machine
             .axes
             .iter()
             .map(|a| match a.name.as_str() {
@@ -41,13 +65,20 @@ impl AxisMap {
                 other => Err(UnknownAxis(other.to_string())),
             })
             .collect::<Result<_, _>>()?;
-        Ok(AxisMap { sources })
+        let affine = vec![None; sources.len()];
+        Ok(AxisMap { sources, affine })
     }
 
     /// A map from explicit sources: (linear?, index) per machine axis.
     #[cfg(test)]
     pub(crate) fn from_sources(sources: Vec<(bool, usize)>) -> AxisMap {
-        AxisMap { sources }
+        let affine = vec![None; sources.len()];
+        AxisMap { sources, affine }
+    }
+
+    /// Whether every machine axis takes its program coordinate as it is.
+    pub fn is_identity(&self) -> bool {
+        self.affine.iter().all(Option::is_none)
     }
 
     /// The machine axis fed by a program coordinate (linear index 0–2 = X, Y, Z; rotary 0–2 =
@@ -67,15 +98,53 @@ impl AxisMap {
 
     /// Machine-axis coordinates of a program position.
     pub fn machine_axes(&self, p: &Position, out: &mut [f64]) {
-        for (o, &(linear, i)) in out.iter_mut().zip(&self.sources) {
-            *o = if linear { p.linear[i] } else { p.rotary[i] };
+        for ((o, &(linear, i)), affine) in out.iter_mut().zip(&self.sources).zip(&self.affine) {
+            let v = if linear { p.linear[i] } else { p.rotary[i] };
+            *o = match affine {
+                None => v,
+                Some((sign, zero)) => zero + sign * v,
+            };
         }
+    }
+
+    /// Machine-axis components of a program-frame vector (a velocity, a direction).
+    pub fn machine_vector(&self, v: &Position, out: &mut [f64]) {
+        for ((o, &(linear, i)), affine) in out.iter_mut().zip(&self.sources).zip(&self.affine) {
+            let c = if linear { v.linear[i] } else { v.rotary[i] };
+            *o = match affine {
+                Some((sign, _)) if *sign < 0.0 => -c,
+                _ => c,
+            };
+        }
+    }
+
+    /// An arc of the program in the plane of machine axes `plane` = (i, j): its centre on
+    /// those axes and its sense there (a mirrored axis turns clockwise into anticlockwise).
+    pub fn machine_arc(
+        &self,
+        plane: [usize; 2],
+        center: [f64; 2],
+        clockwise: bool,
+    ) -> ([f64; 2], bool) {
+        let mut mirrored = false;
+        let mut out = center;
+        for (o, &axis) in out.iter_mut().zip(&plane) {
+            if let Some((sign, zero)) = self.affine[axis] {
+                *o = zero + sign * *o;
+                mirrored ^= sign < 0.0;
+            }
+        }
+        (out, clockwise ^ mirrored)
     }
 
     /// Program position of machine-axis coordinates (axes the machine lacks stay at zero).
     pub fn program_position(&self, q: &[f64]) -> Position {
         let mut p = Position::default();
-        for (&v, &(linear, i)) in q.iter().zip(&self.sources) {
+        for ((&v, &(linear, i)), affine) in q.iter().zip(&self.sources).zip(&self.affine) {
+            let v = match affine {
+                None => v,
+                Some((sign, zero)) => sign * (v - zero),
+            };
             if linear {
                 p.linear[i] = v;
             } else {
@@ -89,26 +158,13 @@ impl AxisMap {
 /// World pose of every link for joint coordinates `q` (one per machine axis, in axis order):
 /// the forward kinematics of the URDF tree.
 pub fn link_poses(machine: &Machine, q: &[f64]) -> Vec<nalgebra::Isometry3<f64>> {
-    use crate::machine::JointKind;
-    use nalgebra::{Isometry3, Translation3, Unit, UnitQuaternion};
     let mut joint_value = vec![0.0; machine.joints.len()];
     for (axis, &v) in machine.axes.iter().zip(q) {
         joint_value[axis.joint] = v;
     }
-    let mut poses = vec![Isometry3::identity(); machine.links.len()];
+    let mut poses = vec![nalgebra::Isometry3::identity(); machine.links.len()];
     for (j, joint) in machine.joints.iter().enumerate() {
-        let motion = match joint.kind {
-            JointKind::Fixed => Isometry3::identity(),
-            JointKind::Prismatic => Isometry3::from_parts(
-                Translation3::from(joint.axis * joint_value[j]),
-                UnitQuaternion::identity(),
-            ),
-            JointKind::Revolute => Isometry3::from_parts(
-                Translation3::identity(),
-                UnitQuaternion::from_axis_angle(&Unit::new_normalize(joint.axis), joint_value[j]),
-            ),
-        };
-        poses[joint.child] = poses[joint.parent] * joint.origin * motion;
+        poses[joint.child] = poses[joint.parent] * joint.origin * joint.motion(joint_value[j]);
     }
     poses
 }
@@ -121,7 +177,16 @@ pub fn tool_point(machine: &Machine, q: &[f64]) -> nalgebra::Point3<f64> {
 /// Tool point in the workpiece link's frame for joint coordinates `q`: where the tool is on
 /// the part, whichever of them the axes move.
 pub fn tool_in_workpiece(machine: &Machine, q: &[f64]) -> nalgebra::Point3<f64> {
+    tool_in_link(machine, machine.workpiece_link, q)
+}
+
+/// Tool point in the frame of `link` for joint coordinates `q`.
+pub fn tool_in_link(machine: &Machine, link: usize, q: &[f64]) -> nalgebra::Point3<f64> {
     let poses = link_poses(machine, q);
     let tool = poses[machine.tool_link] * nalgebra::Point3::from(machine.tool.offset_m);
-    poses[machine.workpiece_link].inverse_transform_point(&tool)
+    if link == machine.root {
+        // The base's frame is the world's.
+        return tool;
+    }
+    poses[link].inverse_transform_point(&tool)
 }

@@ -347,6 +347,17 @@ pub struct Drive {
     /// Motor encoder resolution, counts per motor revolution; absent = ideal feedback.
     #[serde(default)]
     pub encoder_counts_per_rev: Option<u32>,
+    /// +1: the axis letter's positive direction is where the joint moves the tool relative to
+    /// the workpiece as its coordinate grows; -1 reverses it (a negative SCALE in LinuxCNC).
+    #[serde(default = "positive")]
+    pub sign: i8,
+    /// Joint coordinate at machine zero (m or rad), where the axis is homed.
+    #[serde(default)]
+    pub home: f64,
+}
+
+fn positive() -> i8 {
+    1
 }
 
 impl Drive {
@@ -440,6 +451,15 @@ impl Drive {
                 return Err("a guide (friction contact) needs a linear axis".into());
             }
         }
+        if !matches!(self.sign, 1 | -1) {
+            return Err(format!("sign = {}: expected 1 or -1", self.sign));
+        }
+        if !self.home.is_finite() {
+            return Err(format!(
+                "home = {:?}: expected a finite joint coordinate",
+                self.home
+            ));
+        }
         if self.encoder_counts_per_rev == Some(0) {
             return Err(
                 "encoder_counts_per_rev = 0: expected at least 1 count per revolution".into(),
@@ -466,11 +486,46 @@ pub struct Workpiece {
     pub link: String,
 }
 
+/// What happens to a moving URDF joint that no axis drives (`[joints.<name>]`).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Deserialize)]
+#[serde(rename_all = "kebab-case")]
+pub enum JointMode {
+    /// Held at `position`: the joint becomes a fixed one.
+    Locked,
+    /// Free, with the URDF's own `<dynamics damping friction>` (physics only).
+    Passive,
+}
+
+/// A `[joints.<name>]` entry.
+#[derive(Debug, Clone, Copy, PartialEq, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct JointSetting {
+    pub mode: JointMode,
+    /// Where a locked joint is held (m or rad); absent: 0, or the nearer limit if 0 is
+    /// outside the travel.
+    #[serde(default)]
+    pub position: Option<f64>,
+}
+
+/// `inertia_from_geometry`: masses and inertias of links the URDF leaves massless, from their
+/// collision (else visual) geometry at a uniform density, as MuJoCo's `inertiafromgeom` does.
+#[derive(Debug, Clone, Copy, PartialEq, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct InertiaFromGeometry {
+    pub density_kg_m3: f64,
+}
+
+/// Range of `inertia_from_geometry.density_kg_m3`: from foam to tungsten, with margin.
+pub const DENSITY_RANGE_KG_M3: (f64, f64) = (10.0, 25_000.0);
+
+/// The program letters an axis may have.
+pub const AXIS_LETTERS: [&str; 6] = ["x", "y", "z", "a", "b", "c"];
+
 /// Contents of a drive sidecar file.
 #[derive(Debug, Clone, PartialEq, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct DrivesFile {
-    /// The URDF `<robot name>` this file belongs to.
+    /// The URDF `<robot name>` this file belongs to, or the URDF's file name.
     pub machine: String,
     pub tool: Tool,
     /// Absent: the workpiece sits on the machine base.
@@ -478,12 +533,18 @@ pub struct DrivesFile {
     pub workpiece: Option<Workpiece>,
     /// Drives keyed by the program letter of the axis.
     pub axes: BTreeMap<String, toml::Spanned<Drive>>,
+    /// Moving joints no axis drives, keyed by URDF joint name.
+    #[serde(default)]
+    pub joints: BTreeMap<String, toml::Spanned<JointSetting>>,
+    #[serde(default)]
+    pub inertia_from_geometry: Option<InertiaFromGeometry>,
     #[serde(skip)]
     text: String,
 }
 
 impl DrivesFile {
-    /// `models/xyz_table.urdf` → `models/xyz_table.drives.toml`.
+    /// The sidecar naming rule, stated once: `models/foo.urdf` → `models/foo.drives.toml`, next
+    /// to the URDF.
     pub fn path_for(urdf: &Path) -> PathBuf {
         urdf.with_extension("drives.toml")
     }
@@ -500,45 +561,45 @@ impl DrivesFile {
         Ok(file)
     }
 
-    /// Checks the drives against the URDF and builds the machine.
+    /// Checks the drives against the URDF and builds the machine: joints no axis drives are
+    /// locked, passive or follow their `<mimic>` leader ([`super::joints`]), missing masses are
+    /// computed or refused ([`super::inertia`]), then every axis is checked against its joint.
     pub fn attach(self, tree: KinematicTree, path: &Path) -> Result<Machine, FileError> {
         let text = &self.text;
         let at = |key: &str| LineColumn::of_first(text, key);
-        if self.machine != tree.name {
+        let urdf_file = tree
+            .path
+            .file_name()
+            .map_or_else(String::new, |n| n.to_string_lossy().into_owned());
+        if self.machine != tree.name && self.machine != urdf_file {
             return Err(FileError::new(
                 path,
                 at("machine"),
                 format!(
-                    "machine = {:?}, but the URDF's robot is named {:?}",
-                    self.machine, tree.name
+                    "machine = {:?}: expected the URDF's robot name {:?} or its file name {:?}",
+                    self.machine, tree.name, urdf_file
                 ),
             ));
         }
-        let tool_link = tree
-            .links
-            .iter()
-            .position(|l| l.name == self.tool.link)
-            .ok_or_else(|| {
-                FileError::new(
-                    path,
-                    at("link"),
-                    format!("tool link '{}' is not a link of the URDF", self.tool.link),
-                )
-            })?;
-        let workpiece_link = match &self.workpiece {
-            None => tree.root,
-            Some(w) => tree
-                .links
+        let link_named = |name: &str, key: &str, what: &str| {
+            tree.links
                 .iter()
-                .position(|l| l.name == w.link)
+                .position(|l| l.name == name)
                 .ok_or_else(|| {
                     FileError::new(
                         path,
-                        at("[workpiece]"),
-                        format!("workpiece link '{}' is not a link of the URDF", w.link),
+                        at(key),
+                        format!(
+                            "{what} link '{name}' is not a link of the URDF (its links: {})",
+                            list(tree.links.iter().map(|l| l.name.as_str()))
+                        ),
                     )
-                })?,
+                })
         };
+        link_named(&self.tool.link, "[tool]", "tool")?;
+        if let Some(w) = &self.workpiece {
+            link_named(&w.link, "[workpiece]", "workpiece")?;
+        }
         if !self
             .tool
             .offset_m
@@ -555,10 +616,69 @@ impl DrivesFile {
                 ),
             ));
         }
-        let mut axes = Vec::new();
-        let mut warnings = tree.warnings;
+        let place_of = |span: std::ops::Range<usize>| Some(LineColumn::of_offset(text, span.start));
         for (name, spanned) in &self.axes {
-            let place = Some(LineColumn::of_offset(text, spanned.span().start));
+            if !AXIS_LETTERS.contains(&name.as_str()) {
+                return Err(FileError::new(
+                    path,
+                    place_of(spanned.span()),
+                    format!(
+                        "[axes.{name}]: '{name}' is not an axis letter (expected one of {})",
+                        AXIS_LETTERS.join(", ")
+                    ),
+                ));
+            }
+        }
+        let driven: Vec<(&str, Option<LineColumn>)> = self
+            .axes
+            .iter()
+            .map(|(_, d)| (d.get_ref().joint.as_str(), place_of(d.span())))
+            .collect();
+        let settings: Vec<(&str, JointSetting, Option<LineColumn>)> = self
+            .joints
+            .iter()
+            .map(|(name, s)| (name.as_str(), *s.get_ref(), place_of(s.span())))
+            .collect();
+        let super::joints::Resolved {
+            mut tree,
+            passive,
+            warnings: joint_warnings,
+        } = super::joints::resolve(tree, &driven, &settings, path)?;
+        let mut warnings = std::mem::take(&mut tree.warnings);
+        warnings.extend(joint_warnings);
+        let inertia = match self.inertia_from_geometry {
+            Some(g) => {
+                let (lo, hi) = DENSITY_RANGE_KG_M3;
+                check_range(
+                    "inertia_from_geometry.density_kg_m3",
+                    g.density_kg_m3,
+                    "kg/m³",
+                    lo,
+                    hi,
+                )
+                .map_err(|m| FileError::new(path, at("inertia_from_geometry"), m))?;
+                Some(g.density_kg_m3)
+            }
+            None => None,
+        };
+        let computed = super::inertia::complete(&mut tree, inertia, path)?;
+
+        let tool_link = tree
+            .links
+            .iter()
+            .position(|l| l.name == self.tool.link)
+            .expect("checked above");
+        let workpiece_link = match &self.workpiece {
+            None => tree.root,
+            Some(w) => tree
+                .links
+                .iter()
+                .position(|l| l.name == w.link)
+                .expect("checked above"),
+        };
+        let mut axes = Vec::new();
+        for (name, spanned) in &self.axes {
+            let place = place_of(spanned.span());
             let drive = spanned.get_ref();
             let fail = |m: String| FileError::new(path, place, format!("axis '{name}': {m}"));
             drive.check().map_err(&fail)?;
@@ -566,12 +686,7 @@ impl DrivesFile {
                 .joints
                 .iter()
                 .position(|j| j.name == drive.joint)
-                .ok_or_else(|| {
-                    fail(format!(
-                        "joint '{}' is not a joint of the URDF",
-                        drive.joint
-                    ))
-                })?;
+                .expect("resolve checked every driven joint");
             let kind = tree.joints[joint].kind;
             if kind != drive.transmission.joint_kind() {
                 return Err(fail(format!(
@@ -592,7 +707,8 @@ impl DrivesFile {
                 return Err(fail(format!("joint '{}' is driven twice", drive.joint)));
             }
             // The dead band must fit in the travel, or the carriage never engages.
-            let travel = match (kind, tree.joints[joint].limits) {
+            let limits = tree.joints[joint].limits;
+            let travel = match (kind, limits) {
                 (_, Some([lo, hi])) => hi - lo,
                 (JointKind::Revolute, None) => std::f64::consts::TAU,
                 _ => f64::INFINITY,
@@ -602,6 +718,14 @@ impl DrivesFile {
                     "backlash = {:?} is not smaller than the travel {travel:?} of joint '{}': the carriage would never engage",
                     drive.backlash, drive.joint
                 )));
+            }
+            if let Some([lo, hi]) = limits {
+                if !(lo..=hi).contains(&drive.home) {
+                    return Err(fail(format!(
+                        "home = {:?} is outside the travel [{lo:?}, {hi:?}] of joint '{}'",
+                        drive.home, drive.joint
+                    )));
+                }
             }
             if drive.backlash > SUSPECT_BACKLASH {
                 warnings.push(fail(format!(
@@ -617,23 +741,23 @@ impl DrivesFile {
                     )));
                 }
             }
+            let rotary_letter = ["a", "b", "c"].contains(&name.as_str());
+            if rotary_letter != (kind == JointKind::Revolute) {
+                return Err(fail(format!(
+                    "joint '{}' is {}: the letters x, y, z name linear axes, a, b, c rotary ones",
+                    drive.joint,
+                    if kind == JointKind::Revolute {
+                        "revolute"
+                    } else {
+                        "linear"
+                    }
+                )));
+            }
             axes.push(Axis {
                 name: name.clone(),
                 joint,
                 drive: drive.clone(),
             });
-        }
-        for (i, j) in tree.joints.iter().enumerate() {
-            if j.kind != JointKind::Fixed && !axes.iter().any(|a| a.joint == i) {
-                return Err(FileError::new(
-                    path,
-                    None,
-                    format!(
-                        "joint '{}' of the URDF moves but has no drive in this file",
-                        j.name
-                    ),
-                ));
-            }
         }
         // Axes in chain order (parents first), the order the physics model uses.
         axes.sort_by_key(|a| a.joint);
@@ -644,10 +768,24 @@ impl DrivesFile {
             joints: tree.joints,
             root: tree.root,
             axes,
+            passive,
+            masses_from_geometry: computed,
             tool: self.tool,
             tool_link,
             workpiece_link,
             warnings,
         })
+    }
+}
+
+/// Names for a message, comma-separated, at most 24 of them.
+pub(super) fn list<'a>(names: impl Iterator<Item = &'a str>) -> String {
+    let names: Vec<&str> = names.collect();
+    let shown: Vec<String> = names.iter().take(24).map(|n| format!("'{n}'")).collect();
+    let more = names.len().saturating_sub(24);
+    if more > 0 {
+        format!("{} and {more} more", shown.join(", "))
+    } else {
+        shown.join(", ")
     }
 }

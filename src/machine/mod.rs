@@ -4,12 +4,14 @@
 //! stages (kinematics, the physics model, the controllers). Nothing here knows about Rapier.
 
 mod drives;
+mod inertia;
+mod joints;
 mod urdf;
 mod xml_outline;
 
 pub use drives::{
-    AmplifierMode, DcMotor, Drive, DrivesFile, Feedback, Guide, StribeckCurve, Tool, Transmission,
-    Workpiece,
+    AmplifierMode, DcMotor, Drive, DrivesFile, Feedback, Guide, InertiaFromGeometry, JointMode,
+    JointSetting, StribeckCurve, Tool, Transmission, Workpiece, AXIS_LETTERS, DENSITY_RANGE_KG_M3,
 };
 pub use urdf::{
     load_urdf, MAX_LINK_MASS_KG, MAX_MACHINE_SIZE_M, MAX_RADIUS_OF_GYRATION_M, MIN_LINK_MASS_KG,
@@ -17,7 +19,7 @@ pub use urdf::{
 };
 pub use xml_outline::{MAX_XML_DEPTH, MAX_XML_ELEMENTS};
 
-use crate::diagnostics::FileError;
+use crate::diagnostics::{FileError, LineColumn};
 use nalgebra::{Isometry3, Matrix3, Point3, Vector3};
 use std::path::{Path, PathBuf};
 
@@ -31,6 +33,34 @@ pub struct BoxShape {
     pub color: Option<[f32; 4]>,
 }
 
+/// A solid of a link's geometry (its collision geometry, else its visual one), kept for
+/// computing masses that the URDF leaves out (`inertia_from_geometry`).
+#[derive(Debug, Clone, PartialEq)]
+pub struct Solid {
+    /// Pose of the shape's frame in the link frame.
+    pub pose: Isometry3<f64>,
+    pub shape: SolidShape,
+}
+
+#[derive(Debug, Clone, PartialEq)]
+pub enum SolidShape {
+    Box {
+        half_extents: Vector3<f64>,
+    },
+    /// Along the shape frame's z axis, centred on its origin (URDF).
+    Cylinder {
+        radius: f64,
+        length: f64,
+    },
+    Sphere {
+        radius: f64,
+    },
+    /// A mesh file, as the URDF names it (its volume is not computed).
+    Mesh {
+        filename: String,
+    },
+}
+
 /// A rigid link.
 #[derive(Debug, Clone, PartialEq)]
 pub struct Link {
@@ -42,6 +72,10 @@ pub struct Link {
     /// Inertia tensor about the centre of mass, in the link frame (kg·m²).
     pub inertia: Matrix3<f64>,
     pub boxes: Vec<BoxShape>,
+    /// Its collision geometry, else its visual geometry.
+    pub solids: Vec<Solid>,
+    /// Where the link is declared in the URDF.
+    pub place: Option<LineColumn>,
 }
 
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -66,6 +100,22 @@ pub struct Joint {
     pub limits: Option<[f64; 2]>,
     /// Viscous damping of the guide or bearing itself (N·s/m or N·m·s/rad).
     pub damping: f64,
+    /// Coulomb friction of the guide or bearing itself (N or N·m), URDF `<dynamics friction>`:
+    /// acts only on a passive joint (a driven axis gets its friction from its guide contact).
+    pub friction: f64,
+    /// URDF `<mimic>`: this joint follows another one.
+    pub mimic: Option<Mimic>,
+    /// Where the joint is declared in the URDF.
+    pub place: Option<LineColumn>,
+}
+
+/// A `<mimic>` follower: position = multiplier × leader position + offset.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Mimic {
+    /// Name of the joint followed.
+    pub joint: String,
+    pub multiplier: f64,
+    pub offset: f64,
 }
 
 /// A driven machine axis: a non-fixed joint with its drive.
@@ -75,6 +125,24 @@ pub struct Axis {
     pub name: String,
     pub joint: usize,
     pub drive: Drive,
+}
+
+impl Joint {
+    /// The child frame's motion relative to its zero pose at joint coordinate `q` (m or rad).
+    pub fn motion(&self, q: f64) -> Isometry3<f64> {
+        use nalgebra::{Translation3, Unit, UnitQuaternion};
+        match self.kind {
+            JointKind::Fixed => Isometry3::identity(),
+            JointKind::Prismatic => Isometry3::from_parts(
+                Translation3::from(self.axis * q),
+                UnitQuaternion::identity(),
+            ),
+            JointKind::Revolute => Isometry3::from_parts(
+                Translation3::identity(),
+                UnitQuaternion::from_axis_angle(&Unit::new_normalize(self.axis), q),
+            ),
+        }
+    }
 }
 
 impl Axis {
@@ -93,6 +161,11 @@ pub struct Machine {
     pub joints: Vec<Joint>,
     pub root: usize,
     pub axes: Vec<Axis>,
+    /// Joints no axis drives that move freely (`mode = "passive"` in the drive file).
+    pub passive: Vec<usize>,
+    /// Links whose mass and inertia were computed from their geometry
+    /// (`inertia_from_geometry`), not read from the URDF.
+    pub masses_from_geometry: Vec<String>,
     pub tool: Tool,
     /// Index of the tool link.
     pub tool_link: usize,
@@ -107,6 +180,16 @@ impl Machine {
     pub fn load(path: &Path) -> Result<Machine, FileError> {
         let tree = load_urdf(path)?;
         let drives_path = DrivesFile::path_for(path);
+        if !drives_path.exists() {
+            return Err(FileError::new(
+                &drives_path,
+                None,
+                format!(
+                    "no drive file: a machine's drive data (motors, transmissions, tool) lives in a file next to its URDF, named after it with .drives.toml for the URDF's extension; `cncsim machine init {}` writes one to fill in",
+                    path.display()
+                ),
+            ));
+        }
         let drives = DrivesFile::load(&drives_path)?;
         drives.attach(tree, &drives_path)
     }

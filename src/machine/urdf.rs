@@ -11,7 +11,7 @@
 //! | joint origin, prismatic travel limits | beyond 100 m | |
 
 use super::xml_outline::outline;
-use super::{BoxShape, Joint, JointKind, KinematicTree, Link};
+use super::{BoxShape, Joint, JointKind, KinematicTree, Link, Mimic, Solid, SolidShape};
 use crate::diagnostics::{read_text, FileError, LineColumn};
 use nalgebra::{Isometry3, Matrix3, Point3, Translation3, UnitQuaternion, Vector3};
 use std::path::Path;
@@ -35,6 +35,7 @@ pub fn load_urdf(path: &Path) -> Result<KinematicTree, FileError> {
 }
 
 pub(crate) fn parse_urdf(path: &Path, text: &str) -> Result<KinematicTree, FileError> {
+    refuse_xacro(path, text)?;
     // Bounded, located checks first: the recursive reader behind urdf-rs must never see an
     // unbounded nesting, and its messages carry no position.
     let places = outline(path, text)?;
@@ -59,8 +60,9 @@ pub(crate) fn parse_urdf(path: &Path, text: &str) -> Result<KinematicTree, FileE
     }
     let mut links = Vec::with_capacity(robot.links.len());
     for l in &robot.links {
-        let link = link_from_urdf(l, &robot.materials)
+        let mut link = link_from_urdf(l, &robot.materials)
             .map_err(|m| err("link", &l.name, format!("link '{}': {m}", l.name)))?;
+        link.place = element("link", &l.name);
         if link.mass > SUSPECT_LINK_MASS_KG {
             warnings.push(err(
                 "link",
@@ -109,6 +111,11 @@ pub(crate) fn parse_urdf(path: &Path, text: &str) -> Result<KinematicTree, FileE
             (JointKind::Fixed, _) | (_, urdf_rs::JointType::Continuous) => None,
             _ => {
                 let (lo, hi) = (j.limit.lower, j.limit.upper);
+                if lo == 0.0 && hi == 0.0 {
+                    return Err(e(
+                        "has no travel: expected <limit lower=\"…\" upper=\"…\" effort=\"…\" velocity=\"…\"/> (type=\"continuous\" for an endless rotary joint)".into(),
+                    ));
+                }
                 if !(lo.is_finite() && hi.is_finite() && lo < hi) {
                     return Err(e(format!(
                         "limits lower={lo:?} upper={hi:?}: expected finite lower < upper"
@@ -123,11 +130,39 @@ pub(crate) fn parse_urdf(path: &Path, text: &str) -> Result<KinematicTree, FileE
             }
         };
         let damping = j.dynamics.as_ref().map_or(0.0, |d| d.damping);
-        if !(damping.is_finite() && damping >= 0.0) {
-            return Err(e(format!(
-                "damping {damping:?}: expected a finite value ≥ 0"
-            )));
+        let friction = j.dynamics.as_ref().map_or(0.0, |d| d.friction);
+        for (name, value) in [("damping", damping), ("friction", friction)] {
+            if !(value.is_finite() && value >= 0.0) {
+                return Err(e(format!(
+                    "<dynamics {name}=\"{value:?}\">: expected a finite value ≥ 0"
+                )));
+            }
         }
+        let mimic = match &j.mimic {
+            None => None,
+            Some(m) => {
+                let multiplier = m.multiplier.unwrap_or(1.0);
+                let offset = m.offset.unwrap_or(0.0);
+                if !(multiplier.is_finite() && offset.is_finite()) {
+                    return Err(e(format!(
+                        "<mimic multiplier=\"{multiplier:?}\" offset=\"{offset:?}\">: expected finite numbers"
+                    )));
+                }
+                if robot.joints.iter().all(|o| o.name != m.joint) {
+                    let names: Vec<&str> = robot.joints.iter().map(|o| o.name.as_str()).collect();
+                    return Err(e(format!(
+                        "<mimic joint=\"{}\">: no joint of that name (the joints: {})",
+                        m.joint,
+                        names.join(", ")
+                    )));
+                }
+                Some(Mimic {
+                    joint: m.joint.clone(),
+                    multiplier,
+                    offset,
+                })
+            }
+        };
         joints.push(Joint {
             name: j.name.clone(),
             kind,
@@ -141,6 +176,9 @@ pub(crate) fn parse_urdf(path: &Path, text: &str) -> Result<KinematicTree, FileE
             },
             limits,
             damping,
+            friction,
+            mimic,
+            place: element("joint", &j.name),
         });
     }
 
@@ -198,7 +236,7 @@ pub(crate) fn parse_urdf(path: &Path, text: &str) -> Result<KinematicTree, FileE
 /// wherever it already is (so axes come out in the order the URDF lists them). With one root
 /// and one parent joint per link, a link the root cannot reach lies on a cycle: the error is
 /// that cycle's joints.
-fn order_parents_first(
+pub(super) fn order_parents_first(
     joints: &[Joint],
     root: usize,
     n_links: usize,
@@ -319,7 +357,59 @@ fn link_from_urdf(l: &urdf_rs::Link, materials: &[urdf_rs::Material]) -> Result<
         center_of_mass: Point3::from(frame.translation.vector),
         inertia,
         boxes,
+        solids: solids_of(l)?,
+        place: None,
     })
+}
+
+/// The link's collision geometry, else its visual geometry, as solids.
+fn solids_of(l: &urdf_rs::Link) -> Result<Vec<Solid>, String> {
+    let collision = l.collision.iter().map(|c| (&c.origin, &c.geometry));
+    let visual = l.visual.iter().map(|v| (&v.origin, &v.geometry));
+    let shapes: Vec<_> = if l.collision.is_empty() {
+        visual.collect()
+    } else {
+        collision.collect()
+    };
+    let positive = |what: &str, v: f64| {
+        if v.is_finite() && v > 0.0 && v <= MAX_MACHINE_SIZE_M {
+            Ok(v)
+        } else {
+            Err(format!(
+                "{what} {v:?} m: expected a positive size up to {MAX_MACHINE_SIZE_M:?} m"
+            ))
+        }
+    };
+    shapes
+        .into_iter()
+        .map(|(origin, geometry)| {
+            let shape = match geometry {
+                urdf_rs::Geometry::Box { size } => {
+                    for v in size.0 {
+                        positive("box size", v)?;
+                    }
+                    SolidShape::Box {
+                        half_extents: Vector3::from(size.0) / 2.0,
+                    }
+                }
+                urdf_rs::Geometry::Cylinder { radius, length }
+                | urdf_rs::Geometry::Capsule { radius, length } => SolidShape::Cylinder {
+                    radius: positive("cylinder radius", *radius)?,
+                    length: positive("cylinder length", *length)?,
+                },
+                urdf_rs::Geometry::Sphere { radius } => SolidShape::Sphere {
+                    radius: positive("sphere radius", *radius)?,
+                },
+                urdf_rs::Geometry::Mesh { filename, .. } => SolidShape::Mesh {
+                    filename: filename.clone(),
+                },
+            };
+            Ok(Solid {
+                pose: pose(origin)?,
+                shape,
+            })
+        })
+        .collect()
 }
 
 /// Principal moments positive and obeying the triangle inequality (a real body's inertia).
@@ -359,6 +449,37 @@ fn pose(p: &urdf_rs::Pose) -> Result<Isometry3<f64>, String> {
     Ok(Isometry3::from_parts(
         Translation3::new(x, y, z),
         UnitQuaternion::from_euler_angles(r, pi, ya),
+    ))
+}
+
+/// A xacro file (ROS's XML macro language) is not URDF until it is expanded: its `${…}`
+/// expressions and `xacro:` elements would otherwise be read as malformed numbers and unknown
+/// elements. Refused with the command that expands it.
+fn refuse_xacro(path: &Path, text: &str) -> Result<(), FileError> {
+    let marker = ["xmlns:xacro", "<xacro:", "${"]
+        .iter()
+        .filter_map(|m| text.find(m).map(|at| (at, *m)))
+        .min();
+    let Some((offset, found)) = marker else {
+        return Ok(());
+    };
+    let name = path.file_name().map_or_else(
+        || "FILE.xacro".to_string(),
+        |n| n.to_string_lossy().into_owned(),
+    );
+    let stem = name
+        .strip_suffix(".xacro")
+        .unwrap_or(&name)
+        .trim_end_matches(".urdf");
+    Err(FileError::at_offset(
+        path,
+        text,
+        offset,
+        format!(
+            "this is a xacro file (found `{found}`), not URDF: expand it first with \
+             `xacro {name} > {stem}.urdf` (`pip install xacro`; pass its arguments as name:=value), \
+             then give cncsim the .urdf"
+        ),
     ))
 }
 

@@ -7,10 +7,8 @@
 //! This is the only module that knows about Rapier. Its inputs and outputs are plain numbers
 //! per machine axis, in joint units (m or rad) at the joint side of the transmission.
 
-mod convert;
-
+use crate::convert::{self, from_pose, from_vec, to_pose, to_vec};
 use crate::machine::{Feedback, Guide, JointKind, Machine, StribeckCurve};
-use convert::{from_pose, from_vec, to_pose, to_vec};
 use nalgebra::{Isometry3, Point3, Translation3, UnitQuaternion, Vector3};
 use rapier3d_f64::prelude::*;
 
@@ -108,12 +106,21 @@ pub struct Plant {
     /// The dynamic bodies the drives push or react on: the only ones whose forces change.
     forced_bodies: Vec<RigidBodyHandle>,
     tool_dofs: Vec<ChainDof>,
+    /// The DOFs that move the program frame's carrier link (a moving table or bed).
+    carrier_dofs: Vec<ChainDof>,
+    /// The carrier link, where it moves (`None`: it rides on the fixed base, whose frame is
+    /// the world's).
+    carrier: Option<usize>,
     guides: Vec<Option<GuidePair>>,
     multibody: Option<MultibodyJointHandle>,
     tool_link: usize,
     tool_offset: Point3<f64>,
     steps: u64,
 }
+
+/// Creep speed (m/s or rad/s) at which a passive joint's friction motor reaches its
+/// Coulomb force: its stand-in for stiction.
+const PASSIVE_CREEP_SPEED: f64 = 1e-6;
 
 /// Natural frequency of the guide contacts' softness (Hz).
 const GUIDE_CONTACT_HZ: f64 = 1000.0;
@@ -282,11 +289,23 @@ impl Plant {
                 child_joint.push(Some(insert(&mut world, d, child, slack_data)?));
                 drive_body.push(d);
             } else {
-                let data = GenericJointBuilder::new(locked & !free_normal)
+                let mut builder = GenericJointBuilder::new(locked & !free_normal)
                     .local_frame1(to_pose(&(origin * frame)))
                     .local_frame2(to_pose(&frame))
-                    .contacts_enabled(guide.is_some())
-                    .build();
+                    .contacts_enabled(guide.is_some());
+                if axis.is_none() && joint.friction > 0.0 {
+                    // A passive joint's own Coulomb friction: a motor holding zero speed with
+                    // at most the friction force, stiff enough to hold below a µm/s of creep.
+                    let travel = match joint.kind {
+                        JointKind::Revolute => JointAxis::AngX,
+                        _ => JointAxis::LinX,
+                    };
+                    builder = builder
+                        .motor_model(travel, MotorModel::ForceBased)
+                        .motor_velocity(travel, 0.0, joint.friction / PASSIVE_CREEP_SPEED)
+                        .motor_max_force(travel, joint.friction);
+                }
+                let data = builder.build();
                 let handle = insert(&mut world, parent, child, data)?;
                 drive_joint.push(axis.map(|_| handle));
                 child_joint.push(Some(handle));
@@ -341,16 +360,20 @@ impl Plant {
             });
         }
 
-        // Every DOF between the root and the tool link, for the tool velocity.
-        let mut tool_dofs = Vec::new();
-        let mut link = machine.tool_link;
-        while let Some(j) = machine.parent_joint(link) {
-            let joint = &machine.joints[j];
-            if joint.kind != JointKind::Fixed {
+        // Every DOF between the root and the tool link, and between the root and the program
+        // frame's carrier (a moving table), for the tool's velocity relative to the part.
+        let chain_dofs = |start: usize| {
+            let mut dofs = Vec::new();
+            let mut link = start;
+            while let Some(j) = machine.parent_joint(link) {
+                let joint = &machine.joints[j];
+                link = joint.parent;
+                let Some(carriage) = child_joint[j] else {
+                    continue; // fixed
+                };
                 let child = link_bodies[joint.child];
-                let dof = |l| (l, 0);
                 let mut push = |body, local_axis, kind, at: (usize, usize)| {
-                    tool_dofs.push((
+                    dofs.push((
                         ChainDof {
                             body,
                             local_axis,
@@ -360,8 +383,8 @@ impl Plant {
                         at,
                     ))
                 };
-                let drive = drive_joint[j].expect("moving joints have drives");
-                let carriage = child_joint[j].expect("moving joints move their links");
+                // A passive joint has no drive side: its one joint moves the link.
+                let drive = drive_joint[j].unwrap_or(carriage);
                 let guide = machine
                     .axes
                     .iter()
@@ -371,14 +394,14 @@ impl Plant {
                     drive_body[j],
                     joint.axis,
                     joint.kind,
-                    dof(link_of(&world, drive)),
+                    (link_of(&world, drive), 0),
                 );
                 if drive != carriage {
                     push(
                         child,
                         joint.axis,
                         joint.kind,
-                        dof(link_of(&world, carriage)),
+                        (link_of(&world, carriage), 0),
                     );
                 }
                 if let Some(g) = guide {
@@ -401,8 +424,12 @@ impl Plant {
                     }
                 }
             }
-            link = joint.parent;
-        }
+            dofs
+        };
+        let carrier = crate::kinematics::carrier_link(machine);
+        let tool_dofs = chain_dofs(machine.tool_link);
+        let carrier_dofs = chain_dofs(carrier);
+        let carrier_moves = link_bodies[carrier] != link_bodies[machine.root];
 
         let mut forced_bodies: Vec<RigidBodyHandle> = axes
             .iter()
@@ -418,23 +445,36 @@ impl Plant {
             axes,
             forced_bodies,
             tool_dofs: Vec::new(),
+            carrier_dofs: Vec::new(),
+            carrier: carrier_moves.then_some(carrier),
             guides,
             multibody,
             tool_link: machine.tool_link,
             tool_offset: Point3::from(machine.tool.offset_m),
             steps: 0,
         };
-        plant.configure_dofs(machine, options, tool_dofs);
+        let passive_dofs = machine
+            .passive
+            .iter()
+            .filter_map(|&j| {
+                let handle = child_joint[j]?;
+                Some((link_of(&plant.world, handle), machine.joints[j].damping))
+            })
+            .collect();
+        plant.configure_dofs(machine, options, tool_dofs, carrier_dofs, passive_dofs);
         Ok(plant)
     }
 
     /// Armature, damping and initial coordinates of the driven DOFs, and the final DOF indices.
-    /// `tool_dofs` carry (multibody link, DOF offset within the link's joint).
+    /// `tool_dofs` and `carrier_dofs` carry (multibody link, DOF offset within the link's
+    /// joint); `passive_dofs` (multibody link, URDF damping) are the free joints no axis drives.
     fn configure_dofs(
         &mut self,
         machine: &Machine,
         options: &PlantOptions,
         tool_dofs: Vec<(ChainDof, (usize, usize))>,
+        carrier_dofs: Vec<(ChainDof, (usize, usize))>,
+        passive_dofs: Vec<(usize, f64)>,
     ) {
         let Some(handle) = self.multibody else { return };
         let PhysicsWorld {
@@ -479,13 +519,20 @@ impl Plant {
             mb.damping_mut()[binding.drive_dof] = drive_damping + joint.damping;
             displacement[binding.drive_dof] = q0;
         }
-        self.tool_dofs = tool_dofs
-            .into_iter()
-            .map(|(mut d, (link, offset))| {
-                d.dof = mb.link(link).expect("tool chain link").assembly_id() + offset;
-                d
-            })
-            .collect();
+        for (link, damping) in passive_dofs {
+            let dof = mb.link(link).expect("passive joint link").assembly_id();
+            mb.damping_mut()[dof] = damping;
+        }
+        let resolve = |dofs: Vec<(ChainDof, (usize, usize))>| -> Vec<ChainDof> {
+            dofs.into_iter()
+                .map(|(mut d, (link, offset))| {
+                    d.dof = mb.link(link).expect("chain link").assembly_id() + offset;
+                    d
+                })
+                .collect()
+        };
+        self.tool_dofs = resolve(tool_dofs);
+        self.carrier_dofs = resolve(carrier_dofs);
         mb.apply_displacements(&displacement);
         mb.forward_kinematics(bodies, false);
         mb.update_rigid_bodies(bodies, true);
@@ -697,34 +744,62 @@ impl Plant {
             .collect()
     }
 
-    /// Tool point in the machine base frame (m).
-    pub fn tool_point(&self) -> Point3<f64> {
+    /// Tool point in the world (the machine base's frame), m.
+    fn tool_in_world(&self) -> Point3<f64> {
         let body = &self.world.bodies[self.link_bodies[self.tool_link]];
         from_pose(body.position()) * self.link_offsets[self.tool_link] * self.tool_offset
     }
 
-    /// Velocity of the tool point (m/s), from the joints' generalised velocities along the
-    /// chain to the tool (a Jacobian product). Rapier's per-link body velocities of a multibody
-    /// are one step older than its joint velocities and positions, so they are not used.
+    fn link_pose(&self, link: usize) -> Isometry3<f64> {
+        from_pose(self.world.bodies[self.link_bodies[link]].position()) * self.link_offsets[link]
+    }
+
+    /// Tool point relative to the program frame's carrier link (the workpiece, or the link the
+    /// rotary axes carrying it stand on), in that link's frame (m).
+    pub fn tool_point(&self) -> Point3<f64> {
+        let tool = self.tool_in_world();
+        match self.carrier {
+            None => tool,
+            Some(link) => self.link_pose(link).inverse_transform_point(&tool),
+        }
+    }
+
+    /// Velocity of the tool point relative to the carrier link, in its frame (m/s), from the
+    /// joints' generalised velocities along the chains to the tool and to the carrier (a
+    /// Jacobian product). Rapier's per-link body velocities of a multibody are one step older
+    /// than its joint velocities and positions, so they are not used.
     pub fn tool_velocity(&self) -> Vector3<f64> {
         let Some(mb) = self.multibody() else {
             return Vector3::zeros();
         };
         let v = mb.generalized_velocity();
-        let tool = self.tool_point();
-        let mut velocity = Vector3::zeros();
-        for d in &self.tool_dofs {
-            let frame = from_pose(self.world.bodies[d.body].position());
-            let axis = frame.rotation * d.local_axis;
-            velocity += match d.kind {
-                JointKind::Prismatic => axis * v[d.dof],
-                JointKind::Revolute => {
-                    axis.cross(&(tool - Point3::from(frame.translation.vector))) * v[d.dof]
-                }
-                JointKind::Fixed => Vector3::zeros(),
-            };
+        let tool = self.tool_in_world();
+        let along = |dofs: &[ChainDof]| {
+            let mut velocity = Vector3::zeros();
+            for d in dofs {
+                let frame = from_pose(self.world.bodies[d.body].position());
+                let axis = frame.rotation * d.local_axis;
+                velocity += match d.kind {
+                    JointKind::Prismatic => axis * v[d.dof],
+                    JointKind::Revolute => {
+                        axis.cross(&(tool - Point3::from(frame.translation.vector))) * v[d.dof]
+                    }
+                    JointKind::Fixed => Vector3::zeros(),
+                };
+            }
+            velocity
+        };
+        let velocity = along(&self.tool_dofs);
+        match self.carrier {
+            None => velocity,
+            Some(link) => {
+                // Less the velocity of the carrier's material point under the tool.
+                let relative = velocity - along(&self.carrier_dofs);
+                self.link_pose(link)
+                    .rotation
+                    .inverse_transform_vector(&relative)
+            }
         }
-        velocity
     }
 }
 

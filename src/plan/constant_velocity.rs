@@ -281,7 +281,7 @@ impl SetpointStream for ConstantVelocityStream<'_> {
             (p, v, m.index)
         };
         self.axes.machine_axes(&position, &mut out.position);
-        self.axes.machine_axes(&velocity, &mut out.velocity);
+        self.axes.machine_vector(&velocity, &mut out.velocity);
         self.emitted += 1;
         if self.emitted == self.len {
             // Program end: the last setpoint is at rest.

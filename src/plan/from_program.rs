@@ -383,9 +383,11 @@ impl<'a> MoveSegments<'a> {
                 let (first, second, _) = plane_axes(plane);
                 let (i, j) = arc_plane(axes, plane)
                     .expect("arc planes are checked before the motion is planned");
+                let (center, clockwise) =
+                    axes.machine_arc([i, j], [center[first], center[second]], clockwise);
                 Geometry::Arc {
                     plane: [i, j],
-                    center: [center[first], center[second]],
+                    center,
                     clockwise,
                     turns,
                     end,

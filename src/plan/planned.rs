@@ -46,6 +46,11 @@ impl PlannedProgram {
         })
     }
 
+    /// How the program's coordinates map onto the machine's axes.
+    pub fn axis_map(&self) -> &AxisMap {
+        &self.axes
+    }
+
     pub fn program(&self) -> &Program {
         &self.program
     }

@@ -2,6 +2,7 @@
 //! of the actual tool point from the programmed path, not from the current setpoint) and the
 //! commanded and actual path speed.
 
+use crate::kinematics::ProgramFrame;
 use crate::program::PathGeometry;
 use nalgebra::{Point3, Vector3};
 
@@ -9,8 +10,8 @@ use nalgebra::{Point3, Vector3};
 #[derive(Debug, Clone, PartialEq)]
 pub struct PathTracker {
     pub geometry: PathGeometry,
-    /// Tool point (machine frame) at program zero.
-    pub program_origin: Point3<f64>,
+    /// The program frame: the tool point and velocity come relative to its carrier link.
+    pub frame: ProgramFrame,
     /// Machine-axis index of program X, Y, Z where the machine has them.
     pub linear_axes: [Option<usize>; 3],
 }
@@ -27,8 +28,9 @@ pub struct PathSample {
 }
 
 impl PathTracker {
-    /// The figures of a tick: the tool point and velocity (machine frame) of program move
-    /// `segment`, and the setpoint velocity per machine axis.
+    /// The figures of a tick: the tool point and velocity (relative to the program frame's
+    /// carrier link, in its frame) of program move `segment`, and the setpoint velocity per
+    /// machine axis.
     pub fn sample(
         &self,
         tool_point: [f64; 3],
@@ -36,7 +38,7 @@ impl PathTracker {
         segment: u32,
         setpoint_velocity: &[f64],
     ) -> PathSample {
-        let tool = Point3::from(tool_point) - self.program_origin.coords;
+        let tool = self.frame.program_point(&Point3::from(tool_point));
         let near = self
             .geometry
             .segment_of_move
@@ -53,7 +55,10 @@ impl PathTracker {
         PathSample {
             contour_error: nearest.map_or(f64::NAN, |q| (tool - q).norm()),
             commanded_speed: v.norm(),
-            actual_speed: Vector3::from(tool_velocity).norm(),
+            actual_speed: self
+                .frame
+                .program_vector(&Vector3::from(tool_velocity))
+                .norm(),
             tool: tool.into(),
             nearest: nearest.map(Into::into),
         }

@@ -11,7 +11,7 @@ use crate::control::{
 };
 use crate::diagnostics::{FileError, LineColumn};
 use crate::dynamics::DynamicsModel;
-use crate::kinematics::{AcAxes, AcTableKinematics, AxisMap};
+use crate::kinematics::{AcAxes, AcTableKinematics, AxisMap, ProgramFrame};
 use crate::machine::Machine;
 use crate::model::{ModelError, PlantOptions};
 use crate::plan::{
@@ -65,6 +65,8 @@ pub struct Assembly {
     pub machine: Machine,
     pub labels: Vec<AxisLabel>,
     pub axis_map: AxisMap,
+    /// The program frame: where contour error, path speed and the tool path are measured.
+    pub frame: ProgramFrame,
     pub plan: PlannedProgram,
     pub actuator: ActuatorKind,
     pub loop_settings: LoopSettings,
@@ -101,7 +103,7 @@ impl Assembly {
     /// of a sweep that all run the same setpoints).
     pub fn from_plan(
         s: &Scenario,
-        machine: Machine,
+        mut machine: Machine,
         plan: PlannedProgram,
     ) -> Result<Assembly, RunError> {
         let Some(actuator) = s.actuator else {
@@ -114,8 +116,9 @@ impl Assembly {
         }
         let labels = labels(&machine);
         super::run::validate_against_machine(s, &machine, &labels)?;
-        let axis_map = AxisMap::cartesian(&machine)
-            .map_err(|e| FileError::new(&s.machine, None, e.to_string()))?;
+        let axis_map = plan.axis_map().clone();
+        let (frame, frame_warnings) = ProgramFrame::new(&machine, s.work_offset)?;
+        machine.warnings.extend(frame_warnings);
         let approach = approach_for(s, &machine, &axis_map, plan.program())?;
         check_run_length(s, approach.len() + plan.len())?;
         let encoder = Encoder {
@@ -149,6 +152,7 @@ impl Assembly {
             machine,
             labels,
             axis_map,
+            frame,
             plan,
             actuator,
             loop_settings: LoopSettings {
@@ -370,8 +374,7 @@ fn approach_for(
 
 /// The scenario's program on `machine`, planned.
 pub fn plan_for(s: &Scenario, machine: &Machine) -> Result<PlannedProgram, RunError> {
-    let axis_map =
-        AxisMap::cartesian(machine).map_err(|e| FileError::new(&s.machine, None, e.to_string()))?;
+    let axis_map = axis_map_for(s, machine)?;
     let program = load_checked_program(s, machine)?;
     let mut settings = plan_settings(s, machine, s.planner.profile)?;
     // Corner tolerances at the tool tip, as the program's author reads them.
@@ -383,19 +386,27 @@ pub fn plan_for(s: &Scenario, machine: &Machine) -> Result<PlannedProgram, RunEr
     })
 }
 
+/// How the scenario's program coordinates map onto `machine`'s axes: each axis's sign and
+/// home from the drive file, program zero at the scenario's work offset.
+pub fn axis_map_for(s: &Scenario, machine: &Machine) -> Result<AxisMap, FileError> {
+    AxisMap::new(machine, s.work_offset)
+        .map_err(|e| FileError::new(&s.machine, None, e.to_string()))
+}
+
 /// What the plan of a scenario on a machine depends on, as a key: runs with equal keys run
 /// the same setpoints (the program and its reading, the planner, the servo period, the
 /// machine's kinematic description and axes).
 pub fn plan_key(s: &Scenario, machine: &Machine) -> String {
     let settings = plan_settings(s, machine, s.planner.profile).map(|p| format!("{p:?}"));
-    let axes: Vec<(&str, usize)> = machine
+    let axes: Vec<(&str, usize, i8, f64)> = machine
         .axes
         .iter()
-        .map(|a| (a.name.as_str(), a.joint))
+        .map(|a| (a.name.as_str(), a.joint, a.drive.sign, a.drive.home))
         .collect();
     format!(
-        "{:?}|{settings:?}|{}|{axes:?}",
+        "{:?}|{:?}|{settings:?}|{}|{axes:?}",
         s.program,
+        s.work_offset,
         machine.urdf_path.display()
     )
 }
@@ -680,7 +691,24 @@ pub fn load_checked_program(s: &Scenario, machine: &Machine) -> Result<Program, 
     }
     if program.moves.iter().any(|m| m.tool_axis.is_some()) {
         // Cutter-location data (tool tip and axis on the workpiece): machine axes come from the
-        // 5-axis inverse kinematics, starting from machine zero.
+        // 5-axis inverse kinematics, starting from machine zero. Its joint coordinates are the
+        // program's: no work offset, sign or home applies on top.
+        let shifted = machine
+            .axes
+            .iter()
+            .find(|a| a.drive.sign != 1 || a.drive.home != 0.0);
+        if s.work_offset != [0.0; 3] || shifted.is_some() {
+            let what = match shifted {
+                Some(a) => format!("axis '{}' of the drive file has a sign or home", a.name),
+                None => "the scenario sets [program] work_offset_mm".into(),
+            };
+            return Err(FileError::new(
+                &program.source,
+                None,
+                format!("the program gives tool-axis vectors (CL data), placed on the machine by the A-C table's inverse kinematics in joint coordinates, but {what}: remove it for this program"),
+            )
+            .into());
+        }
         let kinematics = AcTableKinematics::new(machine).map_err(|e| {
             FileError::new(&program.source, None, format!("the program gives tool-axis vectors (CL data), which need a table-tilting A-C machine: {e}"))
         })?;

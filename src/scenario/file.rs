@@ -137,6 +137,9 @@ struct RawProgram {
     approach_from_mm: Option<Spanned<[f64; 3]>>,
     /// Speed of that move (mm/s); default: the planner's rapid speed.
     approach_feed_mm_s: Option<Num>,
+    /// Program zero, as G54 sets it: its machine coordinates along X, Y, Z (mm); default:
+    /// where the tool is with every axis at its home.
+    work_offset_mm: Option<Spanned<[f64; 3]>>,
     /// G-code: a LinuxCNC tool table file (lengths in mm) and the G28/G30 positions (mm).
     tool_table: Option<Spanned<String>>,
     g28_home_mm: Option<[f64; 3]>,
@@ -586,6 +589,8 @@ pub struct Scenario {
     pub program: ProgramSource,
     /// The untraced approach to the program's first point: from where (m), at what speed (m/s).
     pub approach: Option<Approach>,
+    /// Machine coordinates of program zero along X, Y, Z (m): the work offset (G54).
+    pub work_offset: [f64; 3],
     pub planner: PlannerSettings,
     pub blend: BlendChoice,
     /// LinuxCNC's G64 Q (m): runs of straight moves within it of one line are joined.
@@ -636,6 +641,18 @@ pub struct Scenario {
 
 impl Scenario {
     pub fn load(path: &Path) -> Result<Scenario, FileError> {
+        let extension = path.extension().and_then(|e| e.to_str()).unwrap_or("");
+        if ["urdf", "xacro"].contains(&extension.to_ascii_lowercase().as_str()) {
+            return Err(FileError::new(
+                path,
+                None,
+                format!(
+                    "this is a machine model, not a scenario: a run needs a scenario file (.toml) naming the machine, the program and the controller (see scenarios/). For a machine of your own, `cncsim machine check {}` shows how cncsim reads it and `cncsim machine init {}` writes its drive file",
+                    path.display(),
+                    path.display()
+                ),
+            ));
+        }
         let text = read_text(path, "scenario")?;
         Self::parse(path, &text)
     }
@@ -851,6 +868,20 @@ impl Scenario {
                     from: v.map(|x| x * 1e-3),
                     speed: speed * 1e-3,
                 })
+            }
+        };
+        let work_offset = match &p.work_offset_mm {
+            None => [0.0; 3],
+            Some(offset) => {
+                let c = limits::COORDINATE_MM;
+                let v = offset.get_ref();
+                if !v.iter().all(|x| x.is_finite() && x.abs() <= c) {
+                    return Err(err(
+                        offset.span(),
+                        format!("work_offset_mm = {v:?}: expected coordinates within ±{c:?} mm"),
+                    ));
+                }
+                v.map(|x| x * 1e-3)
             }
         };
         for (key, value) in [
@@ -1321,6 +1352,7 @@ impl Scenario {
             machine_at: at(raw.machine.span().start),
             program,
             approach,
+            work_offset,
             planner,
             blend,
             naive_cam_tolerance,

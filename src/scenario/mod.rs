@@ -5,6 +5,7 @@ mod ab;
 mod assemble;
 mod check;
 mod file;
+mod machine_setup;
 mod overrides;
 mod plan;
 mod run;
@@ -12,8 +13,8 @@ mod tune;
 
 pub use ab::{run_ab, AbReport, AbRow};
 pub use assemble::{
-    keep_mechanics, load_checked_program, machine_for, plan_for, plan_key, plan_settings,
-    with_choices, Assembly, PlantKind, ProgramOverview, RunError, GRAVITY,
+    axis_map_for, keep_mechanics, load_checked_program, machine_for, plan_for, plan_key,
+    plan_settings, with_choices, Assembly, PlantKind, ProgramOverview, RunError, GRAVITY,
 };
 pub use check::{check, Breach, Verdict};
 pub use file::{
@@ -21,6 +22,7 @@ pub use file::{
     DeclaredVariants, Expectation, InverseDynamicsSettings, PlannerSettings, ProfileName,
     ProgramSource, Scenario,
 };
+pub use machine_setup::{check_machine, drive_file_template, AxisRow, MachineReport};
 pub use overrides::{edit_toml, Override};
 pub use plan::{plan_scenario, PlanReport};
 pub use run::{

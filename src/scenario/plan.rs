@@ -2,9 +2,8 @@
 //! durations, and the velocity, acceleration and jerk the setpoints ask of each machine axis
 //! and of the tool tip on the workpiece (from finite differences of the sampled positions).
 
-use super::{load_checked_program, plan_settings, ProfileName, RunError, Scenario};
-use crate::diagnostics::FileError;
-use crate::kinematics::{self, AxisMap};
+use super::{axis_map_for, load_checked_program, plan_settings, ProfileName, RunError, Scenario};
+use crate::kinematics::{self, ProgramFrame};
 use crate::machine::Machine;
 use crate::plan::{
     AxisExtremes, AxisKind, AxisLimits, AxisSpec, FiniteDifferences, PlannedProgram, SetpointSample,
@@ -36,8 +35,8 @@ pub struct PlanReport {
 
 pub fn plan_scenario(s: &Scenario, profile: Option<ProfileName>) -> Result<PlanReport, RunError> {
     let machine = Machine::load(&s.machine)?;
-    let axis_map = AxisMap::cartesian(&machine)
-        .map_err(|e| FileError::new(&s.machine, None, e.to_string()))?;
+    let axis_map = axis_map_for(s, &machine)?;
+    let (frame, _) = ProgramFrame::new(&machine, s.work_offset)?;
     let program = load_checked_program(s, &machine)?;
     let profile = profile.unwrap_or(s.planner.profile);
     let mut settings = plan_settings(s, &machine, profile)?;
@@ -77,6 +76,15 @@ pub fn plan_scenario(s: &Scenario, profile: Option<ProfileName>) -> Result<PlanR
         })
         .collect();
 
+    // The tool tip in program coordinates; where rotary axes carry the part (a tilting table),
+    // on the part, in the workpiece link's frame.
+    let tool_tip = |q: &[f64]| {
+        if frame.carrier == machine.workpiece_link {
+            frame.program_point(&kinematics::tool_in_link(&machine, frame.carrier, q))
+        } else {
+            kinematics::tool_in_workpiece(&machine, q)
+        }
+    };
     // One pass over the samples: the machine axes' and the tool tip's finite differences, the
     // moves' durations and the tool path.
     let period = settings.period;
@@ -96,7 +104,7 @@ pub fn plan_scenario(s: &Scenario, profile: Option<ProfileName>) -> Result<PlanR
     let (mut k, mut previous_end, mut previous_segment) = (0usize, 0usize, None);
     while stream.next_sample(&mut sample) {
         axis_differences.push(&sample.position);
-        let p = kinematics::tool_in_workpiece(&machine, &sample.position);
+        let p = tool_tip(&sample.position);
         tool_differences.push(&[p.x, p.y, p.z]);
         tool_path.push([p.x, p.y, p.z]);
         if let Some(segment) = previous_segment {

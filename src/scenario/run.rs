@@ -7,7 +7,6 @@ use super::file::ControllerType;
 use super::{check, Scenario, Verdict};
 use crate::control::ActuatorKind;
 use crate::diagnostics::FileError;
-use crate::kinematics;
 use crate::machine::Machine;
 use crate::program::PathGeometry;
 use crate::report::{
@@ -75,7 +74,6 @@ pub fn run_scenario_with(
 pub fn report_setup(assembly: &Assembly) -> ReportSetup {
     let machine = &assembly.machine;
     let s = &assembly.scenario;
-    let zeros = vec![0.0; machine.axes.len()];
     ReportSetup {
         name: s.name.clone(),
         labels: assembly.labels.clone(),
@@ -83,7 +81,7 @@ pub fn report_setup(assembly: &Assembly) -> ReportSetup {
         period: s.servo_period,
         path: PathTracker {
             geometry: PathGeometry::of(assembly.program()),
-            program_origin: kinematics::tool_point(machine, &zeros),
+            frame: assembly.frame.clone(),
             linear_axes: ["x", "y", "z"].map(|n| machine.axis_index(n)),
         },
         peak_velocity: assembly.overview().peak_velocity.clone(),
@@ -218,6 +216,22 @@ pub fn run_assembly_observed(
 /// planner's look-ahead added.
 fn warnings_of(assembly: &Assembly) -> Vec<FileError> {
     let mut warnings = assembly.machine.warnings.clone();
+    let machine = &assembly.machine;
+    if !machine.masses_from_geometry.is_empty() {
+        warnings.push(FileError::new(
+            &crate::machine::DrivesFile::path_for(&machine.urdf_path),
+            None,
+            format!(
+                "the masses and inertias of {} come from their geometry (inertia_from_geometry), not from the URDF",
+                machine
+                    .masses_from_geometry
+                    .iter()
+                    .map(|l| format!("'{l}'"))
+                    .collect::<Vec<_>>()
+                    .join(", ")
+            ),
+        ));
+    }
     if let Some(warning) = assembly.plan.look_ahead().warning() {
         warnings.push(FileError::new(&assembly.program().source, None, warning));
     }

@@ -86,6 +86,8 @@ pub enum AxisModelError {
     LiftsOff { axis: String },
     #[error("axis '{axis}': the reference model takes prismatic axes on prismatic chains only (load and gravity would depend on the pose)")]
     PoseDependent { axis: String },
+    #[error("joint '{joint}' is passive: the reference model has one model per driven axis and no free joints (lock it in the drive file, or run without [analytic])")]
+    PassiveJoint { joint: String },
 }
 
 /// What the actuator does over one hold interval.
@@ -323,6 +325,11 @@ impl AxisModel {
         gravity: [f64; 3],
         ideal_actuator: bool,
     ) -> Result<Vec<AxisModel>, AxisModelError> {
+        if let Some(&j) = machine.passive.first() {
+            return Err(AxisModelError::PassiveJoint {
+                joint: machine.joints[j].name.clone(),
+            });
+        }
         machine
             .axes
             .iter()
@@ -845,12 +852,15 @@ impl AnalyticPlant {
     ) -> AnalyticPlant {
         let n = models.len();
         let zeros = vec![0.0; n];
-        let origin = crate::kinematics::tool_point(machine, &zeros).coords;
+        // The tool relative to the program frame's carrier (a moving table moves it back).
+        let carrier = crate::kinematics::carrier_link(machine);
+        let tool = |q: &[f64]| crate::kinematics::tool_in_link(machine, carrier, q).coords;
+        let origin = tool(&zeros);
         let tool_directions = (0..n)
             .map(|i| {
                 let mut unit = zeros.clone();
                 unit[i] = 1.0;
-                crate::kinematics::tool_point(machine, &unit).coords - origin
+                tool(&unit) - origin
             })
             .collect();
         AnalyticPlant {

@@ -19,6 +19,8 @@ pub fn base_link() -> Link {
         center_of_mass: Point3::origin(),
         inertia: Matrix3::zeros(),
         boxes: Vec::new(),
+        solids: Vec::new(),
+        place: None,
     }
 }
 
@@ -29,6 +31,8 @@ pub fn link(name: &str, mass: f64, com: [f64; 3], inertia_about_com: Matrix3<f64
         center_of_mass: Point3::from(com),
         inertia: inertia_about_com,
         boxes: Vec::new(),
+        solids: Vec::new(),
+        place: None,
     }
 }
 
@@ -49,6 +53,9 @@ pub fn joint(
         axis: axis.normalize(),
         limits: None,
         damping: 0.0,
+        friction: 0.0,
+        mimic: None,
+        place: None,
     }
 }
 

@@ -671,6 +671,9 @@ fn machines_of_another_topology_are_refused_with_the_reason() {
                 axis: Vector3::z(),
                 limits: None,
                 damping: 0.0,
+                friction: 0.0,
+                mimic: None,
+                place: None,
             });
         }),
         "joint 'changer_arm' moves neither the tool (link 'tool') nor the workpiece (link \

@@ -1,7 +1,8 @@
-//! nalgebra ⇄ Rapier 0.36 math types (glam), kept in one place.
+//! nalgebra ⇄ the math types of parry and Rapier 0.36 (glam), kept in one place: the machine
+//! description computes mass properties with parry, the physics model talks to Rapier.
 
 use nalgebra::{Isometry3, Matrix3, Quaternion, Translation3, UnitQuaternion, Vector3};
-use rapier3d_f64::math::{Matrix, Pose, Rotation, Vector};
+use parry3d_f64::math::{Matrix, Pose, Rotation, Vector};
 
 pub fn to_vec(v: &Vector3<f64>) -> Vector {
     Vector::new(v.x, v.y, v.z)

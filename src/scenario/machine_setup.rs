@@ -1,0 +1,558 @@
+//! `cncsim machine check URDF` and `cncsim machine init URDF`: a user's own machine, from a
+//! URDF exported from CAD or taken from a ROS package, to a machine cncsim runs.
+//!
+//! `check` shows how cncsim reads the machine: which joint each program letter drives, where
+//! that letter moves the tool relative to the part, the travels, the masses and what is
+//! missing. `init` writes a drive file to fill in, its letters guessed from the kinematics.
+
+use crate::diagnostics::FileError;
+use crate::kinematics::{self, ProgramFrame};
+use crate::machine::{
+    load_urdf, DrivesFile, JointKind, KinematicTree, Machine, Tool, AXIS_LETTERS,
+};
+use nalgebra::Vector3;
+use std::fmt::Write as _;
+use std::path::{Path, PathBuf};
+
+/// One program axis as the machine has it.
+#[derive(Debug, Clone, PartialEq)]
+pub struct AxisRow {
+    pub letter: String,
+    pub joint: String,
+    pub rotary: bool,
+    /// Whether the joint moves the tool (else the workpiece).
+    pub moves_tool: bool,
+    /// The letter's positive direction (linear) or axis (rotary) in the program frame's
+    /// carrier link, sign applied.
+    pub direction: [f64; 3],
+    pub sign: i8,
+    /// Joint units (m or rad).
+    pub home: f64,
+    pub travel: Option<[f64; 2]>,
+}
+
+/// What `cncsim machine check` found.
+#[derive(Debug, Clone)]
+pub struct MachineReport {
+    pub urdf: PathBuf,
+    pub drives: PathBuf,
+    pub name: String,
+    /// The carrier link of the program frame, the tool and workpiece links.
+    pub carrier: String,
+    pub tool: String,
+    pub workpiece: String,
+    pub axes: Vec<AxisRow>,
+    /// Joints no axis drives: (name, what happens to it).
+    pub undriven: Vec<(String, String)>,
+    /// Total mass each axis moves is not simple to give on a tree; the links' masses instead.
+    pub links: Vec<(String, f64)>,
+    pub masses_from_geometry: Vec<String>,
+    /// Mesh files the URDF names.
+    pub meshes: Vec<String>,
+    pub right_handed: bool,
+    pub warnings: Vec<FileError>,
+}
+
+/// Loads the URDF and its drive file and reports the mapping; a machine that cannot be run
+/// (no drive file, a massless link, axes not at right angles) is the error.
+pub fn check_machine(urdf: &Path) -> Result<MachineReport, FileError> {
+    let machine = Machine::load(urdf)?;
+    let (frame, frame_warnings) = ProgramFrame::new(&machine, [0.0; 3])?;
+    let mut warnings = machine.warnings.clone();
+    warnings.extend(frame_warnings);
+    let tool_chain = kinematics::chain_joints(&machine, machine.tool_link);
+    let home: Vec<f64> = machine.axes.iter().map(|a| a.drive.home).collect();
+    let poses = kinematics::link_poses(&machine, &home);
+    let carrier_rotation = poses[frame.carrier].rotation;
+    let mut axes: Vec<AxisRow> = machine
+        .axes
+        .iter()
+        .map(|a| {
+            let joint = &machine.joints[a.joint];
+            let rotary = joint.kind == JointKind::Revolute;
+            let moves_tool = tool_chain.contains(&a.joint);
+            let linear = ["x", "y", "z"].iter().position(|l| *l == a.name);
+            let direction: Vector3<f64> = match linear {
+                Some(c) => frame.directions.column(c).into_owned(),
+                None => {
+                    let world = (poses[joint.parent] * joint.origin).rotation * joint.axis;
+                    carrier_rotation.inverse() * world * f64::from(a.drive.sign)
+                }
+            };
+            AxisRow {
+                letter: a.name.clone(),
+                joint: joint.name.clone(),
+                rotary,
+                moves_tool,
+                // Round-off of the turned frames reads as 0, not -0.0000.
+                direction: direction.map(|v| if v.abs() < 1e-12 { 0.0 } else { v }).into(),
+                sign: a.drive.sign,
+                home: a.drive.home,
+                travel: joint.limits,
+            }
+        })
+        .collect();
+    axes.sort_by_key(|a| AXIS_LETTERS.iter().position(|l| *l == a.letter));
+    let tree = load_urdf(urdf)?;
+    let undriven = tree
+        .joints
+        .iter()
+        .filter(|j| j.kind != JointKind::Fixed)
+        .filter(|j| {
+            machine
+                .axes
+                .iter()
+                .all(|a| machine.joints[a.joint].name != j.name)
+        })
+        .map(|j| {
+            let what = if let Some(m) = &j.mimic {
+                format!(
+                    "follows '{}' (<mimic> ×{} + {})",
+                    m.joint, m.multiplier, m.offset
+                )
+            } else if machine
+                .passive
+                .iter()
+                .any(|&p| machine.joints[p].name == j.name)
+            {
+                "passive (moves freely)".to_string()
+            } else {
+                "locked".to_string()
+            };
+            (j.name.clone(), what)
+        })
+        .collect();
+    let meshes = tree
+        .links
+        .iter()
+        .flat_map(|l| &l.solids)
+        .filter_map(|s| match &s.shape {
+            crate::machine::SolidShape::Mesh { filename } => Some(filename.clone()),
+            _ => None,
+        })
+        .collect();
+    Ok(MachineReport {
+        urdf: urdf.to_path_buf(),
+        drives: DrivesFile::path_for(urdf),
+        name: machine.name.clone(),
+        carrier: machine.links[frame.carrier].name.clone(),
+        tool: machine.links[machine.tool_link].name.clone(),
+        workpiece: machine.links[machine.workpiece_link].name.clone(),
+        axes,
+        undriven,
+        links: machine
+            .links
+            .iter()
+            .map(|l| (l.name.clone(), l.mass))
+            .collect(),
+        masses_from_geometry: machine.masses_from_geometry.clone(),
+        meshes,
+        right_handed: frame.directions.determinant() > 0.0,
+        warnings,
+    })
+}
+
+impl MachineReport {
+    /// The report as text, in program units (mm, deg, kg).
+    pub fn text(&self) -> String {
+        let mut out = String::new();
+        let _ = writeln!(
+            out,
+            "machine '{}': {} with {}",
+            self.name,
+            self.urdf.display(),
+            self.drives.display()
+        );
+        let _ = writeln!(
+            out,
+            "tool on link '{}', workpiece on link '{}'; program frame fixed in link '{}'{}",
+            self.tool,
+            self.workpiece,
+            self.carrier,
+            if self.carrier == self.workpiece {
+                String::new()
+            } else {
+                " (the link the rotary axes carrying the workpiece stand on)".into()
+            }
+        );
+        let _ = writeln!(
+            out,
+            "\n{:<5} {:<20} {:<8} {:<6} {:<28} {:>4} {:>10} {:>24}",
+            "axis",
+            "joint",
+            "kind",
+            "moves",
+            format!("direction in '{}'", self.carrier),
+            "sign",
+            "home",
+            "travel"
+        );
+        for a in &self.axes {
+            let scale = if a.rotary {
+                180.0 / std::f64::consts::PI
+            } else {
+                1e3
+            };
+            let unit = if a.rotary { "deg" } else { "mm" };
+            let d = a.direction;
+            let travel = a.travel.map_or_else(
+                || "endless".to_string(),
+                |[lo, hi]| format!("{:.3} … {:.3} {unit}", lo * scale, hi * scale),
+            );
+            let _ = writeln!(
+                out,
+                "{:<5} {:<20} {:<8} {:<6} [{:>7.4}, {:>7.4}, {:>7.4}]    {:>4} {:>10} {:>24}",
+                a.letter.to_uppercase(),
+                a.joint,
+                if a.rotary { "rotary" } else { "linear" },
+                if a.moves_tool { "tool" } else { "part" },
+                d[0],
+                d[1],
+                d[2],
+                format!("{:+}", a.sign),
+                format!("{:.3} {unit}", a.home * scale),
+                travel
+            );
+        }
+        let _ = writeln!(
+            out,
+            "X, Y, Z are {}",
+            if self.right_handed {
+                "right-handed (ISO 841)"
+            } else {
+                "LEFT-handed: parts come out mirrored (see the warning)"
+            }
+        );
+        if !self.undriven.is_empty() {
+            let _ = writeln!(out, "\njoints no axis drives:");
+            for (name, what) in &self.undriven {
+                let _ = writeln!(out, "  {name}: {what}");
+            }
+        }
+        let total: f64 = self.links.iter().map(|(_, m)| m).sum();
+        let _ = writeln!(
+            out,
+            "\nlinks: {} with {:.3} kg in all",
+            self.links.len(),
+            total
+        );
+        for (name, mass) in &self.links {
+            let computed = if self.masses_from_geometry.contains(name) {
+                " (from geometry)"
+            } else {
+                ""
+            };
+            let _ = writeln!(out, "  {name}: {mass:.4} kg{computed}");
+        }
+        if !self.meshes.is_empty() {
+            let _ = writeln!(out, "\nmesh files named: {}", self.meshes.len());
+            for m in &self.meshes {
+                let _ = writeln!(out, "  {m}");
+            }
+        }
+        for w in &self.warnings {
+            let _ = writeln!(out, "\nwarning: {w}");
+        }
+        out
+    }
+
+    pub fn json(&self) -> serde_json::Value {
+        serde_json::json!({
+            "machine": self.name,
+            "urdf": self.urdf,
+            "drives": self.drives,
+            "tool_link": self.tool,
+            "workpiece_link": self.workpiece,
+            "frame_link": self.carrier,
+            "right_handed": self.right_handed,
+            "axes": self.axes.iter().map(|a| serde_json::json!({
+                "letter": a.letter,
+                "joint": a.joint,
+                "rotary": a.rotary,
+                "moves": if a.moves_tool { "tool" } else { "workpiece" },
+                "direction": a.direction,
+                "sign": a.sign,
+                "home": a.home,
+                "travel": a.travel,
+            })).collect::<Vec<_>>(),
+            "undriven_joints": self.undriven.iter().map(|(n, w)| serde_json::json!({"joint": n, "mode": w})).collect::<Vec<_>>(),
+            "links": self.links.iter().map(|(n, m)| serde_json::json!({"link": n, "mass_kg": m, "from_geometry": self.masses_from_geometry.contains(n)})).collect::<Vec<_>>(),
+            "meshes": self.meshes,
+            "warnings": self.warnings.iter().map(|w| w.to_string()).collect::<Vec<_>>(),
+        })
+    }
+}
+
+/// Link names that say "the tool is here", and "the part is here", most telling first.
+const TOOL_WORDS: [&str; 11] = [
+    "tool", "tcp", "nozzle", "spindle", "laser", "torch", "pen", "extruder", "hotend", "effector",
+    "head",
+];
+const WORKPIECE_WORDS: [&str; 7] = ["workpiece", "work", "part", "bed", "table", "plate", "vise"];
+
+/// A drive file for `urdf`, every key commented with its unit and default; the values that
+/// must come from the user's datasheets are marked ASSUMED (typical of a small servo axis),
+/// so the file loads and a first run works before they are filled in.
+pub fn drive_file_template(urdf: &Path) -> Result<String, FileError> {
+    let tree = load_urdf(urdf)?;
+    let guess = Guess::of(&tree);
+    let urdf_text =
+        std::fs::read_to_string(urdf).map_err(|e| FileError::new(urdf, None, e.to_string()))?;
+    // Masses from geometry only where the URDF leaves a moving body without any.
+    let mut density = false;
+    let mut text = render(&tree, urdf, &guess, None, density);
+    if Machine::parse(urdf, &urdf_text, &text).is_err() {
+        density = true;
+        text = render(&tree, urdf, &guess, None, density);
+    }
+    // Check the guess the way a run will read it, and make the axes right-handed.
+    let machine = Machine::parse(urdf, &urdf_text, &text)?;
+    let (frame, _) = ProgramFrame::new(&machine, [0.0; 3])?;
+    if frame.directions.determinant() < 0.0 {
+        // Flip the axis that points most against its namesake of the frame's link.
+        let flip = (0..3)
+            .filter(|&c| machine.axis_index(["x", "y", "z"][c]).is_some())
+            .min_by(|&a, &b| frame.directions[(a, a)].total_cmp(&frame.directions[(b, b)]))
+            .unwrap_or(1);
+        text = render(&tree, urdf, &guess, Some(["x", "y", "z"][flip]), density);
+    }
+    Ok(text)
+}
+
+/// The guessed roles of a tree's joints and links.
+struct Guess {
+    tool: usize,
+    workpiece: usize,
+    /// (joint, letter) for the joints that move the tool or the part.
+    axes: Vec<(usize, &'static str)>,
+    /// Moving joints on neither chain (grippers, doors, tool changers).
+    others: Vec<usize>,
+}
+
+impl Guess {
+    fn of(tree: &KinematicTree) -> Guess {
+        let probe = provisional(tree, tree.root, tree.root);
+        let chain = |link| kinematics::chain_joints(&probe, link);
+        let moving = |js: &[usize]| {
+            js.iter()
+                .filter(|&&j| {
+                    tree.joints[j].kind != JointKind::Fixed && tree.joints[j].mimic.is_none()
+                })
+                .count()
+        };
+        let named = |words: &[&str], l: usize| {
+            let name = tree.links[l].name.to_lowercase();
+            words.iter().position(|w| name.contains(w))
+        };
+        // The tool: a link named like one, deepest first; else the leaf with the longest
+        // moving chain.
+        let leaves: Vec<usize> = (0..tree.links.len())
+            .filter(|&l| tree.joints.iter().all(|j| j.parent != l))
+            .collect();
+        let tool = (0..tree.links.len())
+            .filter(|&l| named(&TOOL_WORDS, l).is_some())
+            .max_by_key(|&l| {
+                (
+                    moving(&chain(l)),
+                    usize::MAX - named(&TOOL_WORDS, l).unwrap_or(0),
+                )
+            })
+            .or_else(|| leaves.iter().copied().max_by_key(|&l| moving(&chain(l))))
+            .unwrap_or(tree.root);
+        let tool_chain = chain(tool);
+        let workpiece = (0..tree.links.len())
+            .filter(|&l| l != tool && named(&WORKPIECE_WORDS, l).is_some())
+            .filter(|&l| !tool_chain.iter().any(|&j| tree.joints[j].child == l))
+            .max_by_key(|&l| {
+                (
+                    moving(&chain(l)),
+                    usize::MAX - named(&WORKPIECE_WORDS, l).unwrap_or(0),
+                )
+            })
+            .unwrap_or(tree.root);
+        let work_chain = chain(workpiece);
+        let poses = kinematics::link_poses(&probe, &[]);
+        let mut axes: Vec<(usize, &'static str)> = Vec::new();
+        let mut others = Vec::new();
+        for (j, joint) in tree.joints.iter().enumerate() {
+            if joint.kind == JointKind::Fixed || joint.mimic.is_some() {
+                continue;
+            }
+            let on_tool = tool_chain.contains(&j);
+            let on_part = work_chain.contains(&j);
+            if on_tool == on_part {
+                others.push(j);
+                continue;
+            }
+            let world = (poses[joint.parent] * joint.origin).rotation * joint.axis;
+            let direction = if on_tool { world } else { -world };
+            let letters: [&'static str; 3] = if joint.kind == JointKind::Revolute {
+                ["a", "b", "c"]
+            } else {
+                ["x", "y", "z"]
+            };
+            // The free letter whose axis the joint moves along most.
+            let mut order = [0usize, 1, 2];
+            order.sort_by(|&a, &b| direction[b].abs().total_cmp(&direction[a].abs()));
+            match order
+                .iter()
+                .map(|&c| letters[c])
+                .find(|l| axes.iter().all(|(_, t)| t != l))
+            {
+                Some(letter) => axes.push((j, letter)),
+                None => others.push(j),
+            }
+        }
+        axes.sort_by_key(|(_, l)| AXIS_LETTERS.iter().position(|a| a == l));
+        Guess {
+            tool,
+            workpiece,
+            axes,
+            others,
+        }
+    }
+}
+
+/// The tree as a machine without axes, for its kinematics.
+fn provisional(tree: &KinematicTree, tool: usize, workpiece: usize) -> Machine {
+    Machine {
+        name: tree.name.clone(),
+        urdf_path: tree.path.clone(),
+        links: tree.links.clone(),
+        joints: tree.joints.clone(),
+        root: tree.root,
+        axes: Vec::new(),
+        passive: Vec::new(),
+        masses_from_geometry: Vec::new(),
+        tool: Tool {
+            link: tree.links[tool].name.clone(),
+            offset_m: [0.0; 3],
+        },
+        tool_link: tool,
+        workpiece_link: workpiece,
+        warnings: Vec::new(),
+    }
+}
+
+fn render(
+    tree: &KinematicTree,
+    urdf: &Path,
+    guess: &Guess,
+    flip: Option<&str>,
+    density: bool,
+) -> String {
+    let mut t = String::new();
+    let file = urdf
+        .file_name()
+        .map_or_else(String::new, |n| n.to_string_lossy().into_owned());
+    let _ = writeln!(
+        t,
+        "# Drive data for {file}: what URDF has no element for. SI units throughout (m, rad, kg, s,\n\
+         # N·m, V, A). Written by `cncsim machine init`; every key is documented in docs/machines.md.\n\
+         # Values marked ASSUMED are typical of a small servo axis, not your machine's: replace them\n\
+         # with your datasheets' before trusting a figure. `cncsim machine check {}` shows how cncsim\n\
+         # reads the machine (letters, directions, travels, masses).\n",
+        urdf.display()
+    );
+    let _ = writeln!(
+        t,
+        "# The URDF's <robot name> (or its file name).\nmachine = {:?}\n",
+        tree.name
+    );
+    let _ = writeln!(
+        t,
+        "# Masses and inertias of links the URDF leaves massless, from their collision (else visual)\n\
+         # geometry at this density (kg/m³; aluminium 2700, steel 7850). Without it every moving link\n\
+         # needs an <inertial> with a positive mass.\n{}inertia_from_geometry = {{ density_kg_m3 = 2700.0 }}\n",
+        if density { "" } else { "# " }
+    );
+    let _ = writeln!(
+        t,
+        "# The tool point: a point fixed in one link (guessed: '{}'), offset_m in that link's frame.\n\
+         [tool]\nlink = {:?}\noffset_m = [0.0, 0.0, 0.0]\n",
+        tree.links[guess.tool].name, tree.links[guess.tool].name
+    );
+    let _ = writeln!(
+        t,
+        "# The link that carries the part (guessed: '{}'). Program X, Y, Z are where each axis moves\n\
+         # the tool relative to it (ISO 841); without this table, the base link.\n\
+         [workpiece]\nlink = {:?}\n",
+        tree.links[guess.workpiece].name, tree.links[guess.workpiece].name
+    );
+    for &(j, letter) in &guess.axes {
+        let joint = &tree.joints[j];
+        let rotary = joint.kind == JointKind::Revolute;
+        let _ = writeln!(
+            t,
+            "# {}: URDF joint '{}' (letter guessed from its direction).",
+            letter.to_uppercase(),
+            joint.name
+        );
+        let _ = writeln!(t, "[axes.{letter}]\njoint = {:?}", joint.name);
+        if rotary {
+            let _ = writeln!(t, "# Gearbox (motor radians per joint radian).\ntransmission = {{ kind = \"gear\", ratio = 50.0 }}   # ASSUMED");
+        } else {
+            let _ = writeln!(
+                t,
+                "# kind = \"screw\" (lead_m, optional gear_ratio) or \"belt\" (gear_ratio, pulley_radius_m).\n\
+                 transmission = {{ kind = \"screw\", lead_m = 0.010 }}   # ASSUMED: 10 mm ball screw"
+            );
+        }
+        let backlash_unit = if rotary { "rad" } else { "m" };
+        let _ = writeln!(
+            t,
+            "rotor_inertia_kg_m2 = 1.3e-4            # ASSUMED: motor rotor (kg·m²)\n\
+             transmission_inertia_kg_m2 = 1.0e-4     # ASSUMED: screw, gears or pulley on the motor side (kg·m²); default 0\n\
+             viscous_damping_nm_s_per_rad = 1.0e-4   # ASSUMED: motor-side viscous damping (N·m·s/rad)\n\
+             motor = {{ torque_constant_nm_per_a = 0.6, back_emf_v_s_per_rad = 0.6, resistance_ohm = 1.5, inductance_h = 4.0e-3 }}   # ASSUMED\n\
+             amplifier_gain = 10.0                   # ASSUMED: volts at the armature per volt of controller output\n\
+             supply_voltage_v = 300.0                # ASSUMED: the amplifier's supply (V)\n\
+             peak_torque_nm = 7.0                    # ASSUMED: torque limit of the ideal-torque actuator (N·m)\n\
+             # amplifier_mode = \"voltage\"          # or \"current\" (torque mode); default voltage\n\
+             # backlash = 0.0                        # lost motion at the joint ({backlash_unit}); default none\n\
+             # feedback = \"motor\"                  # or \"carriage\" (a linear scale); default motor\n\
+             # encoder_counts_per_rev = 10000        # default: ideal feedback"
+        );
+        if !rotary {
+            let _ = writeln!(
+                t,
+                "# guide = {{ friction_coefficient = 0.01 }}   # guide contact with Coulomb friction; default frictionless"
+            );
+        }
+        let sign = if flip == Some(letter) {
+            "sign = -1                               # the axes were left-handed: this one is reversed so parts are not mirrored"
+        } else {
+            "# sign = 1                              # -1 reverses the letter's direction; default 1"
+        };
+        let _ = writeln!(
+            t,
+            "{sign}\n# home = 0.0                             # joint coordinate at machine zero ({}); default 0\n",
+            if rotary { "rad" } else { "m" }
+        );
+    }
+    for &j in &guess.others {
+        let joint = &tree.joints[j];
+        let _ = writeln!(
+            t,
+            "# '{}' moves neither the tool nor the part as an axis would: held where it is.\n\
+             # mode = \"passive\" lets it move freely with its URDF damping and friction.\n\
+             [joints.{}]\nmode = \"locked\"\n# position = 0.0\n",
+            joint.name,
+            toml_key(&joint.name)
+        );
+    }
+    t
+}
+
+/// A TOML key: bare where the name allows it, else quoted.
+fn toml_key(name: &str) -> String {
+    if !name.is_empty()
+        && name
+            .chars()
+            .all(|c| c.is_ascii_alphanumeric() || c == '_' || c == '-')
+    {
+        name.to_string()
+    } else {
+        format!("{name:?}")
+    }
+}

@@ -1,0 +1,344 @@
+//! A machine written by someone else: frames turned as CAD exporters turn them, a moving bed,
+//! a `<mimic>` rail, undriven clamp joints, massless links, xacro. Its figures must be those of
+//! the tool on the part (ISO 841 program axes), never an artefact of the URDF's frames.
+
+use cncsim::kinematics::{AxisMap, ProgramFrame};
+use cncsim::machine::Machine;
+use cncsim::scenario::{report_setup, run_scenario_traced, Assembly, Scenario};
+use cncsim::sim::Trace;
+use nalgebra::{Matrix3, Point3, Vector3};
+use std::path::{Path, PathBuf};
+
+fn fixture(name: &str) -> PathBuf {
+    Path::new(env!("CARGO_MANIFEST_DIR"))
+        .join("tests/fixtures/machines")
+        .join(name)
+}
+
+fn gantry_text() -> (String, String) {
+    (
+        std::fs::read_to_string(fixture("cad_gantry.urdf")).unwrap(),
+        std::fs::read_to_string(fixture("cad_gantry.drives.toml")).unwrap(),
+    )
+}
+
+/// The gantry with its drive file edited by `edit` (applied to the text).
+fn gantry_with(edit: impl Fn(String) -> String) -> Result<Machine, cncsim::diagnostics::FileError> {
+    let (urdf, drives) = gantry_text();
+    Machine::parse(&fixture("cad_gantry.urdf"), &urdf, &edit(drives))
+}
+
+#[test]
+fn program_axes_are_where_each_axis_moves_the_tool_on_the_part() {
+    let machine = Machine::load(&fixture("cad_gantry.urdf")).unwrap();
+    let (frame, warnings) = ProgramFrame::new(&machine, [0.0; 3]).unwrap();
+    assert!(warnings.is_empty(), "{warnings:?}");
+    assert_eq!(machine.links[frame.carrier].name, "workpiece");
+    // The workpiece frame is the bed's, turned -90° about world x: world +x is its +x, world
+    // +y its +z, world +z its -y. X moves the tool along world +x; the bed's joint moves the
+    // part along world +y, so the tool along world -y, and sign = -1 makes that program -Y;
+    // Z moves the tool up.
+    let expected = Matrix3::from_columns(&[
+        Vector3::new(1.0, 0.0, 0.0),
+        Vector3::new(0.0, 0.0, 1.0),
+        Vector3::new(0.0, -1.0, 0.0),
+    ]);
+    assert!(
+        (frame.directions - expected).norm() < 1e-12,
+        "{}",
+        frame.directions
+    );
+    assert!(frame.directions.determinant() > 0.0);
+    // Program zero is the tool over the part with every joint at zero: a program point maps
+    // back onto the part where the joints put the tool.
+    let map = AxisMap::new(&machine, [0.0; 3]).unwrap();
+    let p = cncsim::program::Position {
+        linear: [0.012, -0.034, 0.005],
+        rotary: [0.0; 3],
+    };
+    let mut q = vec![0.0; 3];
+    map.machine_axes(&p, &mut q);
+    let [x, y, z] = ["x", "y", "z"].map(|l| machine.axis_index(l).unwrap());
+    assert_eq!(
+        [q[x], q[y], q[z]],
+        [0.012, 0.034, 0.005],
+        "Y runs backwards (sign = -1)"
+    );
+    let on_part = cncsim::kinematics::tool_in_link(&machine, frame.carrier, &q);
+    let back = frame.program_point(&on_part);
+    assert!((back - Point3::from(p.linear)).norm() < 1e-12, "{back}");
+}
+
+#[test]
+fn a_left_handed_set_of_axes_loads_with_a_warning_naming_the_axis_to_flip() {
+    let machine = gantry_with(|d| d.replace("sign = -1\n", "")).unwrap();
+    let (frame, warnings) = ProgramFrame::new(&machine, [0.0; 3]).unwrap();
+    assert!(frame.directions.determinant() < 0.0);
+    let text: Vec<String> = warnings.iter().map(|w| w.to_string()).collect();
+    assert_eq!(text.len(), 1, "{text:?}");
+    assert!(
+        text[0].contains("left-handed: parts come out mirrored"),
+        "{}",
+        text[0]
+    );
+    assert!(text[0].contains("`sign = -1` in [axes.y]"), "{}", text[0]);
+}
+
+#[test]
+fn work_offset_home_and_sign_place_program_zero_as_g54_does() {
+    let machine = gantry_with(|d| {
+        d.replace(
+            "peak_torque_nm = 7.0\nsign = -1",
+            "peak_torque_nm = 7.0\nsign = -1\nhome = 0.010",
+        )
+    })
+    .unwrap();
+    // Program zero at machine coordinates (5, 20, -3) mm.
+    let offset = [0.005, 0.020, -0.003];
+    let map = AxisMap::new(&machine, offset).unwrap();
+    let (frame, _) = ProgramFrame::new(&machine, offset).unwrap();
+    let zero = cncsim::program::Position::default();
+    let mut q = vec![0.0; 3];
+    map.machine_axes(&zero, &mut q);
+    // joint = home + sign·(program + offset)
+    let [x, y, z] = ["x", "y", "z"].map(|l| machine.axis_index(l).unwrap());
+    assert!((q[x] - 0.005).abs() < 1e-15, "{q:?}");
+    assert!((q[y] - (0.010 - 0.020)).abs() < 1e-15, "{q:?}");
+    assert!((q[z] + 0.003).abs() < 1e-15, "{q:?}");
+    let on_part = cncsim::kinematics::tool_in_link(&machine, frame.carrier, &q);
+    assert!(frame.program_point(&on_part).coords.norm() < 1e-12);
+}
+
+#[test]
+fn axes_not_at_right_angles_are_refused_naming_both_joints() {
+    let (urdf, drives) = gantry_text();
+    // The carriage's axis tilted by 5° towards the gantry's travel.
+    let tilted = urdf.replace(
+        "<axis xyz=\"-1 0 0\"/>",
+        "<axis xyz=\"-0.9961947 0 0.0871557\"/>",
+    );
+    let machine = Machine::parse(&fixture("cad_gantry.urdf"), &tilted, &drives).unwrap();
+    let e = ProgramFrame::new(&machine, [0.0; 3])
+        .unwrap_err()
+        .to_string();
+    assert!(e.contains("cad_gantry.urdf:"), "{e}");
+    assert!(
+        e.contains("joint 'rail_left'") && e.contains("joint 'carriage_joint'"),
+        "{e}"
+    );
+    assert!(e.contains("85.000° apart"), "{e}");
+}
+
+#[test]
+fn undriven_joints_are_locked_with_one_warning_and_mimic_followers_ride_along() {
+    let machine =
+        gantry_with(|d| d.replace("[joints.clamp_joint]\nmode = \"locked\"\n", "")).unwrap();
+    let warnings: Vec<String> = machine.warnings.iter().map(|w| w.to_string()).collect();
+    assert_eq!(warnings.len(), 1, "{warnings:?}");
+    assert!(
+        warnings[0].contains("1 moving joint no axis drives is locked")
+            && warnings[0].contains("'clamp_joint' (line"),
+        "{}",
+        warnings[0]
+    );
+    // Named in the drive file: no warning.
+    let named = Machine::load(&fixture("cad_gantry.urdf")).unwrap();
+    assert!(named.warnings.is_empty(), "{:?}", named.warnings);
+    // The clamp's jaw (a mimic of the locked lever) and the right rail (a mimic of X) are
+    // fixed joints now; three axes remain, the mass of the right rail rides on X.
+    let moving: Vec<&str> = named
+        .joints
+        .iter()
+        .filter(|j| j.kind != cncsim::machine::JointKind::Fixed)
+        .map(|j| j.name.as_str())
+        .collect();
+    assert_eq!(moving, ["bed_joint", "rail_left", "carriage_joint"]);
+    let rail = named
+        .joints
+        .iter()
+        .find(|j| j.name == "rail_right")
+        .unwrap();
+    assert_eq!(named.links[rail.parent].name, "gantry_left");
+    // Riding on the left rail, the right one stays 0.5 m from it wherever X goes.
+    for x in [-0.1, 0.0, 0.07] {
+        let poses = cncsim::kinematics::link_poses(&named, &[0.0, x, 0.0]);
+        let l = named.link_index("gantry_left").unwrap();
+        let r = named.link_index("gantry_right").unwrap();
+        let apart = poses[r].translation.vector - poses[l].translation.vector;
+        assert!(
+            (apart - Vector3::new(0.0, 0.5, 0.0)).norm() < 1e-12,
+            "{apart}"
+        );
+    }
+}
+
+#[test]
+fn a_mimic_that_does_not_move_rigidly_with_its_leader_is_refused_by_name() {
+    let (urdf, drives) = gantry_text();
+    let doubled = urdf.replace(
+        "<mimic joint=\"rail_left\" multiplier=\"1\" offset=\"0\"/>",
+        "<mimic joint=\"rail_left\" multiplier=\"2\" offset=\"0\"/>",
+    );
+    let e = Machine::parse(&fixture("cad_gantry.urdf"), &doubled, &drives)
+        .unwrap_err()
+        .to_string();
+    assert!(e.contains("cad_gantry.urdf:"), "{e}");
+    assert!(
+        e.contains("joint 'rail_right'") && e.contains("multiplier 2"),
+        "{e}"
+    );
+    assert!(e.contains("[joints.rail_right] mode = \"locked\""), "{e}");
+}
+
+#[test]
+fn every_massless_moving_link_is_listed_in_one_error_and_geometry_can_fill_them() {
+    let (urdf, drives) = gantry_text();
+    let massless = urdf
+        .replace(
+            "<inertial><mass value=\"2\"/><inertia ixx=\"0.005\" ixy=\"0\" ixz=\"0\" iyy=\"0.005\" iyz=\"0\" izz=\"0.005\"/></inertial>",
+            "",
+        )
+        .replace(
+            "<inertial><origin xyz=\"0 0.25 0\"/><mass value=\"8\"/>\n      <inertia ixx=\"0.2\" ixy=\"0\" ixz=\"0\" iyy=\"0.02\" iyz=\"0\" izz=\"0.2\"/></inertial>",
+            "",
+        );
+    assert_ne!(massless, urdf);
+    let e = Machine::parse(&fixture("cad_gantry.urdf"), &massless, &drives)
+        .unwrap_err()
+        .to_string();
+    assert!(e.contains("2 moving links have no mass"), "{e}");
+    // The bed lost nothing: its locked clamp rides on it. The right rail rides on the left
+    // (its <mimic>) and has no <inertial> either: the left one names their body.
+    assert!(
+        e.contains("'gantry_left' (line") && e.contains("'carriage' (line"),
+        "{e}"
+    );
+    assert!(e.contains("inertia_from_geometry"), "{e}");
+    // With a density, both come from their boxes: the carriage a 60 mm cube of steel; the
+    // right rail has no geometry and stays massless, riding on the left.
+    let with_density = format!("inertia_from_geometry = {{ density_kg_m3 = 7850.0 }}\n{drives}");
+    let m = Machine::parse(&fixture("cad_gantry.urdf"), &massless, &with_density).unwrap();
+    let carriage = &m.links[m.link_index("carriage").unwrap()];
+    let mass = 7850.0 * 0.06f64.powi(3);
+    assert!(
+        (carriage.mass - mass).abs() < 1e-9 * mass,
+        "{}",
+        carriage.mass
+    );
+    let i = mass * (0.06f64.powi(2) * 2.0) / 12.0;
+    assert!((carriage.inertia[(0, 0)] - i).abs() < 1e-9 * i);
+    assert_eq!(m.masses_from_geometry, ["gantry_left", "carriage"]);
+}
+
+#[test]
+fn a_xacro_file_is_refused_with_the_command_that_expands_it() {
+    let dir = tempfile::tempdir().unwrap();
+    let path = dir.path().join("mill.urdf.xacro");
+    std::fs::write(
+        &path,
+        "<?xml version=\"1.0\"?>\n<robot name=\"mill\" xmlns:xacro=\"http://www.ros.org/wiki/xacro\">\n  <xacro:property name=\"t\" value=\"0.02\"/>\n  <link name=\"base\"><visual><origin xyz=\"0 0 ${-t/2}\"/></visual></link>\n</robot>\n",
+    )
+    .unwrap();
+    let e = cncsim::machine::load_urdf(&path).unwrap_err().to_string();
+    assert!(e.contains("mill.urdf.xacro:2:"), "{e}");
+    assert!(e.contains("xacro file"), "{e}");
+    assert!(e.contains("`xacro mill.urdf.xacro > mill.urdf`"), "{e}");
+    assert!(e.contains("pip install xacro"), "{e}");
+}
+
+/// The contour error (distance of the tool from the programmed path, on the part) can never
+/// exceed the distance of the tool from its setpoint, which lies on the path: the following
+/// error vector, in program axes. On a machine whose URDF frames are turned and whose bed
+/// moves, a figure computed in the wrong frame breaks this by the travel.
+fn contour_within_following_error(
+    trace: &Trace,
+    setup: &cncsim::report::ReportSetup,
+    axes: &[usize; 3],
+) -> f64 {
+    let n = trace.axes;
+    let mut worst: f64 = 0.0;
+    for k in 0..trace.len() {
+        let sample = setup.path.sample(
+            trace.tool_point[k],
+            trace.tool_velocity[k],
+            trace.segment[k],
+            &trace.commanded_velocity[k * n..(k + 1) * n],
+        );
+        let following: f64 = axes
+            .iter()
+            .map(|&i| {
+                (Trace::at(&trace.commanded, n, k, i) - Trace::at(&trace.actual, n, k, i)).powi(2)
+            })
+            .sum::<f64>()
+            .sqrt();
+        assert!(
+            sample.contour_error <= following + 1e-9,
+            "tick {k}: contour error {} m against a following error of {following} m",
+            sample.contour_error
+        );
+        worst = worst.max(sample.contour_error);
+    }
+    worst
+}
+
+fn run_gantry(
+    scenario_edit: impl Fn(String) -> String,
+    drives_edit: impl Fn(String) -> String,
+) -> (f64, f64, Vec<String>) {
+    let dir = tempfile::tempdir().unwrap();
+    for f in ["cad_gantry.urdf", "cad_gantry_circle.toml"] {
+        std::fs::copy(fixture(f), dir.path().join(f)).unwrap();
+    }
+    let drives = std::fs::read_to_string(fixture("cad_gantry.drives.toml")).unwrap();
+    std::fs::write(
+        dir.path().join("cad_gantry.drives.toml"),
+        drives_edit(drives),
+    )
+    .unwrap();
+    let path = dir.path().join("cad_gantry_circle.toml");
+    let text = std::fs::read_to_string(&path).unwrap();
+    let scenario = Scenario::parse(&path, &scenario_edit(text)).unwrap();
+    let assembly = Assembly::new(&scenario).unwrap();
+    let setup = report_setup(&assembly);
+    let out = dir.path().join("out");
+    let run = run_scenario_traced(&scenario, &out, &mut |_, _| true).unwrap();
+    assert!(run.stop.is_none(), "{:?}", run.stop);
+    let trace = run.trace.expect("traced");
+    let axes = [0, 1, 2].map(|c| assembly.machine.axis_index(["x", "y", "z"][c]).unwrap());
+    let worst = contour_within_following_error(&trace, &setup, &axes);
+    let analytic = run.analytic.expect("analytic lane");
+    contour_within_following_error(&analytic, &setup, &axes);
+    let warnings = run.warnings.iter().map(|w| w.to_string()).collect();
+    (worst, run.metrics.max_contour_error_mm, warnings)
+}
+
+#[test]
+fn on_a_turned_moving_bed_gantry_the_contour_error_stays_within_the_following_error() {
+    let (worst, reported_mm, warnings) = run_gantry(|s| s, |d| d);
+    assert!(warnings.is_empty(), "{warnings:?}");
+    // The whole circle at 20 mm/s under a 20 Hz loop: micrometres, not the 20 mm of travel a
+    // world-frame figure would show.
+    assert!(worst < 20e-6, "contour error {worst} m");
+    assert!(
+        (reported_mm - worst * 1e3).abs() < 1e-9,
+        "{reported_mm} mm reported, {worst} m recomputed"
+    );
+}
+
+#[test]
+fn mirrored_axes_and_a_work_offset_keep_the_contour_error_honest() {
+    let (worst, _, warnings) = run_gantry(
+        |s| {
+            s.replace(
+                "[planner]",
+                "work_offset_mm = [-20.0, 15.0, 2.0]\n\n[planner]",
+            )
+        },
+        |d| d.replace("sign = -1\n", ""),
+    );
+    assert!(
+        warnings.iter().any(|w| w.contains("left-handed")),
+        "{warnings:?}"
+    );
+    assert!(worst < 20e-6, "contour error {worst} m");
+}
