@@ -221,7 +221,7 @@ fn bad_machine_files_name_the_element() {
         (
             "bad inertia",
             src.replace("ixx=\"0.16727\"", "ixx=\"-0.1\""),
-            "inertia is not positive definite",
+            "inertia is not positive semi-definite",
         ),
         (
             "missing parent",

@@ -250,11 +250,11 @@ fn absurd_link_masses_are_refused() {
     for (mass, words) in [
         (
             "1e300",
-            "mass 1e300 kg: expected 0 (a massless frame) or a mass from 1e-6 to 100000.0 kg",
+            "mass 1e300 kg: expected 0 (a massless frame) or a mass from 1e-12 to 100000.0 kg",
         ),
         (
             "1e-300",
-            "mass 1e-300 kg: expected 0 (a massless frame) or a mass from 1e-6",
+            "mass 1e-300 kg: expected 0 (a massless frame) or a mass from 1e-12",
         ),
         // Within range, but with the link's own inertia: a body 40 km across.
         ("2e-6", "radius of gyration"),

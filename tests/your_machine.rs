@@ -240,7 +240,7 @@ fn a_xacro_file_is_refused_with_the_command_that_expands_it() {
     )
     .unwrap();
     let e = cncsim::machine::load_urdf(&path).unwrap_err().to_string();
-    assert!(e.contains("mill.urdf.xacro:2:"), "{e}");
+    assert!(e.contains("mill.urdf.xacro:3:3"), "{e}");
     assert!(e.contains("xacro file"), "{e}");
     assert!(e.contains("`xacro mill.urdf.xacro > mill.urdf`"), "{e}");
     assert!(e.contains("pip install xacro"), "{e}");
@@ -281,20 +281,40 @@ fn contour_within_following_error(
     worst
 }
 
-fn run_gantry(
-    scenario_edit: impl Fn(String) -> String,
+/// The gantry's circle with its files edited, in a folder of its own.
+fn gantry_folder(
+    urdf_edit: impl Fn(String) -> String,
     drives_edit: impl Fn(String) -> String,
-) -> (f64, f64, Vec<String>) {
+) -> tempfile::TempDir {
     let dir = tempfile::tempdir().unwrap();
-    for f in ["cad_gantry.urdf", "cad_gantry_circle.toml"] {
-        std::fs::copy(fixture(f), dir.path().join(f)).unwrap();
-    }
-    let drives = std::fs::read_to_string(fixture("cad_gantry.drives.toml")).unwrap();
+    std::fs::copy(
+        fixture("cad_gantry_circle.toml"),
+        dir.path().join("cad_gantry_circle.toml"),
+    )
+    .unwrap();
+    let (urdf, drives) = gantry_text();
+    std::fs::write(dir.path().join("cad_gantry.urdf"), urdf_edit(urdf)).unwrap();
     std::fs::write(
         dir.path().join("cad_gantry.drives.toml"),
         drives_edit(drives),
     )
     .unwrap();
+    dir
+}
+
+fn run_gantry(
+    scenario_edit: impl Fn(String) -> String,
+    drives_edit: impl Fn(String) -> String,
+) -> (f64, f64, Vec<String>) {
+    run_gantry_with(|u| u, scenario_edit, drives_edit)
+}
+
+fn run_gantry_with(
+    urdf_edit: impl Fn(String) -> String,
+    scenario_edit: impl Fn(String) -> String,
+    drives_edit: impl Fn(String) -> String,
+) -> (f64, f64, Vec<String>) {
+    let dir = gantry_folder(urdf_edit, drives_edit);
     let path = dir.path().join("cad_gantry_circle.toml");
     let text = std::fs::read_to_string(&path).unwrap();
     let scenario = Scenario::parse(&path, &scenario_edit(text)).unwrap();
@@ -306,8 +326,9 @@ fn run_gantry(
     let trace = run.trace.expect("traced");
     let axes = [0, 1, 2].map(|c| assembly.machine.axis_index(["x", "y", "z"][c]).unwrap());
     let worst = contour_within_following_error(&trace, &setup, &axes);
-    let analytic = run.analytic.expect("analytic lane");
-    contour_within_following_error(&analytic, &setup, &axes);
+    if let Some(analytic) = run.analytic {
+        contour_within_following_error(&analytic, &setup, &axes);
+    }
     let warnings = run.warnings.iter().map(|w| w.to_string()).collect();
     (worst, run.metrics.max_contour_error_mm, warnings)
 }
@@ -341,4 +362,140 @@ fn mirrored_axes_and_a_work_offset_keep_the_contour_error_honest() {
         "{warnings:?}"
     );
     assert!(worst < 20e-6, "contour error {worst} m");
+}
+
+#[test]
+fn a_passive_joint_moves_freely_in_the_physics_and_the_analytic_model_says_it_has_none() {
+    // Both clamp joints free: the jaw no longer a mimic of the lever.
+    let unmimicked = |u: String| {
+        u.replace(
+            "<mimic joint=\"clamp_joint\" multiplier=\"-1\" offset=\"0\"/>",
+            "",
+        )
+    };
+    let passive = |d: String| {
+        d.replace("mode = \"locked\"", "mode = \"passive\"")
+            + "\n[joints.clamp_jaw_joint]\nmode = \"passive\"\n"
+    };
+    let (urdf, drives) = gantry_text();
+    let machine = Machine::parse(
+        &fixture("cad_gantry.urdf"),
+        &unmimicked(urdf),
+        &passive(drives),
+    )
+    .unwrap();
+    let names: Vec<&str> = machine
+        .passive
+        .iter()
+        .map(|&j| machine.joints[j].name.as_str())
+        .collect();
+    assert_eq!(names, ["clamp_joint", "clamp_jaw_joint"]);
+    // The physics runs it (the contour property holds); the reference model refuses by name.
+    let (worst, _, _) = run_gantry_with(
+        unmimicked,
+        |s| s.replace("[analytic]\nenabled = true\n", ""),
+        passive,
+    );
+    assert!(worst < 20e-6, "contour error {worst} m");
+    let dir = gantry_folder(unmimicked, passive);
+    let scenario = Scenario::load(&dir.path().join("cad_gantry_circle.toml")).unwrap();
+    let e = Assembly::new(&scenario)
+        .unwrap()
+        .lanes()
+        .err()
+        .expect("the analytic lane is refused")
+        .to_string();
+    assert!(e.contains("joint 'clamp_joint' is passive"), "{e}");
+    // A follower of a free joint is refused by name.
+    let (urdf, drives) = gantry_text();
+    let e = Machine::parse(
+        &fixture("cad_gantry.urdf"),
+        &urdf,
+        &drives.replace("mode = \"locked\"", "mode = \"passive\""),
+    )
+    .unwrap_err()
+    .to_string();
+    assert!(
+        e.contains("joint 'clamp_jaw_joint': its <mimic> follows the passive joint 'clamp_joint'"),
+        "{e}"
+    );
+}
+
+#[test]
+fn a_urdf_that_xacro_wrote_is_read_as_urdf() {
+    // xacro keeps its namespace and the macros its author commented out.
+    let (urdf, drives) = gantry_text();
+    let written = urdf
+        .replace("<robot name=\"cad_gantry\">", "<robot name=\"cad_gantry\" xmlns:xacro=\"http://www.ros.org/wiki/xacro\">\n  <!-- <xacro:include filename=\"${extras}\"/> -->")
+        .replace("<texture", "");
+    Machine::parse(&fixture("cad_gantry.urdf"), &written, &drives).unwrap();
+}
+
+#[test]
+fn machine_init_guesses_the_letters_from_the_kinematics_and_its_file_loads() {
+    let urdf = fixture("cad_gantry.urdf");
+    let drives = cncsim::scenario::drive_file_template(&urdf).unwrap();
+    let machine = Machine::parse(&urdf, &gantry_text().0, &drives).unwrap();
+    let letters: Vec<(String, String, i8)> = machine
+        .axes
+        .iter()
+        .map(|a| {
+            (
+                a.name.clone(),
+                machine.joints[a.joint].name.clone(),
+                a.drive.sign,
+            )
+        })
+        .collect();
+    assert_eq!(
+        letters,
+        [
+            ("y".to_string(), "bed_joint".to_string(), -1),
+            ("x".to_string(), "rail_left".to_string(), 1),
+            ("z".to_string(), "carriage_joint".to_string(), 1),
+        ],
+        "{drives}"
+    );
+    assert!(
+        drives.contains("[joints.clamp_joint]\nmode = \"locked\""),
+        "{drives}"
+    );
+    assert!(
+        drives.contains("[workpiece]\nlink = \"workpiece\""),
+        "{drives}"
+    );
+    assert!(drives.contains("[tool]\nlink = \"tool_tip\""), "{drives}");
+    let (frame, warnings) = ProgramFrame::new(&machine, [0.0; 3]).unwrap();
+    assert!(warnings.is_empty() && frame.directions.determinant() > 0.0);
+}
+
+#[test]
+fn machine_check_prints_the_mapping_and_run_on_a_urdf_points_to_it() {
+    let out = std::process::Command::new(env!("CARGO_BIN_EXE_cncsim"))
+        .args(["machine", "check"])
+        .arg(fixture("cad_gantry.urdf"))
+        .output()
+        .unwrap();
+    assert!(out.status.success());
+    let text = String::from_utf8_lossy(&out.stdout);
+    for line in [
+        "X     rail_left            linear   tool   [ 1.0000,  0.0000,  0.0000]      +1",
+        "Y     bed_joint            linear   part   [ 0.0000,  0.0000,  1.0000]      -1",
+        "X, Y, Z are right-handed (ISO 841)",
+        "rail_right: follows 'rail_left'",
+        "clamp_joint: locked",
+    ] {
+        assert!(text.contains(line), "{line}\n{text}");
+    }
+    let out = std::process::Command::new(env!("CARGO_BIN_EXE_cncsim"))
+        .arg("run")
+        .arg(fixture("cad_gantry.urdf"))
+        .output()
+        .unwrap();
+    assert_eq!(out.status.code(), Some(2));
+    let e = String::from_utf8_lossy(&out.stderr);
+    assert!(
+        e.contains("this is a machine model, not a scenario") && e.contains("cncsim machine init"),
+        "{e}"
+    );
 }

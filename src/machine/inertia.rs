@@ -4,7 +4,7 @@
 //! geometry at a uniform density (as MuJoCo's `inertiafromgeom` does), with parry's mass
 //! properties of each solid.
 
-use super::{JointKind, KinematicTree, Link, SolidShape};
+use super::{JointKind, KinematicTree, Link, SolidShape, MIN_BODY_MASS_KG};
 use crate::convert::{from_vec, to_pose, to_vec};
 use crate::diagnostics::FileError;
 use nalgebra::{Matrix3, Point3};
@@ -23,7 +23,7 @@ pub(super) fn complete(
     let mut computed = Vec::new();
     if let Some(density) = density {
         for (i, link) in tree.links.iter_mut().enumerate() {
-            if group[i] == root_group || link.mass > 0.0 {
+            if group[i] == root_group || link.mass >= MIN_BODY_MASS_KG {
                 continue;
             }
             if let Some(properties) = from_geometry(link, density) {
@@ -37,7 +37,7 @@ pub(super) fn complete(
     // A moving rigid group without mass, named by its links.
     let mut massless: Vec<usize> = Vec::new();
     for (i, _) in tree.links.iter().enumerate() {
-        if group[i] == i && i != tree.root && group_mass(tree, &group, i) <= 0.0 {
+        if group[i] == i && i != tree.root && group_mass(tree, &group, i) < MIN_BODY_MASS_KG {
             massless.push(i);
         }
     }
@@ -76,10 +76,11 @@ pub(super) fn complete(
         &tree.path,
         tree.links[first].place,
         format!(
-            "{} moving link{} {} no mass, and the physics cannot move a massless body: {}. {remedy}",
+            "{} moving link{} {} no mass (less than {MIN_BODY_MASS_KG:?} kg with the links fixed to {}), and the physics cannot move a massless body: {}. {remedy}",
             massless.len(),
             if massless.len() == 1 { "" } else { "s" },
             if massless.len() == 1 { "has" } else { "have" },
+            if massless.len() == 1 { "it" } else { "them" },
             names.join(", ")
         ),
     ))

@@ -14,8 +14,8 @@ pub use drives::{
     JointSetting, StribeckCurve, Tool, Transmission, Workpiece, AXIS_LETTERS, DENSITY_RANGE_KG_M3,
 };
 pub use urdf::{
-    load_urdf, MAX_LINK_MASS_KG, MAX_MACHINE_SIZE_M, MAX_RADIUS_OF_GYRATION_M, MIN_LINK_MASS_KG,
-    SUSPECT_LINK_MASS_KG,
+    load_urdf, MAX_LINK_MASS_KG, MAX_MACHINE_SIZE_M, MAX_RADIUS_OF_GYRATION_M, MIN_BODY_MASS_KG,
+    MIN_LINK_MASS_KG, SUSPECT_LINK_MASS_KG,
 };
 pub use xml_outline::{MAX_XML_DEPTH, MAX_XML_ELEMENTS};
 

@@ -6,7 +6,7 @@
 //!
 //! | quantity | refused | warned |
 //! |---|---|---|
-//! | link mass | < 1 mg or > 100 t | > 5 t |
+//! | link mass | < 1e-12 kg or > 100 t (a moving body: < 1 mg) | > 5 t |
 //! | radius of gyration √(I_max/m) | > 10 m | |
 //! | joint origin, prismatic travel limits | beyond 100 m | |
 
@@ -16,8 +16,12 @@ use crate::diagnostics::{read_text, FileError, LineColumn};
 use nalgebra::{Isometry3, Matrix3, Point3, Translation3, UnitQuaternion, Vector3};
 use std::path::Path;
 
-/// Lightest mass a link may have (kg), unless it is a massless frame (mass 0).
-pub const MIN_LINK_MASS_KG: f64 = 1e-6;
+/// Lightest mass a link may have (kg), unless it is a massless frame (mass 0). CAD exporters
+/// give frame links placeholder masses down to 1e-9 kg; harmless where the link rides on a
+/// body with mass, which [`MIN_BODY_MASS_KG`] is about.
+pub const MIN_LINK_MASS_KG: f64 = 1e-12;
+/// Lightest body a joint may move (kg): a link and the links fixed to it.
+pub const MIN_BODY_MASS_KG: f64 = 1e-6;
 /// Heaviest mass a link may have (kg).
 pub const MAX_LINK_MASS_KG: f64 = 1e5;
 /// Above this a link loads with a warning (kg).
@@ -25,6 +29,9 @@ pub const SUSPECT_LINK_MASS_KG: f64 = 5e3;
 /// Largest radius of gyration of a link (m): inertia and mass must describe a body of machine
 /// size.
 pub const MAX_RADIUS_OF_GYRATION_M: f64 = 10.0;
+/// Inertia below any machine part's (a gram at 30 µm): moments this small are a point mass's,
+/// whatever their sign and proportions after an exporter's round-off.
+const NEGLIGIBLE_INERTIA_KG_M2: f64 = 1e-12;
 /// Largest distance a joint origin or a prismatic limit may give (m).
 pub const MAX_MACHINE_SIZE_M: f64 = 100.0;
 
@@ -39,7 +46,16 @@ pub(crate) fn parse_urdf(path: &Path, text: &str) -> Result<KinematicTree, FileE
     // Bounded, located checks first: the recursive reader behind urdf-rs must never see an
     // unbounded nesting, and its messages carry no position.
     let places = outline(path, text)?;
-    let robot = urdf_rs::read_from_string(text).map_err(|e| {
+    // An empty `<texture/>` (exporters write one inside every material) names no file, which
+    // urdf-rs refuses; textures are not drawn, so it is read as blank space of the same length.
+    let blanked;
+    let text_for_reader = if text.contains("<texture") {
+        blanked = blank_empty_textures(text);
+        blanked.as_str()
+    } else {
+        text
+    };
+    let robot = urdf_rs::read_from_string(text_for_reader).map_err(|e| {
         FileError::new(
             path,
             None,
@@ -112,21 +128,25 @@ pub(crate) fn parse_urdf(path: &Path, text: &str) -> Result<KinematicTree, FileE
             _ => {
                 let (lo, hi) = (j.limit.lower, j.limit.upper);
                 if lo == 0.0 && hi == 0.0 {
-                    return Err(e(
-                        "has no travel: expected <limit lower=\"…\" upper=\"…\" effort=\"…\" velocity=\"…\"/> (type=\"continuous\" for an endless rotary joint)".into(),
+                    // No <limit> (urdf-rs reads it as 0, 0): unlimited, as Drake and MuJoCo
+                    // read it.
+                    warnings.push(e(
+                        "has no <limit lower=\"…\" upper=\"…\"/>: read as a joint without travel limits".into(),
                     ));
-                }
-                if !(lo.is_finite() && hi.is_finite() && lo < hi) {
+                    None
+                } else if !(lo.is_finite() && hi.is_finite() && lo < hi) {
                     return Err(e(format!(
                         "limits lower={lo:?} upper={hi:?}: expected finite lower < upper"
                     )));
-                }
-                if kind == JointKind::Prismatic && lo.abs().max(hi.abs()) > MAX_MACHINE_SIZE_M {
+                } else if kind == JointKind::Prismatic
+                    && lo.abs().max(hi.abs()) > MAX_MACHINE_SIZE_M
+                {
                     return Err(e(format!(
                         "limits lower={lo:?} upper={hi:?} m: expected a travel within ±{MAX_MACHINE_SIZE_M:?} m"
                     )));
+                } else {
+                    Some([lo, hi])
                 }
-                Some([lo, hi])
             }
         };
         let damping = j.dynamics.as_ref().map_or(0.0, |d| d.damping);
@@ -219,10 +239,48 @@ pub(crate) fn parse_urdf(path: &Path, text: &str) -> Result<KinematicTree, FileE
             ),
         )
     })?;
-    let joints = ordered.into_iter().map(|i| joints[i].clone()).collect();
+    let joints: Vec<Joint> = ordered.into_iter().map(|i| joints[i].clone()).collect();
 
+    // Inertias that no rigid body has are refused where they move; on the base and the links
+    // fixed to it (which never move here) they are not used, and only warned of.
+    let mut on_base = vec![false; links.len()];
+    on_base[root] = true;
+    for j in joints.iter().filter(|j| j.kind == JointKind::Fixed) {
+        on_base[j.child] = on_base[j.parent];
+    }
+    for ((l, link), fixed) in robot.links.iter().zip(&links).zip(&on_base) {
+        let Err(problem) = physical_inertia(l) else {
+            continue;
+        };
+        let problem = err(
+            "link",
+            &link.name,
+            format!("link '{}': {problem}", link.name),
+        );
+        if *fixed {
+            warnings.push(FileError::new(
+                path,
+                problem.at,
+                format!(
+                    "{}; the link is fixed to the base, which does not move, so it is not used",
+                    problem.message
+                ),
+            ));
+        } else {
+            return Err(problem);
+        }
+    }
+
+    // `<robot name>` is required by the URDF schema, but readers (MuJoCo's among them) take a
+    // file without it; the file's stem stands in.
+    let name = if robot.name.is_empty() {
+        path.file_stem()
+            .map_or_else(String::new, |s| s.to_string_lossy().into_owned())
+    } else {
+        robot.name
+    };
     Ok(KinematicTree {
-        name: robot.name,
+        name,
         path: path.to_path_buf(),
         text: text.to_string(),
         links,
@@ -305,7 +363,6 @@ fn link_from_urdf(l: &urdf_rs::Link, materials: &[urdf_rs::Material]) -> Result<
         return Err("inertia has a non-finite entry".into());
     }
     if m > 0.0 {
-        check_physical_inertia(&local)?;
         let largest = local.symmetric_eigenvalues().max();
         let gyration = (largest / m).sqrt();
         if gyration > MAX_RADIUS_OF_GYRATION_M {
@@ -313,8 +370,6 @@ fn link_from_urdf(l: &urdf_rs::Link, materials: &[urdf_rs::Material]) -> Result<
                 "inertia {largest:.4e} kg·m² on a mass of {m:?} kg is a radius of gyration of {gyration:.3e} m: expected at most {MAX_RADIUS_OF_GYRATION_M:?} m (are mass and inertia in kg and kg·m²?)"
             ));
         }
-    } else if local.norm() > 0.0 {
-        return Err("has inertia but zero mass".into());
     }
     // Inertia expressed in the link frame (the inertial frame may be rotated).
     let r = frame.rotation.to_rotation_matrix();
@@ -412,16 +467,35 @@ fn solids_of(l: &urdf_rs::Link) -> Result<Vec<Solid>, String> {
         .collect()
 }
 
+/// A link's `<inertial>` as a rigid body can have it.
+fn physical_inertia(l: &urdf_rs::Link) -> Result<(), String> {
+    let m = l.inertial.mass.value;
+    let i = &l.inertial.inertia;
+    let local = Matrix3::new(
+        i.ixx, i.ixy, i.ixz, i.ixy, i.iyy, i.iyz, i.ixz, i.iyz, i.izz,
+    );
+    if m > 0.0 {
+        check_physical_inertia(&local)
+    } else if local.norm() > 0.0 {
+        Err("has inertia but zero mass".into())
+    } else {
+        Ok(())
+    }
+}
+
 /// Principal moments positive and obeying the triangle inequality (a real body's inertia).
 fn check_physical_inertia(i: &Matrix3<f64>) -> Result<(), String> {
     let eig = i.symmetric_eigenvalues();
     let (a, b, c) = (eig[0], eig[1], eig[2]);
-    let tol = 1e-12 * (a.abs() + b.abs() + c.abs());
-    if a <= 0.0 || b <= 0.0 || c <= 0.0 {
+    let largest = a.abs().max(b.abs()).max(c.abs());
+    // A point mass or a thin rod has zero moments (Drake reads them); round-off of a CAD
+    // export leaves a trace below zero or past the triangle's edge.
+    if a.min(b).min(c) < -1e-9 * largest - NEGLIGIBLE_INERTIA_KG_M2 {
         return Err(format!(
-            "inertia is not positive definite (principal moments {a:.4e}, {b:.4e}, {c:.4e} kg·m²)"
+            "inertia is not positive semi-definite (principal moments {a:.4e}, {b:.4e}, {c:.4e} kg·m²): no rigid body has it"
         ));
     }
+    let tol = 1e-6 * (a.abs() + b.abs() + c.abs()) + NEGLIGIBLE_INERTIA_KG_M2;
     if a + b < c - tol || a + c < b - tol || b + c < a - tol {
         return Err(format!(
             "inertia violates the triangle inequality (principal moments {a:.4e}, {b:.4e}, {c:.4e} kg·m²): no rigid body has it"
@@ -454,11 +528,19 @@ fn pose(p: &urdf_rs::Pose) -> Result<Isometry3<f64>, String> {
 
 /// A xacro file (ROS's XML macro language) is not URDF until it is expanded: its `${…}`
 /// expressions and `xacro:` elements would otherwise be read as malformed numbers and unknown
-/// elements. Refused with the command that expands it.
+/// elements. Refused with the command that expands it. Many URDFs that xacro wrote keep its
+/// namespace declaration and commented-out macros: those are URDF, and read as such.
 fn refuse_xacro(path: &Path, text: &str) -> Result<(), FileError> {
-    let marker = ["xmlns:xacro", "<xacro:", "${"]
+    let comments = comment_ranges(text);
+    let in_comment = |at: usize| comments.iter().any(|r| r.contains(&at));
+    let marker = ["<xacro:", "${"]
         .iter()
-        .filter_map(|m| text.find(m).map(|at| (at, *m)))
+        .filter_map(|m| {
+            text.match_indices(m)
+                .map(|(at, _)| at)
+                .find(|&at| !in_comment(at))
+                .map(|at| (at, *m))
+        })
         .min();
     let Some((offset, found)) = marker else {
         return Ok(());
@@ -481,6 +563,45 @@ fn refuse_xacro(path: &Path, text: &str) -> Result<(), FileError> {
              then give cncsim the .urdf"
         ),
     ))
+}
+
+/// `text` with every `<texture/>` that has no attribute turned into spaces.
+fn blank_empty_textures(text: &str) -> String {
+    let mut out = text.to_string();
+    let mut from = 0;
+    while let Some(start) = out[from..].find("<texture").map(|i| from + i) {
+        let Some(end) = out[start..].find('>').map(|i| start + i + 1) else {
+            break;
+        };
+        let inner = out[start + "<texture".len()..end - 1].trim();
+        if inner == "/" || inner.is_empty() {
+            // An empty element, or an opening tag whose closing `</texture>` follows.
+            let end = if inner.is_empty() {
+                out[end..]
+                    .find("</texture>")
+                    .map_or(end, |i| end + i + "</texture>".len())
+            } else {
+                end
+            };
+            out.replace_range(start..end, &" ".repeat(end - start));
+        }
+        from = end.min(out.len());
+    }
+    out
+}
+
+/// Byte ranges of the XML comments in `text`.
+fn comment_ranges(text: &str) -> Vec<std::ops::Range<usize>> {
+    let mut ranges = Vec::new();
+    let mut from = 0;
+    while let Some(start) = text[from..].find("<!--").map(|i| from + i) {
+        let end = text[start + 4..]
+            .find("-->")
+            .map_or(text.len(), |i| start + 4 + i + 3);
+        ranges.push(start..end);
+        from = end;
+    }
+    ranges
 }
 
 fn one_line(s: &str) -> String {

@@ -151,9 +151,6 @@ pub fn outline(path: &Path, text: &str) -> Result<UrdfOutline, FileError> {
                     "expected the root element <robot>, found <{name}>"
                 )));
             }
-            if !attributes.contains_key("name") {
-                return Err(fail("<robot> has no name attribute".into()));
-            }
         }
         check_numbers(&name, &attributes).map_err(&fail)?;
         let parent = stack.last().map(|o| o.name.as_str());

@@ -85,7 +85,9 @@ pub fn check_machine(urdf: &Path) -> Result<MachineReport, FileError> {
                 rotary,
                 moves_tool,
                 // Round-off of the turned frames reads as 0, not -0.0000.
-                direction: direction.map(|v| if v.abs() < 1e-12 { 0.0 } else { v }).into(),
+                direction: direction
+                    .map(|v| if v.abs() < 1e-12 { 0.0 } else { v })
+                    .into(),
                 sign: a.drive.sign,
                 home: a.drive.home,
                 travel: joint.limits,
@@ -296,6 +298,18 @@ const WORKPIECE_WORDS: [&str; 7] = ["workpiece", "work", "part", "bed", "table",
 pub fn drive_file_template(urdf: &Path) -> Result<String, FileError> {
     let tree = load_urdf(urdf)?;
     let guess = Guess::of(&tree);
+    if guess.axes.is_empty() {
+        return Err(FileError::new(
+            urdf,
+            None,
+            format!(
+                "no joint moves the tool (guessed: link '{}') relative to the part (guessed: link '{}'): the URDF has {} moving joints, none between them; a machine needs at least one axis",
+                tree.links[guess.tool].name,
+                tree.links[guess.workpiece].name,
+                tree.joints.iter().filter(|j| j.kind != JointKind::Fixed).count()
+            ),
+        ));
+    }
     let urdf_text =
         std::fs::read_to_string(urdf).map_err(|e| FileError::new(urdf, None, e.to_string()))?;
     // Masses from geometry only where the URDF leaves a moving body without any.
@@ -524,11 +538,17 @@ fn render(
         } else {
             "# sign = 1                              # -1 reverses the letter's direction; default 1"
         };
-        let _ = writeln!(
-            t,
-            "{sign}\n# home = 0.0                             # joint coordinate at machine zero ({}); default 0\n",
-            if rotary { "rad" } else { "m" }
-        );
+        let unit = if rotary { "rad" } else { "m" };
+        let home = match joint.limits {
+            Some([lo, hi]) if !(lo..=hi).contains(&0.0) => format!(
+                "home = {:?}                             # joint coordinate at machine zero ({unit}): 0 is outside this joint's travel, so its nearer limit",
+                0.0f64.clamp(lo, hi)
+            ),
+            _ => format!(
+                "# home = 0.0                             # joint coordinate at machine zero ({unit}); default 0"
+            ),
+        };
+        let _ = writeln!(t, "{sign}\n{home}\n");
     }
     for &j in &guess.others {
         let joint = &tree.joints[j];
