@@ -631,8 +631,8 @@ impl DrivesFile {
         }
         let driven: Vec<(&str, Option<LineColumn>)> = self
             .axes
-            .iter()
-            .map(|(_, d)| (d.get_ref().joint.as_str(), place_of(d.span())))
+            .values()
+            .map(|d| (d.get_ref().joint.as_str(), place_of(d.span())))
             .collect();
         let settings: Vec<(&str, JointSetting, Option<LineColumn>)> = self
             .joints
