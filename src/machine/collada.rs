@@ -20,6 +20,10 @@ use std::collections::HashMap;
 
 /// Deepest chain of `<instance_node>` references followed (a cycle would be endless).
 const MAX_INSTANCE_DEPTH: usize = 64;
+/// Most nodes visited: nodes that instance others twice over, level after level, multiply.
+const MAX_NODE_VISITS: usize = 100_000;
+/// Largest input offset of a primitive (real files use 0 to 3; it sets the index stride).
+const MAX_INPUT_OFFSET: usize = 64;
 
 /// The triangles of a COLLADA document, in metres, in the file's root frame.
 pub(super) fn read_collada(bytes: &[u8]) -> Result<Vec<Part>, String> {
@@ -51,6 +55,7 @@ pub(super) fn read_collada(bytes: &[u8]) -> Result<Vec<Part>, String> {
         ids,
         parts: Vec::new(),
         triangles: 0,
+        visits: 0,
     };
     let scale = Matrix4::new_scaling(unit);
     // The scene the file names, else its first visual scene, else every geometry as it is.
@@ -87,6 +92,7 @@ struct Reader<'a, 'input> {
     ids: HashMap<&'a str, Node<'a, 'input>>,
     parts: Vec<Part>,
     triangles: usize,
+    visits: usize,
 }
 
 fn child<'a, 'i>(n: Node<'a, 'i>, name: &str) -> Option<Node<'a, 'i>> {
@@ -140,6 +146,12 @@ impl<'a, 'input> Reader<'a, 'input> {
         parent: &Matrix4<f64>,
         depth: usize,
     ) -> Result<(), String> {
+        self.visits += 1;
+        if self.visits > MAX_NODE_VISITS {
+            return Err(format!(
+                "the scene visits more than {MAX_NODE_VISITS} nodes (instanced over and over?)"
+            ));
+        }
         if depth > MAX_INSTANCE_DEPTH {
             return Err(format!(
                 "nodes instanced more than {MAX_INSTANCE_DEPTH} deep ({}): a cycle?",
@@ -258,12 +270,16 @@ impl<'a, 'input> Reader<'a, 'input> {
         let mut normals: Option<(usize, Vec<[f32; 3]>)> = None;
         let mut stride = 0usize;
         for input in children(prim, "input") {
-            let offset: usize = input
-                .attribute("offset")
-                .unwrap_or("0")
-                .trim()
-                .parse()
-                .map_err(|_| format!("<input> of the <{kind}> at {at}: offset is not a count"))?;
+            let offset = input.attribute("offset").unwrap_or("0");
+            let offset = match offset.trim().parse::<usize>() {
+                Ok(o) if o <= MAX_INPUT_OFFSET => o,
+                _ => {
+                    return Err(format!(
+                        "an <input> of the <{kind}> at {at} has offset=\"{}\": expected 0 to {MAX_INPUT_OFFSET}",
+                        clip(offset)
+                    ))
+                }
+            };
             stride = stride.max(offset + 1);
             let source = input.attribute("source").unwrap_or("");
             match input.attribute("semantic") {
@@ -301,7 +317,10 @@ impl<'a, 'input> Reader<'a, 'input> {
                 .map(|n| n.text().unwrap_or("").split_whitespace().count() / stride.max(1))
                 .collect(),
         };
-        let corners: usize = counts.iter().sum();
+        let corners = counts
+            .iter()
+            .try_fold(0usize, |a, &b| a.checked_add(b))
+            .unwrap_or(usize::MAX);
         if corners.checked_mul(stride) != Some(p.len()) {
             return Err(format!(
                 "the <{kind}> at {at} has {} indices: expected {} ({} corners × {stride} inputs)",

@@ -397,6 +397,29 @@ pub(super) mod tests {
     }
 
     #[test]
+    fn damaged_files_of_every_format_give_a_mesh_or_an_error() {
+        let files = [
+            (Format::Stl, binary_stl()),
+            (Format::Stl, ascii_stl().into_bytes()),
+            (Format::Obj, obj().into_bytes()),
+            (Format::Collada, collada().into_bytes()),
+        ];
+        let path = Path::new("damaged");
+        for (format, good) in files {
+            for cut in (0..good.len()).step_by(5) {
+                let _ = decode(&good[..cut], path, format, [1.0; 3]);
+            }
+            for at in (0..good.len()).step_by(3) {
+                for b in *b"<>\"9-.#/ xe\0" {
+                    let mut bad = good.clone();
+                    bad[at] = b;
+                    let _ = decode(&bad, path, format, [1.0; 3]);
+                }
+            }
+        }
+    }
+
+    #[test]
     fn bad_files_are_errors_that_say_what_is_wrong() {
         let e = read("x.ply", b"ply\n", [1.0; 3]).unwrap_err();
         assert!(e.contains("'.ply' is not read"), "{e}");

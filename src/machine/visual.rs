@@ -6,6 +6,7 @@ use super::mesh_path::MeshFiles;
 use nalgebra::{Isometry3, Vector3};
 use std::fmt;
 use std::path::PathBuf;
+use std::sync::Arc;
 
 /// One `<visual>` of a link.
 #[derive(Debug, Clone, PartialEq)]
@@ -35,7 +36,8 @@ pub enum Shape {
     Sphere {
         radius: f64,
     },
-    Mesh(TriangleMesh),
+    /// Shared: a machine is cloned per run and per recording, its meshes need not be.
+    Mesh(Arc<TriangleMesh>),
 }
 
 /// A triangle mesh read from a file, in the visual frame (m), the URDF `scale` applied.
@@ -124,7 +126,7 @@ pub(super) fn visuals_from_urdf(
                     }
                 };
                 match read_mesh(&found, scale) {
-                    Ok(mesh) => Shape::Mesh(mesh),
+                    Ok(mesh) => Shape::Mesh(Arc::new(mesh)),
                     Err(why) => {
                         warnings.push(format!(
                             "{which}: mesh file {} (from \"{filename}\"): {why}; the link is drawn without it",
