@@ -148,7 +148,7 @@ impl MeshFiles {
             }
         }
         let roots = if self.roots.is_empty() {
-            format!("no package path was given (--package-path) and {ROS_PACKAGE_PATH} is not set")
+            format!("no package path was given and {ROS_PACKAGE_PATH} is not set")
         } else {
             let list: Vec<String> = self.roots.iter().map(|r| r.display().to_string()).collect();
             format!("nor under the package path {}", list.join(":"))
