@@ -147,7 +147,7 @@ mod tests {
             mass: 0.0,
             center_of_mass: Point3::origin(),
             inertia: Matrix3::zeros(),
-            boxes: Vec::new(),
+            visuals: Vec::new(),
             solids,
             place: None,
         }

@@ -3,35 +3,32 @@
 //! Everything here is plain data in SI units, read once at start-up and shared by the later
 //! stages (kinematics, the physics model, the controllers). Nothing here knows about Rapier.
 
+mod collada;
 mod drives;
 mod inertia;
 mod joints;
+mod mesh;
+mod mesh_path;
 mod urdf;
+mod visual;
 mod xml_outline;
 
 pub use drives::{
     AmplifierMode, DcMotor, Drive, DrivesFile, Feedback, Guide, InertiaFromGeometry, JointMode,
     JointSetting, StribeckCurve, Tool, Transmission, Workpiece, AXIS_LETTERS, DENSITY_RANGE_KG_M3,
 };
+pub use mesh::{MAX_MESH_FILE_BYTES, MAX_MESH_TRIANGLES};
+pub use mesh_path::{package_search_roots, ROS_PACKAGE_PATH};
 pub use urdf::{
-    load_urdf, MAX_LINK_MASS_KG, MAX_MACHINE_SIZE_M, MAX_RADIUS_OF_GYRATION_M, MIN_BODY_MASS_KG,
-    MIN_LINK_MASS_KG, SUSPECT_LINK_MASS_KG,
+    load_urdf, load_urdf_with_package_paths, MAX_LINK_MASS_KG, MAX_MACHINE_SIZE_M,
+    MAX_RADIUS_OF_GYRATION_M, MIN_BODY_MASS_KG, MIN_LINK_MASS_KG, SUSPECT_LINK_MASS_KG,
 };
+pub use visual::{Shape, TriangleMesh, Visual};
 pub use xml_outline::{MAX_XML_DEPTH, MAX_XML_ELEMENTS};
 
 use crate::diagnostics::{FileError, LineColumn};
 use nalgebra::{Isometry3, Matrix3, Point3, Vector3};
 use std::path::{Path, PathBuf};
-
-/// A box attached to a link, for drawing (and, later, contact geometry).
-#[derive(Debug, Clone, PartialEq)]
-pub struct BoxShape {
-    /// Pose of the box centre in the link frame.
-    pub pose: Isometry3<f64>,
-    pub half_extents: Vector3<f64>,
-    /// RGBA colour, 0–1.
-    pub color: Option<[f32; 4]>,
-}
 
 /// A solid of a link's geometry (its collision geometry, else its visual one), kept for
 /// computing masses that the URDF leaves out (`inertia_from_geometry`).
@@ -71,7 +68,8 @@ pub struct Link {
     pub center_of_mass: Point3<f64>,
     /// Inertia tensor about the centre of mass, in the link frame (kg·m²).
     pub inertia: Matrix3<f64>,
-    pub boxes: Vec<BoxShape>,
+    /// What the link looks like (URDF `<visual>`s), in the file's order.
+    pub visuals: Vec<Visual>,
     /// Its collision geometry, else its visual geometry.
     pub solids: Vec<Solid>,
     /// Where the link is declared in the URDF.
@@ -178,7 +176,16 @@ pub struct Machine {
 impl Machine {
     /// Loads `path` (URDF) and its drive sidecar `<stem>.drives.toml` next to it.
     pub fn load(path: &Path) -> Result<Machine, FileError> {
-        let tree = load_urdf(path)?;
+        Self::load_with_package_paths(path, &[])
+    }
+
+    /// [`Machine::load`], looking for `package://` meshes also under `package_paths` (before
+    /// `ROS_PACKAGE_PATH`).
+    pub fn load_with_package_paths(
+        path: &Path,
+        package_paths: &[PathBuf],
+    ) -> Result<Machine, FileError> {
+        let tree = load_urdf_with_package_paths(path, package_paths)?;
         let drives_path = DrivesFile::path_for(path);
         if !drives_path.exists() {
             return Err(FileError::new(

@@ -10,11 +10,13 @@
 //! | radius of gyration √(I_max/m) | > 10 m | |
 //! | joint origin, prismatic travel limits | beyond 100 m | |
 
+use super::mesh_path::{package_search_roots, MeshFiles};
+use super::visual::visuals_from_urdf;
 use super::xml_outline::outline;
-use super::{BoxShape, Joint, JointKind, KinematicTree, Link, Mimic, Solid, SolidShape};
+use super::{Joint, JointKind, KinematicTree, Link, Mimic, Solid, SolidShape};
 use crate::diagnostics::{read_text, FileError, LineColumn};
 use nalgebra::{Isometry3, Matrix3, Point3, Translation3, UnitQuaternion, Vector3};
-use std::path::Path;
+use std::path::{Path, PathBuf};
 
 /// Lightest mass a link may have (kg), unless it is a massless frame (mass 0). CAD exporters
 /// give frame links placeholder masses down to 1e-9 kg; harmless where the link rides on a
@@ -37,11 +39,28 @@ pub const MAX_MACHINE_SIZE_M: f64 = 100.0;
 
 /// Reads and validates a URDF file.
 pub fn load_urdf(path: &Path) -> Result<KinematicTree, FileError> {
+    load_urdf_with_package_paths(path, &[])
+}
+
+/// [`load_urdf`], looking for `package://` meshes also under `package_paths` (searched before
+/// `ROS_PACKAGE_PATH`). A mesh that cannot be found or read is a warning, not an error.
+pub fn load_urdf_with_package_paths(
+    path: &Path,
+    package_paths: &[PathBuf],
+) -> Result<KinematicTree, FileError> {
     let text = read_text(path, "machine model (URDF)")?;
-    parse_urdf(path, &text)
+    parse_urdf_with_package_paths(path, &text, package_paths)
 }
 
 pub(crate) fn parse_urdf(path: &Path, text: &str) -> Result<KinematicTree, FileError> {
+    parse_urdf_with_package_paths(path, text, &[])
+}
+
+pub(crate) fn parse_urdf_with_package_paths(
+    path: &Path,
+    text: &str,
+    package_paths: &[PathBuf],
+) -> Result<KinematicTree, FileError> {
     refuse_xacro(path, text)?;
     // Bounded, located checks first: the recursive reader behind urdf-rs must never see an
     // unbounded nesting, and its messages carry no position.
@@ -75,10 +94,16 @@ pub(crate) fn parse_urdf(path: &Path, text: &str) -> Result<KinematicTree, FileE
         return Err(FileError::new(path, None, "the URDF has no <link>"));
     }
     let mut links = Vec::with_capacity(robot.links.len());
+    let mut mesh_files = MeshFiles::new(path, package_search_roots(package_paths));
     for l in &robot.links {
-        let mut link = link_from_urdf(l, &robot.materials)
+        let (mut link, visual_warnings) = link_from_urdf(l, &robot.materials, &mut mesh_files)
             .map_err(|m| err("link", &l.name, format!("link '{}': {m}", l.name)))?;
         link.place = element("link", &l.name);
+        warnings.extend(
+            visual_warnings
+                .into_iter()
+                .map(|m| err("link", &l.name, format!("link '{}': {m}", l.name))),
+        );
         if link.mass > SUSPECT_LINK_MASS_KG {
             warnings.push(err(
                 "link",
@@ -344,7 +369,12 @@ fn cycle_through(joints: &[Joint], start: usize) -> Vec<usize> {
     path
 }
 
-fn link_from_urdf(l: &urdf_rs::Link, materials: &[urdf_rs::Material]) -> Result<Link, String> {
+/// The link, and warnings about visuals left out (mesh files missing or unreadable).
+fn link_from_urdf(
+    l: &urdf_rs::Link,
+    materials: &[urdf_rs::Material],
+    mesh_files: &mut MeshFiles,
+) -> Result<(Link, Vec<String>), String> {
     let m = l.inertial.mass.value;
     let i = &l.inertial.inertia;
     let frame = pose(&l.inertial.origin)?;
@@ -374,47 +404,17 @@ fn link_from_urdf(l: &urdf_rs::Link, materials: &[urdf_rs::Material]) -> Result<
     // Inertia expressed in the link frame (the inertial frame may be rotated).
     let r = frame.rotation.to_rotation_matrix();
     let inertia = r.matrix() * local * r.matrix().transpose();
-    let mut boxes = Vec::new();
-    for v in &l.visual {
-        if let urdf_rs::Geometry::Box { size } = &v.geometry {
-            let s = Vector3::from(size.0);
-            if !s.iter().all(|v| v.is_finite() && *v > 0.0) {
-                return Err(format!("box size {:?}: expected positive sizes", size.0));
-            }
-            // A visual's material gives its colour inline or names a robot-level material.
-            let color = v
-                .material
-                .as_ref()
-                .and_then(|m| {
-                    m.color.as_ref().or_else(|| {
-                        materials
-                            .iter()
-                            .find(|d| d.name == m.name)
-                            .and_then(|d| d.color.as_ref())
-                    })
-                })
-                .map(|c| c.rgba.0.map(|x| x as f32));
-            if let Some(c) = color {
-                if !c.iter().all(|x| (0.0..=1.0).contains(x)) {
-                    return Err(format!("colour rgba {c:?}: expected values from 0 to 1"));
-                }
-            }
-            boxes.push(BoxShape {
-                pose: pose(&v.origin)?,
-                half_extents: s / 2.0,
-                color,
-            });
-        }
-    }
-    Ok(Link {
+    let (visuals, warnings) = visuals_from_urdf(&l.visual, materials, mesh_files, pose)?;
+    let link = Link {
         name: l.name.clone(),
         mass: m,
         center_of_mass: Point3::from(frame.translation.vector),
         inertia,
-        boxes,
+        visuals,
         solids: solids_of(l)?,
         place: None,
-    })
+    };
+    Ok((link, warnings))
 }
 
 /// The link's collision geometry, else its visual geometry, as solids.

@@ -48,6 +48,7 @@ const NUMERIC_ATTRIBUTES: &[(&str, &str, usize)] = &[
     ("cylinder", "radius", 1),
     ("cylinder", "length", 1),
     ("sphere", "radius", 1),
+    ("mesh", "scale", 3),
     ("color", "rgba", 4),
 ];
 

@@ -4,7 +4,8 @@
 //!
 //! Entity paths (stable; tests and users rely on them), under an optional variant prefix
 //! (`a/`, `b/` in an A/B recording):
-//! - `world/machine/<link>`: link pose per recorded tick; `…/<link>/visual_<i>` its boxes
+//! - `world/machine/<link>`: link pose per recorded tick; `…/<link>/visual_<i>` its visuals
+//!   (boxes, cylinders, capsules, spheres, meshes), the URDF's in order less meshes not found
 //! - `world/machine/<workpiece link>/paths/programmed` (static) and `…/paths/actual/<chunk>`:
 //!   the tool path on the workpiece, in its frame, growing with time; `…/paths/tool`: the tool
 //! - `magnified/programmed`, `magnified/actual`: the path with the contour error magnified
@@ -20,7 +21,7 @@
 use super::path::PathSample;
 use super::thin::Thinned;
 use super::{AxisLabel, ReportError};
-use crate::machine::Machine;
+use crate::machine::{Machine, Shape, Visual};
 use crate::sim::TickRecord;
 use nalgebra::{Isometry3, Point3};
 use rerun::{RecordingStream, TimeColumn};
@@ -39,7 +40,7 @@ pub const PHYSICS: [u8; 3] = [255, 120, 40];
 pub const ANALYTIC: [u8; 3] = [40, 180, 90];
 pub const DRIVE: [u8; 3] = [170, 90, 220];
 pub const DIFFERENCE: [u8; 3] = [220, 40, 120];
-/// Machine boxes are see-through, so no path hides inside the machine's own geometry.
+/// Machine visuals are see-through, so no path hides inside the machine's own geometry.
 const MACHINE_ALPHA: f32 = 0.3;
 
 /// What a recording shows besides the ticks: plain data the caller prepares.
@@ -215,7 +216,7 @@ impl RrdWriter {
         }
     }
 
-    /// Names, units and colours of every series, the machine's boxes and the programmed path.
+    /// Names, units and colours of every series, the machine's visuals and the programmed path.
     fn log_static_content(&self, setup: &RecordingSetup<'_>) -> rerun::RecordingStreamResult<()> {
         let rec = &self.rec;
         rec.log_static(
@@ -224,24 +225,10 @@ impl RrdWriter {
         )?;
         for (li, link) in self.machine.links.iter().enumerate() {
             let entity = self.entity(&format!("world/machine/{}", link.name));
-            for (bi, b) in link.boxes.iter().enumerate() {
-                let child = format!("{entity}/visual_{bi}");
-                rec.log_static(child.as_str(), &transform(&b.pose))?;
-                let [r, g, bl, _] = b.color.unwrap_or([0.6, 0.6, 0.65, 1.0]);
-                let colour = rerun::Color::from_unmultiplied_rgba(
-                    (r * 255.0) as u8,
-                    (g * 255.0) as u8,
-                    (bl * 255.0) as u8,
-                    (MACHINE_ALPHA * 255.0) as u8,
-                );
-                let boxes = rerun::Boxes3D::from_half_sizes([[
-                    b.half_extents.x as f32,
-                    b.half_extents.y as f32,
-                    b.half_extents.z as f32,
-                ]])
-                .with_fill_mode(rerun::FillMode::Solid)
-                .with_colors([colour]);
-                rec.log_static(child.as_str(), &boxes)?;
+            for (vi, v) in link.visuals.iter().enumerate() {
+                let child = format!("{entity}/visual_{vi}");
+                rec.log_static(child.as_str(), &transform(&v.pose))?;
+                log_visual_shape(rec, &child, v)?;
             }
             if li == self.machine.root {
                 rec.log_static(entity.as_str(), &rerun::Transform3D::IDENTITY)?;
@@ -691,6 +678,66 @@ fn f32_points(points: &[[f64; 3]]) -> Vec<[f32; 3]> {
 fn quaternion(p: &Isometry3<f64>) -> rerun::Quaternion {
     let q = p.rotation.quaternion();
     rerun::Quaternion::from_xyzw([q.i as f32, q.j as f32, q.k as f32, q.w as f32])
+}
+
+/// One visual's shape at `entity` (its pose is the entity's transform), see-through in its URDF
+/// colour.
+fn log_visual_shape(
+    rec: &RecordingStream,
+    entity: &str,
+    v: &Visual,
+) -> rerun::RecordingStreamResult<()> {
+    let [r, g, b, _] = v.color.unwrap_or([0.6, 0.6, 0.65, 1.0]);
+    let colour = rerun::Color::from_unmultiplied_rgba(
+        (r * 255.0) as u8,
+        (g * 255.0) as u8,
+        (b * 255.0) as u8,
+        (MACHINE_ALPHA * 255.0) as u8,
+    );
+    match &v.shape {
+        Shape::Box { half_extents } => rec.log_static(
+            entity,
+            &rerun::Boxes3D::from_half_sizes([[
+                half_extents.x as f32,
+                half_extents.y as f32,
+                half_extents.z as f32,
+            ]])
+            .with_fill_mode(rerun::FillMode::Solid)
+            .with_colors([colour]),
+        ),
+        // Rerun's cylinder is centred on the origin along +z, as URDF's.
+        Shape::Cylinder { radius, length } => rec.log_static(
+            entity,
+            &rerun::Cylinders3D::from_lengths_and_radii([*length as f32], [*radius as f32])
+                .with_fill_mode(rerun::FillMode::Solid)
+                .with_colors([colour]),
+        ),
+        // Rerun's capsule runs from the origin to +z: moved to be centred, as URDF's.
+        Shape::Capsule { radius, length } => rec.log_static(
+            entity,
+            &rerun::Capsules3D::from_lengths_and_radii([*length as f32], [*radius as f32])
+                .with_translations([[0.0, 0.0, -(*length as f32) / 2.0]])
+                .with_fill_mode(rerun::FillMode::Solid)
+                .with_colors([colour]),
+        ),
+        Shape::Sphere { radius } => rec.log_static(
+            entity,
+            &rerun::Ellipsoids3D::from_radii([*radius as f32])
+                .with_fill_mode(rerun::FillMode::Solid)
+                .with_colors([colour]),
+        ),
+        Shape::Mesh(mesh) => {
+            // A mesh's vertex colours carry no alpha: the albedo factor gives colour and
+            // see-through alike.
+            let mut archetype = rerun::Mesh3D::new(mesh.vertices.iter().copied())
+                .with_triangle_indices(mesh.triangles.iter().copied())
+                .with_albedo_factor(colour.0);
+            if let Some(normals) = &mesh.normals {
+                archetype = archetype.with_vertex_normals(normals.iter().copied());
+            }
+            rec.log_static(entity, &archetype)
+        }
+    }
 }
 
 fn transform(p: &Isometry3<f64>) -> rerun::Transform3D {

@@ -18,7 +18,7 @@ pub fn base_link() -> Link {
         mass: 0.0,
         center_of_mass: Point3::origin(),
         inertia: Matrix3::zeros(),
-        boxes: Vec::new(),
+        visuals: Vec::new(),
         solids: Vec::new(),
         place: None,
     }
@@ -30,7 +30,7 @@ pub fn link(name: &str, mass: f64, com: [f64; 3], inertia_about_com: Matrix3<f64
         mass,
         center_of_mass: Point3::from(com),
         inertia: inertia_about_com,
-        boxes: Vec::new(),
+        visuals: Vec::new(),
         solids: Vec::new(),
         place: None,
     }
