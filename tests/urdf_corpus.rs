@@ -46,8 +46,8 @@ fn urdfs(dir: &Path, out: &mut Vec<PathBuf>) {
 
 /// What became of one file.
 enum Outcome {
-    /// Loaded, initialised, built and held at rest: (axes, links).
-    Runs(usize, usize),
+    /// Loaded, initialised, built and held at rest: (axes, meshes drawn, mesh warnings).
+    Runs(usize, usize, Vec<String>),
     Refused(String),
 }
 
@@ -94,7 +94,19 @@ fn try_one(urdf: &Path) -> Outcome {
         "{}: not finite after 50 ms at rest: {q:?}",
         urdf.display()
     );
-    Outcome::Runs(machine.axes.len(), machine.links.len())
+    let meshes = machine
+        .links
+        .iter()
+        .flat_map(|l| &l.visuals)
+        .filter(|v| matches!(v.shape, cncsim::machine::Shape::Mesh(_)))
+        .count();
+    let mesh_warnings = machine
+        .warnings
+        .iter()
+        .map(|w| w.to_string())
+        .filter(|w| w.contains("mesh"))
+        .collect();
+    Outcome::Runs(machine.axes.len(), meshes, mesh_warnings)
 }
 
 #[test]
@@ -111,7 +123,7 @@ fn real_urdfs_load_and_run_or_are_refused_by_name() {
     let (mut runs, mut refused) = (Vec::new(), Vec::new());
     for f in &files {
         match std::panic::catch_unwind(|| try_one(f)) {
-            Ok(Outcome::Runs(axes, links)) => runs.push((f, axes, links)),
+            Ok(Outcome::Runs(axes, meshes, warnings)) => runs.push((f, axes, meshes, warnings)),
             Ok(Outcome::Refused(message)) => {
                 // Refused by name: the file, a place or the element, and why.
                 let name = f.file_name().unwrap().to_string_lossy().into_owned();
@@ -139,4 +151,13 @@ fn real_urdfs_load_and_run_or_are_refused_by_name() {
         runs.len(),
         files.len()
     );
+    // Their meshes (STL, COLLADA, OBJ behind package:// paths) are found and read.
+    let drawn: usize = runs.iter().map(|r| r.2).sum();
+    let missing: Vec<&String> = runs.iter().flat_map(|r| &r.3).collect();
+    eprintln!("{drawn} meshes drawn, {} mesh warnings", missing.len());
+    for w in &missing {
+        eprintln!("  {w}");
+    }
+    assert!(missing.is_empty(), "{} mesh warnings", missing.len());
+    assert!(drawn >= 500, "{drawn} meshes drawn");
 }

@@ -2,8 +2,10 @@
 //! All such links are reported at once, located in the URDF; with `inertia_from_geometry` in
 //! the drive file, the masses and inertias the URDF leaves out are computed from the links'
 //! geometry at a uniform density (as MuJoCo's `inertiafromgeom` does), with parry's mass
-//! properties of each solid.
+//! properties of each solid: boxes, cylinders, spheres, and closed meshes by their volume.
 
+use super::mesh::read_mesh;
+use super::mesh_path::{package_search_roots, MeshFiles};
 use super::{JointKind, KinematicTree, Link, SolidShape, MIN_BODY_MASS_KG};
 use crate::convert::{from_vec, to_pose, to_vec};
 use crate::diagnostics::FileError;
@@ -21,16 +23,22 @@ pub(super) fn complete(
     let group = rigid_groups(tree);
     let root_group = group[tree.root];
     let mut computed = Vec::new();
+    // Why a link's geometry gave no mass, for the error below.
+    let mut no_mass_why: Vec<Option<String>> = vec![None; tree.links.len()];
     if let Some(density) = density {
+        let mut files = MeshFiles::new(&tree.path, package_search_roots(&[]));
         for (i, link) in tree.links.iter_mut().enumerate() {
             if group[i] == root_group || link.mass >= MIN_BODY_MASS_KG {
                 continue;
             }
-            if let Some(properties) = from_geometry(link, density) {
-                link.mass = properties.mass();
-                link.center_of_mass = Point3::from(from_vec(&properties.local_com));
-                link.inertia = from_matrix(&properties.reconstruct_inertia_matrix());
-                computed.push(link.name.clone());
+            match from_geometry(link, density, &mut files) {
+                Ok(properties) => {
+                    link.mass = properties.mass();
+                    link.center_of_mass = Point3::from(from_vec(&properties.local_com));
+                    link.inertia = from_matrix(&properties.reconstruct_inertia_matrix());
+                    computed.push(link.name.clone());
+                }
+                Err(why) => no_mass_why[i] = Some(why),
             }
         }
     }
@@ -49,19 +57,9 @@ pub(super) fn complete(
         let line = l
             .place
             .map_or(String::new(), |p| format!(" (line {})", p.line));
-        let meshes = l
-            .solids
-            .iter()
-            .any(|s| matches!(s.shape, SolidShape::Mesh { .. }));
-        let why = if density.is_none() {
-            ""
-        } else if l.solids.is_empty() {
-            ": it has no geometry"
-        } else if meshes {
-            ": its geometry is a mesh, whose volume cncsim does not compute"
-        } else {
-            ""
-        };
+        let why = no_mass_why[i]
+            .as_ref()
+            .map_or(String::new(), |w| format!(": {w}"));
         format!("'{}'{line}{why}", l.name)
     };
     let names: Vec<String> = massless.iter().map(|&i| describe(i)).collect();
@@ -70,7 +68,7 @@ pub(super) fn complete(
             "Give each an <inertial> with a positive mass, or add `inertia_from_geometry = {{ density_kg_m3 = 2700.0 }}` to {} to compute them from their geometry",
             drives_path.display()
         ),
-        Some(_) => "Give each an <inertial> with a positive mass, or a box, cylinder or sphere collision geometry".into(),
+        Some(_) => "Give each an <inertial> with a positive mass, or a closed collision geometry".into(),
     };
     Err(FileError::new(
         &tree.path,
@@ -105,10 +103,16 @@ fn group_mass(tree: &KinematicTree, group: &[usize], carrier: usize) -> f64 {
         .sum()
 }
 
-/// Mass properties of a link's solids at `density` (in the link frame), if it has any solid
-/// with a volume cncsim can compute (a mesh has none here).
-fn from_geometry(link: &Link, density: f64) -> Option<MassProperties> {
-    let mut total: Option<MassProperties> = None;
+/// Mass properties of a link's solids at `density` (in the link frame), or why there are none.
+fn from_geometry(
+    link: &Link,
+    density: f64,
+    files: &mut MeshFiles,
+) -> Result<MassProperties, String> {
+    if link.solids.is_empty() {
+        return Err("it has no geometry".into());
+    }
+    let mut total = MassProperties::default();
     for solid in &link.solids {
         let own = match &solid.shape {
             SolidShape::Box { half_extents } => {
@@ -123,12 +127,66 @@ fn from_geometry(link: &Link, density: f64) -> Option<MassProperties> {
                     .transform_by(&to_pose(&z_up))
             }
             SolidShape::Sphere { radius } => MassProperties::from_ball(density, *radius),
-            SolidShape::Mesh { .. } => continue,
+            SolidShape::Mesh { filename, scale } => mesh_mass(filename, *scale, density, files)?,
         };
-        let placed = own.transform_by(&to_pose(&solid.pose));
-        *total.get_or_insert(MassProperties::default()) += placed;
+        total += own.transform_by(&to_pose(&solid.pose));
     }
-    total.filter(|p| p.mass() > 0.0)
+    Ok(total)
+}
+
+/// A closed mesh's mass properties by its enclosed volume (parry: divergence theorem over its
+/// triangles, so it must be closed and face outwards).
+fn mesh_mass(
+    filename: &str,
+    scale: [f64; 3],
+    density: f64,
+    files: &mut MeshFiles,
+) -> Result<MassProperties, String> {
+    let path = files.resolve(filename)?;
+    let mesh = read_mesh(&path, scale).map_err(|e| format!("mesh {}: {e}", path.display()))?;
+    let vertices: Vec<parry3d_f64::math::Vector> = mesh
+        .vertices
+        .iter()
+        .map(|v| parry3d_f64::math::Vector::new(v[0].into(), v[1].into(), v[2].into()))
+        .collect();
+    if !is_closed(&mesh.vertices, &mesh.triangles) {
+        return Err(format!(
+            "mesh {} is not closed (an edge not shared by exactly two triangles), so it encloses no volume to weigh",
+            path.display()
+        ));
+    }
+    let properties = MassProperties::from_trimesh(density, &vertices, &mesh.triangles);
+    let mass = properties.mass();
+    if mass.is_finite() && mass > 0.0 {
+        Ok(properties)
+    } else {
+        Err(format!(
+            "mesh {} encloses no volume (it must be closed, its faces outwards)",
+            path.display()
+        ))
+    }
+}
+
+/// Whether every edge of the mesh is shared by exactly two triangles, vertices at the same
+/// place counted as one (STL repeats them per triangle).
+fn is_closed(vertices: &[[f32; 3]], triangles: &[[u32; 3]]) -> bool {
+    use std::collections::HashMap;
+    let mut id: HashMap<[u32; 3], u32> = HashMap::new();
+    let ids: Vec<u32> = vertices
+        .iter()
+        .map(|v| {
+            let next = id.len() as u32;
+            *id.entry(v.map(f32::to_bits)).or_insert(next)
+        })
+        .collect();
+    let mut edges: HashMap<(u32, u32), u32> = HashMap::new();
+    for t in triangles {
+        for k in 0..3 {
+            let (a, b) = (ids[t[k] as usize], ids[t[(k + 1) % 3] as usize]);
+            *edges.entry((a.min(b), a.max(b))).or_insert(0) += 1;
+        }
+    }
+    !triangles.is_empty() && edges.values().all(|&n| n == 2)
 }
 
 fn from_matrix(m: &parry3d_f64::math::Matrix) -> Matrix3<f64> {
@@ -164,7 +222,8 @@ mod tests {
                 half_extents: Vector3::new(0.1, 0.2, 0.3),
             },
         }]);
-        let p = from_geometry(&b, rho).unwrap();
+        let mut files = MeshFiles::new(std::path::Path::new("m.urdf"), Vec::new());
+        let p = from_geometry(&b, rho, &mut files).unwrap();
         let m = rho * 0.2 * 0.4 * 0.6;
         assert!((p.mass() - m).abs() < 1e-9 * m);
         let i = from_matrix(&p.reconstruct_inertia_matrix());
@@ -185,7 +244,7 @@ mod tests {
                 length: h,
             },
         }]);
-        let p = from_geometry(&c, rho).unwrap();
+        let p = from_geometry(&c, rho, &mut files).unwrap();
         let m = rho * std::f64::consts::PI * r * r * h;
         assert!((p.mass() - m).abs() < 1e-9 * m);
         assert!((p.local_com.x - dx).abs() < 1e-12);
@@ -200,14 +259,57 @@ mod tests {
         assert!((i[(1, 1)] - transverse).abs() < 1e-9 * transverse, "{i}");
     }
 
+    /// A unit-less cube as an OBJ, scaled to 0.2 × 0.4 × 0.6 m: the box's closed form.
     #[test]
-    fn a_mesh_alone_gives_no_mass() {
-        let l = link(vec![Solid {
-            pose: Isometry3::identity(),
-            shape: SolidShape::Mesh {
-                filename: "a.stl".into(),
-            },
-        }]);
-        assert!(from_geometry(&l, 1000.0).is_none());
+    fn a_closed_mesh_weighs_as_its_volume_and_an_open_one_is_refused() {
+        let dir = tempfile::tempdir().unwrap();
+        let corners = (0..8)
+            .map(|i| {
+                let c = |bit| if i & bit == 0 { -0.5 } else { 0.5 };
+                format!("v {} {} {}\n", c(1), c(2), c(4))
+            })
+            .collect::<String>();
+        // Outward faces, counter-clockwise seen from outside (OBJ indices from 1).
+        let faces = [
+            [1, 3, 4, 2],
+            [5, 6, 8, 7],
+            [1, 2, 6, 5],
+            [3, 7, 8, 4],
+            [1, 5, 7, 3],
+            [2, 4, 8, 6],
+        ];
+        let mut closed = corners.clone();
+        for f in faces {
+            closed += &format!(
+                "f {} {} {}\nf {} {} {}\n",
+                f[0], f[1], f[2], f[0], f[2], f[3]
+            );
+        }
+        std::fs::write(dir.path().join("cube.obj"), &closed).unwrap();
+        let open = closed.lines().take(8 + 10).collect::<Vec<_>>().join("\n") + "\n";
+        std::fs::write(dir.path().join("open.obj"), open).unwrap();
+        let urdf = dir.path().join("m.urdf");
+        let mut files = MeshFiles::new(&urdf, Vec::new());
+        let mesh = |name: &str| {
+            link(vec![Solid {
+                pose: Isometry3::translation(0.0, 0.0, 0.1),
+                shape: SolidShape::Mesh {
+                    filename: name.into(),
+                    scale: [0.2, 0.4, 0.6],
+                },
+            }])
+        };
+        let rho = 7850.0;
+        let p = from_geometry(&mesh("cube.obj"), rho, &mut files).unwrap();
+        let m = rho * 0.2 * 0.4 * 0.6;
+        assert!((p.mass() - m).abs() < 1e-6 * m, "{} kg", p.mass());
+        assert!((p.local_com.z - 0.1).abs() < 1e-6);
+        let i = from_matrix(&p.reconstruct_inertia_matrix());
+        let ixx = m * (0.4f64.powi(2) + 0.6f64.powi(2)) / 12.0;
+        assert!((i[(0, 0)] - ixx).abs() < 1e-5 * ixx, "{i}");
+        let e = from_geometry(&mesh("open.obj"), rho, &mut files).unwrap_err();
+        assert!(e.contains("open.obj is not closed"), "{e}");
+        let e = from_geometry(&link(Vec::new()), rho, &mut files).unwrap_err();
+        assert_eq!(e, "it has no geometry");
     }
 }

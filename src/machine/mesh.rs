@@ -78,6 +78,18 @@ fn decode(
             if format == Format::Stl {
                 check_binary_stl_size(bytes)?;
             }
+            // A binary STL whose 80-byte header starts with "solid" (many exporters write
+            // one) reads as ASCII to a reader that looks at that word; its size tells: 84
+            // bytes and 50 per triangle. The header is free text, so it is blanked.
+            let unheaded;
+            let bytes = if format == Format::Stl && is_binary_stl_headed_solid(bytes) {
+                let mut copy = bytes.to_vec();
+                copy[..5].copy_from_slice(b"     ");
+                unheaded = copy;
+                &unheaded[..]
+            } else {
+                bytes
+            };
             let loader = mesh_loader::Loader::default();
             // The STL and OBJ readers return errors for bad files; a panic all the same would
             // be a bad file too, not a reason to stop loading the machine.
@@ -111,6 +123,15 @@ fn decode(
         }
     };
     triangle_mesh(parts, path, scale)
+}
+
+/// A binary STL (its size is 84 bytes plus 50 per the triangles its header counts) whose
+/// header begins with the word that opens an ASCII one.
+fn is_binary_stl_headed_solid(bytes: &[u8]) -> bool {
+    bytes.len() >= 84 && bytes.starts_with(b"solid") && {
+        let count = u32::from_le_bytes([bytes[80], bytes[81], bytes[82], bytes[83]]) as u64;
+        84 + 50 * count == bytes.len() as u64
+    }
 }
 
 fn name(format: Format) -> &'static str {
@@ -360,6 +381,16 @@ pub(super) mod tests {
             }
         }
         (lo, hi)
+    }
+
+    #[test]
+    fn a_binary_stl_whose_header_says_solid_reads_as_binary() {
+        let mut bytes = binary_stl();
+        bytes[..12].copy_from_slice(b"solid foot  ");
+        let mesh = decode(&bytes, Path::new("foot.stl"), Format::Stl, [1.0; 3]).unwrap();
+        let plain = decode(&binary_stl(), Path::new("foot.stl"), Format::Stl, [1.0; 3]).unwrap();
+        assert_eq!(mesh.triangles.len(), TETRA_FACES.len());
+        assert_eq!(mesh.vertices, plain.vertices);
     }
 
     #[test]

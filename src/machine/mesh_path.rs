@@ -63,6 +63,23 @@ impl MeshFiles {
         }
     }
 
+    /// `relative` under the URDF's folder or a folder above it, or under a search root.
+    fn under_ancestors(&self, relative: &str) -> Option<PathBuf> {
+        let relative = Path::new(relative);
+        if relative.is_absolute()
+            || relative
+                .components()
+                .any(|c| c == std::path::Component::ParentDir)
+        {
+            return None;
+        }
+        self.urdf_dir
+            .ancestors()
+            .chain(self.roots.iter().map(PathBuf::as_path))
+            .map(|dir| dir.join(relative))
+            .find(|p| p.is_file())
+    }
+
     /// The file a URDF `<mesh filename="…">` names, if it exists; else what was looked for and
     /// where.
     pub(crate) fn resolve(&mut self, filename: &str) -> Result<PathBuf, String> {
@@ -70,6 +87,16 @@ impl MeshFiles {
         let quoted = format!("mesh \"{name}\"");
         let path = if let Some(rest) = name.strip_prefix("package://") {
             let (package, relative) = rest.split_once('/').unwrap_or((rest, ""));
+            if package.is_empty() && !relative.is_empty() {
+                // `package:///path`: no package named; Pinocchio looks the path up under its
+                // package directories, as here under the folders above the URDF and the roots.
+                return self.under_ancestors(relative).ok_or_else(|| {
+                    format!(
+                        "{quoted}: names no package, and no folder above {} or on the package path holds {relative}",
+                        self.urdf_dir.display()
+                    )
+                });
+            }
             if package.is_empty() || relative.is_empty() || package == "." || package == ".." {
                 return Err(format!(
                     "{quoted}: expected package://PACKAGE/path/in/the/package"
@@ -363,5 +390,20 @@ mod tests {
         assert!(e.contains("model://"), "{e}");
         assert!(files.resolve("file://otherhost/x.stl").is_err());
         assert!(files.resolve("file:///a%zz.stl").is_err());
+        // `package:///path` names no package: the path under a folder above the URDF, as
+        // Pinocchio reads it.
+        let root_name = dir
+            .path()
+            .file_name()
+            .unwrap()
+            .to_str()
+            .unwrap()
+            .to_string();
+        let uri = format!("package:///{root_name}/robot/meshes/a b.stl");
+        let outer = MeshFiles::new(&urdf, Vec::new()).resolve(&uri);
+        assert!(same(outer.unwrap()), "{uri}");
+        let e = files.resolve("package:///nowhere/x.stl").unwrap_err();
+        assert!(e.contains("names no package"), "{e}");
+        assert!(files.resolve("package:///../robot/meshes/a b.stl").is_err());
     }
 }

@@ -52,9 +52,11 @@ pub enum SolidShape {
     Sphere {
         radius: f64,
     },
-    /// A mesh file, as the URDF names it (its volume is not computed).
+    /// A mesh file, as the URDF names it, with its scale: read only when its volume is asked
+    /// for (`inertia_from_geometry`).
     Mesh {
         filename: String,
+        scale: [f64; 3],
     },
 }
 

@@ -455,8 +455,9 @@ fn solids_of(l: &urdf_rs::Link) -> Result<Vec<Solid>, String> {
                 urdf_rs::Geometry::Sphere { radius } => SolidShape::Sphere {
                     radius: positive("sphere radius", *radius)?,
                 },
-                urdf_rs::Geometry::Mesh { filename, .. } => SolidShape::Mesh {
+                urdf_rs::Geometry::Mesh { filename, scale } => SolidShape::Mesh {
                     filename: filename.clone(),
+                    scale: scale.as_ref().map_or([1.0; 3], |s| s.0),
                 },
             };
             Ok(Solid {

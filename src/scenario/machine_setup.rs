@@ -47,7 +47,7 @@ pub struct MachineReport {
     /// Total mass each axis moves is not simple to give on a tree; the links' masses instead.
     pub links: Vec<(String, f64)>,
     pub masses_from_geometry: Vec<String>,
-    /// Mesh files the URDF names.
+    /// The meshes drawn in the recording: link, file and size.
     pub meshes: Vec<String>,
     pub right_handed: bool,
     pub warnings: Vec<FileError>,
@@ -124,12 +124,18 @@ pub fn check_machine(urdf: &Path) -> Result<MachineReport, FileError> {
             (j.name.clone(), what)
         })
         .collect();
-    let meshes = tree
+    // The meshes drawn: (link, file, triangles); those not found or not read are warnings.
+    let meshes = machine
         .links
         .iter()
-        .flat_map(|l| &l.solids)
-        .filter_map(|s| match &s.shape {
-            crate::machine::SolidShape::Mesh { filename } => Some(filename.clone()),
+        .flat_map(|l| l.visuals.iter().map(move |v| (l, v)))
+        .filter_map(|(l, v)| match &v.shape {
+            crate::machine::Shape::Mesh(m) => Some(format!(
+                "{}: {} ({} triangles)",
+                l.name,
+                m.source.display(),
+                m.triangles.len()
+            )),
             _ => None,
         })
         .collect();
@@ -247,7 +253,7 @@ impl MachineReport {
             let _ = writeln!(out, "  {name}: {mass:.4} kg{computed}");
         }
         if !self.meshes.is_empty() {
-            let _ = writeln!(out, "\nmesh files named: {}", self.meshes.len());
+            let _ = writeln!(out, "\nmeshes drawn: {}", self.meshes.len());
             for m in &self.meshes {
                 let _ = writeln!(out, "  {m}");
             }
