@@ -642,6 +642,7 @@ impl DrivesFile {
         let super::joints::Resolved {
             mut tree,
             passive,
+            undriven,
             warnings: joint_warnings,
         } = super::joints::resolve(tree, &driven, &settings, path)?;
         let mut warnings = std::mem::take(&mut tree.warnings);
@@ -769,6 +770,7 @@ impl DrivesFile {
             root: tree.root,
             axes,
             passive,
+            undriven,
             masses_from_geometry: computed,
             tool: self.tool,
             tool_link,

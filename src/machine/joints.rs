@@ -23,7 +23,22 @@ pub(super) struct Resolved {
     pub tree: KinematicTree,
     /// Indices (in `tree.joints`) of the passive joints.
     pub passive: Vec<usize>,
+    /// What became of each moving joint no axis drives, in the URDF's order.
+    pub undriven: Vec<(String, Undriven)>,
     pub warnings: Vec<FileError>,
+}
+
+/// What became of a moving URDF joint that no axis drives.
+#[derive(Debug, Clone, PartialEq)]
+pub enum Undriven {
+    /// Held at this coordinate (m or rad): named so in the drive file, or by default.
+    Locked { position: f64, named: bool },
+    /// Free (`mode = "passive"`).
+    Passive,
+    /// A `<mimic>` follower held where its locked leader puts it.
+    HeldByMimic { leader: String, position: f64 },
+    /// A `<mimic>` follower fixed to its driven leader's link.
+    RidesOn { leader: String },
 }
 
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -198,6 +213,33 @@ pub(super) fn resolve(
         ));
     }
 
+    let undriven = joints
+        .iter()
+        .zip(&roles)
+        .filter_map(|(joint, role)| {
+            let leader = || {
+                joint
+                    .mimic
+                    .as_ref()
+                    .map_or_else(String::new, |m| m.joint.clone())
+            };
+            let what = match *role {
+                Some(Role::Locked(position)) if joint.mimic.is_some() => Undriven::HeldByMimic {
+                    leader: leader(),
+                    position,
+                },
+                Some(Role::Locked(position)) => Undriven::Locked {
+                    position,
+                    named: settings.iter().any(|(n, ..)| *n == joint.name),
+                },
+                Some(Role::Passive) => Undriven::Passive,
+                Some(Role::RidesOn(_)) => Undriven::RidesOn { leader: leader() },
+                Some(Role::Driven) | None => return None,
+            };
+            Some((joint.name.clone(), what))
+        })
+        .collect();
+
     // Apply: locked joints and rigid followers become fixed joints.
     let originals = tree.joints.clone();
     let mut passive_names = Vec::new();
@@ -230,6 +272,7 @@ pub(super) fn resolve(
     Ok(Resolved {
         tree,
         passive,
+        undriven,
         warnings,
     })
 }

@@ -17,6 +17,7 @@ pub use drives::{
     AmplifierMode, DcMotor, Drive, DrivesFile, Feedback, Guide, InertiaFromGeometry, JointMode,
     JointSetting, StribeckCurve, Tool, Transmission, Workpiece, AXIS_LETTERS, DENSITY_RANGE_KG_M3,
 };
+pub use joints::Undriven;
 pub use mesh::{MAX_MESH_FILE_BYTES, MAX_MESH_TRIANGLES};
 pub use mesh_path::{package_search_roots, ROS_PACKAGE_PATH};
 pub use urdf::{
@@ -163,6 +164,9 @@ pub struct Machine {
     pub axes: Vec<Axis>,
     /// Joints no axis drives that move freely (`mode = "passive"` in the drive file).
     pub passive: Vec<usize>,
+    /// What became of each moving URDF joint no axis drives (locked ones are fixed joints
+    /// now, followers of a driven axis ride on its link).
+    pub undriven: Vec<(String, Undriven)>,
     /// Links whose mass and inertia were computed from their geometry
     /// (`inertia_from_geometry`), not read from the URDF.
     pub masses_from_geometry: Vec<String>,

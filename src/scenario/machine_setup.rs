@@ -8,7 +8,7 @@
 use crate::diagnostics::FileError;
 use crate::kinematics::{self, ProgramFrame};
 use crate::machine::{
-    load_urdf, DrivesFile, JointKind, KinematicTree, Machine, Tool, AXIS_LETTERS,
+    load_urdf, DrivesFile, JointKind, KinematicTree, Machine, Tool, Undriven, AXIS_LETTERS,
 };
 use nalgebra::Vector3;
 use std::fmt::Write as _;
@@ -95,33 +95,28 @@ pub fn check_machine(urdf: &Path) -> Result<MachineReport, FileError> {
         })
         .collect();
     axes.sort_by_key(|a| AXIS_LETTERS.iter().position(|l| *l == a.letter));
-    let tree = load_urdf(urdf)?;
-    let undriven = tree
-        .joints
+    let undriven = machine
+        .undriven
         .iter()
-        .filter(|j| j.kind != JointKind::Fixed)
-        .filter(|j| {
-            machine
-                .axes
-                .iter()
-                .all(|a| machine.joints[a.joint].name != j.name)
-        })
-        .map(|j| {
-            let what = if let Some(m) = &j.mimic {
-                format!(
-                    "follows '{}' (<mimic> ×{} + {})",
-                    m.joint, m.multiplier, m.offset
-                )
-            } else if machine
-                .passive
-                .iter()
-                .any(|&p| machine.joints[p].name == j.name)
-            {
-                "passive (moves freely)".to_string()
-            } else {
-                "locked".to_string()
+        .map(|(name, what)| {
+            let text = match what {
+                Undriven::Locked { position, named } => format!(
+                    "locked at {position} ({})",
+                    if *named {
+                        "[joints] in the drive file"
+                    } else {
+                        "by default"
+                    }
+                ),
+                Undriven::Passive => "passive (moves freely)".to_string(),
+                Undriven::HeldByMimic { leader, position } => {
+                    format!("held at {position} by its <mimic> of '{leader}'")
+                }
+                Undriven::RidesOn { leader } => {
+                    format!("follows '{leader}' (<mimic>), riding on its link")
+                }
             };
-            (j.name.clone(), what)
+            (name.clone(), text)
         })
         .collect();
     // The meshes drawn: (link, file, triangles); those not found or not read are warnings.
@@ -443,6 +438,7 @@ fn provisional(tree: &KinematicTree, tool: usize, workpiece: usize) -> Machine {
         root: tree.root,
         axes: Vec::new(),
         passive: Vec::new(),
+        undriven: Vec::new(),
         masses_from_geometry: Vec::new(),
         tool: Tool {
             link: tree.links[tool].name.clone(),
