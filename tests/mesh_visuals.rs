@@ -2,10 +2,12 @@
 //! and a mesh that is not there added to its base, loaded and recorded; the recording read back
 //! holds each shape at its `visual_<i>` entity.
 
+mod common;
+
 use cncsim::machine::{Machine, Shape};
 use cncsim::report::{AxisLabel, RecordingSetup, RrdWriter};
-use std::collections::BTreeMap;
-use std::path::{Path, PathBuf};
+use common::rrd_components;
+use std::path::PathBuf;
 
 fn root() -> PathBuf {
     PathBuf::from(env!("CARGO_MANIFEST_DIR"))
@@ -30,29 +32,6 @@ fn tetrahedron_stl() -> Vec<u8> {
             }
         }
         out.extend_from_slice(&[0, 0]);
-    }
-    out
-}
-
-/// For each entity: (component, number of values) of every component logged.
-fn rrd_components(path: &Path) -> BTreeMap<String, Vec<(String, usize)>> {
-    use rerun::external::re_log_encoding::DecoderApp;
-    use rerun::log::{Chunk, LogMsg};
-    let file = std::io::BufReader::new(std::fs::File::open(path).unwrap());
-    let mut out: BTreeMap<String, Vec<(String, usize)>> = BTreeMap::new();
-    for msg in DecoderApp::decode_lazy(file) {
-        if let LogMsg::ArrowMsg(_, arrow) = msg.unwrap() {
-            let chunk = Chunk::from_arrow_msg(&arrow).unwrap();
-            let entity = chunk.entity_path().to_string();
-            let components: Vec<_> = chunk.component_descriptors().map(|d| d.component).collect();
-            for component in components {
-                if let Some(list) = chunk.components().get_array(component) {
-                    out.entry(entity.clone())
-                        .or_default()
-                        .push((component.to_string(), list.values().len()));
-                }
-            }
-        }
     }
     out
 }

@@ -841,6 +841,19 @@ impl Scenario {
             })
         };
 
+        // A point of the program in mm, within the coordinate limit, to metres.
+        let point_mm = |v: &Spanned<[f64; 3]>, key: &str| {
+            let c = limits::COORDINATE_MM;
+            let p = v.get_ref();
+            if p.iter().all(|x| x.is_finite() && x.abs() <= c) {
+                Ok(p.map(|x| x * 1e-3))
+            } else {
+                Err(err(
+                    v.span(),
+                    format!("{key} = {p:?}: expected coordinates within ±{c:?} mm"),
+                ))
+            }
+        };
         let approach = match &p.approach_from_mm {
             None => {
                 if let Some(f) = &p.approach_feed_mm_s {
@@ -852,37 +865,20 @@ impl Scenario {
                 None
             }
             Some(from) => {
-                let c = limits::COORDINATE_MM;
-                let v = from.get_ref();
-                if !v.iter().all(|x| x.is_finite() && x.abs() <= c) {
-                    return Err(err(
-                        from.span(),
-                        format!("approach_from_mm = {v:?}: expected coordinates within ±{c:?} mm"),
-                    ));
-                }
+                let from = point_mm(from, "approach_from_mm")?;
                 let speed = match &p.approach_feed_mm_s {
                     Some(f) => ranged(f, "approach_feed_mm_s", "mm/s", limits::SPEED_MM_S)?,
                     None => *raw.planner.rapid_mm_s.get_ref(),
                 };
                 Some(Approach {
-                    from: v.map(|x| x * 1e-3),
+                    from,
                     speed: speed * 1e-3,
                 })
             }
         };
         let work_offset = match &p.work_offset_mm {
             None => [0.0; 3],
-            Some(offset) => {
-                let c = limits::COORDINATE_MM;
-                let v = offset.get_ref();
-                if !v.iter().all(|x| x.is_finite() && x.abs() <= c) {
-                    return Err(err(
-                        offset.span(),
-                        format!("work_offset_mm = {v:?}: expected coordinates within ±{c:?} mm"),
-                    ));
-                }
-                v.map(|x| x * 1e-3)
-            }
+            Some(offset) => point_mm(offset, "work_offset_mm")?,
         };
         for (key, value) in [
             ("feed_mm_s", p.feed_mm_s.as_ref()),

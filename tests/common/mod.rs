@@ -191,38 +191,65 @@ pub fn rrd_rows(path: &std::path::Path) -> std::collections::BTreeMap<String, us
     rows
 }
 
+/// Every data chunk of a recording, over all its stores (the blueprint's included), in the
+/// order written.
+pub fn rrd_chunks(path: &std::path::Path) -> Vec<rerun::log::Chunk> {
+    use rerun::external::re_log_encoding::DecoderApp;
+    use rerun::log::{Chunk, LogMsg};
+    let file = std::io::BufReader::new(std::fs::File::open(path).unwrap());
+    DecoderApp::decode_lazy(file)
+        .filter_map(|msg| match msg.unwrap() {
+            LogMsg::ArrowMsg(_, arrow) => Some(Chunk::from_arrow_msg(&arrow).unwrap()),
+            _ => None,
+        })
+        .collect()
+}
+
 /// Every string a recording holds, by entity path and component (e.g. `/events` →
 /// `TextLog:text`), over all its stores (the blueprint's included), in the order written.
 pub fn rrd_strings(
     path: &std::path::Path,
 ) -> std::collections::BTreeMap<String, Vec<(String, String)>> {
-    use rerun::external::re_log_encoding::DecoderApp;
-    use rerun::log::{Chunk, LogMsg};
-    let file = std::io::BufReader::new(std::fs::File::open(path).unwrap());
     let mut out: std::collections::BTreeMap<String, Vec<(String, String)>> = Default::default();
-    for msg in DecoderApp::decode_lazy(file) {
-        if let LogMsg::ArrowMsg(_, arrow) = msg.unwrap() {
-            let chunk = Chunk::from_arrow_msg(&arrow).unwrap();
-            let entity = chunk.entity_path().to_string();
-            let components: Vec<_> = chunk.component_descriptors().map(|d| d.component).collect();
-            for component in components {
-                let is_text = chunk.components().get_array(component).is_some_and(|a| {
-                    matches!(
-                        a.values().data_type(),
-                        rerun::external::arrow::datatypes::DataType::Utf8
-                            | rerun::external::arrow::datatypes::DataType::LargeUtf8
-                    )
-                });
-                if !is_text {
-                    continue;
+    for chunk in rrd_chunks(path) {
+        let entity = chunk.entity_path().to_string();
+        let components: Vec<_> = chunk.component_descriptors().map(|d| d.component).collect();
+        for component in components {
+            let is_text = chunk.components().get_array(component).is_some_and(|a| {
+                matches!(
+                    a.values().data_type(),
+                    rerun::external::arrow::datatypes::DataType::Utf8
+                        | rerun::external::arrow::datatypes::DataType::LargeUtf8
+                )
+            });
+            if !is_text {
+                continue;
+            }
+            for slice in chunk.iter_slices::<String>(component) {
+                for s in slice {
+                    out.entry(entity.clone())
+                        .or_default()
+                        .push((component.to_string(), s.to_string()));
                 }
-                for slice in chunk.iter_slices::<String>(component) {
-                    for s in slice {
-                        out.entry(entity.clone())
-                            .or_default()
-                            .push((component.to_string(), s.to_string()));
-                    }
-                }
+            }
+        }
+    }
+    out
+}
+
+/// For each entity: (component, number of values) of every component a recording logs.
+pub fn rrd_components(
+    path: &std::path::Path,
+) -> std::collections::BTreeMap<String, Vec<(String, usize)>> {
+    let mut out: std::collections::BTreeMap<String, Vec<(String, usize)>> = Default::default();
+    for chunk in rrd_chunks(path) {
+        let entity = chunk.entity_path().to_string();
+        let components: Vec<_> = chunk.component_descriptors().map(|d| d.component).collect();
+        for component in components {
+            if let Some(list) = chunk.components().get_array(component) {
+                out.entry(entity.clone())
+                    .or_default()
+                    .push((component.to_string(), list.values().len()));
             }
         }
     }
