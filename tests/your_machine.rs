@@ -220,20 +220,23 @@ fn every_massless_moving_link_is_listed_in_one_error_and_geometry_can_fill_them(
         "{e}"
     );
     assert!(e.contains("inertia_from_geometry"), "{e}");
-    // With a density, both come from their boxes: the carriage a 60 mm cube of steel; the
-    // right rail has no geometry and stays massless, riding on the left.
+    // With a density, they come from their geometry: the carriage a 60 mm cube of steel and
+    // its tool, a cylinder of 6 mm radius and 170 mm. Every link without mass that moves and
+    // has geometry gets its mass so, as MuJoCo's inertiafromgeom does: the right rail from its
+    // upright, the workpiece link (on the moving bed) from its block of stock.
     let with_density = format!("inertia_from_geometry = {{ density_kg_m3 = 7850.0 }}\n{drives}");
     let m = Machine::parse(&fixture("cad_gantry.urdf"), &massless, &with_density).unwrap();
     let carriage = &m.links[m.link_index("carriage").unwrap()];
-    let mass = 7850.0 * 0.06f64.powi(3);
+    let mass = 7850.0 * (0.06f64.powi(3) + std::f64::consts::PI * 0.006f64.powi(2) * 0.17);
     assert!(
         (carriage.mass - mass).abs() < 1e-9 * mass,
         "{}",
         carriage.mass
     );
-    let i = mass * (0.06f64.powi(2) * 2.0) / 12.0;
-    assert!((carriage.inertia[(0, 0)] - i).abs() < 1e-9 * i);
-    assert_eq!(m.masses_from_geometry, ["gantry_left", "carriage"]);
+    assert_eq!(
+        m.masses_from_geometry,
+        ["workpiece", "gantry_left", "gantry_right", "carriage"]
+    );
 }
 
 #[test]
