@@ -67,7 +67,7 @@ fn main() {
     write_program(&file, blocks, row_end);
     let root = Path::new(env!("CARGO_MANIFEST_DIR"));
     let machine = Machine::load(&root.join("models/xyz_table.urdf")).expect("machine");
-    let axes = AxisMap::new(&machine, [0.0; 3]).expect("axes");
+    let axes = AxisMap::new(&machine).expect("axes");
     let program = read_program(&file, &ReadOptions::default()).expect("program");
     let _ = std::fs::remove_file(&file);
     println!(

@@ -134,7 +134,7 @@ fn main() -> Result<(), String> {
     println!("|---|---|---|---|---|---|");
     if !o.files.is_empty() {
         let machine = Machine::load(&o.machine).map_err(|e| e.to_string())?;
-        let axes = AxisMap::new(&machine, [0.0; 3]).map_err(|e| e.to_string())?;
+        let axes = AxisMap::new(&machine).map_err(|e| e.to_string())?;
         for file in &o.files {
             let program = read_program(file, &ReadOptions::default())
                 .map_err(|e| format!("{}: {e}", file.display()))?;
@@ -173,7 +173,7 @@ fn main() -> Result<(), String> {
     for path in &o.scenarios {
         let s = Scenario::load(Path::new(path)).map_err(|e| e.to_string())?;
         let machine = machine_for(&s).map_err(|e| e.to_string())?;
-        let axes = AxisMap::new(&machine, [0.0; 3]).map_err(|e| e.to_string())?;
+        let axes = AxisMap::new(&machine).map_err(|e| e.to_string())?;
         let program = load_checked_program(&s, &machine).map_err(|e| e.to_string())?;
         let mut settings =
             plan_settings(&s, &machine, s.planner.profile).map_err(|e| e.to_string())?;

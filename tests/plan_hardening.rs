@@ -18,7 +18,7 @@ use cncsim::program::{circle, parse_gcode, CircleSpec, Program, ReadOptions};
 fn machine(file: &str) -> (Machine, AxisMap) {
     let root = Path::new(env!("CARGO_MANIFEST_DIR"));
     let machine = Machine::load(&root.join("models").join(file)).unwrap();
-    let axes = AxisMap::new(&machine, [0.0; 3]).unwrap();
+    let axes = AxisMap::new(&machine).unwrap();
     (machine, axes)
 }
 

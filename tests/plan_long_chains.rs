@@ -425,7 +425,7 @@ fn a_program_with_a_long_chain_streams_as_its_whole_plan_samples_it() {
     let program = parse_gcode(&text, "raster.ngc", &ReadOptions::default()).unwrap();
     let root = std::path::Path::new(env!("CARGO_MANIFEST_DIR"));
     let machine = Machine::load(&root.join("models/xyz_table.urdf")).unwrap();
-    let axes = AxisMap::new(&machine, [0.0; 3]).unwrap();
+    let axes = AxisMap::new(&machine).unwrap();
     let settings = raster_settings(&machine);
     let mut stream = plan_program_stream(&program, &axes, &settings).unwrap();
     let look_ahead = stream.look_ahead();

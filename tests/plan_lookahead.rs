@@ -366,7 +366,7 @@ fn a_programs_g64_q_joins_collinear_short_lines() {
 
     let root = std::path::Path::new(env!("CARGO_MANIFEST_DIR"));
     let machine = Machine::load(&root.join("models/xyz_table.urdf")).unwrap();
-    let axes = AxisMap::new(&machine, [0.0; 3]).unwrap();
+    let axes = AxisMap::new(&machine).unwrap();
     // `header` is the G64 in effect from the start; `middle` is programmed before line 20.
     let program = |header: &str, middle: &str| {
         let mut text = format!("G21 G90 {header}\nG0 X0 Y0 Z0\nF6000\n");

@@ -85,7 +85,7 @@ fn planning_peak(lines: usize, stops: bool) -> (usize, usize) {
     drop(body);
     let root = Path::new(env!("CARGO_MANIFEST_DIR"));
     let machine = Machine::load(&root.join("models/xyz_table.urdf")).unwrap();
-    let axes = AxisMap::new(&machine, [0.0; 3]).unwrap();
+    let axes = AxisMap::new(&machine).unwrap();
     let settings = common::raster_settings(&machine);
     let before = LIVE.load(Relaxed);
     let program = parse_gcode(&text, "raster.ngc", &ReadOptions::default()).unwrap();

@@ -98,7 +98,7 @@ fn plan_case(case: &Case) -> Planned {
         .join("models")
         .join(format!("{}.urdf", case.machine));
     let machine = Machine::load(&urdf).unwrap();
-    let map = AxisMap::new(&machine, [0.0; 3]).unwrap();
+    let map = AxisMap::new(&machine).unwrap();
     let program = read_program(&case.file, &ReadOptions::default())
         .unwrap_or_else(|e| panic!("{}: {e}", case.file.display()));
     let axes = common::uniform_axes(&machine, VELOCITY, ACCELERATION, case.jerk);

@@ -47,7 +47,7 @@ M2
 fn machine() -> (Machine, AxisMap) {
     let root = Path::new(env!("CARGO_MANIFEST_DIR"));
     let machine = Machine::load(&root.join("models/xyz_table.urdf")).unwrap();
-    let axes = AxisMap::new(&machine, [0.0; 3]).unwrap();
+    let axes = AxisMap::new(&machine).unwrap();
     (machine, axes)
 }
 

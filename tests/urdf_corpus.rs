@@ -67,7 +67,7 @@ fn try_one(urdf: &Path) -> Outcome {
             urdf.display()
         )
     });
-    ProgramFrame::new(&machine, [0.0; 3])
+    ProgramFrame::new(&machine)
         .unwrap_or_else(|e| panic!("{}: init's axes are refused: {e}", urdf.display()));
     let home: Vec<f64> = machine.axes.iter().map(|a| a.drive.home).collect();
     let options = PlantOptions {

@@ -37,7 +37,7 @@ fn gantry_with(edit: impl Fn(String) -> String) -> Result<Machine, cncsim::diagn
 #[test]
 fn program_axes_are_where_each_axis_moves_the_tool_on_the_part() {
     let machine = Machine::load(&fixture("cad_gantry.urdf")).unwrap();
-    let (frame, warnings) = ProgramFrame::new(&machine, [0.0; 3]).unwrap();
+    let (frame, warnings) = ProgramFrame::new(&machine).unwrap();
     assert!(warnings.is_empty(), "{warnings:?}");
     assert_eq!(machine.links[frame.carrier].name, "workpiece");
     // The workpiece frame is the bed's, turned -90° about world x: world +x is its +x, world
@@ -57,7 +57,7 @@ fn program_axes_are_where_each_axis_moves_the_tool_on_the_part() {
     assert!(frame.directions.determinant() > 0.0);
     // Program zero is the tool over the part with every joint at zero: a program point maps
     // back onto the part where the joints put the tool.
-    let map = AxisMap::new(&machine, [0.0; 3]).unwrap();
+    let map = AxisMap::new(&machine).unwrap();
     let p = cncsim::program::Position {
         linear: [0.012, -0.034, 0.005],
         rotary: [0.0; 3],
@@ -78,7 +78,7 @@ fn program_axes_are_where_each_axis_moves_the_tool_on_the_part() {
 #[test]
 fn a_left_handed_set_of_axes_loads_with_a_warning_naming_the_axis_to_flip() {
     let machine = gantry_with(|d| d.replace("sign = -1\n", "")).unwrap();
-    let (frame, warnings) = ProgramFrame::new(&machine, [0.0; 3]).unwrap();
+    let (frame, warnings) = ProgramFrame::new(&machine).unwrap();
     assert!(frame.directions.determinant() < 0.0);
     let text: Vec<String> = warnings.iter().map(|w| w.to_string()).collect();
     assert_eq!(text.len(), 1, "{text:?}");
@@ -92,27 +92,66 @@ fn a_left_handed_set_of_axes_loads_with_a_warning_naming_the_axis_to_flip() {
 
 #[test]
 fn work_offset_home_and_sign_place_program_zero_as_g54_does() {
-    let machine = gantry_with(|d| {
-        d.replace(
-            "peak_torque_nm = 7.0\nsign = -1",
-            "peak_torque_nm = 7.0\nsign = -1\nhome = 0.010",
-        )
-    })
+    // Y homed 10 mm along its joint; program zero at machine (5, 20, -3) mm. A G-code program
+    // goes to program zero, then to machine Z 0 with G53, then home with G28.
+    let dir = gantry_folder(
+        |u| u,
+        |d| {
+            d.replace(
+                "peak_torque_nm = 7.0\nsign = -1",
+                "peak_torque_nm = 7.0\nsign = -1\nhome = 0.010",
+            )
+        },
+    );
+    std::fs::write(
+        dir.path().join("g54.ngc"),
+        "G21 G90\nG0 X0 Y0 Z0\nG1 X4 F600\nG53 G0 Z0\nG28\nM2\n",
+    )
     .unwrap();
-    // Program zero at machine coordinates (5, 20, -3) mm.
-    let offset = [0.005, 0.020, -0.003];
-    let map = AxisMap::new(&machine, offset).unwrap();
-    let (frame, _) = ProgramFrame::new(&machine, offset).unwrap();
-    let zero = cncsim::program::Position::default();
-    let mut q = vec![0.0; 3];
-    map.machine_axes(&zero, &mut q);
-    // joint = home + sign·(program + offset)
+    let path = dir.path().join("cad_gantry_circle.toml");
+    let text = std::fs::read_to_string(&path).unwrap();
+    let text = text
+        .replace(
+            "circle = { center_mm = [10.0, -5.0], radius_mm = 20.0, start_angle_deg = 0.0, direction = \"ccw\", z_mm = 0.0 }\nfeed_mm_s = 20.0",
+            "file = \"g54.ngc\"\nwork_offset_mm = [5.0, 20.0, -3.0]",
+        )
+        .replace("profile = \"constant-velocity\"", "profile = \"constant-velocity\"\nrapid_mm_s = 50.0");
+    let scenario = Scenario::parse(&path, &text).unwrap();
+    let assembly = Assembly::new(&scenario).unwrap();
+    let machine = &assembly.machine;
     let [x, y, z] = ["x", "y", "z"].map(|l| machine.axis_index(l).unwrap());
-    assert!((q[x] - 0.005).abs() < 1e-15, "{q:?}");
-    assert!((q[y] - (0.010 - 0.020)).abs() < 1e-15, "{q:?}");
-    assert!((q[z] + 0.003).abs() < 1e-15, "{q:?}");
-    let on_part = cncsim::kinematics::tool_in_link(&machine, frame.carrier, &q);
-    assert!(frame.program_point(&on_part).coords.norm() < 1e-12);
+    let setpoints = assembly.plan.collect();
+    // The end of each move: joint = home + sign·machine coordinate.
+    let at_move_end = |index: u32| {
+        let k = (0..setpoints.len())
+            .rev()
+            .find(|&k| setpoints.segment[k] == index)
+            .unwrap();
+        setpoints.position(k).to_vec()
+    };
+    let joints = |q: Vec<f64>| [q[x], q[y], q[z]];
+    let close = |a: [f64; 3], b: [f64; 3]| a.iter().zip(b).all(|(a, b)| (a - b).abs() < 1e-12);
+    // G0 X0 Y0 Z0: program zero, machine (5, 20, -3) mm.
+    let zero = joints(at_move_end(0));
+    assert!(close(zero, [0.005, 0.010 - 0.020, -0.003]), "{zero:?}");
+    // G53 G0 Z0: machine Z 0 whatever the offset.
+    let g53 = joints(at_move_end(2));
+    assert!(close(g53, [0.009, 0.010 - 0.020, 0.0]), "{g53:?}");
+    // G28: machine zero (its stored position), where every joint is at its home.
+    let g28 = joints(at_move_end(setpoints.segment[setpoints.len() - 1]));
+    assert!(close(g28, [0.0, 0.010, 0.0]), "{g28:?}");
+    // In the program frame the tool at program zero is at the offset.
+    let (frame, _) = ProgramFrame::new(machine).unwrap();
+    let mut q = vec![0.0; 3];
+    q[x] = zero[0];
+    q[y] = zero[1];
+    q[z] = zero[2];
+    let on_part = cncsim::kinematics::tool_in_link(machine, frame.carrier, &q);
+    let p = frame.program_point(&on_part);
+    assert!(
+        (p - Point3::new(0.005, 0.020, -0.003)).norm() < 1e-12,
+        "{p}"
+    );
 }
 
 #[test]
@@ -124,9 +163,7 @@ fn axes_not_at_right_angles_are_refused_naming_both_joints() {
         "<axis xyz=\"-0.9961947 0 0.0871557\"/>",
     );
     let machine = Machine::parse(&fixture("cad_gantry.urdf"), &tilted, &drives).unwrap();
-    let e = ProgramFrame::new(&machine, [0.0; 3])
-        .unwrap_err()
-        .to_string();
+    let e = ProgramFrame::new(&machine).unwrap_err().to_string();
     assert!(e.contains("cad_gantry.urdf:"), "{e}");
     assert!(
         e.contains("joint 'rail_left'") && e.contains("joint 'carriage_joint'"),
@@ -481,7 +518,7 @@ fn machine_init_guesses_the_letters_from_the_kinematics_and_its_file_loads() {
         "{drives}"
     );
     assert!(drives.contains("[tool]\nlink = \"tool_tip\""), "{drives}");
-    let (frame, warnings) = ProgramFrame::new(&machine, [0.0; 3]).unwrap();
+    let (frame, warnings) = ProgramFrame::new(&machine).unwrap();
     assert!(warnings.is_empty() && frame.directions.determinant() > 0.0);
 }
 
@@ -515,4 +552,41 @@ fn machine_check_prints_the_mapping_and_run_on_a_urdf_points_to_it() {
         e.contains("this is a machine model, not a scenario") && e.contains("cncsim machine init"),
         "{e}"
     );
+}
+
+#[test]
+fn a_workpiece_on_a_fixture_fixed_to_the_base_is_measured_in_its_own_frame() {
+    // The paper's table with the part on a fixture bolted to the base 200 mm off and turned
+    // 90° about z: the program axes turn with it, the figures do not move.
+    let root = Path::new(env!("CARGO_MANIFEST_DIR"));
+    let dir = tempfile::tempdir().unwrap();
+    let urdf = std::fs::read_to_string(root.join("models/xyz_table.urdf"))
+        .unwrap()
+        .replace(
+            "</robot>",
+            "  <link name=\"fixture\"/>\n  <joint name=\"fixture_mount\" type=\"fixed\">\n    <parent link=\"base\"/><child link=\"fixture\"/>\n    <origin xyz=\"0.2 0.1 0.01\" rpy=\"0 0 1.5707963267948966\"/>\n  </joint>\n</robot>",
+        );
+    let drives = std::fs::read_to_string(root.join("models/xyz_table.drives.toml"))
+        .unwrap()
+        .replace("[tool]", "[workpiece]\nlink = \"fixture\"\n\n[tool]");
+    std::fs::write(dir.path().join("xyz_table.urdf"), urdf).unwrap();
+    std::fs::write(dir.path().join("xyz_table.drives.toml"), drives).unwrap();
+    let path = dir.path().join("circle.toml");
+    let text = std::fs::read_to_string(root.join("scenarios/xyz_circle_5mms.toml"))
+        .unwrap()
+        .replace("../models/xyz_table.urdf", "xyz_table.urdf")
+        .replace("feed_mm_s = 5.0", "feed_mm_s = 40.0");
+    let scenario = Scenario::parse(&path, &text.split("[expect]").next().unwrap()).unwrap();
+    let assembly = Assembly::new(&scenario).unwrap();
+    let (frame, _) = ProgramFrame::new(&assembly.machine).unwrap();
+    assert_eq!(assembly.machine.links[frame.carrier].name, "fixture");
+    // World +x is the fixture's -y, world +y its +x.
+    assert!((frame.directions.column(0) - Vector3::new(0.0, -1.0, 0.0)).norm() < 1e-12);
+    let setup = report_setup(&assembly);
+    let run = run_scenario_traced(&scenario, &dir.path().join("out"), &mut |_, _| true).unwrap();
+    let axes = [0, 1, 2].map(|c| assembly.machine.axis_index(["x", "y", "z"][c]).unwrap());
+    let worst = contour_within_following_error(run.trace.as_ref().unwrap(), &setup, &axes);
+    contour_within_following_error(run.analytic.as_ref().unwrap(), &setup, &axes);
+    // The same circle as on the base: micrometres, not the fixture's 224 mm offset.
+    assert!(worst < 5e-6, "contour error {worst} m");
 }

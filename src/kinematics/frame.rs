@@ -1,7 +1,7 @@
 //! The program coordinate system of a machine, as a CNC defines it (ISO 841): program +X is
 //! where the X axis moves the tool relative to the workpiece, whatever the orientation of the
-//! URDF's frames and whichever of tool and table the axis moves; program zero is a work offset
-//! (G54), by default where the tool is on the part with every axis at its home.
+//! URDF's frames and whichever of tool and table the axis moves; machine zero is where the tool
+//! is on the part with every axis at its home (a work offset, G54, is the program reader's).
 //!
 //! Every figure that compares the tool with the programmed path (contour error, path speed,
 //! the tool path, the planner's tool-tip figures) is taken in this frame, from the tool point
@@ -30,18 +30,14 @@ pub struct ProgramFrame {
     /// frames that are not quite square. `None` where `directions` is the identity, so a
     /// machine whose frames are aligned has its figures untouched by round-off.
     to_program: Option<Matrix3<f64>>,
-    /// The tool point at program zero, in the carrier's frame (m).
+    /// The tool point at machine zero (every axis at its home), in the carrier's frame (m).
     pub origin: Point3<f64>,
 }
 
 impl ProgramFrame {
-    /// The frame of `machine` with program zero at `work_offset` (m; the machine coordinates
-    /// of program zero along X, Y, Z), and its warnings (a left-handed set of axes). Refuses
-    /// axes that are not at right angles, or that do not move the tool against the part.
-    pub fn new(
-        machine: &Machine,
-        work_offset: [f64; 3],
-    ) -> Result<(ProgramFrame, Vec<FileError>), FileError> {
+    /// The frame of `machine`, and its warnings (a left-handed set of axes). Refuses axes that
+    /// are not at right angles, or that do not move the tool against the part.
+    pub fn new(machine: &Machine) -> Result<(ProgramFrame, Vec<FileError>), FileError> {
         let carrier = carrier_link(machine);
         let home: Vec<f64> = machine.axes.iter().map(|a| a.drive.home).collect();
         let poses = link_poses(machine, &home);
@@ -154,12 +150,7 @@ impl ProgramFrame {
                 .try_inverse()
                 .expect("axes at right angles within tolerance are independent")
         });
-        let at_home = super::tool_in_link(machine, carrier, &home);
-        let origin = if work_offset == [0.0; 3] {
-            at_home
-        } else {
-            at_home + directions * Vector3::from(work_offset)
-        };
+        let origin = super::tool_in_link(machine, carrier, &home);
         Ok((
             ProgramFrame {
                 carrier,
@@ -171,7 +162,7 @@ impl ProgramFrame {
         ))
     }
 
-    /// Program coordinates (m) of a point given in the carrier's frame.
+    /// Machine coordinates along the program axes (m) of a point given in the carrier's frame.
     pub fn program_point(&self, carrier_point: &Point3<f64>) -> Point3<f64> {
         Point3::from(self.program_vector(&(carrier_point - self.origin)))
     }
@@ -226,12 +217,16 @@ fn complete(found: [Option<Vector3<f64>>; 3]) -> Matrix3<f64> {
     let given: Vec<usize> = (0..3).filter(|&i| d[i].is_some()).collect();
     if given.len() == 1 {
         let g = d[given[0]].expect("given");
-        // The next axis after the given one, in the carrier frame's axis least along it.
+        // The next axis after the given one: the carrier frame's own axis of that name, unless
+        // it is nearly along the given one (then the carrier's axis least along it).
         let next = (given[0] + 1) % 3;
-        let helper = own
-            .iter()
-            .min_by(|a, b| a.dot(&g).abs().total_cmp(&b.dot(&g).abs()))
-            .expect("three axes");
+        let helper = if own[next].dot(&g).abs() < 0.9 {
+            &own[next]
+        } else {
+            own.iter()
+                .min_by(|a, b| a.dot(&g).abs().total_cmp(&b.dot(&g).abs()))
+                .expect("three axes")
+        };
         d[next] = Some((helper - g * helper.dot(&g)).normalize());
     }
     if d.iter().all(Option::is_none) {
@@ -264,6 +259,11 @@ mod tests {
         assert_eq!(complete([Some(x), Some(y), None]), Matrix3::identity());
         assert_eq!(complete([Some(x), None, None]), Matrix3::identity());
         assert_eq!(complete([None, None, None]), Matrix3::identity());
+        assert_eq!(complete([None, Some(y), None]), Matrix3::identity());
+        assert_eq!(
+            complete([None, None, Some(Vector3::z())]),
+            Matrix3::identity()
+        );
         let m = complete([None, Some(-Vector3::z()), None]);
         assert!((m.determinant() - 1.0).abs() < 1e-12);
         assert_eq!(m.column(1).into_owned(), -Vector3::z());

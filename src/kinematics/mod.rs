@@ -17,14 +17,14 @@ pub use ac_table::{
 use crate::machine::Machine;
 use crate::program::Position;
 
-/// Where each machine axis takes its coordinate from in a program [`Position`], and how: joint
-/// = home + sign × (program coordinate + work offset), the work offset (G54) for X, Y, Z only.
-/// On a plain machine (sign +1, home 0, no offset) the program's numbers are the joints'.
+/// Where each machine axis takes its coordinate from in a program [`Position`] (in machine
+/// coordinates: a work offset is the program reader's), and how: joint = home + sign ×
+/// coordinate. On a plain machine (sign +1, home 0) the program's numbers are the joints'.
 #[derive(Debug, Clone, PartialEq)]
 pub struct AxisMap {
     /// For machine axis i: (linear?, index into `Position::linear` or `Position::rotary`).
     sources: Vec<(bool, usize)>,
-    /// For machine axis i: (sign, joint coordinate at program zero), where not (1, 0).
+    /// For machine axis i: (sign, home), where not (1, 0).
     affine: Vec<Option<(f64, f64)>>,
 }
 
@@ -34,16 +34,13 @@ pub struct UnknownAxis(pub String);
 
 impl AxisMap {
     /// Trivial kinematics: machine axis `x` takes program X, and so on, each with its drive's
-    /// sign and home; program zero at `work_offset` (m, machine coordinates of X, Y, Z).
-    pub fn new(machine: &Machine, work_offset: [f64; 3]) -> Result<AxisMap, UnknownAxis> {
+    /// sign and home.
+    pub fn new(machine: &Machine) -> Result<AxisMap, UnknownAxis> {
         let mut map = Self::joint_coordinates(machine)?;
-        for (i, axis) in machine.axes.iter().enumerate() {
-            let (linear, index) = map.sources[i];
-            let offset = if linear { work_offset[index] } else { 0.0 };
-            let sign = f64::from(axis.drive.sign);
-            let zero = axis.drive.home + sign * offset;
-            if sign != 1.0 || zero != 0.0 {
-                map.affine[i] = Some((sign, zero));
+        for (affine, axis) in map.affine.iter_mut().zip(&machine.axes) {
+            let (sign, home) = (f64::from(axis.drive.sign), axis.drive.home);
+            if sign != 1.0 || home != 0.0 {
+                *affine = Some((sign, home));
             }
         }
         Ok(map)
@@ -74,11 +71,6 @@ impl AxisMap {
     pub(crate) fn from_sources(sources: Vec<(bool, usize)>) -> AxisMap {
         let affine = vec![None; sources.len()];
         AxisMap { sources, affine }
-    }
-
-    /// Whether every machine axis takes its program coordinate as it is.
-    pub fn is_identity(&self) -> bool {
-        self.affine.iter().all(Option::is_none)
     }
 
     /// The machine axis fed by a program coordinate (linear index 0–2 = X, Y, Z; rotary 0–2 =

@@ -152,7 +152,7 @@ pub(crate) fn parse_urdf_with_package_paths(
             (JointKind::Fixed, _) | (_, urdf_rs::JointType::Continuous) => None,
             _ => {
                 let (lo, hi) = (j.limit.lower, j.limit.upper);
-                if lo == 0.0 && hi == 0.0 {
+                if !places.limited.contains(&j.name) {
                     // No <limit> (urdf-rs reads it as 0, 0): unlimited, as Drake and MuJoCo
                     // read it.
                     warnings.push(e(

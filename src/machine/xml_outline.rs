@@ -24,6 +24,8 @@ pub const MAX_XML_ELEMENTS: usize = 1_000_000;
 pub struct UrdfOutline {
     pub links: BTreeMap<String, LineColumn>,
     pub joints: BTreeMap<String, LineColumn>,
+    /// The joints that have a `<limit>` element (urdf-rs reads a missing one as 0, 0).
+    pub limited: std::collections::BTreeSet<String>,
 }
 
 /// Attributes whose value is a list of numbers, with the count URDF gives them.
@@ -185,6 +187,10 @@ pub fn outline(path: &Path, text: &str) -> Result<UrdfOutline, FileError> {
                 if out.joints.insert(n.clone(), here).is_some() {
                     return Err(fail(format!("joint name '{n}' is used twice")));
                 }
+            }
+            ("limit", Some("joint")) => {
+                let joint = stack.last().expect("parent is the joint");
+                out.limited.insert(joint.label.clone().unwrap_or_default());
             }
             ("parent" | "child", Some("joint")) => {
                 let joint = stack.last_mut().expect("parent is the joint");

@@ -429,7 +429,6 @@ impl Plant {
         let carrier = crate::kinematics::carrier_link(machine);
         let tool_dofs = chain_dofs(machine.tool_link);
         let carrier_dofs = chain_dofs(carrier);
-        let carrier_moves = link_bodies[carrier] != link_bodies[machine.root];
 
         let mut forced_bodies: Vec<RigidBodyHandle> = axes
             .iter()
@@ -446,7 +445,9 @@ impl Plant {
             forced_bodies,
             tool_dofs: Vec::new(),
             carrier_dofs: Vec::new(),
-            carrier: carrier_moves.then_some(carrier),
+            // The base's frame is the world's; any other carrier (a fixture fixed to the base
+            // at an offset, a moving bed) has its own pose.
+            carrier: (carrier != machine.root).then_some(carrier),
             guides,
             multibody,
             tool_link: machine.tool_link,

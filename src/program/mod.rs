@@ -117,7 +117,8 @@ pub fn read_program_detailed(
         }
         ProgramFormat::Hpgl => {
             let text = std::fs::read(path).map_err(open_error)?;
-            let output = parse_hpgl_detailed(&text, path, options)?;
+            let mut output = parse_hpgl_detailed(&text, path, options)?;
+            output.program.shift(options.work_offset);
             Ok(ReadOutcome {
                 format,
                 program: output.program,
@@ -127,7 +128,8 @@ pub fn read_program_detailed(
         }
         ProgramFormat::Apt => {
             let text = std::fs::read(path).map_err(open_error)?;
-            let program = parse_apt(&text, path, options)?;
+            let mut program = parse_apt(&text, path, options)?;
+            program.shift(options.work_offset);
             Ok(ReadOutcome {
                 format,
                 program,

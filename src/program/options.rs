@@ -247,6 +247,10 @@ pub struct ReadOptions {
     pub apt: AptOptions,
     /// At most this many errors are kept per file (the rest are counted).
     pub max_errors: usize,
+    /// The work offset (m): machine coordinates of program zero along X, Y, Z. G-code starts
+    /// with it as its G54 origin (so G53, G28 and G30 still name machine positions); the
+    /// other formats are moved by it.
+    pub work_offset: [f64; 3],
 }
 
 impl Default for ReadOptions {
@@ -257,6 +261,7 @@ impl Default for ReadOptions {
             hpgl: HpglOptions::default(),
             apt: AptOptions::default(),
             max_errors: 100,
+            work_offset: [0.0; 3],
         }
     }
 }

@@ -136,3 +136,26 @@ pub struct Program {
     pub moves: Vec<Move>,
     pub warnings: Vec<Warning>,
 }
+
+impl Program {
+    /// Moves every point of the program, its start included, by `offset` (m, along X, Y, Z):
+    /// program coordinates to machine coordinates under a work offset.
+    pub fn shift(&mut self, offset: [f64; 3]) {
+        if offset == [0.0; 3] {
+            return;
+        }
+        for (v, o) in self.start.linear.iter_mut().zip(offset) {
+            *v += o;
+        }
+        for m in &mut self.moves {
+            for (v, o) in m.end.linear.iter_mut().zip(offset) {
+                *v += o;
+            }
+            if let Motion::Arc { center, .. } = &mut m.motion {
+                for (v, o) in center.iter_mut().zip(offset) {
+                    *v += o;
+                }
+            }
+        }
+    }
+}

@@ -117,7 +117,7 @@ impl Assembly {
         let labels = labels(&machine);
         super::run::validate_against_machine(s, &machine, &labels)?;
         let axis_map = plan.axis_map().clone();
-        let (frame, frame_warnings) = ProgramFrame::new(&machine, s.work_offset)?;
+        let (frame, frame_warnings) = ProgramFrame::new(&machine)?;
         machine.warnings.extend(frame_warnings);
         let approach = approach_for(s, &machine, &axis_map, plan.program())?;
         check_run_length(s, approach.len() + plan.len())?;
@@ -386,11 +386,10 @@ pub fn plan_for(s: &Scenario, machine: &Machine) -> Result<PlannedProgram, RunEr
     })
 }
 
-/// How the scenario's program coordinates map onto `machine`'s axes: each axis's sign and
-/// home from the drive file, program zero at the scenario's work offset.
+/// How machine coordinates map onto `machine`'s axes: each axis's sign and home from the
+/// drive file.
 pub fn axis_map_for(s: &Scenario, machine: &Machine) -> Result<AxisMap, FileError> {
-    AxisMap::new(machine, s.work_offset)
-        .map_err(|e| FileError::new(&s.machine, None, e.to_string()))
+    AxisMap::new(machine).map_err(|e| FileError::new(&s.machine, None, e.to_string()))
 }
 
 /// What the plan of a scenario on a machine depends on, as a key: runs with equal keys run
@@ -674,13 +673,22 @@ pub fn plan_settings(
 
 /// Reads the scenario's program (built-in path or file) and checks it against the machine.
 pub fn load_checked_program(s: &Scenario, machine: &Machine) -> Result<Program, RunError> {
+    // Program coordinates become machine coordinates under the work offset: G-code starts
+    // with it as its G54 origin, every other program is moved by it.
     let mut program = match &s.program {
         ProgramSource::Circle(c) => circle(c, &s.path),
         ProgramSource::Polyline(p) => polyline(p, &s.path),
         ProgramSource::File { path, options } => {
-            read_program(path, options).map_err(RunError::Program)?
+            let options = crate::program::ReadOptions {
+                work_offset: s.work_offset,
+                ..(**options).clone()
+            };
+            read_program(path, &options).map_err(RunError::Program)?
         }
     };
+    if !matches!(s.program, ProgramSource::File { .. }) {
+        program.shift(s.work_offset);
+    }
     if program.moves.is_empty() {
         return Err(FileError::new(
             &program.source,

@@ -57,7 +57,7 @@ pub struct MachineReport {
 /// (no drive file, a massless link, axes not at right angles) is the error.
 pub fn check_machine(urdf: &Path) -> Result<MachineReport, FileError> {
     let machine = Machine::load(urdf)?;
-    let (frame, frame_warnings) = ProgramFrame::new(&machine, [0.0; 3])?;
+    let (frame, frame_warnings) = ProgramFrame::new(&machine)?;
     let mut warnings = machine.warnings.clone();
     warnings.extend(frame_warnings);
     let tool_chain = kinematics::chain_joints(&machine, machine.tool_link);
@@ -322,7 +322,7 @@ pub fn drive_file_template(urdf: &Path) -> Result<String, FileError> {
     }
     // Check the guess the way a run will read it, and make the axes right-handed.
     let machine = Machine::parse(urdf, &urdf_text, &text)?;
-    let (frame, _) = ProgramFrame::new(&machine, [0.0; 3])?;
+    let (frame, _) = ProgramFrame::new(&machine)?;
     if frame.directions.determinant() < 0.0 {
         // Flip the axis that points most against its namesake of the frame's link.
         let flip = (0..3)

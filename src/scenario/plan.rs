@@ -9,6 +9,7 @@ use crate::plan::{
     AxisExtremes, AxisKind, AxisLimits, AxisSpec, FiniteDifferences, PlannedProgram, SetpointSample,
 };
 use crate::report::ThinnedPath;
+use nalgebra::Point3;
 
 /// Points of the tool path kept for the plan's recording (evenly thinned over the program).
 const TOOL_PATH_POINTS: usize = 50_000;
@@ -36,7 +37,7 @@ pub struct PlanReport {
 pub fn plan_scenario(s: &Scenario, profile: Option<ProfileName>) -> Result<PlanReport, RunError> {
     let machine = Machine::load(&s.machine)?;
     let axis_map = axis_map_for(s, &machine)?;
-    let (frame, _) = ProgramFrame::new(&machine, s.work_offset)?;
+    let (frame, _) = ProgramFrame::new(&machine)?;
     let program = load_checked_program(s, &machine)?;
     let profile = profile.unwrap_or(s.planner.profile);
     let mut settings = plan_settings(s, &machine, profile)?;
@@ -76,11 +77,12 @@ pub fn plan_scenario(s: &Scenario, profile: Option<ProfileName>) -> Result<PlanR
         })
         .collect();
 
-    // The tool tip in program coordinates; where rotary axes carry the part (a tilting table),
-    // on the part, in the workpiece link's frame.
-    let tool_tip = |q: &[f64]| {
+    // The tool tip's motion along the program axes; where rotary axes carry the part (a
+    // tilting table), on the part, along the workpiece link's axes.
+    let tool_motion = |q: &[f64]| {
         if frame.carrier == machine.workpiece_link {
-            frame.program_point(&kinematics::tool_in_link(&machine, frame.carrier, q))
+            let p = kinematics::tool_in_link(&machine, frame.carrier, q);
+            Point3::from(frame.program_vector(&p.coords))
         } else {
             kinematics::tool_in_workpiece(&machine, q)
         }
@@ -104,8 +106,9 @@ pub fn plan_scenario(s: &Scenario, profile: Option<ProfileName>) -> Result<PlanR
     let (mut k, mut previous_end, mut previous_segment) = (0usize, 0usize, None);
     while stream.next_sample(&mut sample) {
         axis_differences.push(&sample.position);
-        let p = tool_tip(&sample.position);
-        tool_differences.push(&[p.x, p.y, p.z]);
+        let v = tool_motion(&sample.position);
+        tool_differences.push(&[v.x, v.y, v.z]);
+        let p = kinematics::tool_in_workpiece(&machine, &sample.position);
         tool_path.push([p.x, p.y, p.z]);
         if let Some(segment) = previous_segment {
             if k >= 2 && segment != sample.segment {

@@ -667,7 +667,7 @@ impl Interpreter<'_> {
     }
 
     /// The coordinate system `system` (1 = G54) from the parameters, in program units.
-    fn system_origin(&self, system: usize) -> (Axes, f64) {
+    pub(super) fn system_origin(&self, system: usize) -> (Axes, f64) {
         let mut origin = [0.0; 6];
         for (axis, value) in origin.iter_mut().enumerate() {
             let stored = self.params.get(coordinate_system_index(system, axis));
@@ -680,7 +680,7 @@ impl Interpreter<'_> {
         (origin, self.params.get(coordinate_system_index(system, 9)))
     }
 
-    fn announce_offsets(&mut self) {
+    pub(super) fn announce_offsets(&mut self) {
         self.canon.set_g5x_offset(self.s.origin_offset);
         self.canon.set_g92_offset(self.s.axis_offset);
         self.canon.set_xy_rotation(self.s.rotation_xy);

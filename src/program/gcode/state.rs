@@ -127,6 +127,13 @@ impl<'a> Interpreter<'a> {
             }
         }
         params.set(params::ACTIVE_SYSTEM, 1.0);
+        // The work offset is G54's origin, as a control's offset table holds it.
+        for (axis, offset) in options.work_offset.iter().enumerate() {
+            params.set(
+                params::coordinate_system_index(1, axis),
+                user.from_metres(*offset),
+            );
+        }
         let tools = gcode
             .tools
             .iter()
@@ -147,7 +154,7 @@ impl<'a> Interpreter<'a> {
             source: source.to_path_buf(),
             ..Program::default()
         };
-        Interpreter {
+        let mut interpreter = Interpreter {
             source,
             options,
             errors: Errors::new(options.max_errors),
@@ -191,7 +198,18 @@ impl<'a> Interpreter<'a> {
             ended_by_program_end: false,
             blocks: 0,
             line_number: 0,
+        };
+        if options.work_offset != [0.0; 3] {
+            // G54 active from the start: the machine is at its zero, which the program sees
+            // at minus the offset.
+            let (origin, _) = interpreter.system_origin(1);
+            interpreter.s.origin_offset = origin;
+            for (current, o) in interpreter.s.current.iter_mut().zip(origin) {
+                *current = -o;
+            }
+            interpreter.announce_offsets();
         }
+        interpreter
     }
 
     pub fn finish(
