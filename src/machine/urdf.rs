@@ -152,12 +152,18 @@ pub(crate) fn parse_urdf_with_package_paths(
             (JointKind::Fixed, _) | (_, urdf_rs::JointType::Continuous) => None,
             _ => {
                 let (lo, hi) = (j.limit.lower, j.limit.upper);
-                if !places.limited.contains(&j.name) {
-                    // No <limit> (urdf-rs reads it as 0, 0): unlimited, as Drake and MuJoCo
-                    // read it.
-                    warnings.push(e(
-                        "has no <limit lower=\"…\" upper=\"…\"/>: read as a joint without travel limits".into(),
-                    ));
+                if lo == 0.0 && hi == 0.0 {
+                    // No <limit lower upper> (urdf-rs reads them as 0, 0) is unlimited, as
+                    // Drake and MuJoCo read it; so is 0, 0 written out, which the SolidWorks
+                    // exporter writes for a joint without limits.
+                    let what = if places.bounded.contains(&j.name) {
+                        "<limit lower=\"0\" upper=\"0\"> (as CAD exporters write for a joint without limits)"
+                    } else {
+                        "no <limit lower=\"…\" upper=\"…\"/>"
+                    };
+                    warnings.push(e(format!(
+                        "has {what}: read as a joint without travel limits"
+                    )));
                     None
                 } else if !(lo.is_finite() && hi.is_finite() && lo < hi) {
                     return Err(e(format!(

@@ -24,8 +24,8 @@ pub const MAX_XML_ELEMENTS: usize = 1_000_000;
 pub struct UrdfOutline {
     pub links: BTreeMap<String, LineColumn>,
     pub joints: BTreeMap<String, LineColumn>,
-    /// The joints that have a `<limit>` element (urdf-rs reads a missing one as 0, 0).
-    pub limited: std::collections::BTreeSet<String>,
+    /// The joints whose `<limit>` gives `lower` or `upper` (urdf-rs reads missing ones as 0).
+    pub bounded: std::collections::BTreeSet<String>,
 }
 
 /// Attributes whose value is a list of numbers, with the count URDF gives them.
@@ -189,8 +189,10 @@ pub fn outline(path: &Path, text: &str) -> Result<UrdfOutline, FileError> {
                 }
             }
             ("limit", Some("joint")) => {
-                let joint = stack.last().expect("parent is the joint");
-                out.limited.insert(joint.label.clone().unwrap_or_default());
+                if attributes.contains_key("lower") || attributes.contains_key("upper") {
+                    let joint = stack.last().expect("parent is the joint");
+                    out.bounded.insert(joint.label.clone().unwrap_or_default());
+                }
             }
             ("parent" | "child", Some("joint")) => {
                 let joint = stack.last_mut().expect("parent is the joint");
