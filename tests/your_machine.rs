@@ -432,9 +432,9 @@ fn a_passive_joint_moves_freely_in_the_physics_and_the_analytic_model_says_it_ha
     )
     .unwrap();
     let names: Vec<&str> = machine
-        .passive
-        .iter()
-        .map(|&j| machine.joints[j].name.as_str())
+        .passive_joints()
+        .into_iter()
+        .map(|j| machine.joints[j].name.as_str())
         .collect();
     assert_eq!(names, ["clamp_joint", "clamp_jaw_joint"]);
     // The physics runs it (the contour property holds); the reference model refuses by name.
@@ -576,7 +576,7 @@ fn a_workpiece_on_a_fixture_fixed_to_the_base_is_measured_in_its_own_frame() {
         .unwrap()
         .replace("../models/xyz_table.urdf", "xyz_table.urdf")
         .replace("feed_mm_s = 5.0", "feed_mm_s = 40.0");
-    let scenario = Scenario::parse(&path, &text.split("[expect]").next().unwrap()).unwrap();
+    let scenario = Scenario::parse(&path, text.split("[expect]").next().unwrap()).unwrap();
     let assembly = Assembly::new(&scenario).unwrap();
     let (frame, _) = ProgramFrame::new(&assembly.machine).unwrap();
     assert_eq!(assembly.machine.links[frame.carrier].name, "fixture");

@@ -641,7 +641,6 @@ impl DrivesFile {
             .collect();
         let super::joints::Resolved {
             mut tree,
-            passive,
             undriven,
             warnings: joint_warnings,
         } = super::joints::resolve(tree, &driven, &settings, path)?;
@@ -769,7 +768,6 @@ impl DrivesFile {
             joints: tree.joints,
             root: tree.root,
             axes,
-            passive,
             undriven,
             masses_from_geometry: computed,
             tool: self.tool,

@@ -21,8 +21,6 @@ const RIGID_MIMIC_TOLERANCE: f64 = 1e-6;
 /// The kinematic tree with every undriven joint resolved.
 pub(super) struct Resolved {
     pub tree: KinematicTree,
-    /// Indices (in `tree.joints`) of the passive joints.
-    pub passive: Vec<usize>,
     /// What became of each moving joint no axis drives, in the URDF's order.
     pub undriven: Vec<(String, Undriven)>,
     pub warnings: Vec<FileError>,
@@ -242,7 +240,6 @@ pub(super) fn resolve(
 
     // Apply: locked joints and rigid followers become fixed joints.
     let originals = tree.joints.clone();
-    let mut passive_names = Vec::new();
     for (joint, role) in tree.joints.iter_mut().zip(&roles) {
         match *role {
             Some(Role::Locked(q)) => {
@@ -258,20 +255,14 @@ pub(super) fn resolve(
                 joint.parent = leader.child;
                 make_fixed(joint);
             }
-            Some(Role::Passive) => passive_names.push(joint.name.clone()),
-            Some(Role::Driven) | None => {}
+            Some(Role::Passive | Role::Driven) | None => {}
         }
     }
     let order = super::urdf::order_parents_first(&tree.joints, tree.root, tree.links.len())
         .map_err(|_| FileError::new(&urdf, None, "a mimic follower closes a loop of joints"))?;
     tree.joints = order.into_iter().map(|i| tree.joints[i].clone()).collect();
-    let passive = passive_names
-        .iter()
-        .filter_map(|n| tree.joints.iter().position(|j| &j.name == n))
-        .collect();
     Ok(Resolved {
         tree,
-        passive,
         undriven,
         warnings,
     })

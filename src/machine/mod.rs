@@ -162,8 +162,6 @@ pub struct Machine {
     pub joints: Vec<Joint>,
     pub root: usize,
     pub axes: Vec<Axis>,
-    /// Joints no axis drives that move freely (`mode = "passive"` in the drive file).
-    pub passive: Vec<usize>,
     /// What became of each moving URDF joint no axis drives (locked ones are fixed joints
     /// now, followers of a driven axis ride on its link).
     pub undriven: Vec<(String, Undriven)>,
@@ -212,6 +210,15 @@ impl Machine {
         let tree = urdf::parse_urdf(path, urdf)?;
         let drives_path = DrivesFile::path_for(path);
         DrivesFile::parse(&drives_path, drives)?.attach(tree, &drives_path)
+    }
+
+    /// Indices of the joints no axis drives that move freely (`mode = "passive"`).
+    pub fn passive_joints(&self) -> Vec<usize> {
+        self.undriven
+            .iter()
+            .filter(|(_, what)| *what == Undriven::Passive)
+            .filter_map(|(name, _)| self.joints.iter().position(|j| &j.name == name))
+            .collect()
     }
 
     pub fn axis_index(&self, name: &str) -> Option<usize> {

@@ -188,11 +188,11 @@ pub fn outline(path: &Path, text: &str) -> Result<UrdfOutline, FileError> {
                     return Err(fail(format!("joint name '{n}' is used twice")));
                 }
             }
-            ("limit", Some("joint")) => {
-                if attributes.contains_key("lower") || attributes.contains_key("upper") {
-                    let joint = stack.last().expect("parent is the joint");
-                    out.bounded.insert(joint.label.clone().unwrap_or_default());
-                }
+            ("limit", Some("joint"))
+                if attributes.contains_key("lower") || attributes.contains_key("upper") =>
+            {
+                let joint = stack.last().expect("parent is the joint");
+                out.bounded.insert(joint.label.clone().unwrap_or_default());
             }
             ("parent" | "child", Some("joint")) => {
                 let joint = stack.last_mut().expect("parent is the joint");

@@ -455,9 +455,9 @@ impl Plant {
             steps: 0,
         };
         let passive_dofs = machine
-            .passive
-            .iter()
-            .filter_map(|&j| {
+            .passive_joints()
+            .into_iter()
+            .filter_map(|j| {
                 let handle = child_joint[j]?;
                 Some((link_of(&plant.world, handle), machine.joints[j].damping))
             })
@@ -738,10 +738,8 @@ impl Plant {
 
     /// World pose of every link, in the machine's link order.
     pub fn link_poses(&self) -> Vec<Isometry3<f64>> {
-        self.link_bodies
-            .iter()
-            .zip(&self.link_offsets)
-            .map(|(h, offset)| from_pose(self.world.bodies[*h].position()) * offset)
+        (0..self.link_bodies.len())
+            .map(|link| self.link_pose(link))
             .collect()
     }
 

@@ -437,7 +437,6 @@ fn provisional(tree: &KinematicTree, tool: usize, workpiece: usize) -> Machine {
         joints: tree.joints.clone(),
         root: tree.root,
         axes: Vec::new(),
-        passive: Vec::new(),
         undriven: Vec::new(),
         masses_from_geometry: Vec::new(),
         tool: Tool {

@@ -325,7 +325,7 @@ impl AxisModel {
         gravity: [f64; 3],
         ideal_actuator: bool,
     ) -> Result<Vec<AxisModel>, AxisModelError> {
-        if let Some(&j) = machine.passive.first() {
+        if let Some(&j) = machine.passive_joints().first() {
             return Err(AxisModelError::PassiveJoint {
                 joint: machine.joints[j].name.clone(),
             });
