@@ -115,7 +115,7 @@ fn benches(c: &mut Criterion) {
                         4,
                     );
                     [Lane {
-                        name: "physics",
+                        kind: sim::LaneKind::Physics,
                         plant: Box::new(plant),
                         controller: Box::new(PidBank::new(vec![pid; 3])),
                     }]

@@ -1,6 +1,6 @@
 //! Sweep throughput: a 100-run sweep of short scenarios (a 2 mm move on the XYZ table, 0.1 s
 //! settle, 1 ms servo period, metrics only) with one worker thread and with one per core, so
-//! the README can state runs per second and the parallel speed-up measured in one session.
+//! docs/sweeps.md can state runs per second and the parallel speed-up measured in one session.
 //!
 //!     cargo bench --bench sweep
 //!

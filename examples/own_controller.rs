@@ -6,25 +6,23 @@
 //! The path from a scenario file to metrics, as a library user walks it:
 //!
 //! 1. [`Scenario::load`] reads and checks the file;
-//! 2. [`Assembly::new`] loads the machine, plans the program into setpoints and wires the loop
-//!    (`assembly.plant(..)` builds a plant, `assembly.loop_settings` holds the encoder, trip
-//!    and timing);
-//! 3. a [`Lane`] pairs a plant with a controller — any type that implements [`Controller`];
-//! 4. [`sim::run`] runs the lanes on the setpoint stream, handing every tick to an
-//!    [`Observer`]; [`RunReport`] is the one `cncsim run` uses (metrics, CSV, recording);
-//! 5. `RunReport::metrics` gives the figures of `metrics.json`.
+//! 2. [`Assembly::new`] loads the machine, plans the program into setpoints and wires the loop;
+//! 3. [`Assembly::run`] runs it with [`RunOptions`]: here with a controller of one's own (any
+//!    type that implements [`Controller`]), a fresh one per lane; `RunOptions::write_to(dir)`
+//!    would also write `metrics.json`, the CSV trace and the recording, `.observer(..)` add an
+//!    observer of every tick, `.traced()` keep the ticks in memory;
+//! 4. `RunOutput::metrics` holds the figures of `metrics.json`.
 //!
 //! The controller here is a PD on each axis plus exact velocity feed-forward from the linear
 //! model of the drive (the command that holds the setpoint speed against the drive's own
 //! damping and back-EMF): it tracks a circle with far less lag than the PD alone.
 
 use cncsim::control::{Controller, ControllerInput};
-use cncsim::report::RunReport;
-use cncsim::scenario::{report_setup, Assembly, PlantKind, Scenario};
-use cncsim::sim::{self, Lane, Observer};
+use cncsim::scenario::{Assembly, RunOptions, Scenario};
 use std::path::PathBuf;
 
 /// PD plus velocity feed-forward, per axis (error in m, output in V at the amplifier input).
+#[derive(Clone)]
 struct PdWithFeedForward {
     kp: Vec<f64>,
     kd: Vec<f64>,
@@ -50,30 +48,6 @@ impl Controller for PdWithFeedForward {
     fn reset(&mut self) {
         self.previous_error.iter_mut().for_each(|e| *e = 0.0);
     }
-}
-
-/// Runs `assembly` with `controller` on the Rapier machine and returns its metrics.
-fn run_with(
-    assembly: &Assembly,
-    controller: Box<dyn Controller>,
-) -> Result<cncsim::report::Metrics, Box<dyn std::error::Error>> {
-    let start = assembly.start();
-    let mut lanes = [Lane {
-        name: "physics",
-        plant: assembly.plant(PlantKind::Physics, &start)?,
-        controller,
-    }];
-    let mut setup = report_setup(assembly);
-    setup.lanes = vec!["physics"];
-    let mut report = RunReport::new(setup, None, None, 1)?;
-    let outcome = sim::run(
-        &assembly.loop_settings,
-        &mut lanes,
-        &mut assembly.setpoints(),
-        &mut report as &mut dyn Observer,
-        &mut |_, _| true,
-    );
-    Ok(report.metrics(&outcome))
 }
 
 fn main() -> Result<(), Box<dyn std::error::Error>> {
@@ -105,15 +79,18 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         kp: vec![5000.0; n],
         kd: vec![60.0; n],
         velocity_gain,
-        period: scenario.servo_period,
+        period: scenario.timing.servo_period,
         previous_error: vec![0.0; n],
     };
-    let own = run_with(&assembly, Box::new(mine))?;
-    let theirs = run_with(&assembly, assembly.controller()?)?;
+    let make_mine = || Box::new(mine.clone()) as Box<dyn Controller>;
+    let own = assembly
+        .run(RunOptions::new().controller(&make_mine))?
+        .metrics;
+    let theirs = assembly.run(RunOptions::new())?.metrics;
     println!(
         "{}: {} on {}",
         scenario.name,
-        scenario.controller.map_or("-", |c| c.name()),
+        scenario.controller_type().map_or("-", |c| c.name()),
         assembly.machine.name
     );
     println!("{:<34} {:>14} {:>14}", "", "own PD + FF", "scenario's");

@@ -1,11 +1,12 @@
 //! cncsim: a physics co-simulation testbed for CNC machines.
 //!
-//! The modules follow the data flow (see `README.md`):
+//! The modules follow the data flow (see `docs/architecture.md`):
 //! program text → [`program`] → [`kinematics`] → [`plan`] → [`sim`] (with [`control`] and the
 //! Rapier [`model`]) → [`report`]; [`scenario`] ties a run together. [`machine`] is the
 //! machine description every stage reads, [`dynamics`] its rigid-body dynamics (used by the
 //! inverse-dynamics controller). A stage never imports a later one.
 
+pub mod command;
 pub mod control;
 pub(crate) mod convert;
 pub mod diagnostics;

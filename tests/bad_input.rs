@@ -419,7 +419,7 @@ fn bad_amplifier_modes_are_reported_against_the_scenario() {
     let p = write(dir.path(), "s.toml", &text);
     let s = Scenario::load(&p).unwrap();
     assert_eq!(
-        s.amplifier_mode,
+        s.actuator.and_then(|a| a.amplifier_mode),
         Some(cncsim::machine::AmplifierMode::Current)
     );
 }

@@ -8,7 +8,7 @@
 //!   reversal, to within 10 % of what it was without;
 //! - a friction pulse at the reversal shortens the stall that Coulomb friction causes there.
 
-use cncsim::scenario::{limits, run_scenario_traced, Override, Scenario};
+use cncsim::scenario::{limits, Assembly, Override, RunOptions, Scenario};
 use std::path::{Path, PathBuf};
 
 fn root() -> PathBuf {
@@ -71,7 +71,10 @@ fn scenario(dir: &Path, overrides: &[&str]) -> Scenario {
 /// Max following error of X (µm) on the physics and on the analytic model.
 fn x_error(dir: &Path, overrides: &[&str]) -> (f64, f64) {
     let s = scenario(dir, overrides);
-    let run = run_scenario_traced(&s, &dir.join("out"), &mut |_, _| true).unwrap();
+    let run = Assembly::new(&s)
+        .unwrap()
+        .run(RunOptions::write_to(&dir.join("out")).traced())
+        .unwrap();
     assert!(run.stop.is_none(), "{overrides:?}: {:?}", run.stop);
     let analytic = run.analytic.as_ref().expect("analytic lane");
     let worst = |t: &cncsim::sim::Trace| {
@@ -149,14 +152,17 @@ fn lost_motion(dir: &Path, overrides: &[&str]) -> f64 {
     ];
     all.extend_from_slice(overrides);
     let s = scenario(dir, &all);
-    let run = run_scenario_traced(&s, &dir.join("out"), &mut |_, _| true).unwrap();
+    let run = Assembly::new(&s)
+        .unwrap()
+        .run(RunOptions::write_to(&dir.join("out")).traced())
+        .unwrap();
     let t = run.trace.as_ref().unwrap();
     // Error of the carriage in the middle of each leg (cruising, settled).
     let at = |time: f64| {
-        let k = (time / s.servo_period).round() as usize;
+        let k = (time / s.timing.servo_period).round() as usize;
         t.commanded[k * t.axes] - t.actual[k * t.axes]
     };
-    let duration = t.len() as f64 * s.servo_period;
+    let duration = t.len() as f64 * s.timing.servo_period;
     at(0.25 * duration) - at(0.75 * duration)
 }
 

@@ -6,7 +6,7 @@
 mod common;
 
 use cncsim::report::{ReportSetup, RunReport};
-use cncsim::scenario::{recording_setup, report_setup, run_scenario, Assembly, Scenario};
+use cncsim::scenario::{recording_setup, report_setup, Assembly, RunOptions, Scenario};
 use cncsim::sim::{self, Hold, Lane, Plant, Sensors};
 use common::{rrd_rows, rrd_strings};
 use std::path::{Path, PathBuf};
@@ -14,12 +14,12 @@ use std::path::{Path, PathBuf};
 fn scenario(analytic: bool, decimation: usize) -> Scenario {
     let root = PathBuf::from(env!("CARGO_MANIFEST_DIR"));
     let mut s = Scenario::load(&root.join("scenarios/paper_corner_90.toml")).unwrap();
-    s.settle_time = 0.2;
-    s.decimation = decimation;
+    s.timing.settle_time = 0.2;
+    s.recording.decimation = decimation;
     // Its bounds are for the full run.
     s.expect.clear();
     if !analytic {
-        s.analytic_steps = None;
+        s.analytic = None;
     }
     s
 }
@@ -71,9 +71,12 @@ fn assert_kept(out: &Path, ticks: usize, decimation: usize, stop_words: &str) {
 fn a_following_error_fault_keeps_everything() {
     for (analytic, decimation) in [(false, 1), (true, 1), (true, 7), (false, 7)] {
         let mut s = scenario(analytic, decimation);
-        s.following_error_limit_linear = 0.3e-3;
+        s.feedback.following_error_limit_linear = 0.3e-3;
         let out = tempfile::tempdir().unwrap();
-        let run = run_scenario(&s, out.path(), &mut |_, _| true).unwrap();
+        let run = Assembly::new(&s)
+            .unwrap()
+            .run(RunOptions::write_to(out.path()))
+            .unwrap();
         let stop = run.stop.expect("the fault");
         assert!(stop.to_string().contains("following-error fault"), "{stop}");
         assert_kept(
@@ -91,11 +94,14 @@ fn an_interruption_keeps_everything() {
         let s = scenario(analytic, decimation);
         let out = tempfile::tempdir().unwrap();
         let mut reports = 0;
-        let run = run_scenario(&s, out.path(), &mut |_, _| {
+        let mut progress = |_: usize, _: usize| {
             reports += 1;
             reports < 2
-        })
-        .unwrap();
+        };
+        let run = Assembly::new(&s)
+            .unwrap()
+            .run(RunOptions::write_to(out.path()).progress(&mut progress))
+            .unwrap();
         assert!(run
             .stop
             .as_ref()
@@ -145,14 +151,14 @@ fn a_divergence_keeps_everything_and_names_time_and_axis() {
         let assembly = Assembly::new(&s).unwrap();
         let mut lanes = assembly.lanes().unwrap();
         // Untraced before the program: the settle at rest, then the approach to its start.
-        let settle = (s.settle_time / s.servo_period).round() as usize
+        let settle = (s.timing.settle_time / s.timing.servo_period).round() as usize
             + assembly.loop_settings.approach.len();
         let inner = std::mem::replace(
             &mut lanes[0].plant,
             Box::new(sim::AnalyticPlant::from_models(
                 Vec::new(),
                 &assembly.machine,
-                s.servo_period,
+                s.timing.servo_period,
                 1,
             )),
         );
@@ -183,7 +189,7 @@ fn a_divergence_keeps_everything_and_names_time_and_axis() {
         let stop = outcome.stop().expect("diverged").to_string();
         let at = format!(
             "simulation diverged at t = {:.6} s on axis 'y'",
-            400.0 * s.servo_period
+            400.0 * s.timing.servo_period
         );
         assert!(stop.starts_with(&at), "{stop}");
         let metrics = report.metrics(&outcome);
@@ -197,14 +203,14 @@ fn a_divergence_keeps_everything_and_names_time_and_axis() {
         assert_eq!(metrics.servo_ticks, 400);
         assert_kept(out.path(), 400, decimation, "diverged");
         let _ = Lane {
-            name: "unused",
+            kind: sim::LaneKind::Analytic,
             plant: Box::new(sim::AnalyticPlant::from_models(
                 Vec::new(),
                 &assembly.machine,
                 1e-3,
                 1,
             )),
-            controller: assembly.controller().unwrap(),
+            controller: assembly.controller(),
         };
     }
 }

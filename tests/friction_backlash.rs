@@ -484,7 +484,7 @@ fn mass_shift(moment_per_acceleration: f64, a: f64) -> f64 {
     moment_per_acceleration * a / SPACING
 }
 
-/// Why the bundled twin stays on one runner (README, "Weight transfer: measured, not in the
+/// Why the bundled twin stays on one runner (docs/modelling.md, "Weight transfer: measured, not in the
 /// twin"): the backlash's end stops are rigid, so taking up the gap at 5 mm/s changes the
 /// carriage's speed within one physics step, an acceleration of some 20 m/s². Under the Y
 /// carriage's centre of gravity that lifts a runner of a 120 mm pair off its rail (above

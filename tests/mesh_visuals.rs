@@ -88,7 +88,7 @@ fn a_machine_with_mesh_and_primitive_visuals_is_recorded_with_each_shape() {
         labels: &labels,
         dc_motor: false,
         decimation: 1,
-        lanes: &["physics"],
+        lanes: &[cncsim::sim::LaneKind::Physics],
         programmed_path: vec![[0.0; 3], [0.01, 0.0, 0.0]],
         variant: None,
     };

@@ -251,7 +251,7 @@ fn known_paths(scenario: &Path, machine: &Path) -> Vec<String> {
         machine.with_extension("drives.toml").display().to_string(),
     ];
     if let Ok(s) = Scenario::load(scenario) {
-        if let cncsim::scenario::ProgramSource::File { path, .. } = &s.program {
+        if let cncsim::scenario::ProgramSource::File { path, .. } = &s.program.source {
             paths.push(path.display().to_string());
         }
     }
@@ -339,7 +339,7 @@ fn run_case(kind: Kind, scenario_path: &Path, mutated: &str) -> Result<(), Strin
             }
         };
     }
-    scenario.settle_time = scenario.settle_time.min(RUN_SETTLE_S);
+    scenario.timing.settle_time = scenario.timing.settle_time.min(RUN_SETTLE_S);
     let (assembly, mut lanes) = match Assembly::with_machine(&scenario, machine)
         .and_then(|a| a.lanes().map(|lanes| (a, lanes)))
     {
@@ -355,7 +355,8 @@ fn run_case(kind: Kind, scenario_path: &Path, mutated: &str) -> Result<(), Strin
     // The untraced approach to the program's start is cut short alike.
     let mut loop_settings = assembly.loop_settings.clone();
     truncate(&mut loop_settings.approach, RUN_TICKS);
-    let mut recorder = cncsim::sim::TraceRecorder::new(scenario.servo_period, n, lanes.len());
+    let mut recorder =
+        cncsim::sim::TraceRecorder::new(scenario.timing.servo_period, n, lanes.len());
     let outcome = cncsim::sim::run(
         &loop_settings,
         &mut lanes,

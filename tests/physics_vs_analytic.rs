@@ -2,7 +2,7 @@
 //! run by the scenario on the same setpoints and the same discrete PID: without friction and
 //! backlash the two agree to under a micrometre over the whole 5 mm/s circle.
 
-use cncsim::scenario::{run_scenario, Scenario};
+use cncsim::scenario::{Assembly, RunOptions, Scenario};
 use std::path::Path;
 
 #[test]
@@ -10,13 +10,16 @@ fn physics_and_analysis_agree_on_the_circle() {
     let root = Path::new(env!("CARGO_MANIFEST_DIR"));
     let mut scenario = Scenario::load(&root.join("scenarios/xyz_circle_5mms.toml")).unwrap();
     assert!(
-        scenario.analytic_steps.is_some(),
+        scenario.analytic.is_some(),
         "the bundled circle runs the analytic model"
     );
-    scenario.record_rrd = false;
-    scenario.record_csv = false;
+    scenario.recording.rrd = false;
+    scenario.recording.csv = false;
     let out = tempfile::tempdir().unwrap();
-    let run = run_scenario(&scenario, out.path(), &mut |_, _| true).unwrap();
+    let run = Assembly::new(&scenario)
+        .unwrap()
+        .run(RunOptions::write_to(out.path()))
+        .unwrap();
     for axis in ["x", "y", "z"] {
         let d = run.metrics.axes[axis]
             .max_physics_vs_analytic_mm

@@ -63,7 +63,7 @@ fn fixture(file: &str) -> PathBuf {
 }
 
 /// The committed programs, each at a low and a high jerk limit (mm/s³), every line as
-/// programmed (`curve_lines_1mm.ngc`'s own G64 Q0.02 turned off, as in the README's table).
+/// programmed (`curve_lines_1mm.ngc`'s own G64 Q0.02 turned off, as in the table of docs/planning.md).
 fn committed_cases() -> Vec<Case> {
     let case = |file: &str, machine, jerk, ceiling| Case {
         file: fixture(file),

@@ -4,7 +4,7 @@
 
 mod common;
 
-use cncsim::scenario::{run_ab, run_scenario_traced, Override, Scenario};
+use cncsim::scenario::{run_ab, Assembly, Override, RunOptions, Scenario};
 use common::{rrd_rows, rrd_strings};
 use std::path::{Path, PathBuf};
 
@@ -50,11 +50,15 @@ fn the_default_run_carries_a_review_blueprint_named_series_and_a_summary() {
     let scenario = bundled("xyz_circle_5mms.toml");
     let out = tempfile::tempdir().unwrap();
     let mut short = scenario.clone();
-    short.program = cncsim::scenario::ProgramSource::Polyline(cncsim::program::PolylineSpec {
-        points: vec![[0.1, 0.1, 0.0], [0.102, 0.1, 0.0]],
-        speed: 0.005,
-    });
-    run_scenario_traced(&short, out.path(), &mut |_, _| true).unwrap();
+    short.program.source =
+        cncsim::scenario::ProgramSource::Polyline(cncsim::program::PolylineSpec {
+            points: vec![[0.1, 0.1, 0.0], [0.102, 0.1, 0.0]],
+            speed: 0.005,
+        });
+    Assembly::new(&short)
+        .unwrap()
+        .run(RunOptions::write_to(out.path()).traced())
+        .unwrap();
     let rrd = out.path().join("run.rrd");
     let views = views(&rrd);
     let find = |name: &str| {
@@ -130,14 +134,18 @@ fn the_default_run_carries_a_review_blueprint_named_series_and_a_summary() {
 fn backlash_crossings_and_a_stop_are_in_the_event_log() {
     let mut scenario = bundled("paper_corner_90.toml");
     // Out and back on X: one reversal, whose backlash the drive crosses; then a fault.
-    scenario.program = cncsim::scenario::ProgramSource::Polyline(cncsim::program::PolylineSpec {
-        points: vec![[0.1, 0.1, 0.0], [0.102, 0.1, 0.0], [0.1, 0.1, 0.0]],
-        speed: 0.005,
-    });
-    scenario.settle_time = 0.5;
-    scenario.record_csv = false;
+    scenario.program.source =
+        cncsim::scenario::ProgramSource::Polyline(cncsim::program::PolylineSpec {
+            points: vec![[0.1, 0.1, 0.0], [0.102, 0.1, 0.0], [0.1, 0.1, 0.0]],
+            speed: 0.005,
+        });
+    scenario.timing.settle_time = 0.5;
+    scenario.recording.csv = false;
     let out = tempfile::tempdir().unwrap();
-    let run = run_scenario_traced(&scenario, out.path(), &mut |_, _| true).unwrap();
+    let run = Assembly::new(&scenario)
+        .unwrap()
+        .run(RunOptions::write_to(out.path()).traced())
+        .unwrap();
     assert!(run.stop.is_none());
     let all = rrd_strings(&out.path().join("run.rrd"));
     let events: Vec<String> = strings(&all, "TextLog:text")
@@ -156,9 +164,12 @@ fn backlash_crossings_and_a_stop_are_in_the_event_log() {
     );
 
     // The same run with a following-error limit it breaches: the stop is logged at its time.
-    scenario.following_error_limit_linear = 0.2e-3;
+    scenario.feedback.following_error_limit_linear = 0.2e-3;
     let out = tempfile::tempdir().unwrap();
-    let run = run_scenario_traced(&scenario, out.path(), &mut |_, _| true).unwrap();
+    let run = Assembly::new(&scenario)
+        .unwrap()
+        .run(RunOptions::write_to(out.path()).traced())
+        .unwrap();
     let stop = run.stop.expect("the fault");
     let all = rrd_strings(&out.path().join("run.rrd"));
     let events: Vec<String> = strings(&all, "TextLog:text")
@@ -181,11 +192,11 @@ fn an_ab_recording_overlays_both_variants() {
     };
     let (mut a, mut b) = (load("controller=pid"), load("controller=cascade"));
     for s in [&mut a, &mut b] {
-        s.record_rrd = false;
-        s.record_csv = false;
+        s.recording.rrd = false;
+        s.recording.csv = false;
     }
     let out = tempfile::tempdir().unwrap();
-    let (report, _, _) = run_ab(&a, &b, out.path(), &mut |_, _| true).unwrap();
+    let report = run_ab(&a, &b, out.path(), &mut |_, _| true).unwrap().report;
     assert!(report.rows.iter().any(|r| r.metric == "max contour error"));
     let rrd = out.path().join("ab.rrd");
     let views = views(&rrd);
@@ -259,7 +270,10 @@ fn a_run_with_a_chain_longer_than_the_look_ahead_says_so_in_its_summary() {
     std::fs::write(&file, text).unwrap();
     let scenario = Scenario::load(&file).unwrap();
     let out = dir.path().join("out");
-    let run = run_scenario_traced(&scenario, &out, &mut |_, _| true).unwrap();
+    let run = Assembly::new(&scenario)
+        .unwrap()
+        .run(RunOptions::write_to(&out).traced())
+        .unwrap();
     assert!(run.stop.is_none(), "{:?}", run.stop);
     assert!(run.warnings.is_empty(), "{:?}", run.warnings);
     let all = rrd_strings(&out.join("run.rrd"));

@@ -2,7 +2,7 @@
 
 mod common;
 
-use cncsim::scenario::{check, run_scenario_traced as run_scenario, Scenario};
+use cncsim::scenario::{check, Assembly, RunOptions, Scenario};
 use common::rrd_rows;
 use std::path::Path;
 
@@ -19,7 +19,10 @@ fn bundled(name: &str) -> Scenario {
 fn circle_scenario_meets_its_bounds_and_writes_a_readable_recording() {
     let scenario = bundled("xyz_circle_5mms.toml");
     let out = tempfile::tempdir().unwrap();
-    let run = run_scenario(&scenario, out.path(), &mut |_, _| true).unwrap();
+    let run = Assembly::new(&scenario)
+        .unwrap()
+        .run(RunOptions::write_to(out.path()).traced())
+        .unwrap();
     assert!(run.stop.is_none(), "{:?}", run.stop);
     let verdict = check(&scenario, &run.metrics_json);
     assert!(verdict.passed(), "breaches: {:?}", verdict.breaches);
@@ -74,7 +77,7 @@ fn circle_scenario_meets_its_bounds_and_writes_a_readable_recording() {
         .as_ref()
         .unwrap()
         .len()
-        .div_ceil(scenario.decimation);
+        .div_ceil(scenario.recording.decimation);
     for axis in ["x", "y", "z"] {
         for series in [
             "position/commanded",
@@ -135,15 +138,22 @@ fn circle_scenario_meets_its_bounds_and_writes_a_readable_recording() {
 fn same_scenario_same_numbers() {
     let mut scenario = bundled("xyz_circle_5mms.toml");
     // A shorter path keeps this quick; determinism does not depend on length.
-    scenario.program = cncsim::scenario::ProgramSource::Polyline(cncsim::program::PolylineSpec {
-        points: vec![[0.1, 0.1, 0.0], [0.105, 0.1, 0.0], [0.105, 0.104, 0.0]],
-        speed: 0.01,
-    });
-    scenario.record_rrd = false;
+    scenario.program.source =
+        cncsim::scenario::ProgramSource::Polyline(cncsim::program::PolylineSpec {
+            points: vec![[0.1, 0.1, 0.0], [0.105, 0.1, 0.0], [0.105, 0.104, 0.0]],
+            speed: 0.01,
+        });
+    scenario.recording.rrd = false;
     let a = tempfile::tempdir().unwrap();
     let b = tempfile::tempdir().unwrap();
-    let ra = run_scenario(&scenario, a.path(), &mut |_, _| true).unwrap();
-    let rb = run_scenario(&scenario, b.path(), &mut |_, _| true).unwrap();
+    let ra = Assembly::new(&scenario)
+        .unwrap()
+        .run(RunOptions::write_to(a.path()).traced())
+        .unwrap();
+    let rb = Assembly::new(&scenario)
+        .unwrap()
+        .run(RunOptions::write_to(b.path()).traced())
+        .unwrap();
     assert_eq!(ra.trace, rb.trace, "two runs of one scenario differ");
     assert!(ra.trace.is_some());
 }
@@ -152,12 +162,22 @@ fn same_scenario_same_numbers() {
 fn a_runaway_is_stopped_with_time_and_axis_and_the_recording_is_kept() {
     let mut scenario = bundled("xyz_circle_5mms.toml");
     // Positive feedback on X: the carriage runs away until the following-error fault trips.
-    let gains = scenario.gains.get_mut("x").unwrap();
+    let gains = scenario
+        .controller
+        .as_mut()
+        .unwrap()
+        .pid
+        .axes
+        .get_mut("x")
+        .unwrap();
     gains.settings.kp = -gains.settings.kp;
     gains.settings.ki = 0.0;
     gains.settings.kd = 0.0;
     let out = tempfile::tempdir().unwrap();
-    let run = run_scenario(&scenario, out.path(), &mut |_, _| true).unwrap();
+    let run = Assembly::new(&scenario)
+        .unwrap()
+        .run(RunOptions::write_to(out.path()).traced())
+        .unwrap();
     let stop = run.stop.expect("the run must stop");
     let text = stop.to_string();
     assert!(
@@ -267,12 +287,13 @@ fn check_fails_on_a_breached_bound() {
 }
 
 fn short_move(scenario: &mut Scenario) {
-    scenario.program = cncsim::scenario::ProgramSource::Polyline(cncsim::program::PolylineSpec {
-        points: vec![[0.1, 0.1, 0.0], [0.102, 0.1, 0.0]],
-        speed: 0.005,
-    });
-    scenario.record_rrd = false;
-    scenario.record_csv = false;
+    scenario.program.source =
+        cncsim::scenario::ProgramSource::Polyline(cncsim::program::PolylineSpec {
+            points: vec![[0.1, 0.1, 0.0], [0.102, 0.1, 0.0]],
+            speed: 0.005,
+        });
+    scenario.recording.rrd = false;
+    scenario.recording.csv = false;
 }
 
 /// The seeds' 4 ms servo period runs (16 physics steps per period) and still tracks.
@@ -280,16 +301,19 @@ fn short_move(scenario: &mut Scenario) {
 fn four_millisecond_servo_period_works() {
     let mut scenario = bundled("xyz_circle_5mms.toml");
     short_move(&mut scenario);
-    scenario.servo_period = 4e-3;
-    scenario.substeps = 16;
+    scenario.timing.servo_period = 4e-3;
+    scenario.timing.substeps = 16;
     // A slower loop needs lower gains: the same pole placement at ωn = 2π·6 Hz.
-    for g in scenario.gains.values_mut() {
+    for g in scenario.controller.as_mut().unwrap().pid.axes.values_mut() {
         g.settings.kp /= 17.0;
         g.settings.ki /= 70.0;
         g.settings.kd /= 4.0;
     }
     let out = tempfile::tempdir().unwrap();
-    let run = run_scenario(&scenario, out.path(), &mut |_, _| true).unwrap();
+    let run = Assembly::new(&scenario)
+        .unwrap()
+        .run(RunOptions::write_to(out.path()).traced())
+        .unwrap();
     assert!(run.stop.is_none(), "{:?}", run.stop);
     assert_eq!(
         run.metrics.physics_steps,
@@ -314,11 +338,18 @@ fn encoder_quantisation_shows_in_the_following_error() {
     let mut scenario = bundled("xyz_circle_5mms.toml");
     short_move(&mut scenario);
     let out = tempfile::tempdir().unwrap();
-    let ideal = run_scenario(&scenario, out.path(), &mut |_, _| true).unwrap();
+    let ideal = Assembly::new(&scenario)
+        .unwrap()
+        .run(RunOptions::write_to(out.path()).traced())
+        .unwrap();
     scenario
+        .feedback
         .encoder_counts_per_rev
         .insert("x".into(), (100, None));
-    let quantised = run_scenario(&scenario, out.path(), &mut |_, _| true).unwrap();
+    let quantised = Assembly::new(&scenario)
+        .unwrap()
+        .run(RunOptions::write_to(out.path()).traced())
+        .unwrap();
     let resolution_mm = 2.0 * std::f64::consts::PI / (100.0 * 4000.0) * 1e3; // 15.7 µm
                                                                              // Steady tracking, after the start transient of the velocity step has died out.
     let steady = |t: &cncsim::sim::Trace| {
@@ -345,16 +376,23 @@ fn encoder_quantisation_shows_in_the_following_error() {
 #[test]
 fn an_interrupted_run_keeps_what_it_computed() {
     let mut scenario = bundled("xyz_circle_5mms.toml");
-    scenario.record_csv = false;
+    scenario.recording.csv = false;
     let out = tempfile::tempdir().unwrap();
     // Progress comes every 1024 ticks, the 500 ticks of settling included: let the first
     // report through, stop at the second (tick 2048, program tick 1547).
     let mut reports = 0;
-    let run = run_scenario(&scenario, out.path(), &mut |_, _| {
+    let mut progress = |_: usize, _: usize| {
         reports += 1;
         reports < 2
-    })
-    .unwrap();
+    };
+    let run = Assembly::new(&scenario)
+        .unwrap()
+        .run(
+            RunOptions::write_to(out.path())
+                .traced()
+                .progress(&mut progress),
+        )
+        .unwrap();
     let stop = run.stop.expect("interrupted");
     assert!(
         stop.to_string().starts_with("interrupted at t = 1.547"),
@@ -366,7 +404,7 @@ fn an_interrupted_run_keeps_what_it_computed() {
         rrd_rows(&out.path().join("run.rrd"))
             .get("/axes/x/position/physics")
             .copied(),
-        Some(1548usize.div_ceil(scenario.decimation))
+        Some(1548usize.div_ceil(scenario.recording.decimation))
     );
 }
 
@@ -376,20 +414,24 @@ fn an_interrupted_run_keeps_what_it_computed() {
 fn backlash_shows_the_drive_side_in_the_recording() {
     let mut scenario = bundled("paper_corner_90.toml");
     // Out and back on both axes: each reverses once.
-    scenario.program = cncsim::scenario::ProgramSource::Polyline(cncsim::program::PolylineSpec {
-        points: vec![[0.1, 0.1, 0.0], [0.102, 0.101, 0.0], [0.1, 0.1, 0.0]],
-        speed: 0.005,
-    });
-    scenario.record_csv = false;
+    scenario.program.source =
+        cncsim::scenario::ProgramSource::Polyline(cncsim::program::PolylineSpec {
+            points: vec![[0.1, 0.1, 0.0], [0.102, 0.101, 0.0], [0.1, 0.1, 0.0]],
+            speed: 0.005,
+        });
+    scenario.recording.csv = false;
     let out = tempfile::tempdir().unwrap();
-    let run = run_scenario(&scenario, out.path(), &mut |_, _| true).unwrap();
+    let run = Assembly::new(&scenario)
+        .unwrap()
+        .run(RunOptions::write_to(out.path()).traced())
+        .unwrap();
     let rows = rrd_rows(&out.path().join("run.rrd"));
     let recorded = run
         .trace
         .as_ref()
         .unwrap()
         .len()
-        .div_ceil(scenario.decimation);
+        .div_ceil(scenario.recording.decimation);
     for path in [
         "/axes/x/position/physics_drive",
         "/axes/y/position/physics_drive",
@@ -419,13 +461,21 @@ fn backlash_shows_the_drive_side_in_the_recording() {
 #[test]
 fn stick_slip_hunting_is_counted() {
     let mut scenario = bundled("paper_circle_05mms.toml");
-    scenario.record_rrd = false;
-    scenario.record_csv = false;
-    scenario.analytic_steps = None;
+    scenario.recording.rrd = false;
+    scenario.recording.csv = false;
+    scenario.analytic = None;
     // Its bounds are the calibrated twin's.
     scenario.expect.clear();
     for axis in ["x", "y"] {
-        let pid = &mut scenario.gains.get_mut(axis).unwrap().settings;
+        let pid = &mut scenario
+            .controller
+            .as_mut()
+            .unwrap()
+            .pid
+            .axes
+            .get_mut(axis)
+            .unwrap()
+            .settings;
         (pid.kp, pid.ki, pid.kd) = (38.72, 110.63, 3.39);
     }
     let mut machine = cncsim::scenario::machine_for(&scenario).unwrap();
@@ -437,7 +487,9 @@ fn stick_slip_hunting_is_counted() {
         }
     }
     let out = tempfile::tempdir().unwrap();
-    let run = cncsim::scenario::run_scenario_with(&scenario, machine, out.path(), &mut |_, _| true)
+    let run = Assembly::with_machine(&scenario, machine)
+        .unwrap()
+        .run(RunOptions::write_to(out.path()))
         .unwrap();
     assert!(run.stop.is_none());
     let stalls = ["x", "y"].map(|a| run.metrics.axes[a].stick_slip_stalls);

@@ -13,9 +13,9 @@
 
 use cncsim::machine::{Feedback, Guide};
 use cncsim::scenario::{
-    machine_for, tune_scenario, tune_scenario_with, PlantKind as TunePlant, Scenario, TuneOptions,
-    TuneReport,
+    machine_for, tune_scenario, tune_scenario_with, Scenario, TuneOptions, TuneReport,
 };
+use cncsim::sim::LaneKind as TunePlant;
 use std::path::Path;
 use std::process::Command;
 
@@ -57,7 +57,7 @@ fn physics_analytic_and_discrete_time_derivation_agree_on_x() {
 
     let coarse = tune(&s, "x", TunePlant::Physics);
     let mut fine_scenario = s.clone();
-    fine_scenario.substeps *= 2;
+    fine_scenario.timing.substeps *= 2;
     let fine = tune(&fine_scenario, "x", TunePlant::Physics);
     // First order in the physics step: halving it halves the deviation.
     let (dk_coarse, dk_fine) = (
@@ -100,9 +100,9 @@ fn physics_analytic_and_discrete_time_derivation_agree_on_x() {
 #[test]
 fn current_mode_reproduces_the_papers_plant_and_gain_table() {
     let mut s = Scenario::load(&root().join("scenarios/paper_circle_05mms.toml")).unwrap();
-    s.friction = false;
-    s.backlash = false;
-    s.amplifier_mode = Some(cncsim::machine::AmplifierMode::Current);
+    s.mechanics.friction = false;
+    s.mechanics.backlash = false;
+    s.actuator.as_mut().unwrap().amplifier_mode = Some(cncsim::machine::AmplifierMode::Current);
     let mut options = TuneOptions::new("x", 5e-5);
     options.start_gain = Some(30.0);
     // The paper's masses: X moves 20 kg, i.e. a Z assembly of 8 kg (the twin's is calibrated).

@@ -4,7 +4,7 @@
 
 use cncsim::kinematics::{AxisMap, ProgramFrame};
 use cncsim::machine::Machine;
-use cncsim::scenario::{report_setup, run_scenario_traced, Assembly, Scenario};
+use cncsim::scenario::{report_setup, Assembly, RunOptions, Scenario};
 use cncsim::sim::Trace;
 use nalgebra::{Matrix3, Point3, Vector3};
 use std::path::{Path, PathBuf};
@@ -368,7 +368,10 @@ fn run_gantry_with(
     let assembly = Assembly::new(&scenario).unwrap();
     let setup = report_setup(&assembly);
     let out = dir.path().join("out");
-    let run = run_scenario_traced(&scenario, &out, &mut |_, _| true).unwrap();
+    let run = Assembly::new(&scenario)
+        .unwrap()
+        .run(RunOptions::write_to(&out).traced())
+        .unwrap();
     assert!(run.stop.is_none(), "{:?}", run.stop);
     let trace = run.trace.expect("traced");
     let axes = [0, 1, 2].map(|c| assembly.machine.axis_index(["x", "y", "z"][c]).unwrap());
@@ -583,7 +586,10 @@ fn a_workpiece_on_a_fixture_fixed_to_the_base_is_measured_in_its_own_frame() {
     // World +x is the fixture's -y, world +y its +x.
     assert!((frame.directions.column(0) - Vector3::new(0.0, -1.0, 0.0)).norm() < 1e-12);
     let setup = report_setup(&assembly);
-    let run = run_scenario_traced(&scenario, &dir.path().join("out"), &mut |_, _| true).unwrap();
+    let run = Assembly::new(&scenario)
+        .unwrap()
+        .run(RunOptions::write_to(&dir.path().join("out")).traced())
+        .unwrap();
     let axes = [0, 1, 2].map(|c| assembly.machine.axis_index(["x", "y", "z"][c]).unwrap());
     let worst = contour_within_following_error(run.trace.as_ref().unwrap(), &setup, &axes);
     contour_within_following_error(run.analytic.as_ref().unwrap(), &setup, &axes);

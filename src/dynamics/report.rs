@@ -218,3 +218,13 @@ fn right_aligned(s: &str, width: usize) -> String {
 fn left_aligned(s: &str, width: usize) -> String {
     format!("{s}{}", " ".repeat(width.saturating_sub(display_width(s))))
 }
+
+impl crate::command::Report for DynamicsReport {
+    fn text(&self) -> String {
+        self.to_text()
+    }
+
+    fn json(&self) -> Option<serde_json::Value> {
+        Some(self.to_json())
+    }
+}

@@ -144,11 +144,21 @@ pub fn inspect(
     path: &Path,
     options: &ReadOptions,
     inspect_options: &InspectOptions,
-) -> Result<String, ProgramErrors> {
+) -> Result<Inspection, ProgramErrors> {
     let outcome = read_program_detailed(path, options)?;
-    Ok(inspect_report(
+    Ok(Inspection(inspect_report(
         &outcome.program,
         outcome.pen_up.as_ref(),
         inspect_options,
-    ))
+    )))
+}
+
+/// What `cncsim inspect` shows of a program: its moves, lengths and times.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Inspection(pub String);
+
+impl crate::command::Report for Inspection {
+    fn text(&self) -> String {
+        self.0.clone()
+    }
 }

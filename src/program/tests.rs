@@ -798,7 +798,8 @@ fn inspect_report_lists_moves_and_totals() {
         &options,
         &InspectOptions::default(),
     )
-    .unwrap();
+    .unwrap()
+    .0;
     assert!(
         report.contains("moves: 6 (5 cutting, 1 rapid/pen-up, 0 dwell)"),
         "{report}"
@@ -826,7 +827,8 @@ fn inspect_report_lists_moves_and_totals() {
         &options,
         &InspectOptions::default(),
     )
-    .unwrap();
+    .unwrap()
+    .0;
     assert!(
         report.contains(
             "pen-up travel: 5.000 mm with 1 lifts as drawn, 5.000 mm with 1 lifts after reordering"

@@ -22,7 +22,7 @@ use super::path::PathSample;
 use super::thin::Thinned;
 use super::{AxisLabel, ReportError};
 use crate::machine::{Machine, Shape, Visual};
-use crate::sim::TickRecord;
+use crate::sim::{LaneKind, TickRecord};
 use nalgebra::{Isometry3, Point3};
 use rerun::{RecordingStream, TimeColumn};
 use std::path::{Path, PathBuf};
@@ -52,7 +52,7 @@ pub struct RecordingSetup<'a> {
     /// Record every k-th tick.
     pub decimation: usize,
     /// Lanes of the run ("physics", and "analytic" where it runs).
-    pub lanes: &'a [&'static str],
+    pub lanes: &'a [LaneKind],
     /// The programmed tool path on the workpiece, in the workpiece link's frame (m).
     pub programmed_path: Vec<[f64; 3]>,
     /// In an A/B recording: the variant's name (legends start with it) and its colour.
@@ -96,7 +96,7 @@ pub struct RrdWriter {
     prefix: String,
     machine: Machine,
     labels: Vec<AxisLabel>,
-    lanes: Vec<&'static str>,
+    lanes: Vec<LaneKind>,
     decimation: usize,
     dc_motor: bool,
     variant: Option<(String, [u8; 3])>,
@@ -278,7 +278,7 @@ impl RrdWriter {
                     named(
                         format!("axes/{a}/position/{lane}_drive"),
                         format!("{a} {lane} drive side ({u})"),
-                        if *lane == "physics" {
+                        if *lane == LaneKind::Physics {
                             DRIVE
                         } else {
                             [120, 200, 220]
@@ -504,7 +504,7 @@ impl RrdWriter {
         self.rec.log(
             format!("{paths}/actual/{:05}", self.path_pieces),
             &rerun::LineStrips3D::new([strip])
-                .with_colors([rgb(self.colour("physics"))])
+                .with_colors([rgb(self.colour(&LaneKind::Physics))])
                 .with_radii([rerun::Radius::new_ui_points(1.5)]),
         )?;
         self.rec.disable_timeline("sim_time");
@@ -635,9 +635,9 @@ fn heat(x: f64) -> rerun::Color {
 
 impl RrdWriter {
     /// A lane's colour: physics orange and analytic green, or the variant's own colour.
-    fn colour(&self, lane: &str) -> [u8; 3] {
+    fn colour(&self, lane: &LaneKind) -> [u8; 3] {
         match (lane, &self.variant) {
-            ("analytic", _) => ANALYTIC,
+            (LaneKind::Analytic, _) => ANALYTIC,
             (_, Some((_, colour))) => *colour,
             _ => PHYSICS,
         }

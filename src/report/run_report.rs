@@ -8,7 +8,7 @@ use super::metrics::{Metrics, MetricsAccumulator};
 use super::path::{PathSample, PathTracker};
 use super::recording::{RecordingSetup, RrdWriter};
 use super::{AxisLabel, ReportError};
-use crate::sim::{Observer, Outcome, Stop, TickRecord};
+use crate::sim::{LaneKind, Observer, Outcome, Stop, TickRecord};
 use std::path::{Path, PathBuf};
 
 /// Bins of the contour-error envelope kept for plots.
@@ -25,7 +25,7 @@ pub struct ReportSetup {
     pub peak_velocity: Vec<f64>,
     /// Program ticks the run will have, if it completes (for the plot envelope).
     pub ticks: usize,
-    pub lanes: Vec<&'static str>,
+    pub lanes: Vec<LaneKind>,
     /// Backlash per axis (joint units) and the source line of each move, for the event log.
     pub backlash: Vec<f64>,
     pub move_lines: Vec<u32>,
@@ -162,7 +162,7 @@ impl RunReport {
                 }
             }
             for (lane, stop) in &self.stops {
-                let who = self.setup.lanes.get(*lane).copied().unwrap_or("lane");
+                let who = self.setup.lanes.get(*lane).map_or("lane", |l| l.name());
                 rrd.event(stop.time(), "ERROR", &format!("{who} stopped: {stop}"));
             }
             for (time, level, text) in notes {

@@ -2,11 +2,13 @@
 //! actuator, timing of the physics) run on the same setpoints, compared side by side.
 
 use super::assemble::{Assembly, RunError};
-use super::run::{recording_setup, report_setup, run_assembly_observed};
+use super::run::{recording_setup, report_setup, RunOptions};
 use super::{folder_name, RunOutput, Scenario};
+use crate::command::{write_file, Ending, Report, WriteError};
 use crate::report::{ab_blueprint, ReportError, RrdWriter, RunReport};
+use crate::sim::LaneKind;
 use serde::Serialize;
-use std::path::Path;
+use std::path::{Path, PathBuf};
 
 /// Colours of variants A and B in the shared recording.
 const VARIANT_COLOURS: [[u8; 3]; 2] = [[40, 110, 230], [230, 50, 50]];
@@ -39,7 +41,7 @@ pub fn run_ab(
     b: &Scenario,
     out: &Path,
     progress: &mut dyn FnMut(usize, usize) -> bool,
-) -> Result<(AbReport, RunOutput, RunOutput), RunError> {
+) -> Result<AbOutput, RunError> {
     let (aa, ab) = (Assembly::new(a)?, Assembly::new(b)?);
     if !aa.same_setpoints(&ab) {
         let message = "the two variants do not run the same setpoints (program, planner and servo period must match for an A/B comparison)";
@@ -68,7 +70,7 @@ pub fn run_ab(
     let mut outputs = Vec::new();
     for (i, (assembly, prefix)) in [(&aa, "a"), (&ab, "b")].into_iter().enumerate() {
         let s = &assembly.scenario;
-        let lanes = ["physics"];
+        let lanes = [LaneKind::Physics];
         let mut setup = recording_setup(assembly, &lanes);
         setup.variant = Some((
             format!("{}: {}", prefix.to_uppercase(), s.name),
@@ -77,9 +79,12 @@ pub fn run_ab(
         let writer = RrdWriter::on_stream(rec.clone(), &path, &format!("{prefix}/"), &setup)?;
         let mut shared = RunReport::with_recording(report_setup(assembly), writer);
         let folder = out.join(format!("{prefix}_{}", folder_name(&s.name)));
-        let (run, outcome) =
-            run_assembly_observed(assembly, &folder, progress, false, Some(&mut shared))?;
-        shared.finish(&outcome, &[], "")?;
+        let run = assembly.run(
+            RunOptions::write_to(&folder)
+                .observer(&mut shared)
+                .progress(&mut *progress),
+        )?;
+        shared.finish(&run.outcome, &[], "")?;
         outputs.push(run);
     }
     let rb = outputs.pop().expect("two runs");
@@ -91,7 +96,11 @@ pub fn run_ab(
     )
     .map_err(|e| fail(&e))?;
     rec.flush_blocking().map_err(|e| fail(&e))?;
-    Ok((report, ra, rb))
+    Ok(AbOutput {
+        report,
+        runs: [(a.path.clone(), ra), (b.path.clone(), rb)],
+        out: out.to_path_buf(),
+    })
 }
 
 fn compare(a: &Scenario, ra: &RunOutput, b: &Scenario, rb: &RunOutput) -> AbReport {
@@ -182,5 +191,63 @@ impl AbReport {
             ));
         }
         s
+    }
+}
+
+/// `cncsim ab`: the comparison and both runs, with the folder they were written to.
+#[derive(Debug, Clone)]
+pub struct AbOutput {
+    pub report: AbReport,
+    /// Variant A and B: scenario file and run.
+    pub runs: [(PathBuf, RunOutput); 2],
+    pub out: PathBuf,
+}
+
+impl Report for AbOutput {
+    /// `ab.md`, `ab.json`, the shared recording `ab.rrd` (written as the runs went) and the
+    /// contour errors of both over time, `contour_error.png`.
+    fn write(&self) -> Result<Vec<PathBuf>, WriteError> {
+        let json = serde_json::to_string_pretty(&self.report).expect("plain numbers");
+        let mut files = vec![
+            write_file(self.out.join("ab.md"), self.report.markdown())?,
+            write_file(self.out.join("ab.json"), json + "\n")?,
+            self.out.join("ab.rrd"),
+        ];
+        let plot = self.out.join("contour_error.png");
+        let labels = [
+            format!("A: {}", self.report.a),
+            format!("B: {}", self.report.b),
+        ];
+        let curves = self
+            .runs
+            .each_ref()
+            .map(|(_, r)| (r.contour_envelope.times(), r.contour_envelope.values()));
+        let series = [0, 1].map(|i| crate::report::ContourSeries {
+            label: &labels[i],
+            time: &curves[i].0,
+            contour_error: &curves[i].1,
+        });
+        crate::report::write_contour_error_plot(&plot, &series)?;
+        files.push(plot);
+        Ok(files)
+    }
+
+    fn text(&self) -> String {
+        self.report.markdown()
+    }
+
+    fn json(&self) -> Option<serde_json::Value> {
+        serde_json::to_value(&self.report).ok()
+    }
+
+    fn ending(&self) -> Ending {
+        match self
+            .runs
+            .iter()
+            .find_map(|(path, r)| r.stop.as_ref().map(|s| (path, s)))
+        {
+            Some((path, stop)) => Ending::Failed(Some(format!("{}: {stop}", path.display()))),
+            None => Ending::Done,
+        }
     }
 }

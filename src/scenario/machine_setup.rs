@@ -577,3 +577,52 @@ fn toml_key(name: &str) -> String {
         format!("{name:?}")
     }
 }
+
+impl crate::command::Report for MachineReport {
+    fn text(&self) -> String {
+        MachineReport::text(self)
+    }
+
+    fn json(&self) -> Option<serde_json::Value> {
+        Some(MachineReport::json(self))
+    }
+}
+
+/// `cncsim machine init`: a drive file drafted for a URDF, to be written to `out` (`-`: the
+/// terminal).
+#[derive(Debug, Clone)]
+pub struct DriveFileDraft {
+    pub urdf: PathBuf,
+    pub text: String,
+    pub out: PathBuf,
+}
+
+impl DriveFileDraft {
+    fn to_terminal(&self) -> bool {
+        self.out == Path::new("-")
+    }
+}
+
+impl crate::command::Report for DriveFileDraft {
+    fn write(&self) -> Result<Vec<PathBuf>, crate::command::WriteError> {
+        if self.to_terminal() {
+            return Ok(Vec::new());
+        }
+        Ok(vec![crate::command::write_file(
+            self.out.clone(),
+            &self.text,
+        )?])
+    }
+
+    fn text(&self) -> String {
+        if self.to_terminal() {
+            self.text.clone()
+        } else {
+            format!(
+                "fill in the values marked ASSUMED in {}, then `cncsim machine check {}`\n",
+                self.out.display(),
+                self.urdf.display()
+            )
+        }
+    }
+}

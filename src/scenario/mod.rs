@@ -11,23 +11,25 @@ mod plan;
 mod run;
 mod tune;
 
-pub use ab::{run_ab, AbReport, AbRow};
+pub use ab::{run_ab, AbOutput, AbReport, AbRow};
 pub use assemble::{
-    axis_map_for, keep_mechanics, load_checked_program, machine_for, plan_for, plan_key,
-    plan_settings, with_choices, Assembly, PlantKind, ProgramOverview, RunError, GRAVITY,
+    axis_map_for, keep_mechanics, load_checked_program, machine_for, plan_for, plan_settings,
+    with_choices, Assembly, ControllerRecipe, PlanKey, ProgramOverview, RunError, GRAVITY,
 };
-pub use check::{check, Breach, Verdict};
+pub use check::{check, check_scenarios, scenario_files, Breach, CheckReport, Verdict};
 pub use file::{
-    limits, Approach, AxisCascade, AxisGains, CompensationEntry, ControlSpace, ControllerType,
-    DeclaredVariants, Expectation, InverseDynamicsSettings, PlannerSettings, ProfileName,
-    ProgramSource, Scenario,
+    limits, ActuatorSettings, AnalyticSettings, Approach, AxisCascade, AxisGains, CascadeTable,
+    CompensationEntry, ControlSpace, ControllerSettings, ControllerType, DeclaredVariants,
+    Expectation, FeedbackSettings, InverseDynamicsSettings, Mechanics, PidTable, PlannerSettings,
+    ProfileName, ProgramSettings, ProgramSource, RecordingSettings, Scenario, Timing,
 };
-pub use machine_setup::{check_machine, drive_file_template, AxisRow, MachineReport};
+pub use machine_setup::{
+    check_machine, drive_file_template, AxisRow, DriveFileDraft, MachineReport,
+};
 pub use overrides::{edit_toml, Override};
-pub use plan::{plan_scenario, PlanReport};
+pub use plan::{plan_scenario, PlanOutput, PlanReport};
 pub use run::{
-    recording_setup, report_setup, run_assembly, run_assembly_observed, run_scenario,
-    run_scenario_traced, run_scenario_with, summary_markdown, RunOutput,
+    recording_setup, report_setup, summary_markdown, RunOptions, RunOutput, ScenarioRun,
 };
 pub use tune::{
     outcome_text, tune_cascade, tune_scenario, tune_scenario_with, CascadeTuneReport,

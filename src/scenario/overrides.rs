@@ -386,7 +386,9 @@ mod file_tests {
             "mill_table2_fast planner.blend=exact-stop controller.damping_ratio=0.9"
         );
         assert_eq!(
-            s.gains["x"].at.map(|at| at.line),
+            s.controller.as_ref().unwrap().pid.axes["x"]
+                .at
+                .map(|at| at.line),
             Some(line_of(&text, "axes.x"))
         );
         assert_eq!(
@@ -397,7 +399,8 @@ mod file_tests {
                 .map(|at| at.line),
             Some(line_of(&text, "max_contour_error_mm = "))
         );
-        assert_eq!(s.inverse_dynamics.unwrap().damping_ratio, 0.9);
+        let id = s.controller.as_ref().unwrap().inverse_dynamics.unwrap();
+        assert_eq!(id.damping_ratio, 0.9);
     }
 
     #[test]
@@ -422,8 +425,8 @@ mod file_tests {
         // Chosen PID: no inverse-dynamics settings, the file's gains.
         let s = Scenario::load_with_overrides(&path, &pid[..1], "--a").unwrap();
         assert!(
-            s.controller == Some(super::super::ControllerType::Pid)
-                && s.gains["c"].settings.kp == 196.5
+            s.controller_type() == Some(super::super::ControllerType::Pid)
+                && s.controller.as_ref().unwrap().pid.axes["c"].settings.kp == 196.5
         );
     }
 }

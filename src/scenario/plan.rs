@@ -3,6 +3,7 @@
 //! and of the tool tip on the workpiece (from finite differences of the sampled positions).
 
 use super::{axis_map_for, load_checked_program, plan_settings, ProfileName, RunError, Scenario};
+use crate::command::{cannot_write, Report, WriteError};
 use crate::kinematics::{self, ProgramFrame};
 use crate::machine::Machine;
 use crate::plan::{
@@ -10,6 +11,7 @@ use crate::plan::{
 };
 use crate::report::ThinnedPath;
 use nalgebra::Point3;
+use std::path::PathBuf;
 
 /// Points of the tool path kept for the plan's recording (evenly thinned over the program).
 const TOOL_PATH_POINTS: usize = 50_000;
@@ -199,5 +201,60 @@ impl PlanReport {
             ));
         }
         out
+    }
+}
+
+/// `cncsim plan`: the plan's report, and the files asked for.
+#[derive(Debug, Clone)]
+pub struct PlanOutput {
+    pub report: PlanReport,
+    /// The scenario's name (the recording's title).
+    pub name: String,
+    /// Every setpoint as CSV, where asked for.
+    pub csv: Option<PathBuf>,
+    /// The setpoints and tool path as a Rerun recording, where asked for.
+    pub rrd: Option<PathBuf>,
+}
+
+impl Report for PlanOutput {
+    fn write(&self) -> Result<Vec<PathBuf>, WriteError> {
+        let mut files = Vec::new();
+        let report = &self.report;
+        if let Some(csv) = &self.csv {
+            let written = std::fs::File::create(csv).and_then(|f| {
+                let mut w = std::io::BufWriter::new(f);
+                crate::plan::write_setpoint_stream_csv(
+                    &mut w,
+                    report.plan.stream().as_mut(),
+                    &report.axes,
+                )?;
+                std::io::Write::flush(&mut w)
+            });
+            written.map_err(|e| cannot_write(csv, e))?;
+            files.push(csv.clone());
+        }
+        if let Some(rrd) = &self.rrd {
+            let labels: Vec<crate::report::AxisLabel> = report
+                .axes
+                .iter()
+                .map(|a| crate::report::AxisLabel {
+                    name: a.name.clone(),
+                    rotary: a.kind == AxisKind::Rotary,
+                })
+                .collect();
+            crate::report::write_setpoints_recording(
+                rrd,
+                &self.name,
+                report.plan.stream().as_mut(),
+                &labels,
+                &report.tool_path,
+            )?;
+            files.push(rrd.clone());
+        }
+        Ok(files)
+    }
+
+    fn text(&self) -> String {
+        self.report.text()
     }
 }

@@ -3,18 +3,71 @@
 //! still writes everything it computed and says where it stopped.
 
 use super::assemble::{Assembly, RunError};
-use super::file::ControllerType;
-use super::{check, Scenario, Verdict};
-use crate::control::ActuatorKind;
+use super::{check, Verdict};
+use crate::command::{Ending, Report, WriteError};
+use crate::control::{ActuatorKind, Controller};
 use crate::diagnostics::FileError;
-use crate::machine::Machine;
 use crate::program::PathGeometry;
 use crate::report::{
-    self, AxisLabel, Envelope, Metrics, PathTracker, RecordingSetup, ReportError, ReportSetup,
+    metrics_table, Envelope, Metrics, PathTracker, RecordingSetup, ReportError, ReportSetup,
     RunReport,
 };
 use crate::sim::{Observer, Observers, Outcome, Stop, Trace, TraceRecorder};
-use std::path::{Path, PathBuf};
+use std::path::PathBuf;
+
+/// How a run is carried out and what it keeps besides its figures: where its files go, whether
+/// every tick is kept in memory, who else watches it, and whose controller runs. Built with
+/// [`RunOptions::new`] (nothing written) or [`RunOptions::write_to`] and the methods below.
+#[derive(Default)]
+pub struct RunOptions<'a> {
+    /// Folder for `metrics.json` and, as the scenario's `[recording]` says, `trace.csv` and
+    /// `run.rrd`; `None`: nothing is written.
+    out_dir: Option<PathBuf>,
+    keep_trace: bool,
+    observers: Vec<&'a mut dyn Observer>,
+    progress: Option<&'a mut dyn FnMut(usize, usize) -> bool>,
+    controller: Option<&'a dyn Fn() -> Box<dyn Controller>>,
+}
+
+impl<'a> RunOptions<'a> {
+    /// A run that writes no files.
+    pub fn new() -> Self {
+        Self::default()
+    }
+
+    /// A run that writes its report into `out_dir` (created if needed).
+    pub fn write_to(out_dir: impl Into<PathBuf>) -> Self {
+        RunOptions {
+            out_dir: Some(out_dir.into()),
+            ..Self::default()
+        }
+    }
+
+    /// Keeps every tick of every lane in memory ([`RunOutput::trace`], [`RunOutput::analytic`]).
+    pub fn traced(mut self) -> Self {
+        self.keep_trace = true;
+        self
+    }
+
+    /// One more observer of every tick (e.g. a shared A/B recording).
+    pub fn observer(mut self, observer: &'a mut dyn Observer) -> Self {
+        self.observers.push(observer);
+        self
+    }
+
+    /// Called with (done, total) ticks as the run goes; returning `false` interrupts it.
+    pub fn progress(mut self, progress: &'a mut dyn FnMut(usize, usize) -> bool) -> Self {
+        self.progress = Some(progress);
+        self
+    }
+
+    /// Runs a controller of one's own instead of the scenario's: `make` builds a fresh one for
+    /// every lane.
+    pub fn controller(mut self, make: &'a dyn Fn() -> Box<dyn Controller>) -> Self {
+        self.controller = Some(make);
+        self
+    }
+}
 
 /// What a run produced.
 #[derive(Debug, Clone)]
@@ -22,7 +75,9 @@ pub struct RunOutput {
     pub metrics: Metrics,
     pub metrics_json: serde_json::Value,
     pub stop: Option<Stop>,
-    /// The physics, tick by tick, when asked for ([`run_scenario_traced`]).
+    /// How each lane ended and what it cost.
+    pub outcome: Outcome,
+    /// The physics, tick by tick, when asked for ([`RunOptions::traced`]).
     pub trace: Option<Trace>,
     /// The analytic reference model, tick by tick, when asked for and run.
     pub analytic: Option<Trace>,
@@ -37,36 +92,139 @@ pub struct RunOutput {
     pub warnings: Vec<FileError>,
 }
 
-pub fn run_scenario(
-    s: &Scenario,
-    out_dir: &Path,
-    progress: &mut dyn FnMut(usize, usize) -> bool,
-) -> Result<RunOutput, RunError> {
-    run_assembly(&Assembly::new(s)?, out_dir, progress, false)
+/// `cncsim run`: one scenario's run as the command reports it.
+#[derive(Debug, Clone)]
+pub struct ScenarioRun {
+    /// The scenario file.
+    pub path: PathBuf,
+    pub output: RunOutput,
 }
 
-/// [`run_scenario`], also keeping every tick in memory (for tests and short studies).
-pub fn run_scenario_traced(
-    s: &Scenario,
-    out_dir: &Path,
-    progress: &mut dyn FnMut(usize, usize) -> bool,
-) -> Result<RunOutput, RunError> {
-    run_assembly(&Assembly::new(s)?, out_dir, progress, true)
+impl Report for ScenarioRun {
+    /// The run wrote its files as it went.
+    fn write(&self) -> Result<Vec<PathBuf>, WriteError> {
+        Ok(self.output.files.clone())
+    }
+
+    fn text(&self) -> String {
+        metrics_table(&self.output.metrics)
+    }
+
+    fn json(&self) -> Option<serde_json::Value> {
+        Some(self.output.metrics_json.clone())
+    }
+
+    fn messages(&self) -> Vec<String> {
+        self.output
+            .warnings
+            .iter()
+            .map(|w| format!("warning: {w}"))
+            .collect()
+    }
+
+    fn ending(&self) -> Ending {
+        match &self.output.stop {
+            Some(stop) => Ending::Failed(Some(format!("{}: {stop}", self.path.display()))),
+            None => Ending::Done,
+        }
+    }
 }
 
-/// [`run_scenario`] on a machine given in memory.
-pub fn run_scenario_with(
-    s: &Scenario,
-    machine: Machine,
-    out_dir: &Path,
-    progress: &mut dyn FnMut(usize, usize) -> bool,
-) -> Result<RunOutput, RunError> {
-    run_assembly(
-        &Assembly::with_machine(s, machine)?,
-        out_dir,
-        progress,
-        false,
-    )
+impl Assembly {
+    /// Runs the scenario through the servo loop and reports it: the metrics, the verdict on
+    /// its `[expect]` bounds, and with [`RunOptions::write_to`] `metrics.json` (also when the
+    /// run stops early: `completed = false` and the stop) and, as its `[recording]` says, the
+    /// CSV trace and the Rerun recording, all written as the run goes.
+    pub fn run(&self, options: RunOptions<'_>) -> Result<RunOutput, RunError> {
+        let RunOptions {
+            out_dir,
+            keep_trace,
+            observers: mut extra,
+            progress,
+            controller,
+        } = options;
+        let s = &self.scenario;
+        let recording = &s.recording;
+        if let Some(dir) = &out_dir {
+            std::fs::create_dir_all(dir).map_err(|source| ReportError::Io {
+                path: dir.clone(),
+                source,
+            })?;
+        }
+        let lanes = self.lane_kinds();
+        let file =
+            |name: &str, wanted: bool| out_dir.as_ref().filter(|_| wanted).map(|d| d.join(name));
+        let (csv, rrd) = (
+            file("trace.csv", recording.csv),
+            file("run.rrd", recording.rrd),
+        );
+        let mut report = RunReport::new(
+            report_setup(self),
+            csv.as_deref(),
+            rrd.as_deref()
+                .map(|rrd| (rrd, recording_setup(self, &lanes))),
+            recording.decimation,
+        )?;
+        let mut recorder =
+            TraceRecorder::new(s.timing.servo_period, self.labels.len(), lanes.len());
+        let mut lanes_run = match controller {
+            Some(make) => self.lanes_with(make)?,
+            None => self.lanes()?,
+        };
+        let mut keep_going = |_: usize, _: usize| true;
+        let progress = progress.unwrap_or(&mut keep_going);
+        let outcome = {
+            let mut observers: Vec<&mut dyn Observer> = vec![&mut report];
+            if keep_trace {
+                observers.push(&mut recorder);
+            }
+            // Reborrowed for this block only: the caller's observers outlive it.
+            observers.extend(extra.iter_mut().map(|o| &mut **o as &mut dyn Observer));
+            self.simulate(&mut lanes_run, &mut Observers(observers), progress)
+        };
+        let metrics = report.metrics(&outcome);
+        let metrics_json = metrics.to_json();
+        let verdict = check(s, &metrics_json);
+
+        // Everything computed so far is written, whether or not the run completed.
+        let mut files = Vec::new();
+        if let Some(dir) = &out_dir {
+            let metrics_path = dir.join("metrics.json");
+            let text = serde_json::to_string_pretty(&metrics_json).expect("JSON of plain values");
+            std::fs::write(&metrics_path, text + "\n").map_err(|source| ReportError::Io {
+                path: metrics_path.clone(),
+                source,
+            })?;
+            files.push(metrics_path);
+        }
+        let contour_envelope = report.contour_envelope().clone();
+        let end = outcome.ticks as f64 * s.timing.servo_period;
+        let notes: Vec<(f64, &'static str, String)> = verdict
+            .breaches
+            .iter()
+            .map(|b| (end, "ERROR", format!("bound breached: {b}")))
+            .collect();
+        let summary = summary_markdown(self, &metrics, &verdict);
+        files.extend(report.finish(&outcome, &notes, &summary)?);
+        let mut traces = recorder.into_traces().into_iter();
+        let (trace, analytic) = if keep_trace {
+            (traces.next(), traces.next().filter(|_| lanes.len() > 1))
+        } else {
+            (None, None)
+        };
+        Ok(RunOutput {
+            stop: outcome.stop().cloned(),
+            outcome,
+            metrics,
+            metrics_json,
+            trace,
+            analytic,
+            contour_envelope,
+            verdict,
+            files,
+            warnings: warnings_of(self),
+        })
+    }
 }
 
 /// What the report of an assembled scenario needs to know before the run: the path to judge
@@ -78,7 +236,7 @@ pub fn report_setup(assembly: &Assembly) -> ReportSetup {
         name: s.name.clone(),
         labels: assembly.labels.clone(),
         dc_motor: assembly.actuator == ActuatorKind::DcMotor,
-        period: s.servo_period,
+        period: s.timing.servo_period,
         path: PathTracker {
             geometry: PathGeometry::of(assembly.program()),
             frame: assembly.frame.clone(),
@@ -86,7 +244,7 @@ pub fn report_setup(assembly: &Assembly) -> ReportSetup {
         },
         peak_velocity: assembly.overview().peak_velocity.clone(),
         ticks: assembly.plan.len(),
-        lanes: lanes_of(s),
+        lanes: assembly.lane_kinds(),
         backlash: machine.axes.iter().map(|a| a.drive.backlash).collect(),
         move_lines: assembly
             .program()
@@ -97,19 +255,11 @@ pub fn report_setup(assembly: &Assembly) -> ReportSetup {
     }
 }
 
-fn lanes_of(s: &Scenario) -> Vec<&'static str> {
-    if s.analytic_steps.is_some() {
-        vec!["physics", "analytic"]
-    } else {
-        vec!["physics"]
-    }
-}
-
 /// The recording's view of an assembled scenario, with the programmed tool path on the
 /// workpiece.
 pub fn recording_setup<'a>(
     assembly: &'a Assembly,
-    lanes: &'a [&'static str],
+    lanes: &'a [crate::sim::LaneKind],
 ) -> RecordingSetup<'a> {
     let machine = &assembly.machine;
     RecordingSetup {
@@ -117,99 +267,11 @@ pub fn recording_setup<'a>(
         machine,
         labels: &assembly.labels,
         dc_motor: assembly.actuator == ActuatorKind::DcMotor,
-        decimation: assembly.scenario.decimation,
+        decimation: assembly.scenario.recording.decimation,
         lanes,
         programmed_path: assembly.overview().programmed_path.clone(),
         variant: None,
     }
-}
-
-/// Runs an assembled scenario and writes its report into `out_dir`: `metrics.json` (also when
-/// the run stops early: `completed = false` and the stop), and with the scenario's
-/// `[recording]` the CSV trace and the Rerun recording, all written as the run goes.
-pub fn run_assembly(
-    assembly: &Assembly,
-    out_dir: &Path,
-    progress: &mut dyn FnMut(usize, usize) -> bool,
-    keep_trace: bool,
-) -> Result<RunOutput, RunError> {
-    run_assembly_observed(assembly, out_dir, progress, keep_trace, None).map(|(run, _)| run)
-}
-
-/// [`run_assembly`] with one more observer of the run (e.g. a shared A/B recording); also
-/// returns the loop's outcome.
-pub fn run_assembly_observed(
-    assembly: &Assembly,
-    out_dir: &Path,
-    progress: &mut dyn FnMut(usize, usize) -> bool,
-    keep_trace: bool,
-    extra: Option<&mut dyn Observer>,
-) -> Result<(RunOutput, Outcome), RunError> {
-    let s = &assembly.scenario;
-    std::fs::create_dir_all(out_dir).map_err(|source| ReportError::Io {
-        path: out_dir.to_path_buf(),
-        source,
-    })?;
-    let lanes = lanes_of(s);
-    let csv = out_dir.join("trace.csv");
-    let rrd = out_dir.join("run.rrd");
-    let mut report = RunReport::new(
-        report_setup(assembly),
-        s.record_csv.then_some(csv.as_path()),
-        s.record_rrd
-            .then(|| (rrd.as_path(), recording_setup(assembly, &lanes))),
-        s.decimation,
-    )?;
-    let mut recorder = TraceRecorder::new(s.servo_period, assembly.labels.len(), lanes.len());
-    let outcome = {
-        let mut observers: Vec<&mut dyn Observer> = vec![&mut report];
-        if keep_trace {
-            observers.push(&mut recorder);
-        }
-        if let Some(extra) = extra {
-            observers.push(extra);
-        }
-        assembly.run(&mut Observers(observers), progress)?
-    };
-    let metrics = report.metrics(&outcome);
-    let metrics_json = metrics.to_json();
-    let verdict = check(s, &metrics_json);
-
-    // Everything computed so far is written, whether or not the run completed.
-    let metrics_path = out_dir.join("metrics.json");
-    let text = serde_json::to_string_pretty(&metrics_json).expect("JSON of plain values");
-    std::fs::write(&metrics_path, text + "\n").map_err(|source| ReportError::Io {
-        path: metrics_path.clone(),
-        source,
-    })?;
-    let contour_envelope = report.contour_envelope().clone();
-    let end = outcome.ticks as f64 * s.servo_period;
-    let notes: Vec<(f64, &'static str, String)> = verdict
-        .breaches
-        .iter()
-        .map(|b| (end, "ERROR", format!("bound breached: {b}")))
-        .collect();
-    let summary = summary_markdown(assembly, &metrics, &verdict);
-    let mut files = vec![metrics_path];
-    files.extend(report.finish(&outcome, &notes, &summary)?);
-    let mut traces = recorder.into_traces().into_iter();
-    let (trace, analytic) = if keep_trace {
-        (traces.next(), traces.next().filter(|_| lanes.len() > 1))
-    } else {
-        (None, None)
-    };
-    let output = RunOutput {
-        stop: outcome.stop().cloned(),
-        metrics,
-        metrics_json,
-        trace,
-        analytic,
-        contour_envelope,
-        verdict,
-        files,
-        warnings: warnings_of(assembly),
-    };
-    Ok((output, outcome))
 }
 
 /// What loaded or planned but looks wrong: the machine's implausible values, and stops the
@@ -242,7 +304,7 @@ fn warnings_of(assembly: &Assembly) -> Vec<FileError> {
 pub fn summary_markdown(assembly: &Assembly, metrics: &Metrics, verdict: &Verdict) -> String {
     let s = &assembly.scenario;
     let m = &assembly.machine;
-    let controller = s.controller.map_or("none", |c| c.name());
+    let controller = s.controller_type().map_or("none", |c| c.name());
     let mut t = format!("# {}\n\n", s.name);
     if !s.description.is_empty() {
         t += &format!("{}\n\n", s.description);
@@ -253,8 +315,8 @@ pub fn summary_markdown(assembly: &Assembly, metrics: &Metrics, verdict: &Verdic
         m.axes.len(),
         assembly.labels.iter().map(|l| l.name.as_str()).collect::<Vec<_>>().join(", "),
         assembly.actuator,
-        s.servo_period * 1e3,
-        s.servo_period / s.substeps as f64 * 1e3,
+        s.timing.servo_period * 1e3,
+        s.timing.physics_step() * 1e3,
         assembly.program().source.display(),
         assembly.program().moves.len(),
         metrics.stopped.as_deref().unwrap_or("completed"),
@@ -321,140 +383,4 @@ pub fn summary_markdown(assembly: &Assembly, metrics: &Metrics, verdict: &Verdic
         }
     }
     t
-}
-
-/// Axis names in the scenario must be the machine's; the chosen controller needs settings for
-/// every axis; compensation units must fit the axis kind; every bound must name a real metric.
-pub(crate) fn validate_against_machine(
-    s: &Scenario,
-    machine: &Machine,
-    labels: &[AxisLabel],
-) -> Result<(), FileError> {
-    let names: Vec<&str> = machine.axes.iter().map(|a| a.name.as_str()).collect();
-    for axis in s.gains.keys() {
-        if !names.contains(&axis.as_str()) {
-            let at = s.gains[axis].at;
-            return Err(FileError::new(
-                &s.path,
-                at,
-                format!(
-                    "controller.axes.{axis}: the machine '{}' has no axis '{axis}' (its axes: {})",
-                    machine.name,
-                    names.join(", ")
-                ),
-            ));
-        }
-    }
-    for axis in s.cascade.keys() {
-        if !names.contains(&axis.as_str()) {
-            return Err(FileError::new(
-                &s.path,
-                s.cascade[axis].at,
-                format!(
-                    "controller.cascade.{axis}: the machine '{}' has no axis '{axis}' (its axes: {})",
-                    machine.name,
-                    names.join(", ")
-                ),
-            ));
-        }
-    }
-    for axis in &names {
-        let (has, what) = match s.controller {
-            Some(ControllerType::Pid) => (
-                s.gains.contains_key(*axis),
-                "[controller.axes] has no gains",
-            ),
-            Some(ControllerType::Cascade) => (
-                s.cascade.contains_key(*axis),
-                "[controller.cascade] has no loop settings",
-            ),
-            _ => (true, ""),
-        };
-        if !has {
-            return Err(FileError::new(
-                &s.path,
-                s.controller_at,
-                format!("{what} for axis '{axis}' of machine '{}'", machine.name),
-            ));
-        }
-    }
-    for (axis, c) in &s.compensation {
-        let Some(i) = machine.axis_index(axis) else {
-            return Err(FileError::new(
-                &s.path,
-                c.at,
-                format!(
-                    "compensation.{axis}: the machine '{}' has no axis '{axis}' (its axes: {})",
-                    machine.name,
-                    names.join(", ")
-                ),
-            ));
-        };
-        if let Some(rotary) = c.rotary_units {
-            if rotary != labels[i].rotary {
-                let (kind, keys) = if labels[i].rotary {
-                    ("rotary", "backlash_deg and backlash_rate_deg_s")
-                } else {
-                    ("linear", "backlash_mm and backlash_rate_mm_s")
-                };
-                return Err(FileError::new(
-                    &s.path,
-                    c.at,
-                    format!("compensation.{axis}: axis '{axis}' is {kind}: expected {keys}"),
-                ));
-            }
-        }
-    }
-    for (axis, (_, at)) in &s.encoder_counts_per_rev {
-        if !names.contains(&axis.as_str()) {
-            return Err(FileError::new(
-                &s.path,
-                *at,
-                format!("feedback.encoder_counts_per_rev.{axis}: the machine has no axis '{axis}'"),
-            ));
-        }
-    }
-    // The metric names a run of this machine produces.
-    let template = report::MetricsAccumulator::new(
-        labels,
-        s.actuator == Some(ActuatorKind::DcMotor),
-        s.servo_period,
-        &vec![0.0; labels.len()],
-        s.analytic_steps.is_some(),
-    )
-    .finish(&s.name, &crate::sim::Outcome::default())
-    .to_json();
-    let mut known = Vec::new();
-    collect_numeric_paths(&template, "", &mut known);
-    for e in &s.expect {
-        if !known.contains(&e.metric) {
-            return Err(FileError::new(
-                &s.path,
-                e.at,
-                format!(
-                    "expect.{}: no such metric; a run of this scenario reports: {}",
-                    e.metric,
-                    known.join(", ")
-                ),
-            ));
-        }
-    }
-    Ok(())
-}
-
-fn collect_numeric_paths(v: &serde_json::Value, prefix: &str, out: &mut Vec<String>) {
-    match v {
-        serde_json::Value::Object(map) => {
-            for (k, v) in map {
-                let p = if prefix.is_empty() {
-                    k.clone()
-                } else {
-                    format!("{prefix}.{k}")
-                };
-                collect_numeric_paths(v, &p, out);
-            }
-        }
-        serde_json::Value::Number(_) | serde_json::Value::Null => out.push(prefix.to_string()),
-        _ => {}
-    }
 }

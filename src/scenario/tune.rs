@@ -7,7 +7,7 @@
 //! scenario's own controller, so they are held as in a real run and couple as they would. The
 //! axis starts at rest at the program's first point and its setpoint steps by `step` at t = 0.
 
-use super::assemble::{keep_mechanics, machine_for, Assembly, PlantKind, RunError, GRAVITY};
+use super::assemble::{keep_mechanics, machine_for, Assembly, RunError, GRAVITY};
 use super::file::ControllerType;
 use super::Scenario;
 use crate::control::{ActuatorKind, Controller, ControllerInput, Pid, PidForm, PidSettings};
@@ -15,6 +15,7 @@ use crate::diagnostics::FileError;
 use crate::machine::Machine;
 use crate::plan::Setpoints;
 use crate::sim::analytic::AxisModel;
+use crate::sim::LaneKind;
 use crate::sim::{self, Lane, LoopSettings, Trace, TraceRecorder};
 use crate::tune::{
     design_cascade, find_ultimate, CascadeDesign, LinearActuator, LinearAxis, Response,
@@ -130,7 +131,7 @@ pub struct TuneReport {
 pub fn tune_scenario(
     s: &Scenario,
     options: &TuneOptions,
-    plant: PlantKind,
+    plant: LaneKind,
     progress: &mut dyn FnMut(&Trial),
 ) -> Result<TuneReport, TuneError> {
     tune_scenario_with(s, machine_for(s)?, options, plant, progress)
@@ -141,13 +142,13 @@ pub fn tune_scenario_with(
     s: &Scenario,
     machine: Machine,
     options: &TuneOptions,
-    plant: PlantKind,
+    plant: LaneKind,
     progress: &mut dyn FnMut(&Trial),
 ) -> Result<TuneReport, TuneError> {
     let started = Instant::now();
     let bad = |m: String| TuneError::from(FileError::new(&s.path, None, m));
     let assembly = Assembly::with_machine(s, machine)?;
-    if let Some(kind) = s.controller.filter(|&c| c != ControllerType::Pid) {
+    if let Some(kind) = s.controller_type().filter(|&c| c != ControllerType::Pid) {
         return Err(bad(format!("tune designs PID gains for one axis while the scenario's PID holds the others; this scenario's controller is type = \"{}\" (use a scenario with type = \"pid\")", kind.name())));
     }
     let machine = &assembly.machine;
@@ -166,7 +167,14 @@ pub fn tune_scenario_with(
     check_options(s, options, rotary).map_err(bad)?;
 
     let drive = &machine.axes[axis].drive;
-    let output_limit = s.gains[&options.axis].output_limit();
+    // Assembled with a PID (checked above): every axis has its gains.
+    let gains = &s
+        .controller
+        .as_ref()
+        .expect("assembled with a controller")
+        .pid
+        .axes[&options.axis];
+    let output_limit = gains.output_limit();
     let (actuator_limit, actuator_name, output_unit) = match actuator {
         ActuatorKind::DcMotor => (
             drive.supply_voltage_v / drive.amplifier_gain,
@@ -177,11 +185,9 @@ pub fn tune_scenario_with(
     };
     let resolution = assembly.loop_settings.encoder.resolution[axis].unwrap_or(0.0);
     let settings = SearchSettings {
-        servo_period: s.servo_period,
+        servo_period: s.timing.servo_period,
         step: options.step,
-        start_gain: options
-            .start_gain
-            .unwrap_or(s.gains[&options.axis].settings.kp),
+        start_gain: options.start_gain.unwrap_or(gains.settings.kp),
         growth: 2.0,
         tolerance: options.tolerance,
         saturation: output_limit.min(actuator_limit),
@@ -214,9 +220,14 @@ pub fn tune_scenario_with(
     let (mut simulations, mut simulated_time) = (0, 0.0);
     let mut previous = None;
     let (ultimate, ticks) = loop {
-        let ticks = (trial_time / s.servo_period).round() as usize;
-        let trial_setpoints =
-            step_setpoints(&program_start, s.servo_period, axis, options.step, ticks);
+        let ticks = (trial_time / s.timing.servo_period).round() as usize;
+        let trial_setpoints = step_setpoints(
+            &program_start,
+            s.timing.servo_period,
+            axis,
+            options.step,
+            ticks,
+        );
         let probe = Probe {
             assembly: &assembly,
             plant,
@@ -245,7 +256,7 @@ pub fn tune_scenario_with(
             }
         };
         simulations += ultimate.trials.len();
-        simulated_time += (ultimate.trials.len() * ticks) as f64 * s.servo_period;
+        simulated_time += (ultimate.trials.len() * ticks) as f64 * s.timing.servo_period;
         // A limit cycle (backlash in the loop) is judged by its constant swing, not by growth
         // over many periods: no retry for it.
         if ultimate.upper.oscillation.extrema >= MIN_BOUNDARY_EXTREMA
@@ -261,7 +272,7 @@ pub fn tune_scenario_with(
 
     let gains = ZieglerNichols::from_ultimate(ultimate.gain, ultimate.period);
     let linear = linear_model(machine, axis, actuator).map(|axis_model| {
-        let sampled = axis_model.discrete_ultimate(s.servo_period);
+        let sampled = axis_model.discrete_ultimate(s.timing.servo_period);
         (axis_model, sampled)
     });
     let linear = match linear {
@@ -278,8 +289,8 @@ pub fn tune_scenario_with(
         axis: options.axis.clone(),
         rotary,
         plant: match plant {
-            PlantKind::Physics => "physics",
-            PlantKind::Analytic => "analytic",
+            LaneKind::Physics => "physics",
+            LaneKind::Analytic => "analytic",
         },
         actuator: actuator_name,
         amplifier_mode: match actuator {
@@ -289,9 +300,9 @@ pub fn tune_scenario_with(
         friction: machine.axes[axis].drive.guide.is_some(),
         backlash: machine.axes[axis].drive.backlash > 0.0,
         output_unit,
-        servo_period_s: s.servo_period,
-        physics_step_s: s.servo_period / s.substeps as f64,
-        trial_time_s: ticks as f64 * s.servo_period,
+        servo_period_s: s.timing.servo_period,
+        physics_step_s: s.timing.servo_period / s.timing.substeps as f64,
+        trial_time_s: ticks as f64 * s.timing.servo_period,
         settings,
         output_limit: output_limit.is_finite().then_some(output_limit),
         actuator_limit,
@@ -332,10 +343,10 @@ fn check_options(s: &Scenario, o: &TuneOptions, rotary: bool) -> Result<(), Stri
         (
             "deg",
             180.0 / std::f64::consts::PI,
-            s.following_error_limit_rotary,
+            s.feedback.following_error_limit_rotary,
         )
     } else {
-        ("mm", 1e3, s.following_error_limit_linear)
+        ("mm", 1e3, s.feedback.following_error_limit_linear)
     };
     if !(o.step.is_finite() && o.step > 0.0 && o.step < limit) {
         return Err(format!(
@@ -350,11 +361,11 @@ fn check_options(s: &Scenario, o: &TuneOptions, rotary: bool) -> Result<(), Stri
             o.tolerance
         ));
     }
-    if !(o.trial_time >= 10.0 * s.servo_period && o.trial_time <= MAX_TRIAL_TIME) {
+    if !(o.trial_time >= 10.0 * s.timing.servo_period && o.trial_time <= MAX_TRIAL_TIME) {
         return Err(format!(
             "trial time {} s: expected between 10 servo periods ({} s) and {MAX_TRIAL_TIME} s",
             o.trial_time,
-            10.0 * s.servo_period
+            10.0 * s.timing.servo_period
         ));
     }
     if let Some(g) = o.start_gain {
@@ -397,7 +408,7 @@ fn linear_model(machine: &Machine, axis: usize, actuator: ActuatorKind) -> Optio
 /// Everything a trial needs, shared by all trials.
 struct Probe<'a> {
     assembly: &'a Assembly,
-    plant: PlantKind,
+    plant: LaneKind,
     axis: usize,
     setpoints: &'a Setpoints,
     loop_settings: &'a LoopSettings,
@@ -410,7 +421,7 @@ impl Probe<'_> {
     fn trial(&self, gain: f64) -> Result<Response, String> {
         let a = self.assembly;
         let s = &a.scenario;
-        let hold = a.controller().map_err(|e| e.to_string())?;
+        let hold = a.controller();
         let p = PidSettings::plain(
             crate::control::PidGains {
                 kp: gain,
@@ -422,15 +433,15 @@ impl Probe<'_> {
         let controller = ProportionalOn {
             hold,
             axis: self.axis,
-            pid: Pid::new(p, PidForm::Positional, s.servo_period),
+            pid: Pid::new(p, PidForm::Positional, s.timing.servo_period),
         };
         let start = self.setpoints.position(0);
         let mut lanes = [Lane {
-            name: "trial",
+            kind: self.plant,
             plant: a.plant(self.plant, start).map_err(|e| e.to_string())?,
             controller: Box::new(controller),
         }];
-        let mut recorder = TraceRecorder::new(s.servo_period, start.len(), 1);
+        let mut recorder = TraceRecorder::new(s.timing.servo_period, start.len(), 1);
         let outcome = sim::run(
             self.loop_settings,
             &mut lanes,
@@ -683,7 +694,7 @@ pub fn tune_cascade(
     machine: Machine,
     axis_name: &str,
     bandwidth_hz: Option<f64>,
-    plant: PlantKind,
+    plant: LaneKind,
 ) -> Result<CascadeTuneReport, TuneError> {
     let bad = |m: String| TuneError::from(FileError::new(&s.path, None, m));
     let assembly = Assembly::with_machine(s, machine)?;
@@ -698,29 +709,39 @@ pub fn tune_cascade(
     };
     let start = assembly.start();
     let linear = linear_axis_at(machine, axis, &start, assembly.actuator).map_err(bad)?;
-    let design = design_cascade(&linear, s.servo_period, s.velocity_filter_hz, bandwidth_hz)
-        .map_err(|m| bad(format!("--axis {axis_name}: {m}")))?;
+    let velocity_filter_hz = s
+        .controller
+        .as_ref()
+        .map_or(0.0, |c| c.cascade.velocity_filter_hz);
+    let design = design_cascade(
+        &linear,
+        s.timing.servo_period,
+        velocity_filter_hz,
+        bandwidth_hz,
+    )
+    .map_err(|m| bad(format!("--axis {axis_name}: {m}")))?;
 
     // The check: the velocity loop alone (no position loop) on a setpoint that ramps from rest
     // at a modest speed: its velocity feed-forward is a velocity step.
     let rotary = assembly.labels[axis].rotary;
     let speed = if rotary { 0.05 } else { 0.005 };
-    let ticks = ((10.0 / design.velocity_bandwidth_hz.max(0.1)) / s.servo_period).ceil() as usize;
+    let ticks =
+        ((10.0 / design.velocity_bandwidth_hz.max(0.1)) / s.timing.servo_period).ceil() as usize;
     let ticks = ticks.clamp(20, 200_000);
     let n = start.len();
-    let mut setpoints = Setpoints::new(s.servo_period, n);
+    let mut setpoints = Setpoints::new(s.timing.servo_period, n);
     let zeros = vec![0.0; n];
     setpoints.push(&start, &zeros, &zeros, 0);
     let mut velocity = zeros.clone();
     velocity[axis] = speed;
     for k in 1..=ticks {
         let mut p = start.clone();
-        p[axis] += speed * k as f64 * s.servo_period;
+        p[axis] += speed * k as f64 * s.timing.servo_period;
         setpoints.push(&p, &velocity, &zeros, 0);
     }
     let mut loop_axis = design.axis;
     loop_axis.position_kp = 0.0;
-    let hold = assembly.controller().map_err(|e| bad(e.to_string()))?;
+    let hold = assembly.controller();
     let drives: Vec<_> = machine.axes.iter().map(|a| a.drive.clone()).collect();
     let model =
         crate::dynamics::DynamicsModel::from_machine(machine, nalgebra::Vector3::from(GRAVITY))
@@ -728,11 +749,11 @@ pub fn tune_cascade(
             .map_err(|e| bad(format!("the machine's rigid-body model: {e}")))?;
     let cascade = crate::control::Cascade::new(
         vec![loop_axis; n],
-        s.velocity_filter_hz,
+        velocity_filter_hz,
         model,
         &drives,
         assembly.actuator,
-        s.servo_period,
+        s.timing.servo_period,
     );
     let controller = OneAxis {
         hold,
@@ -746,11 +767,11 @@ pub fn tune_cascade(
         ..assembly.loop_settings.clone()
     };
     let mut lanes = [Lane {
-        name: "check",
+        kind: plant,
         plant: assembly.plant(plant, &start)?,
         controller: Box::new(controller),
     }];
-    let mut recorder = TraceRecorder::new(s.servo_period, n, 1);
+    let mut recorder = TraceRecorder::new(s.timing.servo_period, n, 1);
     sim::run(
         &loop_settings,
         &mut lanes,
@@ -762,7 +783,7 @@ pub fn tune_cascade(
     let v: Vec<f64> = (0..trace.len())
         .map(|k| Trace::at(&trace.actual_velocity, n, k, axis))
         .collect();
-    let (rise, overshoot) = step_figures(&v, speed, s.servo_period);
+    let (rise, overshoot) = step_figures(&v, speed, s.timing.servo_period);
     let a = &design.axis;
     let toml = format!(
         "cascade.{axis_name} = {{ position_kp = {}, velocity_kp = {}, velocity_ki = {}, velocity_ff = 1.0, acceleration_ff = 1.0 }}",
@@ -775,11 +796,11 @@ pub fn tune_cascade(
         axis: axis_name.to_string(),
         rotary,
         plant: match plant {
-            PlantKind::Physics => "physics",
-            PlantKind::Analytic => "analytic",
+            LaneKind::Physics => "physics",
+            LaneKind::Analytic => "analytic",
         },
-        servo_period_s: s.servo_period,
-        velocity_filter_hz: s.velocity_filter_hz,
+        servo_period_s: s.timing.servo_period,
+        velocity_filter_hz,
         design,
         step_rise_time_s: rise,
         step_overshoot: overshoot,
@@ -911,5 +932,25 @@ impl CascadeTuneReport {
             toml_number(d.mass / d.force_per_command)
         );
         t
+    }
+}
+
+impl crate::command::Report for TuneReport {
+    fn text(&self) -> String {
+        TuneReport::text(self)
+    }
+
+    fn json(&self) -> Option<serde_json::Value> {
+        Some(self.to_json())
+    }
+}
+
+impl crate::command::Report for CascadeTuneReport {
+    fn text(&self) -> String {
+        CascadeTuneReport::text(self)
+    }
+
+    fn json(&self) -> Option<serde_json::Value> {
+        serde_json::to_value(self).ok()
     }
 }

@@ -56,10 +56,35 @@ pub struct LoopSettings {
     pub trip: FollowingErrorTrip,
 }
 
+/// What a lane simulates.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
+pub enum LaneKind {
+    /// The Rapier machine.
+    Physics,
+    /// The analytic per-axis models of the same machine (the reference).
+    Analytic,
+}
+
+impl LaneKind {
+    /// The lane's name in reports, recordings and CSV columns.
+    pub fn name(self) -> &'static str {
+        match self {
+            LaneKind::Physics => "physics",
+            LaneKind::Analytic => "analytic",
+        }
+    }
+}
+
+impl std::fmt::Display for LaneKind {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.write_str(self.name())
+    }
+}
+
 /// One plant with its own controller.
 pub struct Lane<'a> {
-    /// What the lane simulates, for reports: "physics" or "analytic".
-    pub name: &'static str,
+    /// What the lane simulates.
+    pub kind: LaneKind,
     pub plant: Box<dyn Plant + 'a>,
     pub controller: Box<dyn Controller + 'a>,
 }
@@ -149,7 +174,7 @@ impl Observer for Observers<'_> {
 /// How one lane ended.
 #[derive(Debug, Clone, PartialEq)]
 pub struct LaneOutcome {
-    pub name: &'static str,
+    pub kind: LaneKind,
     pub stop: Option<Stop>,
     /// Integration steps the plant took (physics steps for Rapier).
     pub steps: u64,
@@ -275,7 +300,7 @@ pub fn run(
             .iter()
             .zip(state)
             .map(|(lane, s)| LaneOutcome {
-                name: lane.name,
+                kind: lane.kind,
                 stop: s.stop,
                 steps: lane.plant.steps(),
             })

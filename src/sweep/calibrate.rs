@@ -47,6 +47,7 @@ use super::MachineOverride;
 use crate::diagnostics::{read_text, toml_error, FileError, LineColumn};
 use crate::report::Metrics;
 use crate::scenario::{edit_toml, Override, Scenario};
+use crate::sim::Stop;
 use serde::{Deserialize, Serialize};
 use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};
@@ -650,10 +651,52 @@ pub struct Evaluation {
     /// Each target's value in the run (NaN when the run failed).
     pub results: Vec<f64>,
     pub cost: f64,
-    pub failure: Option<String>,
-    /// The failure was a run that could not start (not one that stopped early).
-    #[serde(skip)]
-    pub cannot_start: bool,
+    #[serde(serialize_with = "failure_text")]
+    pub failure: Option<Failure>,
+}
+
+/// Why a candidate has no cost of its own (it is given the cost of a failure).
+#[derive(Debug, Clone, PartialEq)]
+pub enum Failure {
+    /// A run could not start: a value it refuses, a key the scenario lacks (the message names
+    /// the place).
+    CannotStart(String),
+    /// A run stopped early: divergence, following-error fault, or interruption.
+    Stopped(Stop),
+    /// A run never started: the calibration was interrupted first.
+    NotRun,
+    /// A run lacks a metric a target names.
+    MissingMetric(String),
+    /// A run's trace could not be compared with the measured one.
+    Trace(String),
+}
+
+impl Failure {
+    /// Whether an interruption, not the candidate, is to blame.
+    pub fn interrupted(&self) -> bool {
+        matches!(
+            self,
+            Failure::NotRun | Failure::Stopped(Stop::Interrupted { .. })
+        )
+    }
+}
+
+impl std::fmt::Display for Failure {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        match self {
+            Failure::CannotStart(why) | Failure::Trace(why) => f.write_str(why),
+            Failure::Stopped(stop) => write!(f, "{stop}"),
+            Failure::NotRun => f.write_str("interrupted"),
+            Failure::MissingMetric(metric) => write!(f, "the run has no metric `{metric}`"),
+        }
+    }
+}
+
+fn failure_text<S: serde::Serializer>(failure: &Option<Failure>, s: S) -> Result<S::Ok, S::Error> {
+    match failure {
+        Some(f) => s.collect_str(f),
+        None => s.serialize_none(),
+    }
 }
 
 /// How the cost changes around the best candidate along one parameter: the best moved down
@@ -747,8 +790,11 @@ fn evaluate(
         })
         .collect();
     let (results, _) = execute(&jobs, 1, interrupted, &Progress::default(), &|_| {});
-    let mut failure = None;
-    let cannot_start = results.iter().any(|r| r.error.is_some());
+    // A run that cannot start is the spec's fault: it is named before any other failure.
+    let mut failure = results
+        .iter()
+        .find_map(|r| r.error.clone())
+        .map(Failure::CannotStart);
     let mut cost = 0.0;
     let mut out = Vec::new();
     for t in &cal.targets {
@@ -758,8 +804,9 @@ fn evaluate(
             .expect("a target's scenario is run");
         let r: Option<&JobResult> = results.iter().find(|r| r.index == i);
         let failed = match r {
-            None => Some("interrupted".to_string()),
-            Some(r) => r.error.clone().or(r.stopped.clone()),
+            None => Some(Failure::NotRun),
+            Some(r) => (r.error.clone().map(Failure::CannotStart))
+                .or(r.stopped.clone().map(Failure::Stopped)),
         };
         let value = match (t, r, failed) {
             (_, _, Some(f)) => {
@@ -771,7 +818,7 @@ fn evaluate(
                 .as_ref()
                 .and_then(|m| Metrics::lookup(m, metric))
                 .unwrap_or_else(|| {
-                    failure.get_or_insert(format!("the run has no metric `{metric}`"));
+                    failure.get_or_insert(Failure::MissingMetric(metric.clone()));
                     f64::NAN
                 }),
             (
@@ -784,7 +831,7 @@ fn evaluate(
                 Some(_),
                 None,
             ) => trace_rms(&jobs[i].out_dir, columns, measured, *max_shift_s).unwrap_or_else(|e| {
-                failure.get_or_insert(e);
+                failure.get_or_insert(Failure::Trace(e));
                 f64::NAN
             }),
             (_, None, None) => unreachable!("a missing run is a failure"),
@@ -808,7 +855,6 @@ fn evaluate(
         results: out,
         cost,
         failure,
-        cannot_start,
     }
 }
 
@@ -840,22 +886,23 @@ pub fn calibrate(
     );
     // The start point must run: a run that cannot start (a key the scenario does not have, a
     // value it refuses) or lacks a metric is a fault of the spec, reported before the search.
-    if let Some(f) = first.failure.as_deref() {
-        let spec_text = std::fs::read_to_string(&cal.path).unwrap_or_default();
-        if f.starts_with("the run has no metric") {
+    match &first.failure {
+        Some(f @ Failure::MissingMetric(metric)) => {
+            let spec_text = std::fs::read_to_string(&cal.path).unwrap_or_default();
             return Err(FileError::new(
                 &cal.path,
-                LineColumn::of_first(&spec_text, f.split('`').nth(1).unwrap_or("")),
+                LineColumn::of_first(&spec_text, metric),
                 format!("{f}: see a run's metrics.json for the keys"),
             ));
         }
-        if first.cannot_start {
+        Some(f @ Failure::CannotStart(_)) => {
             return Err(FileError::new(
                 &cal.path,
                 None,
                 format!("at the start point the run cannot start: {f}"),
             ));
         }
+        _ => {}
     }
 
     // Generation 0 is the start point.
@@ -910,11 +957,7 @@ pub fn calibrate(
                 std::mem::take(&mut *pending.lock().expect("no panics while held"));
             if interrupted.load(Ordering::Relaxed) {
                 // A generation cut short is not a fair sample: keep only its finished runs.
-                generation_runs.retain(|e| {
-                    !e.failure
-                        .as_deref()
-                        .is_some_and(|f| f.starts_with("interrupted"))
-                });
+                generation_runs.retain(|e| !e.failure.as_ref().is_some_and(Failure::interrupted));
             }
             generation_runs.sort_by(|a, b| {
                 a.values
@@ -1321,7 +1364,10 @@ impl CalibrationResult {
                 "\n{} candidates failed or stopped early (cost {FAILED:e}), e.g. #{}: {}\n",
                 failed.len(),
                 first.index,
-                first.failure.as_deref().unwrap_or("")
+                first
+                    .failure
+                    .as_ref()
+                    .map_or(String::new(), |f| f.to_string())
             );
         }
         t
@@ -1361,7 +1407,7 @@ impl CalibrationResult {
             let mut row = vec![e.index.to_string(), e.generation.to_string()];
             row.extend(e.values.iter().chain(&e.results).map(|v| format!("{v:?}")));
             row.push(format!("{:?}", e.cost));
-            row.push(e.failure.clone().unwrap_or_default());
+            row.push(e.failure.as_ref().map_or(String::new(), |f| f.to_string()));
             let _ = w.write_record(&row);
         }
         String::from_utf8(w.into_inner().unwrap_or_default()).unwrap_or_default()
@@ -1419,4 +1465,107 @@ pub fn write_back(cal: &Calibration, values: &[f64]) -> Result<Vec<PathBuf>, Fil
         written.push(path);
     }
     Ok(written)
+}
+
+/// `cncsim calibrate`: the search, the scenarios run again with the best values, and what was
+/// written back.
+#[derive(Debug, Clone)]
+pub struct CalibrationOutput {
+    pub result: CalibrationResult,
+    /// The report (`report.md`): the search, and the predictions where they ran.
+    pub report: String,
+    pub out: PathBuf,
+    /// Files the best values were written into (`--write`).
+    pub updated: Vec<PathBuf>,
+    /// Why the best values could not be written back.
+    pub not_written: Option<String>,
+    pub interrupted: bool,
+}
+
+impl CalibrationOutput {
+    /// The search's result with the predictions at its best values (`runs`, when they ran), and
+    /// with `write` the best values written into the scenario and machine files.
+    pub fn new(
+        cal: &Calibration,
+        result: CalibrationResult,
+        runs: Option<Vec<(PathBuf, JobResult)>>,
+        out: &Path,
+        write: bool,
+        interrupted: bool,
+    ) -> Self {
+        let mut report = result.markdown(cal);
+        let (mut updated, mut not_written) = (Vec::new(), None);
+        if let (Some(runs), Some(best)) = (&runs, &result.best) {
+            report += &format!(
+                "\n## With the best values\n\nRecordings in `predictions/<scenario>/`. Where the largest error occurs: start (before the axis first caught up with its command), reversal (after the command slowed and turned), stop, or moving.\n\n{}",
+                predictions_markdown(cal, runs)
+            );
+            if write {
+                match write_back(cal, &best.values) {
+                    Ok(paths) => updated = paths,
+                    Err(e) => {
+                        report += &format!("\n**Not written back:** {e}\n");
+                        not_written = Some(e.to_string());
+                    }
+                }
+            }
+        }
+        CalibrationOutput {
+            result,
+            report,
+            out: out.to_path_buf(),
+            updated,
+            not_written,
+            interrupted,
+        }
+    }
+}
+
+impl crate::command::Report for CalibrationOutput {
+    /// `report.md`, every evaluation (`evaluations.json`, `.csv`) and the cost over the
+    /// search (`convergence.png`, where there is a successful candidate to plot).
+    fn write(&self) -> Result<Vec<PathBuf>, crate::command::WriteError> {
+        use crate::command::{cannot_write, write_file};
+        std::fs::create_dir_all(&self.out).map_err(|e| cannot_write(&self.out, e))?;
+        let json = serde_json::to_string_pretty(&self.result).expect("plain values");
+        let mut files = vec![
+            write_file(self.out.join("report.md"), &self.report)?,
+            write_file(self.out.join("evaluations.json"), json)?,
+            write_file(self.out.join("evaluations.csv"), self.result.csv())?,
+        ];
+        let plot = self.out.join("convergence.png");
+        if self.result.plot(&plot).is_ok() {
+            files.push(plot);
+        }
+        Ok(files)
+    }
+
+    fn text(&self) -> String {
+        self.report.clone()
+    }
+
+    fn json(&self) -> Option<serde_json::Value> {
+        serde_json::to_value(&self.result).ok()
+    }
+
+    fn messages(&self) -> Vec<String> {
+        let mut lines: Vec<String> = (self.updated.iter())
+            .map(|p| format!("  updated {}", p.display()))
+            .collect();
+        lines.extend(self.not_written.iter().map(|e| format!("error: {e}")));
+        lines
+    }
+
+    fn ending(&self) -> crate::command::Ending {
+        use crate::command::Ending;
+        if self.not_written.is_some() {
+            Ending::BadInput(None)
+        } else if self.result.best.is_none() {
+            Ending::Failed(None)
+        } else if self.interrupted {
+            Ending::Interrupted(None)
+        } else {
+            Ending::Done
+        }
+    }
 }

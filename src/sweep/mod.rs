@@ -16,7 +16,7 @@ pub mod results;
 pub mod runner;
 
 pub use file::{parse_shard, Change, Distribution, RandomSpec, RunSpec, Sweep, MAX_RUNS};
-pub use results::{merge, write_results, Row, SweepResults};
+pub use results::{merge, write_results, MergeOutput, Row, SweepOutput, SweepResults};
 pub use runner::{execute, run_sweep, Job, JobResult, Progress};
 
 use crate::diagnostics::FileError;

@@ -95,7 +95,7 @@ impl SweepResults {
                     point: run.point,
                     values: run.values.clone(),
                     completed: r.error.is_none() && r.stopped.is_none(),
-                    stopped: r.stopped.clone(),
+                    stopped: r.stopped.as_ref().map(|s| s.to_string()),
                     error: r.error.clone(),
                     wall_time_s: r.wall_time_s,
                     metrics,
@@ -168,7 +168,9 @@ impl SweepResults {
                 ));
             }
             cells.push(r.completed.to_string());
-            cells.push(quote(r.stopped.as_deref().unwrap_or("")));
+            cells.push(quote(
+                &r.stopped.as_ref().map_or(String::new(), |s| s.to_string()),
+            ));
             cells.push(quote(r.error.as_deref().unwrap_or("")));
             cells.push(format!("{:.6}", r.wall_time_s));
             for k in &metric_keys {
@@ -295,7 +297,10 @@ impl SweepResults {
                     r.index,
                     r.scenario,
                     r.variant,
-                    r.error.as_deref().or(r.stopped.as_deref()).unwrap_or("")
+                    r.error
+                        .clone()
+                        .or(r.stopped.as_ref().map(|s| s.to_string()))
+                        .unwrap_or_default()
                 );
             }
         }
@@ -460,4 +465,70 @@ pub fn merge(dirs: &[PathBuf]) -> Result<SweepResults, FileError> {
     m.rows.sort_by_key(|r| r.index);
     m.shards.sort();
     Ok(m)
+}
+
+/// `cncsim sweep`: the results table of the runs done, and how the sweep ended.
+#[derive(Debug, Clone)]
+pub struct SweepOutput {
+    pub results: SweepResults,
+    pub out: PathBuf,
+    /// Runs asked for (this shard's), runs done, plans made for them.
+    pub jobs: usize,
+    pub done: usize,
+    pub plans: usize,
+    pub interrupted: bool,
+    /// A run could not start or stopped early.
+    pub any_failed: bool,
+}
+
+impl crate::command::Report for SweepOutput {
+    fn write(&self) -> Result<Vec<PathBuf>, crate::command::WriteError> {
+        Ok(write_results(&self.results, &self.out)?)
+    }
+
+    fn text(&self) -> String {
+        self.results.summary()
+    }
+
+    fn messages(&self) -> Vec<String> {
+        vec![format!("{} plans made for {} runs", self.plans, self.done)]
+    }
+
+    fn ending(&self) -> crate::command::Ending {
+        use crate::command::Ending;
+        if self.interrupted {
+            Ending::Interrupted(Some(format!(
+                "interrupted: {} of {} runs done; the files hold them",
+                self.done, self.jobs
+            )))
+        } else if self.any_failed {
+            Ending::Failed(None)
+        } else {
+            Ending::Done
+        }
+    }
+}
+
+/// `cncsim merge`: the shards' results as one table.
+#[derive(Debug, Clone)]
+pub struct MergeOutput {
+    pub results: SweepResults,
+    /// How many folders were merged.
+    pub folders: usize,
+    pub out: PathBuf,
+}
+
+impl crate::command::Report for MergeOutput {
+    fn write(&self) -> Result<Vec<PathBuf>, crate::command::WriteError> {
+        Ok(write_results(&self.results, &self.out)?)
+    }
+
+    fn text(&self) -> String {
+        format!(
+            "merged {} folders: {} of {} runs\n",
+            self.folders,
+            self.results.rows.len(),
+            self.results.total_runs
+        )
+    }
 }

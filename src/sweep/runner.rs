@@ -7,9 +7,9 @@
 use super::file::{Change, RunSpec, Sweep};
 use super::machine_with;
 use crate::plan::PlannedProgram;
-use crate::scenario::{plan_for, plan_key, run_assembly, with_choices, Assembly, Scenario};
+use crate::scenario::{plan_for, with_choices, Assembly, PlanKey, RunOptions, Scenario};
+use crate::sim::Stop;
 use rayon::prelude::*;
-use std::collections::HashMap;
 use std::path::PathBuf;
 use std::sync::atomic::{AtomicBool, AtomicUsize, Ordering};
 use std::sync::{Arc, Mutex, OnceLock};
@@ -37,7 +37,7 @@ pub struct JobResult {
     /// Why it could not start (bad override, bad file: the message names the place).
     pub error: Option<String>,
     /// Why it stopped early (divergence, following-error fault, interruption).
-    pub stopped: Option<String>,
+    pub stopped: Option<Stop>,
     pub wall_time_s: f64,
 }
 
@@ -52,10 +52,10 @@ pub struct Progress {
 
 type PlanSlot = Arc<OnceLock<Result<PlannedProgram, String>>>;
 
-/// Plans shared between jobs, by [`plan_key`].
+/// Plans shared between jobs, by [`PlanKey`] (a sweep has few distinct plans: a list will do).
 #[derive(Default)]
 struct PlanCache {
-    slots: Mutex<HashMap<String, PlanSlot>>,
+    slots: Mutex<Vec<(PlanKey, PlanSlot)>>,
     made: AtomicUsize,
 }
 
@@ -70,7 +70,15 @@ impl PlanCache {
                 .slots
                 .lock()
                 .expect("no job panics while holding the lock");
-            slots.entry(plan_key(s, machine)).or_default().clone()
+            let key = PlanKey::new(s, machine);
+            match slots.iter().find(|(k, _)| *k == key) {
+                Some((_, slot)) => slot.clone(),
+                None => {
+                    let slot = PlanSlot::default();
+                    slots.push((key, slot.clone()));
+                    slot
+                }
+            }
         };
         slot.get_or_init(|| {
             self.made.fetch_add(1, Ordering::Relaxed);
@@ -102,8 +110,8 @@ fn run_job(job: &Job, cache: &PlanCache, interrupted: &AtomicBool) -> JobResult 
         Err(e) => return failed(e.to_string()),
     };
     if !job.recordings {
-        s.record_rrd = false;
-        s.record_csv = job.csv;
+        s.recording.rrd = false;
+        s.recording.csv = job.csv;
     }
     let machine_changes: Vec<_> = job
         .changes
@@ -126,12 +134,12 @@ fn run_job(job: &Job, cache: &PlanCache, interrupted: &AtomicBool) -> JobResult 
         Err(e) => return failed(e.to_string()),
     };
     let mut keep_going = |_: usize, _: usize| !interrupted.load(Ordering::Relaxed);
-    match run_assembly(&assembly, &job.out_dir, &mut keep_going, false) {
+    match assembly.run(RunOptions::write_to(&job.out_dir).progress(&mut keep_going)) {
         Ok(run) => JobResult {
             index: job.index,
             metrics: Some(run.metrics_json),
             error: None,
-            stopped: run.stop.map(|s| s.to_string()),
+            stopped: run.stop,
             wall_time_s: started.elapsed().as_secs_f64(),
         },
         Err(e) => failed(e.to_string()),

@@ -383,7 +383,7 @@ fn run_reference(
     }
     let plant = AnalyticPlant::from_models(models, &machine(), 1e-3, steps_per_period);
     let mut lanes = [Lane {
-        name: "analytic",
+        kind: crate::sim::LaneKind::Analytic,
         plant: Box::new(plant),
         controller: Box::new(Borrowed(controller)),
     }];

@@ -3,14 +3,14 @@
 //! loop feature or a controller exists for every one of them at once (as Drake's
 //! DiagramBuilder wires systems, and ripgrep turns arguments into the workers it runs).
 
-use super::file::{ControllerType, InverseDynamicsSettings};
-use super::{ControlSpace, ProgramSource, Scenario};
-use crate::control::{
-    Actuator, ActuatorKind, Cascade, Compensated, ComputedTorque, Controller, Pid, PidBank,
-    TaskSpace,
-};
+mod against_machine;
+mod controller;
+
+pub use controller::ControllerRecipe;
+
+use super::{AnalyticSettings, ProgramSource, Scenario};
+use crate::control::{Actuator, ActuatorKind, Controller};
 use crate::diagnostics::{FileError, LineColumn};
-use crate::dynamics::DynamicsModel;
 use crate::kinematics::{AcAxes, AcTableKinematics, AxisMap, ProgramFrame};
 use crate::machine::Machine;
 use crate::model::{ModelError, PlantOptions};
@@ -21,8 +21,8 @@ use crate::plan::{
 use crate::program::{circle, polyline, read_program, Program, ProgramErrors};
 use crate::report::{AxisLabel, ThinnedPath};
 use crate::sim::{
-    self, AnalyticPlant, Encoder, FollowingErrorTrip, Lane, LoopSettings, Observer, Outcome,
-    PhysicsPlant, MAX_PHYSICS_STEPS, MAX_SERVO_TICKS,
+    self, AnalyticPlant, Encoder, FollowingErrorTrip, Lane, LaneKind, LoopSettings, Observer,
+    Outcome, PhysicsPlant, MAX_PHYSICS_STEPS, MAX_SERVO_TICKS,
 };
 use std::path::PathBuf;
 use std::sync::OnceLock;
@@ -47,15 +47,6 @@ pub enum RunError {
     Program(ProgramErrors),
 }
 
-/// Which plant a lane simulates.
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
-pub enum PlantKind {
-    /// The Rapier machine.
-    Physics,
-    /// The analytic per-axis ODE models of the same machine.
-    Analytic,
-}
-
 /// A scenario wired for running: the machine with the scenario's choices applied, the planned
 /// program and the loop's settings. Plants and controllers are built fresh for each run, and
 /// so is the setpoint stream: no sample is kept, so memory does not grow with the program's
@@ -69,6 +60,8 @@ pub struct Assembly {
     pub frame: ProgramFrame,
     pub plan: PlannedProgram,
     pub actuator: ActuatorKind,
+    /// The controller, resolved on the machine (a fresh instance for every lane and run).
+    pub controller: ControllerRecipe,
     pub loop_settings: LoopSettings,
     /// What the reports need of the whole program, from one pass over its setpoints when first
     /// asked for.
@@ -106,16 +99,13 @@ impl Assembly {
         mut machine: Machine,
         plan: PlannedProgram,
     ) -> Result<Assembly, RunError> {
-        let Some(actuator) = s.actuator else {
+        let Some(actuator) = s.actuator.map(|a| a.kind) else {
             let message = "running a scenario needs [actuator] and [controller] sections (planning with `cncsim plan` does not)";
             return Err(FileError::new(&s.path, None, message).into());
         };
-        if s.controller.is_none() {
-            let message = "running a scenario needs a [controller] section";
-            return Err(FileError::new(&s.path, None, message).into());
-        }
         let labels = labels(&machine);
-        super::run::validate_against_machine(s, &machine, &labels)?;
+        against_machine::check_against_machine(s, &machine, &labels)?;
+        let controller = ControllerRecipe::new(s, &machine, actuator)?;
         let axis_map = plan.axis_map().clone();
         let (frame, frame_warnings) = ProgramFrame::new(&machine)?;
         machine.warnings.extend(frame_warnings);
@@ -127,7 +117,7 @@ impl Assembly {
                 .iter()
                 .map(|a| {
                     let mut drive = a.drive.clone();
-                    if let Some((counts, _)) = s.encoder_counts_per_rev.get(&a.name) {
+                    if let Some((counts, _)) = s.feedback.encoder_counts_per_rev.get(&a.name) {
                         drive.encoder_counts_per_rev = Some(*counts);
                     }
                     drive.encoder_resolution()
@@ -139,9 +129,9 @@ impl Assembly {
                 .iter()
                 .map(|l| {
                     if l.rotary {
-                        s.following_error_limit_rotary
+                        s.feedback.following_error_limit_rotary
                     } else {
-                        s.following_error_limit_linear
+                        s.feedback.following_error_limit_linear
                     }
                 })
                 .collect(),
@@ -155,10 +145,11 @@ impl Assembly {
             frame,
             plan,
             actuator,
+            controller,
             loop_settings: LoopSettings {
-                servo_period: s.servo_period,
+                servo_period: s.timing.servo_period,
                 approach,
-                settle_time: s.settle_time,
+                settle_time: s.timing.settle_time,
                 encoder,
                 trip,
             },
@@ -214,11 +205,11 @@ impl Assembly {
     pub fn physics_plant(&self, initial: &[f64]) -> Result<PhysicsPlant, RunError> {
         let s = &self.scenario;
         let options = PlantOptions {
-            step: s.servo_period / s.substeps as f64,
+            step: s.timing.physics_step(),
             gravity: GRAVITY,
             initial_positions: initial.to_vec(),
             include_drive_dynamics: true,
-            solver_iterations: s.solver_iterations,
+            solver_iterations: s.timing.solver_iterations,
         };
         let plant = crate::model::Plant::new(&self.machine, &options).map_err(|source| {
             RunError::Model {
@@ -233,7 +224,7 @@ impl Assembly {
                 .map(|a| Actuator::new(self.actuator, &a.drive))
                 .collect(),
             axes.iter().map(|a| a.drive.ratio()).collect(),
-            s.substeps,
+            s.timing.substeps,
         ))
     }
 
@@ -245,61 +236,76 @@ impl Assembly {
             &self.machine,
             GRAVITY,
             self.actuator == ActuatorKind::IdealTorque,
-            s.servo_period,
-            s.analytic_steps.unwrap_or(16),
+            s.timing.servo_period,
+            s.analytic
+                .map_or(AnalyticSettings::DEFAULT_STEPS, |a| a.steps_per_period),
             initial,
         )
         .map_err(|e| FileError::new(&s.path, None, format!("the analytic model: {e}")).into())
     }
 
     /// A plant of either kind at rest at `initial`.
-    pub fn plant(&self, kind: PlantKind, initial: &[f64]) -> Result<Box<dyn sim::Plant>, RunError> {
+    pub fn plant(&self, kind: LaneKind, initial: &[f64]) -> Result<Box<dyn sim::Plant>, RunError> {
         Ok(match kind {
-            PlantKind::Physics => Box::new(self.physics_plant(initial)?),
-            PlantKind::Analytic => Box::new(self.analytic_plant(initial)?),
+            LaneKind::Physics => Box::new(self.physics_plant(initial)?),
+            LaneKind::Analytic => Box::new(self.analytic_plant(initial)?),
         })
     }
 
     /// A fresh instance of the scenario's controller (with its compensation), in the machine's
     /// axis order.
-    pub fn controller(&self) -> Result<Box<dyn Controller>, RunError> {
-        controller_for(&self.scenario, &self.machine, self.actuator)
+    pub fn controller(&self) -> Box<dyn Controller> {
+        self.controller.build()
     }
 
-    /// The lanes of a run: the physics and, with `[analytic]`, the reference model beside it,
-    /// each at rest at the first setpoint with its own controller.
-    pub fn lanes(&self) -> Result<Vec<Lane<'static>>, RunError> {
-        let start = self.start();
-        let mut lanes = vec![Lane {
-            name: "physics",
-            plant: self.plant(PlantKind::Physics, &start)?,
-            controller: self.controller()?,
-        }];
-        if self.scenario.analytic_steps.is_some() {
-            lanes.push(Lane {
-                name: "analytic",
-                plant: self.plant(PlantKind::Analytic, &start)?,
-                controller: self.controller()?,
-            });
+    /// What the scenario runs: the physics and, with `[analytic]`, the reference model beside
+    /// it.
+    pub fn lane_kinds(&self) -> Vec<LaneKind> {
+        let mut kinds = vec![LaneKind::Physics];
+        if self.scenario.analytic.is_some() {
+            kinds.push(LaneKind::Analytic);
         }
-        Ok(lanes)
+        kinds
     }
 
-    /// Runs the scenario's lanes on its setpoints.
-    pub fn run(
+    /// The lanes of a run, each at rest where the machine starts, with a controller from
+    /// `controller` (the scenario's own: `|| assembly.controller()`).
+    pub fn lanes_with(
         &self,
+        controller: &dyn Fn() -> Box<dyn Controller>,
+    ) -> Result<Vec<Lane<'static>>, RunError> {
+        let start = self.start();
+        self.lane_kinds()
+            .into_iter()
+            .map(|kind| {
+                Ok(Lane {
+                    kind,
+                    plant: self.plant(kind, &start)?,
+                    controller: controller(),
+                })
+            })
+            .collect()
+    }
+
+    /// The lanes of a run with the scenario's own controller.
+    pub fn lanes(&self) -> Result<Vec<Lane<'static>>, RunError> {
+        self.lanes_with(&|| self.controller())
+    }
+
+    /// Runs `lanes` on the scenario's setpoints through the servo loop.
+    pub(crate) fn simulate(
+        &self,
+        lanes: &mut [Lane<'_>],
         observer: &mut dyn Observer,
         progress: &mut dyn FnMut(usize, usize) -> bool,
-    ) -> Result<Outcome, RunError> {
-        let mut lanes = self.lanes()?;
-        let mut setpoints = self.setpoints();
-        Ok(sim::run(
+    ) -> Outcome {
+        sim::run(
             &self.loop_settings,
-            &mut lanes,
-            &mut setpoints,
+            lanes,
+            &mut self.setpoints(),
             observer,
             progress,
-        ))
+        )
     }
 
     /// Whether `other` runs the same setpoints (sample for sample): the condition of an A/B
@@ -341,7 +347,7 @@ fn approach_for(
     axis_map: &AxisMap,
     program: &Program,
 ) -> Result<Setpoints, RunError> {
-    let Some(a) = s.approach else {
+    let Some(a) = s.approach() else {
         return Ok(Setpoints::default());
     };
     let start = crate::program::Position {
@@ -392,22 +398,34 @@ pub fn axis_map_for(s: &Scenario, machine: &Machine) -> Result<AxisMap, FileErro
     AxisMap::new(machine).map_err(|e| FileError::new(&s.machine, None, e.to_string()))
 }
 
-/// What the plan of a scenario on a machine depends on, as a key: runs with equal keys run
-/// the same setpoints (the program and its reading, the planner, the servo period, the
-/// machine's kinematic description and axes).
-pub fn plan_key(s: &Scenario, machine: &Machine) -> String {
-    let settings = plan_settings(s, machine, s.planner.profile).map(|p| format!("{p:?}"));
-    let axes: Vec<(&str, usize, i8, f64)> = machine
-        .axes
-        .iter()
-        .map(|a| (a.name.as_str(), a.joint, a.drive.sign, a.drive.home))
-        .collect();
-    format!(
-        "{:?}|{:?}|{settings:?}|{}|{axes:?}",
-        s.program,
-        s.work_offset,
-        machine.urdf_path.display()
-    )
+/// What the plan of a scenario on a machine depends on: runs with equal keys run the same
+/// setpoints (the program and its reading, the work offset, the planner and the servo period,
+/// the machine's kinematic description and axes).
+#[derive(Debug, Clone, PartialEq)]
+pub struct PlanKey {
+    source: ProgramSource,
+    work_offset: [f64; 3],
+    /// The planner's settings on this machine, or why there are none.
+    settings: Result<PlanSettings, String>,
+    urdf: PathBuf,
+    /// Each axis: name, joint, sign, home.
+    axes: Vec<(String, usize, i8, f64)>,
+}
+
+impl PlanKey {
+    pub fn new(s: &Scenario, machine: &Machine) -> Self {
+        PlanKey {
+            source: s.program.source.clone(),
+            work_offset: s.program.work_offset,
+            settings: plan_settings(s, machine, s.planner.profile).map_err(|e| e.to_string()),
+            urdf: machine.urdf_path.clone(),
+            axes: machine
+                .axes
+                .iter()
+                .map(|a| (a.name.clone(), a.joint, a.drive.sign, a.drive.home))
+                .collect(),
+        }
+    }
 }
 
 /// The scenario's machine with its `[mechanics]`, `[feedback]` and `[actuator]` choices
@@ -423,12 +441,12 @@ pub fn with_choices(s: &Scenario, mut machine: Machine) -> Machine {
 }
 
 fn apply_choices(s: &Scenario, machine: &mut Machine) {
-    keep_mechanics(machine, s.friction, s.backlash);
+    keep_mechanics(machine, s.mechanics.friction, s.mechanics.backlash);
     for axis in &mut machine.axes {
-        if let Some(feedback) = s.feedback_position {
+        if let Some(feedback) = s.feedback.position {
             axis.drive.feedback = feedback;
         }
-        if let Some(mode) = s.amplifier_mode {
+        if let Some(mode) = s.actuator.and_then(|a| a.amplifier_mode) {
             axis.drive.amplifier_mode = mode;
         }
     }
@@ -449,14 +467,14 @@ pub fn keep_mechanics(machine: &mut Machine, friction: bool, backlash: bool) {
 
 /// Refuses a run longer than the loop's bounds, before it starts, with the number it needs.
 pub(crate) fn check_run_length(s: &Scenario, samples: usize) -> Result<(), FileError> {
-    let settle = (s.settle_time / s.servo_period).round() as u64;
+    let settle = (s.timing.settle_time / s.timing.servo_period).round() as u64;
     let ticks = settle + samples as u64;
-    let steps = ticks.saturating_mul(s.substeps as u64);
+    let steps = ticks.saturating_mul(s.timing.substeps as u64);
     let what = format!(
         "settle {:?} s + program {:.6} s at a servo period of {:?} ms",
-        s.settle_time,
-        samples.saturating_sub(1) as f64 * s.servo_period,
-        s.servo_period * 1e3
+        s.timing.settle_time,
+        samples.saturating_sub(1) as f64 * s.timing.servo_period,
+        s.timing.servo_period * 1e3
     );
     if ticks > MAX_SERVO_TICKS {
         return Err(FileError::new(
@@ -471,146 +489,11 @@ pub(crate) fn check_run_length(s: &Scenario, samples: usize) -> Result<(), FileE
             None,
             format!(
                 "the run needs {steps} physics steps ({ticks} ticks of {} steps; {what}): the limit is {MAX_PHYSICS_STEPS}",
-                s.substeps
+                s.timing.substeps
             ),
         ));
     }
     Ok(())
-}
-
-/// The scenario's controller for this machine, wrapped in its compensation if it has any.
-pub(crate) fn controller_for(
-    s: &Scenario,
-    machine: &Machine,
-    actuator: ActuatorKind,
-) -> Result<Box<dyn Controller>, RunError> {
-    let Some(kind) = s.controller else {
-        return Err(FileError::new(&s.path, None, "the scenario has no [controller]").into());
-    };
-    // Every axis has its settings: `validate_against_machine` checked it for the chosen type.
-    let missing = |what: &str, axis: &str| -> RunError {
-        FileError::new(
-            &s.path,
-            s.controller_at,
-            format!("[controller] has no {what} for axis '{axis}'"),
-        )
-        .into()
-    };
-    let inner: Box<dyn Controller> = match kind {
-        ControllerType::Pid => Box::new(PidBank::new(
-            machine
-                .axes
-                .iter()
-                .map(|a| {
-                    let g = s
-                        .gains
-                        .get(&a.name)
-                        .ok_or_else(|| missing("PID gains", &a.name))?;
-                    Ok(Pid::new(g.settings, s.pid_form, s.servo_period))
-                })
-                .collect::<Result<_, RunError>>()?,
-        )),
-        ControllerType::Cascade => {
-            let axes = machine
-                .axes
-                .iter()
-                .map(|a| {
-                    s.cascade
-                        .get(&a.name)
-                        .map(|c| c.settings)
-                        .ok_or_else(|| missing("cascade settings", &a.name))
-                })
-                .collect::<Result<_, RunError>>()?;
-            let drives: Vec<_> = machine.axes.iter().map(|a| a.drive.clone()).collect();
-            Box::new(Cascade::new(
-                axes,
-                s.velocity_filter_hz,
-                dynamics_model(s, machine, 1.0)?,
-                &drives,
-                actuator,
-                s.servo_period,
-            ))
-        }
-        ControllerType::InverseDynamics => {
-            let id = s
-                .inverse_dynamics
-                .as_ref()
-                .ok_or_else(|| missing("natural_frequency_hz", "any"))?;
-            inverse_dynamics(s, machine, actuator, id)?
-        }
-    };
-    if s.compensation.is_empty() {
-        return Ok(inner);
-    }
-    let per_axis = machine
-        .axes
-        .iter()
-        .map(|a| {
-            s.compensation
-                .get(&a.name)
-                .map(|c| c.compensation)
-                .unwrap_or_default()
-        })
-        .collect();
-    Ok(Box::new(Compensated::new(inner, per_axis, s.servo_period)))
-}
-
-/// The controller's model of the machine: the drives' reflected damping on the joints, the
-/// rotor inertia as armature, every link's mass scaled by `mass_scale` (robustness studies).
-fn dynamics_model(
-    s: &Scenario,
-    machine: &Machine,
-    mass_scale: f64,
-) -> Result<DynamicsModel, RunError> {
-    let mut model_machine = machine.clone();
-    for axis in &machine.axes {
-        model_machine.joints[axis.joint].damping += axis.drive.reflected_damping();
-    }
-    for link in &mut model_machine.links {
-        link.mass *= mass_scale;
-        link.inertia *= mass_scale;
-    }
-    DynamicsModel::from_machine(&model_machine, nalgebra::Vector3::from(GRAVITY))
-        .and_then(|m| m.with_drive_armature(&model_machine))
-        .map_err(|e| {
-            FileError::new(
-                &s.machine,
-                None,
-                format!("the controller's model of the machine: {e}"),
-            )
-            .into()
-        })
-}
-
-fn inverse_dynamics(
-    s: &Scenario,
-    machine: &Machine,
-    actuator: ActuatorKind,
-    id: &InverseDynamicsSettings,
-) -> Result<Box<dyn Controller>, RunError> {
-    let model = dynamics_model(s, machine, id.model_mass_scale)?;
-    let drives: Vec<_> = machine.axes.iter().map(|a| a.drive.clone()).collect();
-    let controller = ComputedTorque::new(
-        model,
-        &drives,
-        actuator,
-        s.servo_period,
-        id.omega_n,
-        id.damping_ratio,
-    );
-    Ok(match id.space {
-        ControlSpace::Joint => Box::new(controller),
-        ControlSpace::Task => {
-            let kinematics = AcTableKinematics::new(machine).map_err(|e| {
-                FileError::new(
-                    &s.path,
-                    s.controller_at,
-                    format!("controller.space = \"task\" resolves the tool tip on a table-tilting A-C machine: {e}"),
-                )
-            })?;
-            Box::new(controller.in_task_space(TaskSpace::new(kinematics, id.task_damping)))
-        }
-    })
 }
 
 /// The planner settings of a scenario for its machine, with `profile` (the scenario's own or
@@ -662,11 +545,11 @@ pub fn plan_settings(
     };
     Ok(PlanSettings {
         planner,
-        period: s.servo_period,
-        rapid_speed: s.rapid_speed,
-        blend: s.blend,
+        period: s.timing.servo_period,
+        rapid_speed: s.planner.rapid_speed,
+        blend: s.planner.blend,
         axis_names: machine.axes.iter().map(|a| a.name.clone()).collect(),
-        naive_cam_tolerance: s.naive_cam_tolerance,
+        naive_cam_tolerance: s.planner.naive_cam_tolerance,
         tool_lever_arms: Vec::new(),
     })
 }
@@ -675,19 +558,19 @@ pub fn plan_settings(
 pub fn load_checked_program(s: &Scenario, machine: &Machine) -> Result<Program, RunError> {
     // Program coordinates become machine coordinates under the work offset: G-code starts
     // with it as its G54 origin, every other program is moved by it.
-    let mut program = match &s.program {
+    let mut program = match &s.program.source {
         ProgramSource::Circle(c) => circle(c, &s.path),
         ProgramSource::Polyline(p) => polyline(p, &s.path),
         ProgramSource::File { path, options } => {
             let options = crate::program::ReadOptions {
-                work_offset: s.work_offset,
+                work_offset: s.program.work_offset,
                 ..(**options).clone()
             };
             read_program(path, &options).map_err(RunError::Program)?
         }
     };
-    if !matches!(s.program, ProgramSource::File { .. }) {
-        program.shift(s.work_offset);
+    if !matches!(s.program.source, ProgramSource::File { .. }) {
+        program.shift(s.program.work_offset);
     }
     if program.moves.is_empty() {
         return Err(FileError::new(
@@ -705,7 +588,7 @@ pub fn load_checked_program(s: &Scenario, machine: &Machine) -> Result<Program, 
             .axes
             .iter()
             .find(|a| a.drive.sign != 1 || a.drive.home != 0.0);
-        if s.work_offset != [0.0; 3] || shifted.is_some() {
+        if s.program.work_offset != [0.0; 3] || shifted.is_some() {
             let what = match shifted {
                 Some(a) => format!("axis '{}' of the drive file has a sign or home", a.name),
                 None => "the scenario sets [program] work_offset_mm".into(),

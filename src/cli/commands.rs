@@ -1,0 +1,523 @@
+//! Each command: its arguments in, its report out. Progress goes to the error stream as the
+//! command works; everything it found is in the report.
+
+use super::args::{Command, MachineCommand};
+use super::show::progress_bar;
+use cncsim::command::{Report, Stream};
+use cncsim::machine::{DrivesFile, Machine};
+use cncsim::program::{
+    inspect, parse_tool_table, FeedRule, InspectOptions, LengthUnit, ProgramError, ProgramErrors,
+    ReadOptions,
+};
+use cncsim::scenario::{
+    check_scenarios, folder_name, outcome_text, scenario_files, tune_scenario, Assembly,
+    DriveFileDraft, Override, PlanOutput, ProfileName, RunError, RunOptions, RunOutput, Scenario,
+    ScenarioRun, TuneError, TuneOptions,
+};
+use cncsim::sim::LaneKind;
+use std::path::{Path, PathBuf};
+use std::sync::atomic::{AtomicBool, Ordering};
+use std::time::Duration;
+
+/// The bundled scenario `cncsim` runs without arguments.
+const DEFAULT_SCENARIO: &str = "scenarios/xyz_circle_5mms.toml";
+
+/// Why a command gave no report.
+pub enum Refused {
+    /// Its input is wrong (exit status 2).
+    BadInput(String),
+    /// It ran and failed without a report (exit status 1).
+    Failed(String),
+}
+
+impl<E: std::fmt::Display> From<E> for Refused {
+    fn from(error: E) -> Self {
+        Refused::BadInput(error.to_string())
+    }
+}
+
+/// A command's report and whether `--json` was asked for.
+pub type Shown = (Box<dyn Report>, bool);
+
+/// Runs the command (`None`: the bundled scenario). `interrupted` is set by Ctrl-C: a running
+/// simulation stops at its next progress report and still writes everything it computed.
+pub fn dispatch(command: Option<Command>, interrupted: &AtomicBool) -> Result<Shown, Refused> {
+    let text = |report: Box<dyn Report>| Ok((report, false));
+    match command {
+        None => {
+            let scenario = default_scenario();
+            eprintln!(
+                "running the bundled scenario {} (see `cncsim --help` for more)",
+                scenario.display()
+            );
+            text(Box::new(run(&scenario, None, interrupted)?))
+        }
+        Some(Command::Run { scenario, out }) => text(Box::new(run(&scenario, out, interrupted)?)),
+        Some(Command::Check { scenarios, out }) => {
+            text(Box::new(check(&scenarios, out, interrupted)?))
+        }
+        Some(Command::Plan {
+            scenario,
+            profile,
+            csv,
+            rrd,
+        }) => text(Box::new(plan(&scenario, profile, csv, rrd)?)),
+        Some(Command::Inspect {
+            program,
+            euclidean_feed,
+            lenient,
+            optimise_pen_up,
+            strict,
+            no_hatch,
+            all,
+            tool_table,
+        }) => {
+            let mut options = ReadOptions::default();
+            if let Some(table) = tool_table {
+                options.gcode.tools = std::fs::read_to_string(&table)
+                    .map_err(|error| {
+                        ProgramErrors::single(ProgramError::new(
+                            &table,
+                            None,
+                            format!("could not read the tool table: {error}"),
+                        ))
+                    })
+                    .and_then(|text| parse_tool_table(&text, &table, LengthUnit::Millimetre))?;
+            }
+            if euclidean_feed {
+                options.feed_rule = FeedRule::EuclideanAllAxes;
+            }
+            options.hpgl.lenient = lenient;
+            options.hpgl.optimise_pen_up = optimise_pen_up;
+            options.hpgl.strict = strict;
+            options.apt.strict = strict;
+            options.hpgl.hatch_fills = !no_hatch;
+            let listing = InspectOptions {
+                list_limit: if all {
+                    usize::MAX
+                } else {
+                    InspectOptions::default().list_limit
+                },
+            };
+            text(Box::new(inspect(&program, &options, &listing)?))
+        }
+        Some(Command::Ab {
+            scenario,
+            other,
+            a_overrides,
+            b_overrides,
+            out,
+        }) => text(Box::new(ab(
+            &scenario,
+            other.as_deref(),
+            &a_overrides,
+            &b_overrides,
+            out,
+            interrupted,
+        )?)),
+        Some(Command::Tune {
+            scenario,
+            axis,
+            analytic,
+            linear,
+            json,
+            cascade: true,
+            velocity_bandwidth_hz,
+            ..
+        }) => {
+            let scenario = scenario_to_tune(&scenario, linear)?;
+            let machine = cncsim::scenario::machine_for(&scenario)?;
+            let report = cncsim::scenario::tune_cascade(
+                &scenario,
+                machine,
+                &axis,
+                velocity_bandwidth_hz,
+                lane(analytic),
+            )?;
+            Ok((Box::new(report), json))
+        }
+        Some(Command::Tune {
+            scenario,
+            axis,
+            step_mm,
+            step_deg,
+            tolerance,
+            trial_s,
+            start_gain,
+            max_simulations,
+            analytic,
+            linear,
+            json,
+            cascade: false,
+            ..
+        }) => {
+            let mut options = TuneOptions::new(&axis, step_mm * 1e-3);
+            options.tolerance = tolerance;
+            options.trial_time = trial_s;
+            options.start_gain = start_gain;
+            options.max_simulations = max_simulations;
+            let report = tune(&scenario, options, step_deg.to_radians(), analytic, linear)?;
+            Ok((Box::new(report), json))
+        }
+        Some(Command::Machine {
+            action: MachineCommand::Check { urdf, json },
+        }) => Ok((Box::new(cncsim::scenario::check_machine(&urdf)?), json)),
+        Some(Command::Machine {
+            action: MachineCommand::Init { urdf, out, force },
+        }) => {
+            let text = cncsim::scenario::drive_file_template(&urdf)?;
+            let out = out.unwrap_or_else(|| DrivesFile::path_for(&urdf));
+            if out != Path::new("-") && out.exists() && !force {
+                return Err(Refused::BadInput(format!(
+                    "{}: exists already; --force replaces it, --out writes elsewhere",
+                    out.display()
+                )));
+            }
+            Ok((Box::new(DriveFileDraft { urdf, text, out }), false))
+        }
+        Some(Command::Dynamics {
+            urdf,
+            q,
+            qd,
+            qdd,
+            gravity,
+            json,
+        }) => {
+            let &[gx, gy, gz] = gravity.as_slice() else {
+                return Err(Refused::BadInput(format!(
+                    "--gravity takes 3 values (x,y,z in m/s²), got {}",
+                    gravity.len()
+                )));
+            };
+            let tree = cncsim::machine::load_urdf(&urdf)?;
+            let gravity = nalgebra::Vector3::new(gx, gy, gz);
+            let report = cncsim::dynamics::DynamicsReport::evaluate(&tree, gravity, &q, &qd, &qdd)
+                .map_err(|e| Refused::BadInput(format!("{}: {e}", urdf.display())))?;
+            Ok((Box::new(report), json))
+        }
+        Some(Command::Sweep {
+            sweep,
+            jobs,
+            shard,
+            out,
+        }) => text(Box::new(self::sweep(
+            &sweep,
+            jobs,
+            shard.as_deref(),
+            out,
+            interrupted,
+        )?)),
+        Some(Command::Merge { dirs, out }) => {
+            let results = cncsim::sweep::merge(&dirs)?;
+            text(Box::new(cncsim::sweep::MergeOutput {
+                results,
+                folders: dirs.len(),
+                out,
+            }))
+        }
+        Some(Command::Calibrate {
+            spec,
+            jobs,
+            out,
+            write,
+        }) => text(Box::new(calibrate(&spec, jobs, out, write, interrupted)?)),
+    }
+}
+
+fn default_scenario() -> PathBuf {
+    let here = PathBuf::from(DEFAULT_SCENARIO);
+    if here.is_file() {
+        here
+    } else {
+        Path::new(env!("CARGO_MANIFEST_DIR")).join(DEFAULT_SCENARIO)
+    }
+}
+
+fn lane(analytic: bool) -> LaneKind {
+    if analytic {
+        LaneKind::Analytic
+    } else {
+        LaneKind::Physics
+    }
+}
+
+/// Values that loaded but look wrong, as compilers print warnings.
+fn print_warnings(warnings: &[cncsim::diagnostics::FileError]) {
+    for w in warnings {
+        eprintln!("warning: {w}");
+    }
+}
+
+fn run(
+    path: &Path,
+    out: Option<PathBuf>,
+    interrupted: &AtomicBool,
+) -> Result<ScenarioRun, Refused> {
+    let scenario = Scenario::load(path)?;
+    print_warnings(&scenario.warnings);
+    let out = out.unwrap_or_else(|| Path::new("out").join(folder_name(&scenario.name)));
+    let output = run_with_bar(&scenario, &out, interrupted)?;
+    Ok(ScenarioRun {
+        path: scenario.path,
+        output,
+    })
+}
+
+/// Runs a scenario, with a progress bar once it takes longer than a moment.
+fn run_with_bar(
+    scenario: &Scenario,
+    out: &Path,
+    interrupted: &AtomicBool,
+) -> Result<RunOutput, RunError> {
+    let bar = progress_bar(None);
+    bar.set_message(scenario.name.clone());
+    let started = std::time::Instant::now();
+    let mut progress = |done: usize, total: usize| {
+        if started.elapsed() > Duration::from_millis(300) {
+            bar.set_length(total as u64);
+            bar.set_position(done as u64);
+        }
+        !interrupted.load(Ordering::Relaxed)
+    };
+    let result = Assembly::new(scenario)
+        .and_then(|assembly| assembly.run(RunOptions::write_to(out).progress(&mut progress)));
+    bar.finish_and_clear();
+    result
+}
+
+fn check(
+    paths: &[PathBuf],
+    out: Option<PathBuf>,
+    interrupted: &AtomicBool,
+) -> Result<cncsim::scenario::CheckReport, Refused> {
+    let files = scenario_files(paths)?;
+    let root = out.unwrap_or_else(|| PathBuf::from("out"));
+    Ok(check_scenarios(
+        &files,
+        &root,
+        &mut |scenario, out| run_with_bar(scenario, out, interrupted),
+        &mut |stream, line| match stream {
+            Stream::Out => println!("{line}"),
+            Stream::Err => eprintln!("{line}"),
+        },
+    ))
+}
+
+fn plan(
+    path: &Path,
+    profile: Option<ProfileName>,
+    csv: Option<PathBuf>,
+    rrd: Option<PathBuf>,
+) -> Result<PlanOutput, Refused> {
+    let scenario = Scenario::load(path)?;
+    Ok(PlanOutput {
+        report: cncsim::scenario::plan_scenario(&scenario, profile)?,
+        name: scenario.name,
+        csv,
+        rrd,
+    })
+}
+
+fn ab(
+    a: &Path,
+    b: Option<&Path>,
+    a_overrides: &[String],
+    b_overrides: &[String],
+    out: Option<PathBuf>,
+    interrupted: &AtomicBool,
+) -> Result<cncsim::scenario::AbOutput, Refused> {
+    let parse = |flag: &str, texts: &[String]| -> Result<Vec<Override>, String> {
+        texts
+            .iter()
+            .map(|t| Override::parse(t).map_err(|e| format!("{flag} {e}")))
+            .collect()
+    };
+    let (mut oa, mut ob) = (parse("--a", a_overrides)?, parse("--b", b_overrides)?);
+    let (mut flag_a, mut flag_b) = ("--a", "--b");
+    if b.is_none() && oa.is_empty() && ob.is_empty() {
+        // One file and no overrides: the variants the file declares in [ab].
+        let Some(declared) = Scenario::load(a)?.ab else {
+            return Err(Refused::BadInput(format!("{}: ab with one scenario needs overrides to tell the variants apart: --a KEY=VALUE… and/or --b KEY=VALUE…, an [ab] table in the file, or a second scenario file", a.display())));
+        };
+        let parsed = |list: &[String]| -> Vec<Override> {
+            list.iter()
+                .map(|o| Override::parse(o).expect("checked when the scenario was read"))
+                .collect()
+        };
+        (oa, ob) = (parsed(&declared.a), parsed(&declared.b));
+        (flag_a, flag_b) = ("[ab] a:", "[ab] b:");
+    }
+    let sa = Scenario::load_with_overrides(a, &oa, flag_a)?;
+    let sb = Scenario::load_with_overrides(b.unwrap_or(a), &ob, flag_b)?;
+    let out = out.unwrap_or_else(|| {
+        Path::new("out").join(folder_name(&format!("ab_{}_vs_{}", sa.name, sb.name)))
+    });
+    let mut progress = |_: usize, _: usize| !interrupted.load(Ordering::Relaxed);
+    Ok(cncsim::scenario::run_ab(&sa, &sb, &out, &mut progress)?)
+}
+
+/// The scenario a tune command designs on; `linear`: without friction and backlash, as the
+/// source paper designed its gains.
+fn scenario_to_tune(path: &Path, linear: bool) -> Result<Scenario, cncsim::diagnostics::FileError> {
+    let mut scenario = Scenario::load(path)?;
+    if linear {
+        scenario.mechanics.friction = false;
+        scenario.mechanics.backlash = false;
+    }
+    Ok(scenario)
+}
+
+fn tune(
+    path: &Path,
+    mut options: TuneOptions,
+    rotary_step: f64,
+    analytic: bool,
+    linear: bool,
+) -> Result<cncsim::scenario::TuneReport, Refused> {
+    let scenario = scenario_to_tune(path, linear)?;
+    // The step is given per axis kind; the tuner learns the kind from the machine.
+    let rotary = Machine::load(&scenario.machine)
+        .ok()
+        .and_then(|m| {
+            let i = m.axis_index(&options.axis)?;
+            Some(m.axes[i].is_rotary(&m))
+        })
+        .unwrap_or(false);
+    if rotary {
+        options.step = rotary_step;
+    }
+    let mut progress = |t: &cncsim::tune::Trial| {
+        eprintln!(
+            "  K = {:.5e}: {}{}",
+            t.gain,
+            outcome_text(t),
+            t.oscillation.ratio.map_or(String::new(), |r| format!(
+                ", swing ratio per period {r:.4}"
+            ))
+        );
+    };
+    tune_scenario(&scenario, &options, lane(analytic), &mut progress).map_err(|e| match e {
+        TuneError::Search { .. } => Refused::Failed(e.to_string()),
+        e => Refused::BadInput(e.to_string()),
+    })
+}
+
+/// Worker threads: as asked, or one per core.
+fn threads(jobs: Option<usize>) -> Result<usize, Refused> {
+    match jobs {
+        Some(0) => Err(Refused::BadInput("--jobs 0: expected at least 1".into())),
+        Some(n) => Ok(n),
+        None => Ok(std::thread::available_parallelism().map_or(1, |n| n.get())),
+    }
+}
+
+fn sweep(
+    path: &Path,
+    jobs: Option<usize>,
+    shard: Option<&str>,
+    out: Option<PathBuf>,
+    interrupted: &AtomicBool,
+) -> Result<cncsim::sweep::SweepOutput, Refused> {
+    use cncsim::sweep::{execute, parse_shard, run_sweep, Progress, Sweep, SweepResults};
+    let sweep = Sweep::load(path)?;
+    let shard = shard.map(parse_shard).transpose()?;
+    let threads = threads(jobs)?;
+    let out = out.unwrap_or_else(|| {
+        let mut name = format!("sweep_{}", folder_name(&sweep.name));
+        if let Some((k, n)) = shard {
+            name += &format!("_shard_{k}_of_{n}");
+        }
+        Path::new("out").join(name)
+    });
+    let (runs, jobs) = run_sweep(&sweep, &out, shard);
+    eprintln!(
+        "sweep {}: {} runs ({} scenarios × {} variants × {} points{}) on {threads} threads",
+        sweep.name,
+        jobs.len(),
+        sweep.scenarios.len(),
+        sweep.variants.len(),
+        sweep.points().len(),
+        shard.map_or(String::new(), |(k, n)| format!(", shard {k}/{n}"))
+    );
+    let progress = Progress {
+        total: jobs.len(),
+        ..Default::default()
+    };
+    let bar = progress_bar(Some("runs"));
+    bar.set_length(jobs.len() as u64);
+    let on_change = |p: &Progress| {
+        bar.set_position(p.done.load(Ordering::Relaxed) as u64);
+        bar.set_message(format!(
+            "({} running, {} failed)",
+            p.running.load(Ordering::Relaxed),
+            p.failed.load(Ordering::Relaxed)
+        ));
+    };
+    let (results, plans) = execute(&jobs, threads, interrupted, &progress, &on_change);
+    bar.finish_and_clear();
+    Ok(cncsim::sweep::SweepOutput {
+        results: SweepResults::new(&sweep, &runs, &results, shard),
+        out,
+        jobs: jobs.len(),
+        done: results.len(),
+        plans,
+        interrupted: interrupted.load(Ordering::Relaxed),
+        any_failed: results
+            .iter()
+            .any(|r| r.error.is_some() || r.stopped.is_some()),
+    })
+}
+
+fn calibrate(
+    path: &Path,
+    jobs: Option<usize>,
+    out: Option<PathBuf>,
+    write: bool,
+    interrupted: &AtomicBool,
+) -> Result<cncsim::sweep::calibrate::CalibrationOutput, Refused> {
+    use cncsim::sweep::calibrate::{
+        calibrate, predict, Calibration, CalibrationOutput, CalibrationProgress,
+    };
+    let cal = Calibration::load(path)?;
+    let threads = threads(jobs)?;
+    let out = out.unwrap_or_else(|| {
+        Path::new("out").join(format!("calibration_{}", folder_name(&cal.name)))
+    });
+    eprintln!(
+        "calibration {}: {} parameters, {} targets, CMA-ES population {}, up to {} candidates on {threads} threads",
+        cal.name,
+        cal.parameters.len(),
+        cal.targets.len(),
+        cal.population,
+        cal.max_evaluations
+    );
+    let bar = progress_bar(Some("candidates"));
+    bar.set_length(cal.max_evaluations as u64 + 1);
+    let on_change = |p: &CalibrationProgress| {
+        bar.set_position(p.evaluations.load(Ordering::Relaxed) as u64 + 1);
+        if let Some(b) = *p.best.lock().expect("no panics while held") {
+            bar.set_message(format!("(best cost {b:.4})"));
+        }
+    };
+    let progress = CalibrationProgress::default();
+    let result = calibrate(&cal, &out, threads, interrupted, &progress, &on_change);
+    bar.finish_and_clear();
+    let result = result?;
+    let stopped = interrupted.load(Ordering::Relaxed);
+    let runs = match &result.best {
+        Some(best) if !stopped => {
+            eprintln!("running the scenarios with the best values …");
+            Some(predict(
+                &cal,
+                &best.values,
+                &out.join("predictions"),
+                threads,
+                interrupted,
+            ))
+        }
+        _ => None,
+    };
+    Ok(CalibrationOutput::new(
+        &cal, result, runs, &out, write, stopped,
+    ))
+}

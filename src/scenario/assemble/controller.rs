@@ -1,0 +1,224 @@
+//! The scenario's controller resolved on its machine: the chosen type's settings for every axis
+//! in the machine's axis order, the model of the machine it needs, and the compensation around
+//! it. Everything that can fail is checked here, once, when the scenario is assembled; a run
+//! then builds fresh instances from it without another check.
+
+use super::GRAVITY;
+use crate::control::{
+    ActuatorKind, AxisCompensation, Cascade, CascadeAxis, Compensated, ComputedTorque, Controller,
+    Pid, PidBank, PidForm, PidSettings, TaskSpace,
+};
+use crate::diagnostics::FileError;
+use crate::dynamics::DynamicsModel;
+use crate::kinematics::AcTableKinematics;
+use crate::machine::{Drive, Machine};
+use crate::scenario::{ControlSpace, ControllerType, InverseDynamicsSettings, Scenario};
+
+/// The control law with its settings per axis.
+#[derive(Debug, Clone)]
+enum Law {
+    Pid {
+        form: PidForm,
+        axes: Vec<PidSettings>,
+    },
+    Cascade {
+        axes: Vec<CascadeAxis>,
+        velocity_filter_hz: f64,
+        model: DynamicsModel,
+    },
+    ComputedTorque {
+        settings: InverseDynamicsSettings,
+        model: DynamicsModel,
+        /// Task space: the tool-tip kinematics of the A-C table.
+        task: Option<AcTableKinematics>,
+    },
+}
+
+/// Everything needed to build the scenario's controller for its machine.
+#[derive(Debug, Clone)]
+pub struct ControllerRecipe {
+    law: Law,
+    /// Reversal compensation per axis, where the scenario asks for any.
+    compensation: Option<Vec<AxisCompensation>>,
+    drives: Vec<Drive>,
+    actuator: ActuatorKind,
+    period: f64,
+}
+
+impl ControllerRecipe {
+    /// Resolves the scenario's `[controller]` and `[compensation]` on `machine`: every axis
+    /// must have settings of the chosen type (axis names were checked before).
+    pub(super) fn new(
+        s: &Scenario,
+        machine: &Machine,
+        actuator: ActuatorKind,
+    ) -> Result<Self, FileError> {
+        let Some(c) = &s.controller else {
+            return Err(FileError::new(
+                &s.path,
+                None,
+                "running a scenario needs a [controller] section",
+            ));
+        };
+        let period = s.timing.servo_period;
+        let missing = |what: &str, at, axis: &str| {
+            FileError::new(
+                &s.path,
+                at,
+                format!("{what} for axis '{axis}' of machine '{}'", machine.name),
+            )
+        };
+        let law = match c.kind {
+            ControllerType::Pid => Law::Pid {
+                form: c.pid.form,
+                axes: machine
+                    .axes
+                    .iter()
+                    .map(|a| {
+                        c.pid.axes.get(&a.name).map(|g| g.settings).ok_or_else(|| {
+                            missing("[controller.axes] has no gains", c.pid.at.or(c.at), &a.name)
+                        })
+                    })
+                    .collect::<Result<_, _>>()?,
+            },
+            ControllerType::Cascade => Law::Cascade {
+                axes: machine
+                    .axes
+                    .iter()
+                    .map(|a| {
+                        c.cascade
+                            .axes
+                            .get(&a.name)
+                            .map(|g| g.settings)
+                            .ok_or_else(|| {
+                                missing(
+                                    "[controller.cascade] has no loop settings",
+                                    c.cascade.at.or(c.at),
+                                    &a.name,
+                                )
+                            })
+                    })
+                    .collect::<Result<_, _>>()?,
+                velocity_filter_hz: c.cascade.velocity_filter_hz,
+                model: dynamics_model(s, machine, 1.0)?,
+            },
+            ControllerType::InverseDynamics => {
+                let settings = c.inverse_dynamics.ok_or_else(|| {
+                    FileError::new(
+                        &s.path,
+                        c.at,
+                        "type = \"inverse-dynamics\" needs natural_frequency_hz",
+                    )
+                })?;
+                let task = match settings.space {
+                    ControlSpace::Joint => None,
+                    ControlSpace::Task => Some(AcTableKinematics::new(machine).map_err(|e| {
+                        FileError::new(
+                            &s.path,
+                            c.at,
+                            format!("controller.space = \"task\" resolves the tool tip on a table-tilting A-C machine: {e}"),
+                        )
+                    })?),
+                };
+                Law::ComputedTorque {
+                    settings,
+                    model: dynamics_model(s, machine, settings.model_mass_scale)?,
+                    task,
+                }
+            }
+        };
+        let compensation = (!s.compensation.is_empty()).then(|| {
+            machine
+                .axes
+                .iter()
+                .map(|a| {
+                    s.compensation
+                        .get(&a.name)
+                        .map(|c| c.compensation)
+                        .unwrap_or_default()
+                })
+                .collect()
+        });
+        Ok(ControllerRecipe {
+            law,
+            compensation,
+            drives: machine.axes.iter().map(|a| a.drive.clone()).collect(),
+            actuator,
+            period,
+        })
+    }
+
+    /// A fresh controller (with its compensation), in the machine's axis order.
+    pub fn build(&self) -> Box<dyn Controller> {
+        let (drives, actuator, period) = (&self.drives, self.actuator, self.period);
+        let inner: Box<dyn Controller> =
+            match &self.law {
+                Law::Pid { form, axes } => Box::new(PidBank::new(
+                    axes.iter().map(|g| Pid::new(*g, *form, period)).collect(),
+                )),
+                Law::Cascade {
+                    axes,
+                    velocity_filter_hz,
+                    model,
+                } => Box::new(Cascade::new(
+                    axes.clone(),
+                    *velocity_filter_hz,
+                    model.clone(),
+                    drives,
+                    actuator,
+                    period,
+                )),
+                Law::ComputedTorque {
+                    settings,
+                    model,
+                    task,
+                } => {
+                    let controller = ComputedTorque::new(
+                        model.clone(),
+                        drives,
+                        actuator,
+                        period,
+                        settings.omega_n,
+                        settings.damping_ratio,
+                    );
+                    match task {
+                        None => Box::new(controller),
+                        Some(kinematics) => Box::new(controller.in_task_space(TaskSpace::new(
+                            kinematics.clone(),
+                            settings.task_damping,
+                        ))),
+                    }
+                }
+            };
+        match &self.compensation {
+            None => inner,
+            Some(per_axis) => Box::new(Compensated::new(inner, per_axis.clone(), period)),
+        }
+    }
+}
+
+/// The controller's model of the machine: the drives' reflected damping on the joints, the
+/// rotor inertia as armature, every link's mass scaled by `mass_scale` (robustness studies).
+fn dynamics_model(
+    s: &Scenario,
+    machine: &Machine,
+    mass_scale: f64,
+) -> Result<DynamicsModel, FileError> {
+    let mut model_machine = machine.clone();
+    for axis in &machine.axes {
+        model_machine.joints[axis.joint].damping += axis.drive.reflected_damping();
+    }
+    for link in &mut model_machine.links {
+        link.mass *= mass_scale;
+        link.inertia *= mass_scale;
+    }
+    DynamicsModel::from_machine(&model_machine, nalgebra::Vector3::from(GRAVITY))
+        .and_then(|m| m.with_drive_armature(&model_machine))
+        .map_err(|e| {
+            FileError::new(
+                &s.machine,
+                None,
+                format!("the controller's model of the machine: {e}"),
+            )
+        })
+}

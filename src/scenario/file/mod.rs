@@ -1,0 +1,243 @@
+//! The scenario file format (TOML). Unknown keys are rejected; every value that can be wrong
+//! is checked and reported with the file, line and column it came from. Each section is its
+//! own type, built and checked from its raw form in its own module (`TryFrom`); [`Scenario::parse`]
+//! puts them together. Numbers must lie in the ranges of [`limits`], which keep a run
+//! physically meaningful and its work bounded. What depends on the machine (axis names, axis
+//! kinds, metric names) is checked when the scenario is assembled on it.
+
+mod actuation;
+mod checks;
+mod controller;
+pub mod limits;
+mod outputs;
+mod planner;
+mod program;
+mod source;
+mod timing;
+
+pub use actuation::{ActuatorSettings, CompensationEntry, FeedbackSettings, Mechanics};
+pub use checks::{DeclaredVariants, Expectation};
+pub use controller::{
+    AxisCascade, AxisGains, CascadeTable, ControlSpace, ControllerSettings, ControllerType,
+    InverseDynamicsSettings, PidTable,
+};
+pub use outputs::{AnalyticSettings, RecordingSettings};
+pub use planner::{PlannerSettings, ProfileName};
+pub use program::{Approach, ProgramSettings, ProgramSource};
+pub use timing::Timing;
+
+use crate::diagnostics::{read_text, toml_error, FileError, LineColumn};
+use serde::Deserialize;
+use source::Source;
+use std::collections::BTreeMap;
+use std::path::{Path, PathBuf};
+use toml::Spanned;
+
+#[derive(Deserialize)]
+#[serde(deny_unknown_fields)]
+struct RawScenario {
+    name: Option<String>,
+    #[serde(default)]
+    description: String,
+    machine: Spanned<String>,
+    program: program::RawProgram,
+    #[serde(default)]
+    planner: planner::RawPlanner,
+    timing: timing::RawTiming,
+    /// Needed to run; a scenario used only for `cncsim plan` may leave these out.
+    actuator: Option<actuation::RawActuator>,
+    controller: Option<controller::RawController>,
+    #[serde(default)]
+    feedback: actuation::RawFeedback,
+    #[serde(default)]
+    mechanics: Mechanics,
+    #[serde(default)]
+    recording: outputs::RawRecording,
+    /// Backlash and friction compensation per axis.
+    #[serde(default)]
+    compensation: BTreeMap<String, Spanned<actuation::RawCompensation>>,
+    /// Run the analytic reference model beside the physics.
+    analytic: Option<outputs::RawAnalytic>,
+    #[serde(default)]
+    expect: BTreeMap<String, Spanned<toml::Value>>,
+    /// The variants `cncsim ab FILE` runs when no --a/--b overrides are given.
+    ab: Option<Spanned<checks::RawAb>>,
+}
+
+/// A validated scenario: plain data, SI units, paths resolved against the scenario's folder.
+/// Each field is one section of the file.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Scenario {
+    pub name: String,
+    pub path: PathBuf,
+    pub description: String,
+    /// The machine's URDF (its drive file beside it).
+    pub machine: PathBuf,
+    pub machine_at: Option<LineColumn>,
+    pub program: ProgramSettings,
+    pub planner: PlannerSettings,
+    pub timing: Timing,
+    /// `None`: the scenario has no `[actuator]` (it can be planned, not run).
+    pub actuator: Option<ActuatorSettings>,
+    /// `None`: the scenario has no `[controller]` (it can be planned, not run).
+    pub controller: Option<ControllerSettings>,
+    pub feedback: FeedbackSettings,
+    pub mechanics: Mechanics,
+    /// Backlash and friction compensation per axis.
+    pub compensation: BTreeMap<String, CompensationEntry>,
+    pub recording: RecordingSettings,
+    /// The analytic reference model beside the physics; `None` = not run.
+    pub analytic: Option<AnalyticSettings>,
+    pub expect: Vec<Expectation>,
+    /// `[ab]`: the variants `cncsim ab` runs on this file alone.
+    pub ab: Option<DeclaredVariants>,
+    /// Values that are legal but look wrong, located in the file.
+    pub warnings: Vec<FileError>,
+}
+
+impl Scenario {
+    pub fn load(path: &Path) -> Result<Scenario, FileError> {
+        let extension = path.extension().and_then(|e| e.to_str()).unwrap_or("");
+        if ["urdf", "xacro"].contains(&extension.to_ascii_lowercase().as_str()) {
+            return Err(FileError::new(
+                path,
+                None,
+                format!(
+                    "this is a machine model, not a scenario: a run needs a scenario file (.toml) naming the machine, the program and the controller (see scenarios/). For a machine of your own, `cncsim machine check {}` shows how cncsim reads it and `cncsim machine init {}` writes its drive file",
+                    path.display(),
+                    path.display()
+                ),
+            ));
+        }
+        let text = read_text(path, "scenario")?;
+        Self::parse(path, &text)
+    }
+
+    pub fn parse(path: &Path, text: &str) -> Result<Scenario, FileError> {
+        let raw: RawScenario = toml::from_str(text).map_err(|e| toml_error(path, text, &e))?;
+        let file = Source::new(path, text);
+        // The machine must exist (its contents are checked when it is loaded).
+        let machine = file.resolve(raw.machine.get_ref());
+        if !machine.is_file() {
+            return Err(file.error(
+                raw.machine.span(),
+                format!(
+                    "machine model '{}' not found (looked for {})",
+                    raw.machine.get_ref(),
+                    machine.display()
+                ),
+            ));
+        }
+        let actuator = match &raw.actuator {
+            Some(a) => Some(ActuatorSettings::try_from(file.section(a))?),
+            None => None,
+        };
+        let program = ProgramSettings::try_from(file.section(&raw.program))?;
+        let timing = Timing::try_from(file.section(&raw.timing))?;
+        let controller = match &raw.controller {
+            Some(c) => Some(ControllerSettings::try_from(file.section(c))?),
+            None => None,
+        };
+        let mut compensation = BTreeMap::new();
+        for (axis, entry) in &raw.compensation {
+            let entry = actuation::AxisEntry { axis, entry };
+            compensation.insert(
+                axis.clone(),
+                CompensationEntry::try_from(file.section(entry))?,
+            );
+        }
+        let feedback = FeedbackSettings::try_from(file.section(&raw.feedback))?;
+        let recording = RecordingSettings::try_from(file.section(&raw.recording))?;
+        let planner = PlannerSettings::try_from(file.section(&raw.planner))?;
+        let analytic = match &raw.analytic {
+            Some(a) => AnalyticSettings::from_raw(file.section(a))?,
+            None => None,
+        };
+        let ab = match &raw.ab {
+            Some(table) => Some(DeclaredVariants::try_from(file.section(table))?),
+            None => None,
+        };
+        let expect = checks::Expectations::try_from(file.section(&raw.expect))?.0;
+        let machine_at = file.at(raw.machine.span().start);
+        Ok(Scenario {
+            name: raw.name.unwrap_or_else(|| {
+                path.file_stem()
+                    .map_or("scenario".into(), |s| s.to_string_lossy().into_owned())
+            }),
+            path: path.to_path_buf(),
+            description: raw.description,
+            machine,
+            machine_at,
+            program,
+            planner,
+            timing,
+            actuator,
+            controller,
+            feedback,
+            mechanics: raw.mechanics,
+            compensation,
+            recording,
+            analytic,
+            expect,
+            ab,
+            warnings: file.into_warnings(),
+        })
+    }
+
+    /// The untraced approach to the program's first point, where one is asked for: from where
+    /// (m), at what speed (m/s; the planner's rapid speed unless given).
+    pub fn approach(&self) -> Option<Approach> {
+        self.program.approach_from.map(|from| Approach {
+            from,
+            speed: self
+                .program
+                .approach_speed
+                .unwrap_or(self.planner.rapid_speed),
+        })
+    }
+
+    /// The controller type that runs, if any.
+    pub fn controller_type(&self) -> Option<ControllerType> {
+        self.controller.as_ref().map(|c| c.kind)
+    }
+}
+
+impl Scenario {
+    /// Moves every recorded file position through `f` (`None`: the place no longer exists in
+    /// the file, e.g. a line an override wrote).
+    pub(crate) fn map_positions(&mut self, f: &dyn Fn(LineColumn) -> Option<LineColumn>) {
+        let map = |at: &mut Option<LineColumn>| *at = at.and_then(f);
+        map(&mut self.machine_at);
+        map(&mut self.planner.at);
+        map(&mut self.program.at);
+        for w in &mut self.warnings {
+            map(&mut w.at);
+        }
+        for (_, at) in self.planner.limits.values_mut() {
+            map(at);
+        }
+        if let Some(c) = &mut self.controller {
+            map(&mut c.at);
+            map(&mut c.pid.at);
+            map(&mut c.cascade.at);
+            for g in c.pid.axes.values_mut() {
+                map(&mut g.at);
+            }
+            for a in c.cascade.axes.values_mut() {
+                map(&mut a.at);
+            }
+        }
+        for c in self.compensation.values_mut() {
+            map(&mut c.at);
+        }
+        for (_, at) in self.feedback.encoder_counts_per_rev.values_mut() {
+            map(at);
+        }
+        for e in &mut self.expect {
+            map(&mut e.at);
+        }
+        if let Some(ab) = &mut self.ab {
+            map(&mut ab.at);
+        }
+    }
+}

@@ -1,0 +1,311 @@
+//! `[program]`: where the part program comes from (a file, or a built-in circle or polyline),
+//! how the file is read, where program zero is, and how the machine reaches the first point.
+
+use super::limits;
+use super::source::{InFile, Num};
+use crate::diagnostics::{check_range, FileError, LineColumn};
+use crate::program::{
+    parse_tool_table, CircleSpec, FeedRule, LengthUnit, PolylineSpec, ReadOptions,
+};
+use serde::Deserialize;
+use std::path::PathBuf;
+use toml::Spanned;
+
+#[derive(Deserialize)]
+#[serde(deny_unknown_fields)]
+pub(super) struct RawProgram {
+    file: Option<Spanned<String>>,
+    circle: Option<Spanned<RawCircle>>,
+    polyline: Option<Spanned<RawPolyline>>,
+    /// Path speed of the built-in paths (mm/s).
+    feed_mm_s: Option<Num>,
+    /// How a program file's feed applies to moves with rotary axes.
+    #[serde(default)]
+    feed_rule: RawFeedRule,
+    /// HPGL: pen heights (mm), lenient decoding of damaged files, pen-up travel optimisation.
+    pen_up_z_mm: Option<f64>,
+    pen_down_z_mm: Option<f64>,
+    #[serde(default)]
+    lenient: bool,
+    #[serde(default)]
+    optimise_pen_up: bool,
+    /// Where the machine is before the program: it reaches the program's first point by an
+    /// untraced straight move from here (mm), as a real machine comes from home.
+    approach_from_mm: Option<Spanned<[f64; 3]>>,
+    /// Speed of that move (mm/s); default: the planner's rapid speed.
+    approach_feed_mm_s: Option<Num>,
+    /// Program zero, as G54 sets it: its machine coordinates along X, Y, Z (mm); default:
+    /// where the tool is with every axis at its home.
+    work_offset_mm: Option<Spanned<[f64; 3]>>,
+    /// G-code: a LinuxCNC tool table file (lengths in mm) and the G28/G30 positions (mm).
+    tool_table: Option<Spanned<String>>,
+    g28_home_mm: Option<[f64; 3]>,
+    g30_home_mm: Option<[f64; 3]>,
+}
+
+#[derive(Deserialize, Default, Clone, Copy)]
+#[serde(rename_all = "kebab-case")]
+enum RawFeedRule {
+    #[default]
+    Linuxcnc,
+    EuclideanAllAxes,
+}
+
+#[derive(Deserialize)]
+#[serde(deny_unknown_fields)]
+struct RawCircle {
+    center_mm: [f64; 2],
+    radius_mm: f64,
+    #[serde(default)]
+    start_angle_deg: f64,
+    #[serde(default)]
+    direction: Direction,
+    #[serde(default)]
+    z_mm: f64,
+}
+
+#[derive(Deserialize, Default, Clone, Copy)]
+#[serde(rename_all = "lowercase")]
+enum Direction {
+    #[default]
+    Ccw,
+    Cw,
+}
+
+#[derive(Deserialize)]
+#[serde(deny_unknown_fields)]
+struct RawPolyline {
+    points_mm: Vec<[f64; 3]>,
+}
+
+/// Where the program comes from.
+#[derive(Debug, Clone, PartialEq)]
+pub enum ProgramSource {
+    Circle(CircleSpec),
+    Polyline(PolylineSpec),
+    /// The reader settings are boxed: with the G-code tool table they outweigh the others.
+    File {
+        path: PathBuf,
+        options: Box<ReadOptions>,
+    },
+}
+
+/// The machine's way to the program: a straight move from `from` at `speed`, run before the
+/// settle and not traced, identically in the physics and the analytic model.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Approach {
+    /// Start point in program coordinates (m).
+    pub from: [f64; 3],
+    /// Path speed (m/s).
+    pub speed: f64,
+}
+
+/// The `[program]` section, SI units.
+#[derive(Debug, Clone, PartialEq)]
+pub struct ProgramSettings {
+    pub source: ProgramSource,
+    /// Start of the untraced approach to the first point (m), where one is asked for.
+    pub approach_from: Option<[f64; 3]>,
+    /// Its speed (m/s); `None`: the planner's rapid speed.
+    pub approach_speed: Option<f64>,
+    /// Machine coordinates of program zero along X, Y, Z (m): the work offset (G54).
+    pub work_offset: [f64; 3],
+    /// Where the `[program]` table is.
+    pub at: Option<LineColumn>,
+}
+
+impl TryFrom<InFile<'_, &RawProgram>> for ProgramSettings {
+    type Error = FileError;
+
+    fn try_from(InFile { raw: p, file }: InFile<'_, &RawProgram>) -> Result<Self, FileError> {
+        let count = p.file.is_some() as u8 + p.circle.is_some() as u8 + p.polyline.is_some() as u8;
+        let at = file.table("[program]");
+        if count != 1 {
+            return Err(file.error_at(
+                at,
+                format!(
+                    "[program] needs exactly one of `file`, `circle` or `polyline`, found {count}"
+                ),
+            ));
+        }
+        let feed = || -> Result<f64, FileError> {
+            match &p.feed_mm_s {
+                Some(v) => Ok(file.ranged(v, "feed_mm_s", "mm/s", limits::SPEED_MM_S)? * 1e-3),
+                None => {
+                    Err(file.error_at(at, "[program] feed_mm_s is required for a built-in path"))
+                }
+            }
+        };
+        let c_mm = limits::COORDINATE_MM;
+        let source = if let Some(f) = &p.file {
+            if let Some(feed) = &p.feed_mm_s {
+                return Err(file.error(
+                    feed.span(),
+                    "feed_mm_s applies to built-in paths; a program file programs its own feed",
+                ));
+            }
+            let path = file.resolve(f.get_ref());
+            if !path.is_file() {
+                return Err(file.error(
+                    f.span(),
+                    format!(
+                        "program file '{}' not found (looked for {})",
+                        f.get_ref(),
+                        path.display()
+                    ),
+                ));
+            }
+            let mut options = ReadOptions {
+                feed_rule: match p.feed_rule {
+                    RawFeedRule::Linuxcnc => FeedRule::LinuxCnc,
+                    RawFeedRule::EuclideanAllAxes => FeedRule::EuclideanAllAxes,
+                },
+                ..ReadOptions::default()
+            };
+            for (value, target) in [
+                (p.pen_up_z_mm, &mut options.hpgl.pen_up_z),
+                (p.pen_down_z_mm, &mut options.hpgl.pen_down_z),
+            ] {
+                if let Some(v) = value {
+                    check_range("pen height", v, "mm", -c_mm, c_mm)
+                        .map_err(|m| file.error_at(at, m))?;
+                    *target = v * 1e-3;
+                }
+            }
+            options.hpgl.lenient = p.lenient;
+            options.hpgl.optimise_pen_up = p.optimise_pen_up;
+            if let Some(table) = &p.tool_table {
+                let table_path = file.resolve(table.get_ref());
+                let text = std::fs::read_to_string(&table_path).map_err(|error| {
+                    file.error(
+                        table.span(),
+                        format!("tool table '{}': {error}", table_path.display()),
+                    )
+                })?;
+                options.gcode.tools = parse_tool_table(&text, &table_path, LengthUnit::Millimetre)
+                    .map_err(|errors| file.error(table.span(), errors.to_string()))?;
+            }
+            for (value, target, key) in [
+                (p.g28_home_mm, &mut options.gcode.g28_home, "g28_home_mm"),
+                (p.g30_home_mm, &mut options.gcode.g30_home, "g30_home_mm"),
+            ] {
+                if let Some(home) = value {
+                    if !home.iter().all(|v| v.is_finite()) {
+                        return Err(file.error_at(at, format!("{key}: expected finite numbers")));
+                    }
+                    target.linear = home.map(|v| v * 1e-3);
+                }
+            }
+            ProgramSource::File {
+                path,
+                options: Box::new(options),
+            }
+        } else if let Some(c) = &p.circle {
+            let v = c.get_ref();
+            let nums = [
+                v.center_mm[0],
+                v.center_mm[1],
+                v.radius_mm,
+                v.start_angle_deg,
+                v.z_mm,
+            ];
+            let in_reach = nums.iter().all(|x| x.is_finite() && x.abs() <= c_mm);
+            if !in_reach || v.radius_mm <= 0.0 {
+                return Err(file.error(
+                    c.span(),
+                    format!("circle: expected numbers within ±{c_mm:?} mm and radius_mm > 0, found center_mm = {:?}, radius_mm = {:?}, start_angle_deg = {:?}, z_mm = {:?}", v.center_mm, v.radius_mm, v.start_angle_deg, v.z_mm),
+                ));
+            }
+            ProgramSource::Circle(CircleSpec {
+                center: [v.center_mm[0] * 1e-3, v.center_mm[1] * 1e-3],
+                radius: v.radius_mm * 1e-3,
+                start_angle: v.start_angle_deg.to_radians(),
+                clockwise: matches!(v.direction, Direction::Cw),
+                z: v.z_mm * 1e-3,
+                speed: feed()?,
+            })
+        } else {
+            let pl = p.polyline.as_ref().expect("counted above");
+            let pts = &pl.get_ref().points_mm;
+            if pts.len() < 2
+                || !pts
+                    .iter()
+                    .flatten()
+                    .all(|x| x.is_finite() && x.abs() <= c_mm)
+            {
+                return Err(file.error(
+                    pl.span(),
+                    format!(
+                        "polyline: expected at least 2 points with coordinates within ±{c_mm:?} mm, found {} points",
+                        pts.len()
+                    ),
+                ));
+            }
+            ProgramSource::Polyline(PolylineSpec {
+                points: pts.iter().map(|p| p.map(|v| v * 1e-3)).collect(),
+                speed: feed()?,
+            })
+        };
+
+        // A point of the program in mm, within the coordinate limit, to metres.
+        let point_mm = |v: &Spanned<[f64; 3]>, key: &str| {
+            let p = v.get_ref();
+            if p.iter().all(|x| x.is_finite() && x.abs() <= c_mm) {
+                Ok(p.map(|x| x * 1e-3))
+            } else {
+                Err(file.error(
+                    v.span(),
+                    format!("{key} = {p:?}: expected coordinates within ±{c_mm:?} mm"),
+                ))
+            }
+        };
+        let (approach_from, approach_speed) = match &p.approach_from_mm {
+            None => {
+                if let Some(f) = &p.approach_feed_mm_s {
+                    return Err(
+                        file.error(f.span(), "approach_feed_mm_s applies with approach_from_mm")
+                    );
+                }
+                (None, None)
+            }
+            Some(from) => {
+                let from = point_mm(from, "approach_from_mm")?;
+                let speed = file.ranged_opt(
+                    p.approach_feed_mm_s.as_ref(),
+                    "approach_feed_mm_s",
+                    "mm/s",
+                    limits::SPEED_MM_S,
+                )?;
+                (Some(from), speed.map(|v| v * 1e-3))
+            }
+        };
+        let work_offset = match &p.work_offset_mm {
+            None => [0.0; 3],
+            Some(offset) => point_mm(offset, "work_offset_mm")?,
+        };
+        if let Some(v) = &p.feed_mm_s {
+            warn_if_fast(file, "feed_mm_s", v);
+        }
+        Ok(ProgramSettings {
+            source,
+            approach_from,
+            approach_speed,
+            work_offset,
+            at,
+        })
+    }
+}
+
+/// A speed above what few machines reach loads with a warning at its place.
+pub(super) fn warn_if_fast(file: &super::source::Source<'_>, key: &str, v: &Num) {
+    if *v.get_ref() > limits::SUSPECT_SPEED_MM_S {
+        file.warn(file.error(
+            v.span(),
+            format!(
+                "{key} = {:?} mm/s is more than {:?} mm/s: few machines move that fast",
+                v.get_ref(),
+                limits::SUSPECT_SPEED_MM_S
+            ),
+        ));
+    }
+}
