@@ -73,7 +73,7 @@ fn x_error(dir: &Path, overrides: &[&str]) -> (f64, f64) {
     let s = scenario(dir, overrides);
     let run = Assembly::new(&s)
         .unwrap()
-        .run(RunOptions::write_to(&dir.join("out")).traced())
+        .run(RunOptions::write_to(dir.join("out")).traced())
         .unwrap();
     assert!(run.stop.is_none(), "{overrides:?}: {:?}", run.stop);
     let analytic = run.analytic.as_ref().expect("analytic lane");
@@ -154,7 +154,7 @@ fn lost_motion(dir: &Path, overrides: &[&str]) -> f64 {
     let s = scenario(dir, &all);
     let run = Assembly::new(&s)
         .unwrap()
-        .run(RunOptions::write_to(&dir.join("out")).traced())
+        .run(RunOptions::write_to(dir.join("out")).traced())
         .unwrap();
     let t = run.trace.as_ref().unwrap();
     // Error of the carriage in the middle of each leg (cruising, settled).

@@ -588,7 +588,7 @@ fn a_workpiece_on_a_fixture_fixed_to_the_base_is_measured_in_its_own_frame() {
     let setup = report_setup(&assembly);
     let run = Assembly::new(&scenario)
         .unwrap()
-        .run(RunOptions::write_to(&dir.path().join("out")).traced())
+        .run(RunOptions::write_to(dir.path().join("out")).traced())
         .unwrap();
     let axes = [0, 1, 2].map(|c| assembly.machine.axis_index(["x", "y", "z"][c]).unwrap());
     let worst = contour_within_following_error(run.trace.as_ref().unwrap(), &setup, &axes);

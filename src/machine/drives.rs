@@ -562,8 +562,8 @@ impl DrivesFile {
     }
 
     /// Checks the drives against the URDF and builds the machine: joints no axis drives are
-    /// locked, passive or follow their `<mimic>` leader ([`super::joints`]), missing masses are
-    /// computed or refused ([`super::inertia`]), then every axis is checked against its joint.
+    /// locked, passive or follow their `<mimic>` leader (`machine::joints`), missing masses are
+    /// computed or refused (`machine::inertia`), then every axis is checked against its joint.
     pub fn attach(self, tree: KinematicTree, path: &Path) -> Result<Machine, FileError> {
         let text = &self.text;
         let at = |key: &str| LineColumn::of_first(text, key);

@@ -1,6 +1,6 @@
 //! The jerk-limited look-ahead planner: a machine-axis path in, a timed trajectory out.
 //!
-//! 1. Geometry ([`super::pieces`]): the path becomes chains of pieces between stops: segment
+//! 1. Geometry (`plan::pieces`): the path becomes chains of pieces between stops: segment
 //!    middles, corner blends between lines within the tolerance, tangent blends where a line or
 //!    an arc continues another. Each piece has limits on the path coordinate `s` (ṡ, s̈, s⃛)
 //!    under which every axis keeps its own limits, and the geometry is curvature-continuous

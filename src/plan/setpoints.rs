@@ -6,7 +6,7 @@
 /// a tiny feed or limit cannot make a run take forever or exhaust memory.
 pub const MAX_SETPOINT_SAMPLES: usize = 100_000_000;
 
-/// Number of samples of a motion lasting `duration` at `period` ([`sample_times`]), or `Err`
+/// Number of samples of a motion lasting `duration` at `period` (`sample_times`), or `Err`
 /// with the number it would need (as a float: it may exceed any integer) when that is more
 /// than [`MAX_SETPOINT_SAMPLES`].
 pub fn sample_count(duration: f64, period: f64) -> Result<usize, f64> {
@@ -37,7 +37,7 @@ pub(super) fn sample_times(duration: f64, period: f64) -> impl Iterator<Item = f
     (0..=ticks).map(move |k| sample_time(k, ticks, duration, period))
 }
 
-/// Time of sample `k` of `ticks + 1` ([`sample_times`]).
+/// Time of sample `k` of `ticks + 1` (`sample_times`).
 pub(super) fn sample_time(k: usize, ticks: usize, duration: f64, period: f64) -> f64 {
     if k == ticks {
         (k as f64 * period).max(duration)

@@ -44,7 +44,7 @@
 //!
 //! Fixed steps (the servo period over `steps_per_period`), restarted at every event. A mode
 //! whose equations are linear (voltage-mode amplifier or ideal torque, friction without a
-//! Stribeck drop) is solved exactly by its matrix exponential ([`exact`]); a mode that cannot
+//! Stribeck drop) is solved exactly by its matrix exponential (`analytic::exact`); a mode that cannot
 //! end (one rigid body, no Coulomb friction) in one step over the whole hold. The other modes
 //! (current-mode amplifier, sliding on a Stribeck curve) are integrated by classical RK4. The
 //! mean motor torque over a hold interval is the integral of the current (a quadrature state),

@@ -208,7 +208,7 @@ struct LaneState {
 }
 
 /// Runs the lanes on the setpoint stream in lockstep. `progress(done, total)` is called every
-/// [`PROGRESS_EVERY`] ticks (settle included); when it returns `false` the run stops there as
+/// `PROGRESS_EVERY` ticks (settle included); when it returns `false` the run stops there as
 /// interrupted, keeping everything observed so far.
 pub fn run(
     settings: &LoopSettings,

@@ -2,7 +2,7 @@
 //! run on all cores (and, as shards, on any engine that can start a process: see
 //! `tools/ray_sweep.py`), collected into one table with a summary and plots.
 //!
-//! - [`file`]: the sweep file and the runs it stands for.
+//! - [`mod@file`]: the sweep file and the runs it stands for.
 //! - [`runner`]: the runs in parallel (rayon), deterministic, planning once per distinct
 //!   setpoint stream; a failed run is a row with its error.
 //! - [`results`]: rows → `results.csv`, `results.json`, `summary.md`, plots; and `merge` of

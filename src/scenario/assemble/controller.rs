@@ -29,8 +29,9 @@ enum Law {
     ComputedTorque {
         settings: InverseDynamicsSettings,
         model: DynamicsModel,
-        /// Task space: the tool-tip kinematics of the A-C table.
-        task: Option<AcTableKinematics>,
+        /// Task space: the tool-tip kinematics of the A-C table (boxed: the other laws are
+        /// much smaller).
+        task: Option<Box<AcTableKinematics>>,
     },
 }
 
@@ -112,13 +113,13 @@ impl ControllerRecipe {
                 })?;
                 let task = match settings.space {
                     ControlSpace::Joint => None,
-                    ControlSpace::Task => Some(AcTableKinematics::new(machine).map_err(|e| {
+                    ControlSpace::Task => Some(Box::new(AcTableKinematics::new(machine).map_err(|e| {
                         FileError::new(
                             &s.path,
                             c.at,
                             format!("controller.space = \"task\" resolves the tool tip on a table-tilting A-C machine: {e}"),
                         )
-                    })?),
+                    })?)),
                 };
                 Law::ComputedTorque {
                     settings,
@@ -151,45 +152,44 @@ impl ControllerRecipe {
     /// A fresh controller (with its compensation), in the machine's axis order.
     pub fn build(&self) -> Box<dyn Controller> {
         let (drives, actuator, period) = (&self.drives, self.actuator, self.period);
-        let inner: Box<dyn Controller> =
-            match &self.law {
-                Law::Pid { form, axes } => Box::new(PidBank::new(
-                    axes.iter().map(|g| Pid::new(*g, *form, period)).collect(),
-                )),
-                Law::Cascade {
-                    axes,
-                    velocity_filter_hz,
-                    model,
-                } => Box::new(Cascade::new(
-                    axes.clone(),
-                    *velocity_filter_hz,
+        let inner: Box<dyn Controller> = match &self.law {
+            Law::Pid { form, axes } => Box::new(PidBank::new(
+                axes.iter().map(|g| Pid::new(*g, *form, period)).collect(),
+            )),
+            Law::Cascade {
+                axes,
+                velocity_filter_hz,
+                model,
+            } => Box::new(Cascade::new(
+                axes.clone(),
+                *velocity_filter_hz,
+                model.clone(),
+                drives,
+                actuator,
+                period,
+            )),
+            Law::ComputedTorque {
+                settings,
+                model,
+                task,
+            } => {
+                let controller = ComputedTorque::new(
                     model.clone(),
                     drives,
                     actuator,
                     period,
-                )),
-                Law::ComputedTorque {
-                    settings,
-                    model,
-                    task,
-                } => {
-                    let controller = ComputedTorque::new(
-                        model.clone(),
-                        drives,
-                        actuator,
-                        period,
-                        settings.omega_n,
-                        settings.damping_ratio,
-                    );
-                    match task {
-                        None => Box::new(controller),
-                        Some(kinematics) => Box::new(controller.in_task_space(TaskSpace::new(
-                            kinematics.clone(),
-                            settings.task_damping,
-                        ))),
-                    }
+                    settings.omega_n,
+                    settings.damping_ratio,
+                );
+                match task {
+                    None => Box::new(controller),
+                    Some(kinematics) => Box::new(controller.in_task_space(TaskSpace::new(
+                        (**kinematics).clone(),
+                        settings.task_damping,
+                    ))),
                 }
-            };
+            }
+        };
         match &self.compensation {
             None => inner,
             Some(per_axis) => Box::new(Compensated::new(inner, per_axis.clone(), period)),
