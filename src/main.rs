@@ -66,6 +66,15 @@ fn main() -> ExitCode {
             write,
         }) => calibrate_cli(&spec, jobs, out, write),
         Some(Command::Check { scenarios, out }) => check_all(&scenarios, out),
+        Some(Command::Ballbar {
+            scenario,
+            radius_mm,
+            feed_mm_min,
+            plane,
+            center_mm,
+            json,
+            out,
+        }) => ballbar_cli(&scenario, radius_mm, feed_mm_min, plane, center_mm, json, out),
         Some(Command::Plan {
             scenario,
             profile,
@@ -217,6 +226,65 @@ fn run_one(path: &Path, out: Option<PathBuf>) -> ExitCode {
         }
         Err(e) => fail_input(&e),
     }
+}
+
+/// `cncsim ballbar`: checks the numbers, runs the tests, prints the report.
+fn ballbar_cli(
+    path: &Path,
+    radius_mm: Vec<f64>,
+    feed_mm_min: Vec<f64>,
+    plane: cncsim::scenario::BallbarPlane,
+    center_mm: Option<Vec<f64>>,
+    json: bool,
+    out: Option<PathBuf>,
+) -> ExitCode {
+    let scenario = match Scenario::load(path) {
+        Ok(s) => s,
+        Err(e) => return fail_input(&e),
+    };
+    print_warnings(&scenario.warnings);
+    let (radius, feed) = cncsim::scenario::default_radius_and_feed(&scenario);
+    let positive = |flag: &str, values: &[f64]| match values.iter().find(|v| !(v.is_finite() && **v > 0.0)) {
+        Some(v) => Err(format!("{flag} {v}: must be a positive number")),
+        None => Ok(()),
+    };
+    if let Err(e) = positive("--radius-mm", &radius_mm).and(positive("--feed-mm-min", &feed_mm_min)) {
+        return fail_input(&e);
+    }
+    let centre = match center_mm.as_deref() {
+        None => None,
+        Some(&[x, y, z]) if [x, y, z].iter().all(|v| v.is_finite()) => Some([x * 1e-3, y * 1e-3, z * 1e-3]),
+        Some(v) => return fail_input(&format!("--center-mm takes 3 finite values (x,y,z in mm), got {v:?}")),
+    };
+    let options = cncsim::scenario::BallbarOptions {
+        radii: if radius_mm.is_empty() { vec![radius] } else { radius_mm.iter().map(|r| r * 1e-3).collect() },
+        feeds: if feed_mm_min.is_empty() { vec![feed] } else { feed_mm_min.iter().map(|f| f / 60e3).collect() },
+        plane: plane.into(),
+        centre,
+    };
+    let out = out.unwrap_or_else(|| Path::new("out").join(folder_name(&format!("ballbar_{}", scenario.name))));
+    let mut progress = |_: usize, _: usize| !INTERRUPTED.load(Ordering::Relaxed);
+    let report = match cncsim::scenario::run_ballbar(&scenario, &options, &out, &mut progress) {
+        Ok(r) => r,
+        Err(e) => return fail_input(&e),
+    };
+    if json {
+        print!("{}", report.json());
+    } else {
+        print!("{}", report.text());
+        for run in &report.runs {
+            for f in run.files.iter().filter(|f| f.extension().is_some_and(|e| e == "png")) {
+                println!("  wrote {}", f.display());
+            }
+        }
+        println!("  wrote {}", out.join("ballbar.json").display());
+        println!("  wrote {}", out.join("ballbar.rrd").display());
+    }
+    if report.runs.iter().any(|r| !r.completed) {
+        eprintln!("error: {}: a ballbar run stopped early (its figures are of what ran)", path.display());
+        return ExitCode::from(1);
+    }
+    ExitCode::SUCCESS
 }
 
 fn plan_one(

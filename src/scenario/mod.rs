@@ -3,6 +3,7 @@
 
 mod ab;
 mod assemble;
+mod ballbar;
 mod check;
 mod file;
 mod machine_setup;
@@ -15,6 +16,10 @@ pub use ab::{run_ab, AbReport, AbRow};
 pub use assemble::{
     axis_map_for, keep_mechanics, load_checked_program, machine_for, plan_for, plan_key,
     plan_settings, with_choices, Assembly, PlantKind, ProgramOverview, RunError, GRAVITY,
+};
+pub use ballbar::{
+    ballbar_centre, ballbar_passes, ballbar_program, default_radius_and_feed, plane_axes, run_ballbar,
+    BallbarOptions, BallbarPlane,
 };
 pub use check::{check, Breach, Verdict};
 pub use file::{
