@@ -22,8 +22,8 @@ const BACKLASH_WINDOW_DEG: (f64, f64) = (15.0, 40.0);
 /// Where a reversal spike is looked for (degrees after the reversal), and the levels it stands
 /// out from: the trace before the reversal and after the spike window.
 const SPIKE_WINDOW_DEG: f64 = 20.0;
-const SPIKE_BEFORE_DEG: (f64, f64) = (-20.0, -3.0);
-const SPIKE_AFTER_DEG: (f64, f64) = (20.0, 35.0);
+const SPIKE_BEFORE_DEG: (f64, f64) = (-40.0, -3.0);
+const SPIKE_AFTER_DEG: (f64, f64) = (20.0, 40.0);
 /// Below this (m) a spike, an ellipse or a vibration is not resolved: round-off and the
 /// trace's own numerical noise on a machine that follows its circle to the nanometre.
 const RESOLUTION: f64 = 1e-9;
@@ -153,6 +153,9 @@ pub struct BallbarRun {
     /// Lost motion per plane axis: the outward step of the radial deviation across the axis's
     /// reversals, averaged over its four reversals (µm).
     pub backlash_um: BTreeMap<String, f64>,
+    /// Largest RMS residual of the step fits per axis (µm): where it is not small against
+    /// the backlash, the trace shows no clean lost-motion step (hunting, stick-slip).
+    pub backlash_fit_residual_um: BTreeMap<String, f64>,
     pub reversal_spikes: Vec<ReversalSpike>,
     pub servo_mismatch: ServoMismatch,
     /// Stick-slip stalls per plane axis over the test.
@@ -433,38 +436,6 @@ fn hysteresis(input: &BallbarInput) -> f64 {
         .fold(0.0, f64::max)
 }
 
-/// Straight-line fit (value at 0, slope) of (x, y) pairs.
-fn line_fit(points: &[(f64, f64)]) -> Option<(f64, f64)> {
-    let n = points.len() as f64;
-    if points.len() < 2 {
-        return None;
-    }
-    let (mx, my) = points
-        .iter()
-        .fold((0.0, 0.0), |(a, b), p| (a + p.0 / n, b + p.1 / n));
-    let (sxx, sxy) = points.iter().fold((0.0, 0.0), |(a, b), p| {
-        (a + (p.0 - mx).powi(2), b + (p.0 - mx) * (p.1 - my))
-    });
-    if sxx <= 0.0 {
-        return None;
-    }
-    let slope = sxy / sxx;
-    Some((my - slope * mx, slope))
-}
-
-fn median(mut v: Vec<f64>) -> Option<f64> {
-    if v.is_empty() {
-        return None;
-    }
-    v.sort_by(f64::total_cmp);
-    let n = v.len();
-    Some(if n % 2 == 1 {
-        v[n / 2]
-    } else {
-        (v[n / 2 - 1] + v[n / 2]) / 2.0
-    })
-}
-
 /// Samples of `polar` as (degrees travelled past `reversal`, deviation) within `range`.
 fn around(polar: &[(f64, f64)], reversal: f64, s: f64, range: (f64, f64)) -> Vec<(f64, f64)> {
     polar
@@ -478,31 +449,106 @@ fn around(polar: &[(f64, f64)], reversal: f64, s: f64, range: (f64, f64)) -> Vec
 /// 180°, axis 2 (sin) at 90° and 270°.
 const REVERSALS: [(usize, f64); 4] = [(0, 0.0), (1, 90.0), (0, 180.0), (1, 270.0)];
 
-fn backlash(input: &BallbarInput, polars: &[(bool, Vec<(f64, f64)>); 2]) -> [f64; 2] {
+/// The smooth level of the radial deviation about a reversal and the step across it: a cubic
+/// in the angle travelled past the reversal φ (degrees), shared by both sides, plus a lost
+/// motion's step ([`step_shape`]), fitted to the samples before (`before`) and after (`after`) it (the transition
+/// while a gap is crossed lies between). A cubic follows every smooth shape term (centre
+/// offset, the ellipses of mismatch and scale) across ±40° to about 1 % of its size.
+struct ReversalFit {
+    /// Polynomial coefficients (φ in units of 10°) and the step (m).
+    poly: [f64; 4],
+    step: f64,
+    /// RMS of what the model leaves of the samples it was fitted to (m).
+    residual: f64,
+}
+
+impl ReversalFit {
+    /// The level with the step taken up as a lost motion is: the axis stands while the
+    /// command runs R(1 − cos φ) past its reversal, until that reaches the step.
+    fn level(&self, phi_deg: f64, radius: f64) -> f64 {
+        let x = phi_deg / 10.0;
+        let p = &self.poly;
+        let taken_up = if self.step > 0.0 {
+            (radius * (1.0 - phi_deg.to_radians().cos()) / self.step).clamp(0.0, 1.0)
+        } else {
+            1.0
+        };
+        p[0] + x * (p[1] + x * (p[2] + x * p[3])) + self.step * step_shape(phi_deg) * taken_up
+    }
+}
+
+/// How a lost motion B of the reversing axis shows in the radial deviation φ degrees past
+/// the reversal: the axis is B behind on the other side, and the radial direction there is
+/// cos φ along the axis, so the step is B·cos φ (half of it, −B/2·cos φ before and +B/2·cos φ
+/// after, is the step; the smooth rest −B/2·cos φ the cubic takes).
+fn step_shape(phi_deg: f64) -> f64 {
+    if phi_deg > 0.0 {
+        phi_deg.to_radians().cos()
+    } else {
+        0.0
+    }
+}
+
+fn fit_reversal(
+    polar: &[(f64, f64)],
+    reversal: f64,
+    s: f64,
+    before: (f64, f64),
+    after: (f64, f64),
+) -> Option<ReversalFit> {
+    let samples: Vec<(f64, f64)> = around(polar, reversal, s, before)
+        .into_iter()
+        .chain(around(polar, reversal, s, after))
+        .collect();
+    if samples.len() < 8 {
+        return None;
+    }
+    let rows: Vec<Vec<f64>> = samples
+        .iter()
+        .map(|&(phi, _)| {
+            let x = phi / 10.0;
+            vec![1.0, x, x * x, x * x * x, step_shape(phi)]
+        })
+        .collect();
+    let y: Vec<f64> = samples.iter().map(|p| p.1).collect();
+    let c = regress(&rows, &y)?;
+    let residual = (rows
+        .iter()
+        .zip(&y)
+        .map(|(r, yi)| (yi - r.iter().zip(&c).map(|(a, b)| a * b).sum::<f64>()).powi(2))
+        .sum::<f64>()
+        / rows.len() as f64)
+        .sqrt();
+    Some(ReversalFit {
+        poly: [c[0], c[1], c[2], c[3]],
+        step: c[4],
+        residual,
+    })
+}
+
+/// Per plane axis: the mean step over its four reversals and the largest RMS residual of
+/// those fits (a residual near the step says the trace is no clean step: hunting, stick-slip).
+fn backlash(polars: &[(bool, Vec<(f64, f64)>); 2]) -> ([f64; 2], [f64; 2]) {
     let (w1, w2) = BACKLASH_WINDOW_DEG;
     let mut steps: [Vec<f64>; 2] = [Vec::new(), Vec::new()];
+    let mut residual = [0.0f64; 2];
     for (clockwise, polar) in polars {
         let s = if *clockwise { -1.0 } else { 1.0 };
         for (axis, at) in REVERSALS {
-            let r = at.to_radians();
-            let before = line_fit(&around(polar, r, s, (-w2, -w1)));
-            let after = line_fit(&around(polar, r, s, (w1, w2)));
-            if let (Some(b), Some(a)) = (before, after) {
-                // Both lines extrapolated to the reversal: smooth shape terms that are even
-                // about it (centre offset, scale, the part of an ellipse symmetric there)
-                // cancel in the step, odd ones are followed by the slopes.
-                steps[axis].push(a.0 - b.0);
+            if let Some(fit) = fit_reversal(polar, at.to_radians(), s, (-w2, SPIKE_BEFORE_DEG.1), (w1, w2)) {
+                steps[axis].push(fit.step);
+                residual[axis] = residual[axis].max(fit.residual);
             }
         }
     }
-    let _ = input;
-    steps.map(|v| {
+    let mean = steps.map(|v| {
         if v.is_empty() {
             f64::NAN
         } else {
             v.iter().sum::<f64>() / v.len() as f64
         }
-    })
+    });
+    (mean, residual)
 }
 
 fn spikes(input: &BallbarInput, polars: &[(bool, Vec<(f64, f64)>); 2]) -> Vec<ReversalSpike> {
@@ -511,28 +557,13 @@ fn spikes(input: &BallbarInput, polars: &[(bool, Vec<(f64, f64)>); 2]) -> Vec<Re
         let s = if *clockwise { -1.0 } else { 1.0 };
         for (axis, at) in REVERSALS {
             let r = at.to_radians();
-            let before = median(
-                around(polar, r, s, SPIKE_BEFORE_DEG)
-                    .into_iter()
-                    .map(|p| p.1)
-                    .collect(),
-            );
-            let after = median(
-                around(polar, r, s, SPIKE_AFTER_DEG)
-                    .into_iter()
-                    .map(|p| p.1)
-                    .collect(),
-            );
-            let (Some(before), Some(after)) = (before, after) else {
+            // The level the spike stands out from: the smooth trace with its backlash step
+            // (taken up as a lost motion is), fitted before the reversal and after the spike
+            // window: what is left is what the loop and the friction add.
+            let Some(fit) = fit_reversal(polar, r, s, SPIKE_BEFORE_DEG, SPIKE_AFTER_DEG) else {
                 continue;
             };
-            // The level the spike stands out from: from the level before the reversal to the
-            // level after the spike window (a backlash step lies between them).
-            let (x0, x1) = (
-                (SPIKE_BEFORE_DEG.0 + SPIKE_BEFORE_DEG.1) / 2.0,
-                (SPIKE_AFTER_DEG.0 + SPIKE_AFTER_DEG.1) / 2.0,
-            );
-            let level = |phi: f64| before + (after - before) * (phi - x0) / (x1 - x0);
+            let level = |phi: f64| fit.level(phi, input.radius);
             let mut window = around(polar, r, s, (0.0, SPIKE_WINDOW_DEG));
             window.sort_by(|a, b| a.0.total_cmp(&b.0));
             let Some(peak) = window
@@ -768,11 +799,17 @@ pub fn analyse(input: &BallbarInput) -> BallbarRun {
         (false, polar_of(&input.ccw, input.centre, input.radius)),
         (true, polar_of(&input.cw, input.centre, input.radius)),
     ];
-    let b = backlash(input, &polars);
+    let (b, residual) = backlash(&polars);
     let backlash_um: BTreeMap<String, f64> = input
         .axes
         .iter()
         .zip(b)
+        .map(|(a, v)| (a.clone(), um(v)))
+        .collect();
+    let backlash_fit_residual_um: BTreeMap<String, f64> = input
+        .axes
+        .iter()
+        .zip(residual)
         .map(|(a, v)| (a.clone(), um(v)))
         .collect();
     let largest = polars
@@ -794,6 +831,7 @@ pub fn analyse(input: &BallbarInput) -> BallbarRun {
         completed: input.completed,
         circular_hysteresis_um: um(hysteresis(input)),
         backlash_um,
+        backlash_fit_residual_um,
         reversal_spikes: spikes(input, &polars),
         servo_mismatch: servo_mismatch(input, &polars, b),
         stick_slip_stalls,
@@ -879,7 +917,10 @@ impl BallbarRun {
             "    backlash: {}\n",
             self.backlash_um
                 .iter()
-                .map(|(a, v)| format!("{} {v:.1} µm", a.to_uppercase()))
+                .map(|(a, v)| {
+                    let r = self.backlash_fit_residual_um.get(a).copied().unwrap_or(0.0);
+                    format!("{} {v:.1} µm (fit residual {r:.1} µm)", a.to_uppercase())
+                })
                 .collect::<Vec<_>>()
                 .join(", ")
         );
@@ -889,22 +930,20 @@ impl BallbarRun {
             m.ellipse_um,
             m.lag_text()
         );
-        t += "    reversal spikes (height µm / width °):";
+        t += "    reversal spikes, height µm (width °):\n";
         for dir in ["ccw", "cw"] {
-            t += &format!(" {}", dir.to_uppercase());
+            t += &format!("      {:<4}", dir.to_uppercase());
             for s in self.reversal_spikes.iter().filter(|s| s.direction == dir) {
                 t += &format!(
-                    " {}@{:.0}° {:+.1}/{:.1}",
+                    "  {} {:>3.0}°: {:+.1} ({:.1}°)",
                     s.axis.to_uppercase(),
                     s.angle_deg,
                     s.height_um,
                     s.width_deg
                 );
             }
-            t += ";";
+            t += "\n";
         }
-        t.pop();
-        t += "\n";
         t += &format!(
             "    stick-slip stalls: {}\n",
             self.stick_slip_stalls
