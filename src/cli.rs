@@ -52,11 +52,11 @@ pub enum Command {
     Ballbar {
         scenario: PathBuf,
         /// Radius or radii (mm), comma-separated (default: the scenario's circle, else 100).
-        #[arg(long = "radius-mm", value_delimiter = ',', num_args = 1..)]
+        #[arg(long = "radius-mm", value_delimiter = ',', num_args = 1.., allow_negative_numbers = true)]
         radius_mm: Vec<f64>,
         /// Feed or feeds (mm/min), comma-separated (default: the scenario's circle feed,
         /// else 1000).
-        #[arg(long = "feed-mm-min", value_delimiter = ',', num_args = 1..)]
+        #[arg(long = "feed-mm-min", value_delimiter = ',', num_args = 1.., allow_negative_numbers = true)]
         feed_mm_min: Vec<f64>,
         /// Plane of the circle.
         #[arg(long, value_enum, default_value = "xy")]

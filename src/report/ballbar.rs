@@ -915,10 +915,11 @@ impl BallbarRun {
         t += "  diagnosis\n";
         t += &format!(
             "    backlash: {}\n",
-            self.backlash_um
+            [&a1, &a2]
                 .iter()
-                .map(|(a, v)| {
-                    let r = self.backlash_fit_residual_um.get(a).copied().unwrap_or(0.0);
+                .map(|a| {
+                    let v = self.backlash_um.get(*a).copied().unwrap_or(f64::NAN);
+                    let r = self.backlash_fit_residual_um.get(*a).copied().unwrap_or(0.0);
                     format!("{} {v:.1} µm (fit residual {r:.1} µm)", a.to_uppercase())
                 })
                 .collect::<Vec<_>>()
@@ -946,9 +947,12 @@ impl BallbarRun {
         }
         t += &format!(
             "    stick-slip stalls: {}\n",
-            self.stick_slip_stalls
+            [&a1, &a2]
                 .iter()
-                .map(|(a, n)| format!("{} {n}", a.to_uppercase()))
+                .map(|a| {
+                    let n = self.stick_slip_stalls.get(*a).copied().unwrap_or(0);
+                    format!("{} {n}", a.to_uppercase())
+                })
                 .collect::<Vec<_>>()
                 .join(", ")
         );
