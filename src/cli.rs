@@ -65,6 +65,10 @@ pub enum Command {
         /// or program start, else the middle of the travel.
         #[arg(long = "center-mm", value_delimiter = ',', allow_negative_numbers = true)]
         center_mm: Option<Vec<f64>>,
+        /// Overshoot arc before and after the 360° of data (degrees, 0 < o ≤ 180): long
+        /// enough for the planner's speed-up and slow-down to stay out of the data.
+        #[arg(long = "overshoot-deg", default_value_t = 45.0, allow_negative_numbers = true)]
+        overshoot_deg: f64,
         /// Print the report as JSON.
         #[arg(long)]
         json: bool,

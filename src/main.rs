@@ -72,9 +72,19 @@ fn main() -> ExitCode {
             feed_mm_min,
             plane,
             center_mm,
+            overshoot_deg,
             json,
             out,
-        }) => ballbar_cli(&scenario, radius_mm, feed_mm_min, plane, center_mm, json, out),
+        }) => ballbar_cli(
+            &scenario,
+            radius_mm,
+            feed_mm_min,
+            plane,
+            center_mm,
+            overshoot_deg,
+            json,
+            out,
+        ),
         Some(Command::Plan {
             scenario,
             profile,
@@ -229,15 +239,20 @@ fn run_one(path: &Path, out: Option<PathBuf>) -> ExitCode {
 }
 
 /// `cncsim ballbar`: checks the numbers, runs the tests, prints the report.
+#[allow(clippy::too_many_arguments)]
 fn ballbar_cli(
     path: &Path,
     radius_mm: Vec<f64>,
     feed_mm_min: Vec<f64>,
     plane: cncsim::scenario::BallbarPlane,
     center_mm: Option<Vec<f64>>,
+    overshoot_deg: f64,
     json: bool,
     out: Option<PathBuf>,
 ) -> ExitCode {
+    if !(overshoot_deg > 0.0 && overshoot_deg <= 180.0) {
+        return fail_input(&format!("--overshoot-deg {overshoot_deg}: must be more than 0 and at most 180"));
+    }
     let scenario = match Scenario::load(path) {
         Ok(s) => s,
         Err(e) => return fail_input(&e),
@@ -261,6 +276,7 @@ fn ballbar_cli(
         feeds: if feed_mm_min.is_empty() { vec![feed] } else { feed_mm_min.iter().map(|f| f / 60e3).collect() },
         plane: plane.into(),
         centre,
+        overshoot: overshoot_deg.to_radians(),
     };
     let out = out.unwrap_or_else(|| Path::new("out").join(folder_name(&format!("ballbar_{}", scenario.name))));
     let mut progress = |_: usize, _: usize| !INTERRUPTED.load(Ordering::Relaxed);

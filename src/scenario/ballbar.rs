@@ -24,9 +24,6 @@ use std::path::Path;
 /// Radial feed-in onto the circle (m): a ballbar starts compressed and is fed out to its
 /// length, as Renishaw's QC20 test does (1.5 mm).
 pub const FEED_IN: f64 = 1.5e-3;
-/// Overshoot arc before and after the 360° of data (rad): the start and stop of each
-/// direction lie outside the data, as ISO 230-4 asks.
-pub const OVERSHOOT: f64 = std::f64::consts::FRAC_PI_4;
 
 /// What `cncsim ballbar` runs: every feed at every radius, in one plane.
 #[derive(Debug, Clone, PartialEq)]
@@ -38,6 +35,8 @@ pub struct BallbarOptions {
     pub plane: Plane,
     /// Centre in program coordinates (m, G54); `None`: chosen (see [`ballbar_centre`]).
     pub centre: Option<[f64; 3]>,
+    /// Overshoot arc before and after the data (rad, 0 < o ≤ π).
+    pub overshoot: f64,
 }
 
 /// The plane named on the command line.
@@ -218,17 +217,20 @@ fn on_circle(centre: [f64; 3], in_plane: [usize; 2], radius: f64, angle: f64) ->
 }
 
 /// The test program (machine coordinates): from the feed-in point outside the circle at
-/// −45°, radially onto the circle; counter-clockwise 45° + 360° + 45°; back clockwise the
-/// same way; radially out. Data: the 360° from 0° of each direction. Every move stops
+/// −o (the overshoot, 45° by default), radially onto the circle; counter-clockwise o + 360° +
+/// o; back clockwise the same way; radially out. Data: the 360° from 0° of each direction. Every move stops
 /// exactly (the reversals of direction lie in the overshoot arcs).
 pub fn ballbar_program(
     centre: [f64; 3],
     radius: f64,
     feed: f64,
     plane: Plane,
+    overshoot: f64,
     source: &Path,
 ) -> Program {
     let (in_plane, _) = plane_axes(plane);
+    // Past a half turn each way the arcs would overlap the data twice.
+    let overshoot = overshoot.clamp(f64::EPSILON, std::f64::consts::PI);
     let at = |r: f64, a: f64| Position {
         linear: on_circle(centre, in_plane, r, a),
         rotary: [0.0; 3],
@@ -248,17 +250,17 @@ pub fn ballbar_program(
         center: centre,
         plane,
         clockwise,
-        // One extra turn: 90° of overshoot arcs plus the full circle of data.
+        // One extra turn: the overshoot arcs plus the full circle of data.
         turns: 1,
     };
     Program {
         source: source.to_path_buf(),
-        start: at(radius + FEED_IN, -OVERSHOOT),
+        start: at(radius + FEED_IN, -overshoot),
         moves: vec![
-            step(Motion::Linear, at(radius, -OVERSHOOT)),
-            step(arc(false), at(radius, OVERSHOOT)),
-            step(arc(true), at(radius, -OVERSHOOT)),
-            step(Motion::Linear, at(radius + FEED_IN, -OVERSHOOT)),
+            step(Motion::Linear, at(radius, -overshoot)),
+            step(arc(false), at(radius, overshoot)),
+            step(arc(true), at(radius, -overshoot)),
+            step(Motion::Linear, at(radius + FEED_IN, -overshoot)),
         ],
         warnings: Vec::new(),
     }
@@ -269,12 +271,14 @@ const CCW_MOVE: u32 = 1;
 const CW_MOVE: u32 = 2;
 
 /// The two directions' 360° of data from a run's trace: the actual tool point (program frame)
-/// in the plane, where the commanded point has travelled 45° to 405° along its move.
+/// in the plane, where the commanded point has travelled from the overshoot to a full turn
+/// past it along its move.
 pub fn ballbar_passes(
     assembly: &Assembly,
     trace: &Trace,
     centre: [f64; 3],
     plane: Plane,
+    overshoot: f64,
 ) -> (BallbarPass, BallbarPass) {
     let (in_plane, _) = plane_axes(plane);
     let machine = &assembly.machine;
@@ -318,7 +322,7 @@ pub fn ballbar_passes(
             travelled[which] += d.abs();
         }
         previous[which] = Some(angle);
-        if travelled[which] < OVERSHOOT || travelled[which] >= OVERSHOOT + TAU {
+        if travelled[which] < overshoot || travelled[which] >= overshoot + TAU {
             continue;
         }
         let tool = assembly
@@ -366,7 +370,7 @@ pub fn run_ballbar(
             // The scenario's bounds are for its own program; the test runs the physics lane.
             scenario.expect.clear();
             scenario.analytic_steps = None;
-            let mut run = run_one(&scenario, &machine, centre, radius, feed, options.plane)?;
+            let mut run = run_one(&scenario, &machine, centre, radius, feed, options)?;
             run.title = s.name.clone();
             let dir = out.join(folder_name(&label));
             let (mut ballbar, files) = run.execute(&dir, progress)?;
@@ -398,6 +402,7 @@ struct OneRun {
     radius: f64,
     feed: f64,
     plane: Plane,
+    overshoot: f64,
 }
 
 fn run_one(
@@ -406,9 +411,10 @@ fn run_one(
     centre: [f64; 3],
     radius: f64,
     feed: f64,
-    plane: Plane,
+    options: &BallbarOptions,
 ) -> Result<OneRun, RunError> {
-    let program = ballbar_program(centre, radius, feed, plane, &s.path);
+    let (plane, overshoot) = (options.plane, options.overshoot.clamp(f64::EPSILON, std::f64::consts::PI));
+    let program = ballbar_program(centre, radius, feed, plane, overshoot, &s.path);
     let axis_map = AxisMap::new(machine).map_err(|e| FileError::new(&s.machine, None, e.to_string()))?;
     let mut settings = plan_settings(s, machine, s.planner.profile)?;
     settings.tool_lever_arms = crate::plan::tool_lever_arms(machine, &program, &axis_map);
@@ -423,6 +429,7 @@ fn run_one(
         radius,
         feed,
         plane,
+        overshoot,
     })
 }
 
@@ -434,7 +441,7 @@ impl OneRun {
     ) -> Result<(BallbarRun, Vec<std::path::PathBuf>), RunError> {
         let run = run_assembly(&self.assembly, dir, progress, true)?;
         let trace = run.trace.as_ref().expect("kept");
-        let (ccw, cw) = ballbar_passes(&self.assembly, trace, self.centre, self.plane);
+        let (ccw, cw) = ballbar_passes(&self.assembly, trace, self.centre, self.plane, self.overshoot);
         let (in_plane, _) = plane_axes(self.plane);
         let axes = in_plane.map(|a| LETTERS[a].to_string());
         let stalls: BTreeMap<String, usize> = run
