@@ -58,17 +58,17 @@ pub enum Command {
         /// else 1000).
         #[arg(long = "feed-mm-min", value_delimiter = ',', num_args = 1.., allow_negative_numbers = true)]
         feed_mm_min: Vec<f64>,
-        /// Plane of the circle.
-        #[arg(long, value_enum, default_value = "xy")]
-        plane: cncsim::scenario::BallbarPlane,
+        /// Plane of the circle (default: the scenario's ballbar program's, else xy).
+        #[arg(long, value_enum)]
+        plane: Option<cncsim::scenario::BallbarPlane>,
         /// Centre in program coordinates, mm (x,y,z); default: the scenario's circle centre
         /// or program start, else the middle of the travel.
         #[arg(long = "center-mm", value_delimiter = ',', allow_negative_numbers = true)]
         center_mm: Option<Vec<f64>>,
-        /// Overshoot arc before and after the 360° of data (degrees, 0 < o ≤ 180): long
-        /// enough for the planner's speed-up and slow-down to stay out of the data.
-        #[arg(long = "overshoot-deg", default_value_t = 45.0, allow_negative_numbers = true)]
-        overshoot_deg: f64,
+        /// Overshoot arc before and after the 360° of data (degrees, 0 < o ≤ 180; default
+        /// 45): long enough for the planner's speed-up and slow-down to stay out of the data.
+        #[arg(long = "overshoot-deg", allow_negative_numbers = true)]
+        overshoot_deg: Option<f64>,
         /// Print the report as JSON.
         #[arg(long)]
         json: bool,

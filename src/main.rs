@@ -244,19 +244,21 @@ fn ballbar_cli(
     path: &Path,
     radius_mm: Vec<f64>,
     feed_mm_min: Vec<f64>,
-    plane: cncsim::scenario::BallbarPlane,
+    plane: Option<cncsim::scenario::BallbarPlane>,
     center_mm: Option<Vec<f64>>,
-    overshoot_deg: f64,
+    overshoot_deg: Option<f64>,
     json: bool,
     out: Option<PathBuf>,
 ) -> ExitCode {
-    if !(overshoot_deg > 0.0 && overshoot_deg <= 180.0) {
-        return fail_input(&format!("--overshoot-deg {overshoot_deg}: must be more than 0 and at most 180"));
+    if let Some(o) = overshoot_deg.filter(|o| !(*o > 0.0 && *o <= 180.0)) {
+        return fail_input(&format!("--overshoot-deg {o}: must be more than 0 and at most 180"));
     }
     let scenario = match Scenario::load(path) {
         Ok(s) => s,
         Err(e) => return fail_input(&e),
     };
+    let (own_plane, own_centre, own_overshoot) =
+        cncsim::scenario::default_plane_centre_overshoot(&scenario);
     print_warnings(&scenario.warnings);
     let (radius, feed) = cncsim::scenario::default_radius_and_feed(&scenario);
     let positive = |flag: &str, values: &[f64]| match values.iter().find(|v| !(v.is_finite() && **v > 0.0)) {
@@ -267,16 +269,16 @@ fn ballbar_cli(
         return fail_input(&e);
     }
     let centre = match center_mm.as_deref() {
-        None => None,
+        None => own_centre,
         Some(&[x, y, z]) if [x, y, z].iter().all(|v| v.is_finite()) => Some([x * 1e-3, y * 1e-3, z * 1e-3]),
         Some(v) => return fail_input(&format!("--center-mm takes 3 finite values (x,y,z in mm), got {v:?}")),
     };
     let options = cncsim::scenario::BallbarOptions {
         radii: if radius_mm.is_empty() { vec![radius] } else { radius_mm.iter().map(|r| r * 1e-3).collect() },
         feeds: if feed_mm_min.is_empty() { vec![feed] } else { feed_mm_min.iter().map(|f| f / 60e3).collect() },
-        plane: plane.into(),
+        plane: plane.map_or(own_plane, Into::into),
         centre,
-        overshoot: overshoot_deg.to_radians(),
+        overshoot: overshoot_deg.map_or(own_overshoot, f64::to_radians),
     };
     let out = out.unwrap_or_else(|| Path::new("out").join(folder_name(&format!("ballbar_{}", scenario.name))));
     let mut progress = |_: usize, _: usize| !INTERRUPTED.load(Ordering::Relaxed);

@@ -366,3 +366,98 @@ csv = false
     // A lost motion on both axes opens the two directions apart: H is at least the larger.
     assert!(num(run, "circular_hysteresis_um") * 1e-6 > 0.5 * by);
 }
+
+/// A scenario whose program is the test (`[program] ballbar`): its figures are metrics that
+/// `[expect]` bounds, `ab` tables and sweep results read.
+#[test]
+fn ballbar_figures_are_metrics_for_expect_ab_and_sweeps() {
+    let dir = tempfile::tempdir().unwrap();
+    let bundled = root().join("scenarios/ballbar_xyz_servo_mismatch.toml");
+    let out = dir.path().display().to_string();
+    let o = cncsim(&["check", bundled.to_str().unwrap(), "--out", &out]);
+    assert!(o.status.success(), "{}{}", String::from_utf8_lossy(&o.stdout), stderr(&o));
+    assert!(String::from_utf8_lossy(&o.stdout).contains("PASS"));
+    let metrics: serde_json::Value = serde_json::from_str(
+        &std::fs::read_to_string(dir.path().join("ballbar_xyz_servo_mismatch/metrics.json")).unwrap(),
+    )
+    .unwrap();
+    assert!(num(&metrics, "ballbar.servo_mismatch_um") > 400.0);
+    assert!(dir.path().join("ballbar_xyz_servo_mismatch/polar.png").is_file());
+
+    // A bound the run breaches fails `check`, naming the figure; an unknown one is bad input.
+    let text = std::fs::read_to_string(&bundled)
+        .unwrap()
+        .replace("../models/", &format!("{}/", root().join("models").display()));
+    let breached = dir.path().join("breached.toml");
+    std::fs::write(
+        &breached,
+        text.replace(
+            "ballbar.servo_mismatch_um = { min = 482.2, max = 512.0 }",
+            "ballbar.servo_mismatch_um = { max = 100.0 }",
+        ),
+    )
+    .unwrap();
+    let o = cncsim(&["check", breached.to_str().unwrap(), "--out", &out]);
+    assert_eq!(o.status.code(), Some(1));
+    assert!(String::from_utf8_lossy(&o.stdout).contains("ballbar.servo_mismatch_um"));
+    let unknown = dir.path().join("unknown.toml");
+    std::fs::write(
+        &unknown,
+        text.replace("ballbar.backlash_um.y =", "ballbar.backlash_um.z ="),
+    )
+    .unwrap();
+    let o = cncsim(&["run", unknown.to_str().unwrap(), "--out", &out]);
+    assert_eq!(o.status.code(), Some(2));
+    assert!(stderr(&o).contains("expect.ballbar.backlash_um.z: no such metric"), "{}", stderr(&o));
+
+    // A/B: the file's [ab] matches the gains; the ballbar rows compare the two.
+    let ab = dir.path().join("ab");
+    let o = cncsim(&["ab", bundled.to_str().unwrap(), "--out", ab.to_str().unwrap()]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    let report: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(ab.join("ab.json")).unwrap()).unwrap();
+    let row = report["rows"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .find(|r| r["metric"] == "ballbar servo_mismatch_um")
+        .expect("a ballbar row");
+    assert!(row["a"].as_f64().unwrap() > 400.0 && row["b"].as_f64().unwrap() < 1.0, "{row}");
+
+    // A sweep over the position gain of Y: its results carry the ballbar figures.
+    let sweep = dir.path().join("sweep.toml");
+    std::fs::write(
+        &sweep,
+        format!(
+            r#"name = "ballbar_sweep"
+scenarios = ["{}"]
+[variants]
+base = []
+[grid]
+"controller.cascade.y.position_kp" = [10.0, 40.0]
+[report]
+metrics = ["ballbar.servo_mismatch_um", "ballbar.ccw.circular_deviation_um"]
+"#,
+            bundled.display()
+        ),
+    )
+    .unwrap();
+    let sweep_out = dir.path().join("sweep_out");
+    let o = cncsim(&["sweep", sweep.to_str().unwrap(), "--jobs", "2", "--out", sweep_out.to_str().unwrap()]);
+    assert!(o.status.success(), "{}{}", String::from_utf8_lossy(&o.stdout), stderr(&o));
+    let csv = std::fs::read_to_string(sweep_out.join("results.csv")).unwrap();
+    let header: Vec<&str> = csv.lines().next().unwrap().split(',').collect();
+    let column = header
+        .iter()
+        .position(|h| *h == "ballbar.servo_mismatch_um")
+        .expect("a ballbar column in results.csv");
+    let values: Vec<f64> = csv
+        .lines()
+        .skip(1)
+        .filter_map(|l| l.split(',').nth(column)?.parse().ok())
+        .collect();
+    assert_eq!(values.len(), 2, "{csv}");
+    // Equal gains (10, 10): no ellipse; 10 against 40: a larger one than the bundled 10/20.
+    let (lo, hi) = (values.iter().copied().fold(f64::INFINITY, f64::min), values.iter().copied().fold(0.0, f64::max));
+    assert!(lo < 1.0 && hi > 600.0, "{values:?}");
+}

@@ -166,6 +166,8 @@ pub struct BallbarRun {
     pub scale_um_per_division: f64,
     /// Files written for this run (polar plot, trace, the run's own outputs).
     pub files: Vec<PathBuf>,
+    /// The scenario's `[expect]` bounds on ballbar figures that this run breaches.
+    pub breaches: Vec<String>,
     /// The deviation from the nominal circle by angle, per direction (degrees, µm): the polar
     /// plot's data (also written as CSV).
     #[serde(skip)]
@@ -178,6 +180,53 @@ pub struct BallbarRun {
 }
 
 impl BallbarRun {
+    /// The dotted metric names a run in the plane of `axes` reports under `ballbar.` (what
+    /// `[expect]` bounds may name).
+    pub fn metric_names(axes: [&str; 2]) -> Vec<String> {
+        let direction = || DirectionFigures {
+            circular_deviation_um: 0.0,
+            circular_deviation_min_zone_um: 0.0,
+            radial_deviation_max_um: 0.0,
+            radial_deviation_min_um: 0.0,
+            least_squares_centre_offset_um: [0.0; 2],
+            least_squares_radius_mm: 0.0,
+            min_zone_centre_offset_um: [0.0; 2],
+            samples: 0,
+        };
+        let per_axis = |v: f64| axes.iter().map(|a| (a.to_string(), v)).collect::<BTreeMap<_, _>>();
+        let template = BallbarRun {
+            scenario: String::new(),
+            plane: String::new(),
+            feed_mm_min: 0.0,
+            radius_mm: 0.0,
+            centre_mm: [0.0; 3],
+            completed: true,
+            cw: direction(),
+            ccw: direction(),
+            circular_hysteresis_um: 0.0,
+            backlash_um: per_axis(0.0),
+            backlash_fit_residual_um: per_axis(0.0),
+            reversal_spikes: Vec::new(),
+            servo_mismatch: ServoMismatch {
+                ellipse_um: 0.0,
+                lag_difference_ms: 0.0,
+                lagging_axis: String::new(),
+            },
+            stick_slip_stalls: BTreeMap::new(),
+            vibration: None,
+            magnification: 0.0,
+            scale_um_per_division: 0.0,
+            files: Vec::new(),
+            breaches: Vec::new(),
+            polar: [Vec::new(), Vec::new()],
+            points: [Vec::new(), Vec::new()],
+            times: [Vec::new(), Vec::new()],
+        };
+        let mut names = Vec::new();
+        flatten_numbers(&template.metrics_json(), "ballbar", &mut names);
+        names
+    }
+
     /// The figures as flat metric keys (what `[expect]`, A/B and sweep tables read), under
     /// `ballbar.`.
     pub fn metrics_json(&self) -> serde_json::Value {
@@ -219,6 +268,38 @@ impl BallbarRun {
 pub struct BallbarReport {
     pub scenario: String,
     pub runs: Vec<BallbarRun>,
+}
+
+/// Dotted paths of the numbers in `v`, with their values.
+fn flatten_numbers(v: &serde_json::Value, prefix: &str, out: &mut Vec<String>) {
+    match v {
+        serde_json::Value::Object(map) => {
+            for (k, v) in map {
+                flatten_numbers(v, &format!("{prefix}.{k}"), out);
+            }
+        }
+        serde_json::Value::Number(_) | serde_json::Value::Null => out.push(prefix.to_string()),
+        _ => {}
+    }
+}
+
+/// Pairs of the ballbar figures of two runs, by dotted name (for A/B tables).
+pub fn ballbar_pairs(a: &BallbarRun, b: &BallbarRun) -> Vec<(String, f64, f64)> {
+    let (ja, jb) = (a.metrics_json(), b.metrics_json());
+    let mut names = Vec::new();
+    flatten_numbers(&ja, "", &mut names);
+    names
+        .into_iter()
+        .filter_map(|n| {
+            let get = |j: &serde_json::Value| {
+                n.trim_start_matches('.')
+                    .split('.')
+                    .try_fold(j, |v, k| v.get(k))
+                    .and_then(|v| v.as_f64())
+            };
+            Some((n.trim_start_matches('.').to_string(), get(&ja)?, get(&jb)?))
+        })
+        .collect()
 }
 
 fn um(m: f64) -> f64 {
@@ -841,6 +922,7 @@ pub fn analyse(input: &BallbarInput) -> BallbarRun {
         cw,
         ccw,
         files: Vec::new(),
+        breaches: Vec::new(),
         polar: [
             polars[0].1.iter().map(|&(a, d)| (a.to_degrees(), um(d))).collect(),
             polars[1].1.iter().map(|&(a, d)| (a.to_degrees(), um(d))).collect(),
@@ -956,6 +1038,9 @@ impl BallbarRun {
                 .collect::<Vec<_>>()
                 .join(", ")
         );
+        for b in &self.breaches {
+            t += &format!("  BOUND BREACHED: {b}\n");
+        }
         t += &match &self.vibration {
             Some(v) => format!(
                 "    main vibration: {:.2} Hz, {:.2} µm amplitude\n",

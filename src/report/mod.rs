@@ -14,7 +14,7 @@ mod table;
 mod thin;
 
 pub use ballbar::{
-    analyse as analyse_ballbar, least_squares_circle, minimum_zone_circle, write_polar_plot,
+    analyse as analyse_ballbar, ballbar_pairs, least_squares_circle, minimum_zone_circle, write_polar_plot,
     BallbarInput, BallbarPass, BallbarReport, BallbarRun, DirectionFigures, ReversalSpike,
     ServoMismatch, Vibration,
 };

@@ -678,6 +678,12 @@ pub fn load_checked_program(s: &Scenario, machine: &Machine) -> Result<Program, 
     let mut program = match &s.program {
         ProgramSource::Circle(c) => circle(c, &s.path),
         ProgramSource::Polyline(p) => polyline(p, &s.path),
+        // Built in machine coordinates: its centre is placed (and the work offset applied)
+        // where the test is fitted into the travel.
+        ProgramSource::Ballbar(b) => {
+            let centre = super::ballbar::ballbar_centre(s, machine, b.radius, b.plane, b.centre)?;
+            super::ballbar::ballbar_program(centre, b.radius, b.feed, b.plane, b.overshoot, &s.path)
+        }
         ProgramSource::File { path, options } => {
             let options = crate::program::ReadOptions {
                 work_offset: s.work_offset,
@@ -686,7 +692,7 @@ pub fn load_checked_program(s: &Scenario, machine: &Machine) -> Result<Program, 
             read_program(path, &options).map_err(RunError::Program)?
         }
     };
-    if !matches!(s.program, ProgramSource::File { .. }) {
+    if !matches!(s.program, ProgramSource::File { .. } | ProgramSource::Ballbar(_)) {
         program.shift(s.work_offset);
     }
     if program.moves.is_empty() {

@@ -3,13 +3,11 @@
 //! arcs, feed-out) replaces the scenario's program and runs through the scenario's planner and
 //! servo loop (physics lane); `report::ballbar` reads the trace. See docs/ballbar.md.
 
-use super::assemble::{load_checked_program, machine_for, plan_settings, Assembly, RunError};
+use super::assemble::{load_checked_program, machine_for, Assembly, RunError};
 use super::run::run_assembly;
 use super::{folder_name, ProgramSource, Scenario};
 use crate::diagnostics::FileError;
-use crate::kinematics::AxisMap;
 use crate::machine::Machine;
-use crate::plan::PlannedProgram;
 use crate::program::{Blend, Feed, FeedRule, Motion, Move, Plane, Position, Program, Span, Spindle};
 use crate::report::{
     analyse_ballbar, write_polar_plot, BallbarInput, BallbarPass, BallbarReport, BallbarRun,
@@ -40,8 +38,10 @@ pub struct BallbarOptions {
 }
 
 /// The plane named on the command line.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, clap::ValueEnum)]
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, clap::ValueEnum, serde::Deserialize)]
+#[serde(rename_all = "lowercase")]
 pub enum BallbarPlane {
+    #[default]
     Xy,
     Yz,
     Zx,
@@ -62,8 +62,31 @@ impl From<BallbarPlane> for Plane {
 pub fn default_radius_and_feed(s: &Scenario) -> (f64, f64) {
     match &s.program {
         ProgramSource::Circle(c) => (c.radius, c.speed),
+        ProgramSource::Ballbar(b) => (b.radius, b.feed),
         _ => (0.1, 1000.0 / 60e3),
     }
+}
+
+/// The plane, centre (program coordinates) and overshoot of a scenario whose program is the
+/// test; else the XY plane, no centre given, 45°.
+pub fn default_plane_centre_overshoot(s: &Scenario) -> (Plane, Option<[f64; 3]>, f64) {
+    match &s.program {
+        ProgramSource::Ballbar(b) => (b.plane, b.centre, b.overshoot),
+        _ => (Plane::XY, None, std::f64::consts::FRAC_PI_4),
+    }
+}
+
+/// One test as a scenario's program (`[program] ballbar = { … }`), SI.
+#[derive(Debug, Clone, PartialEq)]
+pub struct BallbarSpec {
+    pub radius: f64,
+    /// Path speed (m/s).
+    pub feed: f64,
+    pub plane: Plane,
+    /// Centre in program coordinates (m); `None`: chosen by [`ballbar_centre`].
+    pub centre: Option<[f64; 3]>,
+    /// Overshoot arc before and after the data (rad).
+    pub overshoot: f64,
 }
 
 /// The plane's axes: indices into program X, Y, Z in its own order, and the normal axis.
@@ -183,8 +206,11 @@ pub fn ballbar_centre(
     if let ProgramSource::Circle(c) = &s.program {
         candidates.push(shift([c.center[0], c.center[1], c.z]));
     }
-    if let Ok(program) = load_checked_program(s, machine) {
-        candidates.push(program.start.linear);
+    // (A ballbar program has no start point of its own to offer.)
+    if !matches!(s.program, ProgramSource::Ballbar(_)) {
+        if let Ok(program) = load_checked_program(s, machine) {
+            candidates.push(program.start.linear);
+        }
     }
     let first = candidates.first().copied();
     let mid = {
@@ -341,6 +367,70 @@ fn number(v: f64) -> String {
     s.trim_end_matches('0').trim_end_matches('.').to_string()
 }
 
+/// The ballbar figures of a run of a scenario whose program is the test: the passes from
+/// its trace, the analysis, and `polar.png` and `polar.csv` written into `out_dir` (listed in
+/// the run's `files`). Called by the run itself (`run_assembly`), so `run`, `check`, `ab`,
+/// `sweep` and `cncsim ballbar` all report the same figures.
+pub(crate) fn ballbar_of_run(
+    assembly: &Assembly,
+    spec: &BallbarSpec,
+    trace: &Trace,
+    metrics: &crate::report::Metrics,
+    completed: bool,
+    out_dir: &Path,
+) -> Result<BallbarRun, RunError> {
+    // The test's centre is the centre of its arcs, as planned.
+    let centre = assembly
+        .program()
+        .moves
+        .iter()
+        .find_map(|m| match m.motion {
+            Motion::Arc { center, .. } => Some(center),
+            _ => None,
+        })
+        .expect("a ballbar program has its arcs");
+    let (ccw, cw) = ballbar_passes(assembly, trace, centre, spec.plane, spec.overshoot);
+    let (in_plane, _) = plane_axes(spec.plane);
+    let stalls: BTreeMap<String, usize> = metrics
+        .axes
+        .iter()
+        .map(|(name, a)| (name.clone(), a.stick_slip_stalls))
+        .collect();
+    let input = BallbarInput {
+        scenario: assembly.scenario.name.clone(),
+        axes: in_plane.map(|a| LETTERS[a].to_string()),
+        plane: plane_name(spec.plane).into(),
+        centre: in_plane.map(|a| centre[a]),
+        centre_3d: centre,
+        radius: spec.radius,
+        feed: spec.feed,
+        period: assembly.scenario.servo_period,
+        ccw,
+        cw,
+        stalls,
+        completed,
+    };
+    if input.ccw.point.len() < 16 || input.cw.point.len() < 16 {
+        let message = if completed {
+            "the ballbar run traced too few samples of a circle (feed too high for the servo period?)"
+        } else {
+            "the ballbar run stopped before it traced both circles"
+        };
+        return Err(FileError::new(&assembly.scenario.path, None, message).into());
+    }
+    let mut run = analyse_ballbar(&input);
+    let io = |path: &Path| {
+        let path = path.to_path_buf();
+        move |source| RunError::Report(ReportError::Io { path, source })
+    };
+    let polar = out_dir.join("polar.png");
+    write_polar_plot(&polar, &run)?;
+    let csv = out_dir.join("polar.csv");
+    std::fs::write(&csv, run.polar_csv()).map_err(io(&csv))?;
+    run.files = vec![polar, csv];
+    Ok(run)
+}
+
 /// Runs the test for every feed at every radius; each run's own outputs (metrics.json with
 /// the ballbar figures under `ballbar`, trace, recording as the scenario asks, polar.png,
 /// polar.csv) go to `out/F<feed>_R<radius>/`, `ballbar.json` and the polar plots' recording
@@ -361,25 +451,41 @@ pub fn run_ballbar(
         move |source| RunError::Report(ReportError::Io { path, source })
     };
     std::fs::create_dir_all(out).map_err(io(out))?;
-    for &radius in &options.radii {
-        let centre = ballbar_centre(s, &machine, radius, options.plane, options.centre)?;
+    // Each radius's centre, chosen on the scenario as written (its circle, its program's
+    // start), back in program coordinates; refused before anything runs if one does not fit.
+    let offset = s.work_offset;
+    let centres = options
+        .radii
+        .iter()
+        .map(|&radius| {
+            let c = ballbar_centre(s, &machine, radius, options.plane, options.centre)?;
+            Ok([c[0] - offset[0], c[1] - offset[1], c[2] - offset[2]])
+        })
+        .collect::<Result<Vec<_>, FileError>>()?;
+    for (&radius, &centre) in options.radii.iter().zip(&centres) {
         for &feed in &options.feeds {
             let mut scenario = s.clone();
             let label = format!("F{}_R{}", number(feed * 60e3), number(radius * 1e3));
             scenario.name = format!("{}_ballbar_{label}", s.name);
-            // The scenario's bounds are for its own program; the test runs the physics lane.
-            scenario.expect.clear();
+            scenario.program = ProgramSource::Ballbar(BallbarSpec {
+                radius,
+                feed,
+                plane: options.plane,
+                centre: Some(centre),
+                overshoot: options.overshoot.clamp(f64::EPSILON, std::f64::consts::PI),
+            });
+            // The scenario's bounds are for its own program, but for those on ballbar
+            // figures; the test runs the physics lane.
+            scenario.expect.retain(|e| e.metric.starts_with("ballbar."));
             scenario.analytic_steps = None;
-            let mut run = run_one(&scenario, &machine, centre, radius, feed, options)?;
-            run.title = s.name.clone();
+            let assembly = Assembly::with_machine(&scenario, machine.clone())?;
             let dir = out.join(folder_name(&label));
-            let (mut ballbar, files) = run.execute(&dir, progress)?;
-            ballbar.files = files;
-            let polar = dir.join("polar.png");
-            write_polar_plot(&polar, &ballbar)?;
-            let csv = dir.join("polar.csv");
-            std::fs::write(&csv, ballbar.polar_csv()).map_err(io(&csv))?;
-            ballbar.files.extend([polar, csv]);
+            let run = run_assembly(&assembly, &dir, progress, false)?;
+            let mut ballbar = run.ballbar.expect("a ballbar program's run has its figures");
+            ballbar.scenario = s.name.clone();
+            // The run's files, its polar plot and data among them.
+            ballbar.files = run.files.clone();
+            ballbar.breaches = run.verdict.breaches.iter().map(|b| b.to_string()).collect();
             let stopped = !ballbar.completed;
             report.runs.push(ballbar);
             if stopped {
@@ -391,97 +497,4 @@ pub fn run_ballbar(
     std::fs::write(&json, report.json()).map_err(io(&json))?;
     report.write_recording(&out.join("ballbar.rrd"))?;
     Ok(report)
-}
-
-/// One test wired: the assembly of the scenario with the test program.
-struct OneRun {
-    assembly: Assembly,
-    /// The scenario's own name, for the report.
-    title: String,
-    centre: [f64; 3],
-    radius: f64,
-    feed: f64,
-    plane: Plane,
-    overshoot: f64,
-}
-
-fn run_one(
-    s: &Scenario,
-    machine: &Machine,
-    centre: [f64; 3],
-    radius: f64,
-    feed: f64,
-    options: &BallbarOptions,
-) -> Result<OneRun, RunError> {
-    let (plane, overshoot) = (options.plane, options.overshoot.clamp(f64::EPSILON, std::f64::consts::PI));
-    let program = ballbar_program(centre, radius, feed, plane, overshoot, &s.path);
-    let axis_map = AxisMap::new(machine).map_err(|e| FileError::new(&s.machine, None, e.to_string()))?;
-    let mut settings = plan_settings(s, machine, s.planner.profile)?;
-    settings.tool_lever_arms = crate::plan::tool_lever_arms(machine, &program, &axis_map);
-    let plan = PlannedProgram::new(program, axis_map, settings).map_err(|source| RunError::Plan {
-        path: s.path.clone(),
-        source,
-    })?;
-    Ok(OneRun {
-        assembly: Assembly::from_plan(s, machine.clone(), plan)?,
-        title: s.name.clone(),
-        centre,
-        radius,
-        feed,
-        plane,
-        overshoot,
-    })
-}
-
-impl OneRun {
-    fn execute(
-        &self,
-        dir: &Path,
-        progress: &mut dyn FnMut(usize, usize) -> bool,
-    ) -> Result<(BallbarRun, Vec<std::path::PathBuf>), RunError> {
-        let run = run_assembly(&self.assembly, dir, progress, true)?;
-        let trace = run.trace.as_ref().expect("kept");
-        let (ccw, cw) = ballbar_passes(&self.assembly, trace, self.centre, self.plane, self.overshoot);
-        let (in_plane, _) = plane_axes(self.plane);
-        let axes = in_plane.map(|a| LETTERS[a].to_string());
-        let stalls: BTreeMap<String, usize> = run
-            .metrics
-            .axes
-            .iter()
-            .map(|(name, a)| (name.clone(), a.stick_slip_stalls))
-            .collect();
-        let input = BallbarInput {
-            scenario: self.title.clone(),
-            axes,
-            plane: plane_name(self.plane).into(),
-            centre: in_plane.map(|a| self.centre[a]),
-            centre_3d: self.centre,
-            radius: self.radius,
-            feed: self.feed,
-            period: self.assembly.scenario.servo_period,
-            ccw,
-            cw,
-            stalls,
-            completed: run.stop.is_none(),
-        };
-        let too_short = input.ccw.point.len() < 16 || input.cw.point.len() < 16;
-        if too_short {
-            let message = match &run.stop {
-                Some(stop) => format!("the ballbar run stopped before it traced both circles: {stop}"),
-                None => "the ballbar run traced too few samples of a circle (feed too high for the servo period?)".into(),
-            };
-            return Err(FileError::new(&self.assembly.scenario.path, None, message).into());
-        }
-        let ballbar = analyse_ballbar(&input);
-        // The run's metrics.json carries the ballbar figures too.
-        let mut metrics = run.metrics_json.clone();
-        metrics["ballbar"] = ballbar.metrics_json();
-        let path = dir.join("metrics.json");
-        let text = serde_json::to_string_pretty(&metrics).expect("plain values") + "\n";
-        std::fs::write(&path, text).map_err(|source| ReportError::Io {
-            path: path.clone(),
-            source,
-        })?;
-        Ok((ballbar, run.files.clone()))
-    }
 }

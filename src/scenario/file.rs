@@ -120,6 +120,8 @@ struct RawProgram {
     file: Option<Spanned<String>>,
     circle: Option<Spanned<RawCircle>>,
     polyline: Option<Spanned<RawPolyline>>,
+    /// The ISO 230-4 circular test as the program (src/scenario/ballbar.rs).
+    ballbar: Option<Spanned<RawBallbar>>,
     /// Path speed of the built-in paths (mm/s).
     feed_mm_s: Option<Num>,
     /// How a program file's feed applies to moves with rotary axes.
@@ -173,6 +175,22 @@ enum Direction {
     #[default]
     Ccw,
     Cw,
+}
+
+#[derive(Deserialize)]
+#[serde(deny_unknown_fields)]
+struct RawBallbar {
+    radius_mm: f64,
+    feed_mm_min: f64,
+    #[serde(default)]
+    plane: super::ballbar::BallbarPlane,
+    center_mm: Option<[f64; 3]>,
+    #[serde(default = "default_overshoot")]
+    overshoot_deg: f64,
+}
+
+fn default_overshoot() -> f64 {
+    45.0
 }
 
 #[derive(Deserialize)]
@@ -518,6 +536,9 @@ impl Default for RawRecording {
 pub enum ProgramSource {
     Circle(CircleSpec),
     Polyline(PolylineSpec),
+    /// The ISO 230-4 circular test (`cncsim ballbar`'s program): its figures join the metrics
+    /// under `ballbar`.
+    Ballbar(super::ballbar::BallbarSpec),
     /// The reader settings are boxed: with the G-code tool table they outweigh the others.
     File {
         path: PathBuf,
@@ -702,14 +723,17 @@ impl Scenario {
 
         // Program: exactly one source.
         let p = &raw.program;
-        let count = p.file.is_some() as u8 + p.circle.is_some() as u8 + p.polyline.is_some() as u8;
+        let count = p.file.is_some() as u8
+            + p.circle.is_some() as u8
+            + p.polyline.is_some() as u8
+            + p.ballbar.is_some() as u8;
         let program_at = LineColumn::of_first(text, "[program]");
         if count != 1 {
             return Err(FileError::new(
                 path,
                 program_at,
                 format!(
-                    "[program] needs exactly one of `file`, `circle` or `polyline`, found {count}"
+                    "[program] needs exactly one of `file`, `circle`, `polyline` or `ballbar`, found {count}"
                 ),
             ));
         }
@@ -816,6 +840,37 @@ impl Scenario {
                 clockwise: matches!(v.direction, Direction::Cw),
                 z: v.z_mm * 1e-3,
                 speed: feed()?,
+            })
+        } else if let Some(b) = &p.ballbar {
+            if let Some(feed) = &p.feed_mm_s {
+                return Err(err(
+                    feed.span(),
+                    "feed_mm_s applies to circle and polyline; the ballbar test takes feed_mm_min"
+                        .into(),
+                ));
+            }
+            let v = b.get_ref();
+            let c_mm = limits::COORDINATE_MM;
+            let (lo, hi) = limits::SPEED_MM_S;
+            let centre_ok = v
+                .center_mm
+                .is_none_or(|c| c.iter().all(|x| x.is_finite() && x.abs() <= c_mm));
+            if !(v.radius_mm > 0.0 && v.radius_mm <= c_mm)
+                || !(v.feed_mm_min >= lo * 60.0 && v.feed_mm_min <= hi * 60.0)
+                || !(v.overshoot_deg > 0.0 && v.overshoot_deg <= 180.0)
+                || !centre_ok
+            {
+                return Err(err(
+                    b.span(),
+                    format!("ballbar: expected 0 < radius_mm ≤ {c_mm:?}, feed_mm_min within [{}, {}], 0 < overshoot_deg ≤ 180 and center_mm within ±{c_mm:?} mm, found radius_mm = {:?}, feed_mm_min = {:?}, overshoot_deg = {:?}, center_mm = {:?}", lo * 60.0, hi * 60.0, v.radius_mm, v.feed_mm_min, v.overshoot_deg, v.center_mm),
+                ));
+            }
+            ProgramSource::Ballbar(super::ballbar::BallbarSpec {
+                radius: v.radius_mm * 1e-3,
+                feed: v.feed_mm_min / 60e3,
+                plane: v.plane.into(),
+                centre: v.center_mm.map(|c| c.map(|x| x * 1e-3)),
+                overshoot: v.overshoot_deg.to_radians(),
             })
         } else {
             let pl = p.polyline.as_ref().expect("counted above");

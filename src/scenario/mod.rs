@@ -18,8 +18,8 @@ pub use assemble::{
     plan_settings, with_choices, Assembly, PlantKind, ProgramOverview, RunError, GRAVITY,
 };
 pub use ballbar::{
-    ballbar_centre, ballbar_passes, ballbar_program, default_radius_and_feed, plane_axes, run_ballbar,
-    BallbarOptions, BallbarPlane,
+    ballbar_centre, ballbar_passes, ballbar_program, default_plane_centre_overshoot,
+    default_radius_and_feed, plane_axes, run_ballbar, BallbarOptions, BallbarPlane, BallbarSpec,
 };
 pub use check::{check, Breach, Verdict};
 pub use file::{

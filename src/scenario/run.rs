@@ -35,6 +35,9 @@ pub struct RunOutput {
     /// The machine's plausibility warnings (values that loaded but look wrong), and the
     /// planner's (stops its look-ahead added).
     pub warnings: Vec<FileError>,
+    /// The ISO 230-4 figures, when the program is the ballbar test (also in the metrics
+    /// under `ballbar`).
+    pub ballbar: Option<crate::report::BallbarRun>,
 }
 
 pub fn run_scenario(
@@ -161,9 +164,14 @@ pub fn run_assembly_observed(
         s.decimation,
     )?;
     let mut recorder = TraceRecorder::new(s.servo_period, assembly.labels.len(), lanes.len());
+    let ballbar_spec = match &s.program {
+        super::ProgramSource::Ballbar(spec) => Some(spec),
+        _ => None,
+    };
     let outcome = {
         let mut observers: Vec<&mut dyn Observer> = vec![&mut report];
-        if keep_trace {
+        // The ballbar figures are read from the trace after the run.
+        if keep_trace || ballbar_spec.is_some() {
             observers.push(&mut recorder);
         }
         if let Some(extra) = extra {
@@ -172,7 +180,23 @@ pub fn run_assembly_observed(
         assembly.run(&mut Observers(observers), progress)?
     };
     let metrics = report.metrics(&outcome);
-    let metrics_json = metrics.to_json();
+    let mut metrics_json = metrics.to_json();
+    let ballbar = match ballbar_spec {
+        Some(spec) => {
+            let completed = outcome.stop().is_none();
+            let run = super::ballbar::ballbar_of_run(
+                assembly,
+                spec,
+                recorder.lane(0),
+                &metrics,
+                completed,
+                out_dir,
+            )?;
+            metrics_json["ballbar"] = run.metrics_json();
+            Some(run)
+        }
+        None => None,
+    };
     let verdict = check(s, &metrics_json);
 
     // Everything computed so far is written, whether or not the run completed.
@@ -192,6 +216,9 @@ pub fn run_assembly_observed(
     let summary = summary_markdown(assembly, &metrics, &verdict);
     let mut files = vec![metrics_path];
     files.extend(report.finish(&outcome, &notes, &summary)?);
+    if let Some(b) = &ballbar {
+        files.extend(b.files.iter().cloned());
+    }
     let mut traces = recorder.into_traces().into_iter();
     let (trace, analytic) = if keep_trace {
         (traces.next(), traces.next().filter(|_| lanes.len() > 1))
@@ -208,6 +235,7 @@ pub fn run_assembly_observed(
         verdict,
         files,
         warnings: warnings_of(assembly),
+        ballbar,
     };
     Ok((output, outcome))
 }
@@ -426,6 +454,11 @@ pub(crate) fn validate_against_machine(
     .to_json();
     let mut known = Vec::new();
     collect_numeric_paths(&template, "", &mut known);
+    if let super::ProgramSource::Ballbar(b) = &s.program {
+        let ([a1, a2], _) = super::ballbar::plane_axes(b.plane);
+        let letters = ["x", "y", "z"];
+        known.extend(crate::report::BallbarRun::metric_names([letters[a1], letters[a2]]));
+    }
     for e in &s.expect {
         if !known.contains(&e.metric) {
             return Err(FileError::new(
