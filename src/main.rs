@@ -302,6 +302,10 @@ fn ballbar_cli(
         eprintln!("error: {}: a ballbar run stopped early (its figures are of what ran)", path.display());
         return ExitCode::from(1);
     }
+    if report.runs.iter().any(|r| !r.breaches.is_empty()) {
+        eprintln!("error: {}: a ballbar figure breaches an [expect] bound", path.display());
+        return ExitCode::from(1);
+    }
     ExitCode::SUCCESS
 }
 

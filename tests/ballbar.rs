@@ -7,6 +7,8 @@
 //!   its closed form (docs/ballbar.md);
 //! - backlash written in a drive file against the backlash the diagnosis reports.
 
+mod common;
+
 use std::path::{Path, PathBuf};
 use std::process::{Command, Output};
 
@@ -98,7 +100,15 @@ fn end_to_end_series_json_and_files() {
         assert!(num(&metrics, "ballbar.circular_hysteresis_um").is_finite());
     }
     assert!(dir.path().join("ballbar.json").is_file());
-    assert!(dir.path().join("ballbar.rrd").metadata().unwrap().len() > 0);
+    // The recording's polar view: per run the nominal circle, the rings, both directions and
+    // the figures.
+    let entities = common::rrd_rows(&dir.path().join("ballbar.rrd"));
+    for run in ["F600_R5", "F1200_R5"] {
+        for part in ["nominal", "grid", "ccw", "cw", "figures"] {
+            let entity = format!("/ballbar/{run}/{part}");
+            assert!(entities.contains_key(&entity), "{entity} not in {:?}", entities.keys());
+        }
+    }
 
     // The terminal report of the same test.
     let out = dir.path().join("text");
