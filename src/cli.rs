@@ -63,7 +63,11 @@ pub enum Command {
         plane: Option<cncsim::scenario::BallbarPlane>,
         /// Centre in program coordinates, mm (x,y,z); default: the scenario's circle centre
         /// or program start, else the middle of the travel.
-        #[arg(long = "center-mm", value_delimiter = ',', allow_negative_numbers = true)]
+        #[arg(
+            long = "center-mm",
+            value_delimiter = ',',
+            allow_negative_numbers = true
+        )]
         center_mm: Option<Vec<f64>>,
         /// Overshoot arc before and after the 360° of data (degrees, 0 < o ≤ 180; default
         /// 45): long enough for the planner's speed-up and slow-down to stay out of the data.

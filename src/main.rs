@@ -251,7 +251,9 @@ fn ballbar_cli(
     out: Option<PathBuf>,
 ) -> ExitCode {
     if let Some(o) = overshoot_deg.filter(|o| !(*o > 0.0 && *o <= 180.0)) {
-        return fail_input(&format!("--overshoot-deg {o}: must be more than 0 and at most 180"));
+        return fail_input(&format!(
+            "--overshoot-deg {o}: must be more than 0 and at most 180"
+        ));
     }
     let scenario = match Scenario::load(path) {
         Ok(s) => s,
@@ -261,26 +263,44 @@ fn ballbar_cli(
         cncsim::scenario::default_plane_centre_overshoot(&scenario);
     print_warnings(&scenario.warnings);
     let (radius, feed) = cncsim::scenario::default_radius_and_feed(&scenario);
-    let positive = |flag: &str, values: &[f64]| match values.iter().find(|v| !(v.is_finite() && **v > 0.0)) {
-        Some(v) => Err(format!("{flag} {v}: must be a positive number")),
-        None => Ok(()),
-    };
-    if let Err(e) = positive("--radius-mm", &radius_mm).and(positive("--feed-mm-min", &feed_mm_min)) {
+    let positive =
+        |flag: &str, values: &[f64]| match values.iter().find(|v| !(v.is_finite() && **v > 0.0)) {
+            Some(v) => Err(format!("{flag} {v}: must be a positive number")),
+            None => Ok(()),
+        };
+    if let Err(e) = positive("--radius-mm", &radius_mm).and(positive("--feed-mm-min", &feed_mm_min))
+    {
         return fail_input(&e);
     }
     let centre = match center_mm.as_deref() {
         None => own_centre,
-        Some(&[x, y, z]) if [x, y, z].iter().all(|v| v.is_finite()) => Some([x * 1e-3, y * 1e-3, z * 1e-3]),
-        Some(v) => return fail_input(&format!("--center-mm takes 3 finite values (x,y,z in mm), got {v:?}")),
+        Some(&[x, y, z]) if [x, y, z].iter().all(|v| v.is_finite()) => {
+            Some([x * 1e-3, y * 1e-3, z * 1e-3])
+        }
+        Some(v) => {
+            return fail_input(&format!(
+                "--center-mm takes 3 finite values (x,y,z in mm), got {v:?}"
+            ))
+        }
     };
     let options = cncsim::scenario::BallbarOptions {
-        radii: if radius_mm.is_empty() { vec![radius] } else { radius_mm.iter().map(|r| r * 1e-3).collect() },
-        feeds: if feed_mm_min.is_empty() { vec![feed] } else { feed_mm_min.iter().map(|f| f / 60e3).collect() },
+        radii: if radius_mm.is_empty() {
+            vec![radius]
+        } else {
+            radius_mm.iter().map(|r| r * 1e-3).collect()
+        },
+        feeds: if feed_mm_min.is_empty() {
+            vec![feed]
+        } else {
+            feed_mm_min.iter().map(|f| f / 60e3).collect()
+        },
         plane: plane.map_or(own_plane, Into::into),
         centre,
         overshoot: overshoot_deg.map_or(own_overshoot, f64::to_radians),
     };
-    let out = out.unwrap_or_else(|| Path::new("out").join(folder_name(&format!("ballbar_{}", scenario.name))));
+    let out = out.unwrap_or_else(|| {
+        Path::new("out").join(folder_name(&format!("ballbar_{}", scenario.name)))
+    });
     let mut progress = |_: usize, _: usize| !INTERRUPTED.load(Ordering::Relaxed);
     let report = match cncsim::scenario::run_ballbar(&scenario, &options, &out, &mut progress) {
         Ok(r) => r,
@@ -291,7 +311,11 @@ fn ballbar_cli(
     } else {
         print!("{}", report.text());
         for run in &report.runs {
-            for f in run.files.iter().filter(|f| f.extension().is_some_and(|e| e == "png")) {
+            for f in run
+                .files
+                .iter()
+                .filter(|f| f.extension().is_some_and(|e| e == "png"))
+            {
                 println!("  wrote {}", f.display());
             }
         }
@@ -299,11 +323,17 @@ fn ballbar_cli(
         println!("  wrote {}", out.join("ballbar.rrd").display());
     }
     if report.runs.iter().any(|r| !r.completed) {
-        eprintln!("error: {}: a ballbar run stopped early (its figures are of what ran)", path.display());
+        eprintln!(
+            "error: {}: a ballbar run stopped early (its figures are of what ran)",
+            path.display()
+        );
         return ExitCode::from(1);
     }
     if report.runs.iter().any(|r| !r.breaches.is_empty()) {
-        eprintln!("error: {}: a ballbar figure breaches an [expect] bound", path.display());
+        eprintln!(
+            "error: {}: a ballbar figure breaches an [expect] bound",
+            path.display()
+        );
         return ExitCode::from(1);
     }
     ExitCode::SUCCESS

@@ -69,10 +69,16 @@ fn end_to_end_series_json_and_files() {
             let mz = num(run, &format!("{d}.circular_deviation_min_zone_um"));
             // The minimum zone is the narrowest annulus: never wider than the one about the
             // least-squares centre.
-            assert!(g.is_finite() && mz <= g + 1e-9, "{d}: G {g}, minimum zone {mz}");
+            assert!(
+                g.is_finite() && mz <= g + 1e-9,
+                "{d}: G {g}, minimum zone {mz}"
+            );
             // The demo table (ideal mechanics, stiff PID) follows a 5 mm circle within 1 µm.
             assert!(g < 1.0, "{d}: G {g} µm");
-            assert!(num(run, &format!("{d}.radial_deviation_max_um")) >= num(run, &format!("{d}.radial_deviation_min_um")));
+            assert!(
+                num(run, &format!("{d}.radial_deviation_max_um"))
+                    >= num(run, &format!("{d}.radial_deviation_min_um"))
+            );
         }
         assert!(num(run, "circular_hysteresis_um").is_finite());
         for axis in ["x", "y"] {
@@ -106,7 +112,11 @@ fn end_to_end_series_json_and_files() {
     for run in ["F600_R5", "F1200_R5"] {
         for part in ["nominal", "grid", "ccw", "cw", "figures"] {
             let entity = format!("/ballbar/{run}/{part}");
-            assert!(entities.contains_key(&entity), "{entity} not in {:?}", entities.keys());
+            assert!(
+                entities.contains_key(&entity),
+                "{entity} not in {:?}",
+                entities.keys()
+            );
         }
     }
 
@@ -213,23 +223,42 @@ fn least_squares_and_minimum_zone_circles_agree_with_scipy() {
             ("radial_deviation_max_um", 1e-6),
             ("radial_deviation_min_um", 1e-6),
         ] {
-            let (a, b) = (num(run, &format!("{d}.{key}")), num(&oracle, &format!("{d}.{key}")));
-            assert!((a - b).abs() <= tolerance, "{d}.{key}: cncsim {a}, scipy {b}");
+            let (a, b) = (
+                num(run, &format!("{d}.{key}")),
+                num(&oracle, &format!("{d}.{key}")),
+            );
+            assert!(
+                (a - b).abs() <= tolerance,
+                "{d}.{key}: cncsim {a}, scipy {b}"
+            );
         }
         for i in 0..2 {
             let (a, b) = (
-                run[d]["least_squares_centre_offset_um"][i].as_f64().unwrap(),
-                oracle[d]["least_squares_centre_offset_um"][i].as_f64().unwrap(),
+                run[d]["least_squares_centre_offset_um"][i]
+                    .as_f64()
+                    .unwrap(),
+                oracle[d]["least_squares_centre_offset_um"][i]
+                    .as_f64()
+                    .unwrap(),
             );
-            assert!((a - b).abs() <= 1e-4, "{d} centre[{i}]: cncsim {a}, scipy {b}");
+            assert!(
+                (a - b).abs() <= 1e-4,
+                "{d} centre[{i}]: cncsim {a}, scipy {b}"
+            );
         }
         // Minimum zone: a nested golden-section search here, re-linearised linear programmes
         // (HiGHS) there; 0.02 µm on zones of about 2 mm (measured 0.0075 µm, cncsim's the
         // narrower).
         let key = "circular_deviation_min_zone_um";
-        let (a, b) = (num(run, &format!("{d}.{key}")), num(&oracle, &format!("{d}.{key}")));
+        let (a, b) = (
+            num(run, &format!("{d}.{key}")),
+            num(&oracle, &format!("{d}.{key}")),
+        );
         assert!((a - b).abs() <= 0.02, "{d}.{key}: cncsim {a}, scipy {b}");
-        assert!(a < num(run, &format!("{d}.circular_deviation_um")) - 1.0, "the twin's zones differ");
+        assert!(
+            a < num(run, &format!("{d}.circular_deviation_um")) - 1.0,
+            "the twin's zones differ"
+        );
     }
     let (a, b) = (
         num(run, "circular_hysteresis_um"),
@@ -328,7 +357,10 @@ fn backlash_in_the_drive_file_is_the_backlash_reported() {
     let drives = drives
         .replace("backlash = 0.32e-3", &format!("backlash = {bx:e}"))
         .replace("backlash = 0.45e-3", &format!("backlash = {by:e}"));
-    assert!(drives.contains(&format!("backlash = {bx:e}")) && drives.contains(&format!("backlash = {by:e}")));
+    assert!(
+        drives.contains(&format!("backlash = {bx:e}"))
+            && drives.contains(&format!("backlash = {by:e}"))
+    );
     std::fs::write(dir.path().join("xyz_table.drives.toml"), drives).unwrap();
     let scenario = dir.path().join("backlash.toml");
     std::fs::write(
@@ -385,19 +417,29 @@ fn ballbar_figures_are_metrics_for_expect_ab_and_sweeps() {
     let bundled = root().join("scenarios/ballbar_xyz_servo_mismatch.toml");
     let out = dir.path().display().to_string();
     let o = cncsim(&["check", bundled.to_str().unwrap(), "--out", &out]);
-    assert!(o.status.success(), "{}{}", String::from_utf8_lossy(&o.stdout), stderr(&o));
+    assert!(
+        o.status.success(),
+        "{}{}",
+        String::from_utf8_lossy(&o.stdout),
+        stderr(&o)
+    );
     assert!(String::from_utf8_lossy(&o.stdout).contains("PASS"));
     let metrics: serde_json::Value = serde_json::from_str(
-        &std::fs::read_to_string(dir.path().join("ballbar_xyz_servo_mismatch/metrics.json")).unwrap(),
+        &std::fs::read_to_string(dir.path().join("ballbar_xyz_servo_mismatch/metrics.json"))
+            .unwrap(),
     )
     .unwrap();
     assert!(num(&metrics, "ballbar.servo_mismatch_um") > 400.0);
-    assert!(dir.path().join("ballbar_xyz_servo_mismatch/polar.png").is_file());
+    assert!(dir
+        .path()
+        .join("ballbar_xyz_servo_mismatch/polar.png")
+        .is_file());
 
     // A bound the run breaches fails `check`, naming the figure; an unknown one is bad input.
-    let text = std::fs::read_to_string(&bundled)
-        .unwrap()
-        .replace("../models/", &format!("{}/", root().join("models").display()));
+    let text = std::fs::read_to_string(&bundled).unwrap().replace(
+        "../models/",
+        &format!("{}/", root().join("models").display()),
+    );
     let breached = dir.path().join("breached.toml");
     std::fs::write(
         &breached,
@@ -418,11 +460,20 @@ fn ballbar_figures_are_metrics_for_expect_ab_and_sweeps() {
     .unwrap();
     let o = cncsim(&["run", unknown.to_str().unwrap(), "--out", &out]);
     assert_eq!(o.status.code(), Some(2));
-    assert!(stderr(&o).contains("expect.ballbar.backlash_um.z: no such metric"), "{}", stderr(&o));
+    assert!(
+        stderr(&o).contains("expect.ballbar.backlash_um.z: no such metric"),
+        "{}",
+        stderr(&o)
+    );
 
     // A/B: the file's [ab] matches the gains; the ballbar rows compare the two.
     let ab = dir.path().join("ab");
-    let o = cncsim(&["ab", bundled.to_str().unwrap(), "--out", ab.to_str().unwrap()]);
+    let o = cncsim(&[
+        "ab",
+        bundled.to_str().unwrap(),
+        "--out",
+        ab.to_str().unwrap(),
+    ]);
     assert!(o.status.success(), "{}", stderr(&o));
     let report: serde_json::Value =
         serde_json::from_str(&std::fs::read_to_string(ab.join("ab.json")).unwrap()).unwrap();
@@ -432,7 +483,10 @@ fn ballbar_figures_are_metrics_for_expect_ab_and_sweeps() {
         .iter()
         .find(|r| r["metric"] == "ballbar servo_mismatch_um")
         .expect("a ballbar row");
-    assert!(row["a"].as_f64().unwrap() > 400.0 && row["b"].as_f64().unwrap() < 1.0, "{row}");
+    assert!(
+        row["a"].as_f64().unwrap() > 400.0 && row["b"].as_f64().unwrap() < 1.0,
+        "{row}"
+    );
 
     // A sweep over the position gain of Y: its results carry the ballbar figures.
     let sweep = dir.path().join("sweep.toml");
@@ -453,8 +507,20 @@ metrics = ["ballbar.servo_mismatch_um", "ballbar.ccw.circular_deviation_um"]
     )
     .unwrap();
     let sweep_out = dir.path().join("sweep_out");
-    let o = cncsim(&["sweep", sweep.to_str().unwrap(), "--jobs", "2", "--out", sweep_out.to_str().unwrap()]);
-    assert!(o.status.success(), "{}{}", String::from_utf8_lossy(&o.stdout), stderr(&o));
+    let o = cncsim(&[
+        "sweep",
+        sweep.to_str().unwrap(),
+        "--jobs",
+        "2",
+        "--out",
+        sweep_out.to_str().unwrap(),
+    ]);
+    assert!(
+        o.status.success(),
+        "{}{}",
+        String::from_utf8_lossy(&o.stdout),
+        stderr(&o)
+    );
     let csv = std::fs::read_to_string(sweep_out.join("results.csv")).unwrap();
     let header: Vec<&str> = csv.lines().next().unwrap().split(',').collect();
     let column = header
@@ -468,6 +534,9 @@ metrics = ["ballbar.servo_mismatch_um", "ballbar.ccw.circular_deviation_um"]
         .collect();
     assert_eq!(values.len(), 2, "{csv}");
     // Equal gains (10, 10): no ellipse; 10 against 40: a larger one than the bundled 10/20.
-    let (lo, hi) = (values.iter().copied().fold(f64::INFINITY, f64::min), values.iter().copied().fold(0.0, f64::max));
+    let (lo, hi) = (
+        values.iter().copied().fold(f64::INFINITY, f64::min),
+        values.iter().copied().fold(0.0, f64::max),
+    );
     assert!(lo < 1.0 && hi > 600.0, "{values:?}");
 }

@@ -193,7 +193,11 @@ impl BallbarRun {
             min_zone_centre_offset_um: [0.0; 2],
             samples: 0,
         };
-        let per_axis = |v: f64| axes.iter().map(|a| (a.to_string(), v)).collect::<BTreeMap<_, _>>();
+        let per_axis = |v: f64| {
+            axes.iter()
+                .map(|a| (a.to_string(), v))
+                .collect::<BTreeMap<_, _>>()
+        };
         let template = BallbarRun {
             scenario: String::new(),
             plane: String::new(),
@@ -322,9 +326,7 @@ fn signed(a: f64) -> f64 {
 }
 
 fn radii(points: &[[f64; 2]], c: [f64; 2]) -> impl Iterator<Item = f64> + '_ {
-    points
-        .iter()
-        .map(move |p| (p[0] - c[0]).hypot(p[1] - c[1]))
+    points.iter().map(move |p| (p[0] - c[0]).hypot(p[1] - c[1]))
 }
 
 fn zone(points: &[[f64; 2]], c: [f64; 2]) -> f64 {
@@ -442,9 +444,10 @@ fn direction_figures(pass: &BallbarPass, input: &BallbarInput) -> DirectionFigur
     let (lsq, rho) = least_squares_circle(&pass.point, c0);
     let g = zone(&pass.point, lsq);
     let (mz, g_mz) = minimum_zone_circle(&pass.point, lsq, g);
-    let (lo, hi) = radii(&pass.point, c0).fold((f64::INFINITY, f64::NEG_INFINITY), |(lo, hi), r| {
-        (lo.min(r - r0), hi.max(r - r0))
-    });
+    let (lo, hi) = radii(&pass.point, c0)
+        .fold((f64::INFINITY, f64::NEG_INFINITY), |(lo, hi), r| {
+            (lo.min(r - r0), hi.max(r - r0))
+        });
     DirectionFigures {
         circular_deviation_um: um(g),
         circular_deviation_min_zone_um: um(g_mz),
@@ -485,7 +488,11 @@ fn interpolate(sorted: &[(f64, f64)], angle: f64) -> f64 {
         sorted[i]
     };
     let span = b.0 - a.0;
-    let s = if span > 0.0 { (angle - a.0) / span } else { 0.0 };
+    let s = if span > 0.0 {
+        (angle - a.0) / span
+    } else {
+        0.0
+    };
     a.1 + s * (b.1 - a.1)
 }
 
@@ -616,7 +623,13 @@ fn backlash(polars: &[(bool, Vec<(f64, f64)>); 2]) -> ([f64; 2], [f64; 2]) {
     for (clockwise, polar) in polars {
         let s = if *clockwise { -1.0 } else { 1.0 };
         for (axis, at) in REVERSALS {
-            if let Some(fit) = fit_reversal(polar, at.to_radians(), s, (-w2, SPIKE_BEFORE_DEG.1), (w1, w2)) {
+            if let Some(fit) = fit_reversal(
+                polar,
+                at.to_radians(),
+                s,
+                (-w2, SPIKE_BEFORE_DEG.1),
+                (w1, w2),
+            ) {
                 steps[axis].push(fit.step);
                 residual[axis] = residual[axis].max(fit.residual);
             }
@@ -688,7 +701,11 @@ fn spikes(input: &BallbarInput, polars: &[(bool, Vec<(f64, f64)>); 2]) -> Vec<Re
                 direction: if *clockwise { "cw" } else { "ccw" },
                 angle_deg: at,
                 height_um: um(peak.1),
-                width_deg: if peak.1.abs() < RESOLUTION { 0.0 } else { hi - lo },
+                width_deg: if peak.1.abs() < RESOLUTION {
+                    0.0
+                } else {
+                    hi - lo
+                },
             });
         }
     }
@@ -731,21 +748,17 @@ fn regress(rows: &[Vec<f64>], y: &[f64]) -> Option<Vec<f64>> {
 fn sin2_coefficient(polar: &[(f64, f64)]) -> f64 {
     let rows: Vec<Vec<f64>> = polar
         .iter()
-        .map(|&(a, _)| {
-            vec![
-                1.0,
-                a.cos(),
-                a.sin(),
-                (2.0 * a).cos(),
-                (2.0 * a).sin(),
-            ]
-        })
+        .map(|&(a, _)| vec![1.0, a.cos(), a.sin(), (2.0 * a).cos(), (2.0 * a).sin()])
         .collect();
     let y: Vec<f64> = polar.iter().map(|p| p.1).collect();
     regress(&rows, &y).map_or(f64::NAN, |c| c[4])
 }
 
-fn servo_mismatch(input: &BallbarInput, polars: &[(bool, Vec<(f64, f64)>); 2], b: [f64; 2]) -> ServoMismatch {
+fn servo_mismatch(
+    input: &BallbarInput,
+    polars: &[(bool, Vec<(f64, f64)>); 2],
+    b: [f64; 2],
+) -> ServoMismatch {
     let coefficient = |clockwise: bool| {
         polars
             .iter()
@@ -924,10 +937,19 @@ pub fn analyse(input: &BallbarInput) -> BallbarRun {
         files: Vec::new(),
         breaches: Vec::new(),
         polar: [
-            polars[0].1.iter().map(|&(a, d)| (a.to_degrees(), um(d))).collect(),
-            polars[1].1.iter().map(|&(a, d)| (a.to_degrees(), um(d))).collect(),
+            polars[0]
+                .1
+                .iter()
+                .map(|&(a, d)| (a.to_degrees(), um(d)))
+                .collect(),
+            polars[1]
+                .1
+                .iter()
+                .map(|&(a, d)| (a.to_degrees(), um(d)))
+                .collect(),
         ],
-        points: [&input.ccw, &input.cw].map(|p| p.point.iter().map(|q| q.map(|v| v * 1e3)).collect()),
+        points: [&input.ccw, &input.cw]
+            .map(|p| p.point.iter().map(|q| q.map(|v| v * 1e3)).collect()),
         times: [&input.ccw, &input.cw].map(|p| p.time.clone()),
     }
 }
@@ -935,11 +957,7 @@ pub fn analyse(input: &BallbarInput) -> BallbarRun {
 impl BallbarRun {
     /// The plot's label of this run.
     pub fn label(&self) -> String {
-        format!(
-            "F{}_R{}",
-            trim(self.feed_mm_min),
-            trim(self.radius_mm)
-        )
+        format!("F{}_R{}", trim(self.feed_mm_min), trim(self.radius_mm))
     }
 
     /// The run as a block of the terminal report.
@@ -955,7 +973,8 @@ impl BallbarRun {
             self.centre_mm.map(|v| format!("{v:.3}")).join(", "),
             if self.completed { "" } else { " — STOPPED EARLY" }
         );
-        let row = |name: &str, ccw: String, cw: String| format!("  {name:<36} {ccw:>14} {cw:>14}\n");
+        let row =
+            |name: &str, ccw: String, cw: String| format!("  {name:<36} {ccw:>14} {cw:>14}\n");
         t += &row("", "CCW".into(), "CW".into());
         let f = |v: f64| format!("{v:.2} µm");
         t += &row(
@@ -985,7 +1004,11 @@ impl BallbarRun {
             )
         };
         t += &row(
-            &format!("centre offset {}, {} (µm)", a1.to_uppercase(), a2.to_uppercase()),
+            &format!(
+                "centre offset {}, {} (µm)",
+                a1.to_uppercase(),
+                a2.to_uppercase()
+            ),
             o(&self.ccw),
             o(&self.cw),
         );
@@ -1001,7 +1024,11 @@ impl BallbarRun {
                 .iter()
                 .map(|a| {
                     let v = self.backlash_um.get(*a).copied().unwrap_or(f64::NAN);
-                    let r = self.backlash_fit_residual_um.get(*a).copied().unwrap_or(0.0);
+                    let r = self
+                        .backlash_fit_residual_um
+                        .get(*a)
+                        .copied()
+                        .unwrap_or(0.0);
                     format!("{} {v:.1} µm (fit residual {r:.1} µm)", a.to_uppercase())
                 })
                 .collect::<Vec<_>>()
@@ -1046,7 +1073,9 @@ impl BallbarRun {
                 "    main vibration: {:.2} Hz, {:.2} µm amplitude\n",
                 v.frequency_hz, v.amplitude_um
             ),
-            None => "    main vibration: none resolved (below 1 nm, or the trace too short)\n".into(),
+            None => {
+                "    main vibration: none resolved (below 1 nm, or the trace too short)\n".into()
+            }
         };
         t
     }
@@ -1057,7 +1086,10 @@ impl BallbarRun {
         let name = |c: char| c.to_string();
         match order.as_slice() {
             [a, b] => [name(*a), name(*b)],
-            _ => [keys.next().unwrap_or_default(), keys.next().unwrap_or_default()],
+            _ => [
+                keys.next().unwrap_or_default(),
+                keys.next().unwrap_or_default(),
+            ],
         }
     }
 
@@ -1067,7 +1099,11 @@ impl BallbarRun {
         let [a1, a2] = self.plane_axes();
         let mut t = format!("direction,t_s,angle_deg,radial_deviation_um,{a1}_mm,{a2}_mm\n");
         for (k, dir) in ["ccw", "cw"].iter().enumerate() {
-            for (((a, d), p), time) in self.polar[k].iter().zip(&self.points[k]).zip(&self.times[k]) {
+            for (((a, d), p), time) in self.polar[k]
+                .iter()
+                .zip(&self.points[k])
+                .zip(&self.times[k])
+            {
                 t += &format!("{dir},{time},{a},{d},{},{}\n", p[0], p[1]);
             }
         }
@@ -1082,7 +1118,11 @@ fn trim(v: f64) -> String {
 
 impl BallbarReport {
     pub fn text(&self) -> String {
-        self.runs.iter().map(|r| r.text()).collect::<Vec<_>>().join("\n")
+        self.runs
+            .iter()
+            .map(|r| r.text())
+            .collect::<Vec<_>>()
+            .join("\n")
     }
 
     pub fn json(&self) -> String {
@@ -1213,9 +1253,17 @@ fn draw_polar(pixels: &mut [u8], run: &BallbarRun) -> DrawResult<()> {
     for (text, x, y) in [
         (format!("+{}", a1.to_uppercase()), reach, 0.0),
         (format!("+{}", a2.to_uppercase()), 0.0, reach),
-        (format!("±{} µm", trim(2.0 * div)), (1.0 + 2.0 * k * div) * 0.72, -(1.0 + 2.0 * k * div) * 0.72 - 0.05),
+        (
+            format!("±{} µm", trim(2.0 * div)),
+            (1.0 + 2.0 * k * div) * 0.72,
+            -(1.0 + 2.0 * k * div) * 0.72 - 0.05,
+        ),
     ] {
-        chart.draw_series(std::iter::once(Text::new(text, (x - 0.05, y), label_style.clone())))?;
+        chart.draw_series(std::iter::once(Text::new(
+            text,
+            (x - 0.05, y),
+            label_style.clone(),
+        )))?;
     }
     for ((name, colour), data) in [("CCW", CCW_COLOUR), ("CW", CW_COLOUR)]
         .iter()
@@ -1351,14 +1399,21 @@ fn draw_polar(pixels: &mut [u8], run: &BallbarRun) -> DrawResult<()> {
                 )
             })
             .collect();
-        lines.push((format!("  {}: {}", dir.to_uppercase(), spikes.join(",  ")), 17));
+        lines.push((
+            format!("  {}: {}", dir.to_uppercase(), spikes.join(",  ")),
+            17,
+        ));
     }
     if !run.completed {
         lines.push(("RUN STOPPED EARLY: figures of what ran".into(), 19));
     }
     let mut y = 40i32;
     for (text, size) in lines {
-        right.draw(&Text::new(text, (10, y), (FAMILY, size).into_font().color(&BLACK)))?;
+        right.draw(&Text::new(
+            text,
+            (10, y),
+            (FAMILY, size).into_font().color(&BLACK),
+        ))?;
         y += size as i32 + 12;
     }
     let _ = w;

@@ -14,9 +14,9 @@ mod table;
 mod thin;
 
 pub use ballbar::{
-    analyse as analyse_ballbar, ballbar_pairs, least_squares_circle, minimum_zone_circle, write_polar_plot,
-    BallbarInput, BallbarPass, BallbarReport, BallbarRun, DirectionFigures, ReversalSpike,
-    ServoMismatch, Vibration,
+    analyse as analyse_ballbar, ballbar_pairs, least_squares_circle, minimum_zone_circle,
+    write_polar_plot, BallbarInput, BallbarPass, BallbarReport, BallbarRun, DirectionFigures,
+    ReversalSpike, ServoMismatch, Vibration,
 };
 pub use blueprint::{ab_blueprint, run_blueprint};
 pub use csv::CsvWriter;

@@ -159,7 +159,10 @@ const PALETTE: [RGBColor; 8] = [
 
 /// Writes `pixels` (RGB, [`PLOT_SIZE`]) as a PNG.
 /// Draws a plot of `PLOT_SIZE` on white with `draw` and writes it to `path` as PNG.
-pub(super) fn render(path: &Path, draw: impl FnOnce(&mut [u8]) -> DrawResult<()>) -> Result<(), ReportError> {
+pub(super) fn render(
+    path: &Path,
+    draw: impl FnOnce(&mut [u8]) -> DrawResult<()>,
+) -> Result<(), ReportError> {
     register_font();
     let (w, h) = PLOT_SIZE;
     let mut pixels = vec![255u8; (w * h * 3) as usize];

@@ -692,7 +692,10 @@ pub fn load_checked_program(s: &Scenario, machine: &Machine) -> Result<Program, 
             read_program(path, &options).map_err(RunError::Program)?
         }
     };
-    if !matches!(s.program, ProgramSource::File { .. } | ProgramSource::Ballbar(_)) {
+    if !matches!(
+        s.program,
+        ProgramSource::File { .. } | ProgramSource::Ballbar(_)
+    ) {
         program.shift(s.work_offset);
     }
     if program.moves.is_empty() {

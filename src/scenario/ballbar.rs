@@ -8,7 +8,9 @@ use super::run::run_assembly;
 use super::{folder_name, ProgramSource, Scenario};
 use crate::diagnostics::FileError;
 use crate::machine::Machine;
-use crate::program::{Blend, Feed, FeedRule, Motion, Move, Plane, Position, Program, Span, Spindle};
+use crate::program::{
+    Blend, Feed, FeedRule, Motion, Move, Plane, Position, Program, Span, Spindle,
+};
 use crate::report::{
     analyse_ballbar, write_polar_plot, BallbarInput, BallbarPass, BallbarReport, BallbarRun,
     ReportError,
@@ -128,9 +130,16 @@ fn travel(machine: &Machine) -> [Option<[f64; 2]>; 3] {
 }
 
 /// Whether the test path (the circle and its feed-in) about `centre` stays in the travel.
-fn fits(centre: [f64; 3], reach: f64, in_plane: [usize; 2], travel: &[Option<[f64; 2]>; 3]) -> bool {
+fn fits(
+    centre: [f64; 3],
+    reach: f64,
+    in_plane: [usize; 2],
+    travel: &[Option<[f64; 2]>; 3],
+) -> bool {
     in_plane.iter().all(|&a| {
-        travel[a].is_none_or(|[lo, hi]| centre[a] - reach >= lo - 1e-12 && centre[a] + reach <= hi + 1e-12)
+        travel[a].is_none_or(|[lo, hi]| {
+            centre[a] - reach >= lo - 1e-12 && centre[a] + reach <= hi + 1e-12
+        })
     })
 }
 
@@ -312,7 +321,9 @@ pub fn ballbar_passes(
     let axis: Vec<(usize, f64, f64)> = in_plane
         .iter()
         .map(|&a| {
-            let i = machine.axis_index(LETTERS[a]).expect("checked with the centre");
+            let i = machine
+                .axis_index(LETTERS[a])
+                .expect("checked with the centre");
             let d = &machine.axes[i].drive;
             (i, f64::from(d.sign), d.home)
         })
@@ -481,7 +492,9 @@ pub fn run_ballbar(
             let assembly = Assembly::with_machine(&scenario, machine.clone())?;
             let dir = out.join(folder_name(&label));
             let run = run_assembly(&assembly, &dir, progress, false)?;
-            let mut ballbar = run.ballbar.expect("a ballbar program's run has its figures");
+            let mut ballbar = run
+                .ballbar
+                .expect("a ballbar program's run has its figures");
             ballbar.scenario = s.name.clone();
             // The run's files, its polar plot and data among them.
             ballbar.files = run.files.clone();

@@ -457,7 +457,10 @@ pub(crate) fn validate_against_machine(
     if let super::ProgramSource::Ballbar(b) = &s.program {
         let ([a1, a2], _) = super::ballbar::plane_axes(b.plane);
         let letters = ["x", "y", "z"];
-        known.extend(crate::report::BallbarRun::metric_names([letters[a1], letters[a2]]));
+        known.extend(crate::report::BallbarRun::metric_names([
+            letters[a1],
+            letters[a2],
+        ]));
     }
     for e in &s.expect {
         if !known.contains(&e.metric) {
