@@ -1111,6 +1111,16 @@ impl BallbarRun {
     }
 }
 
+/// A deviation in µm for the plot: one decimal, or four below 0.1 µm (a stiff ideal machine
+/// deviates by nanometres).
+fn fmt_um(v: f64) -> String {
+    if v.abs() >= 0.1 || v == 0.0 {
+        format!("{v:.1}")
+    } else {
+        format!("{v:.4}")
+    }
+}
+
 fn trim(v: f64) -> String {
     let s = format!("{v:.3}");
     s.trim_end_matches('0').trim_end_matches('.').to_string()
@@ -1306,7 +1316,7 @@ fn draw_polar(pixels: &mut [u8], run: &BallbarRun) -> DrawResult<()> {
         ),
         (
             format!(
-                "magnification ×{:.0}; {} µm per ring; about the programmed centre",
+                "magnification ×{:.0}, {} µm/ring, about the programmed centre",
                 run.magnification,
                 trim(div)
             ),
@@ -1315,39 +1325,45 @@ fn draw_polar(pixels: &mut [u8], run: &BallbarRun) -> DrawResult<()> {
         (String::new(), 10),
         (
             format!(
-                "G (least squares)  CCW {:.1} µm   CW {:.1} µm",
-                run.ccw.circular_deviation_um, run.cw.circular_deviation_um
+                "G (least squares)  CCW {} µm   CW {} µm",
+                fmt_um(run.ccw.circular_deviation_um),
+                fmt_um(run.cw.circular_deviation_um)
             ),
             19,
         ),
         (
             format!(
-                "G (minimum zone)   CCW {:.1} µm   CW {:.1} µm",
-                run.ccw.circular_deviation_min_zone_um, run.cw.circular_deviation_min_zone_um
+                "G (minimum zone)   CCW {} µm   CW {} µm",
+                fmt_um(run.ccw.circular_deviation_min_zone_um),
+                fmt_um(run.cw.circular_deviation_min_zone_um)
             ),
             19,
         ),
         (
             format!(
-                "F max / min   CCW {:+.1} / {:+.1}   CW {:+.1} / {:+.1} µm",
-                run.ccw.radial_deviation_max_um,
-                run.ccw.radial_deviation_min_um,
-                run.cw.radial_deviation_max_um,
-                run.cw.radial_deviation_min_um
+                "F max / min   CCW {} / {}   CW {} / {} µm",
+                fmt_um(run.ccw.radial_deviation_max_um),
+                fmt_um(run.ccw.radial_deviation_min_um),
+                fmt_um(run.cw.radial_deviation_max_um),
+                fmt_um(run.cw.radial_deviation_min_um)
             ),
             19,
         ),
         (
-            format!("H (hysteresis)  {:.1} µm", run.circular_hysteresis_um),
+            format!("H (hysteresis)  {} µm", fmt_um(run.circular_hysteresis_um)),
             19,
         ),
         (String::new(), 10),
         (
             format!(
-                "backlash  {}",
-                run.backlash_um
+                "backlash (fit residual)  {}",
+                [&a1, &a2]
                     .iter()
-                    .map(|(a, v)| format!("{} {v:.1} µm", a.to_uppercase()))
+                    .map(|a| {
+                        let v = run.backlash_um.get(*a).copied().unwrap_or(f64::NAN);
+                        let r = run.backlash_fit_residual_um.get(*a).copied().unwrap_or(0.0);
+                        format!("{} {v:.1} ({r:.1}) µm", a.to_uppercase())
+                    })
                     .collect::<Vec<_>>()
                     .join(",  ")
             ),
@@ -1378,7 +1394,7 @@ fn draw_polar(pixels: &mut [u8], run: &BallbarRun) -> DrawResult<()> {
                     "main vibration  {:.2} Hz, {:.1} µm",
                     v.frequency_hz, v.amplitude_um
                 ),
-                None => "main vibration  none resolvable".into(),
+                None => "main vibration  none resolved".into(),
             },
             19,
         ),

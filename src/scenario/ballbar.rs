@@ -477,7 +477,6 @@ pub fn run_ballbar(
         for &feed in &options.feeds {
             let mut scenario = s.clone();
             let label = format!("F{}_R{}", number(feed * 60e3), number(radius * 1e3));
-            scenario.name = format!("{}_ballbar_{label}", s.name);
             scenario.program = ProgramSource::Ballbar(BallbarSpec {
                 radius,
                 feed,
