@@ -44,6 +44,42 @@ pub enum Command {
         #[arg(long)]
         out: Option<PathBuf>,
     },
+    /// ISO 230-4 circular (ballbar) test on the scenario's machine and controller: feed-in,
+    /// a full circle counter-clockwise and one clockwise with 45° overshoot arcs, for every
+    /// feed at every radius; prints G, H, F and the diagnosis; writes OUT/ballbar.json,
+    /// OUT/ballbar.rrd and per run OUT/F<feed>_R<radius>/ (polar.png, polar.csv, metrics.json
+    /// with the figures under `ballbar`, and the run's own trace and recording).
+    Ballbar {
+        scenario: PathBuf,
+        /// Radius or radii (mm), comma-separated (default: the scenario's circle, else 100).
+        #[arg(long = "radius-mm", value_delimiter = ',', num_args = 1.., allow_negative_numbers = true)]
+        radius_mm: Vec<f64>,
+        /// Feed or feeds (mm/min), comma-separated (default: the scenario's circle feed,
+        /// else 1000).
+        #[arg(long = "feed-mm-min", value_delimiter = ',', num_args = 1.., allow_negative_numbers = true)]
+        feed_mm_min: Vec<f64>,
+        /// Plane of the circle (default: the scenario's ballbar program's, else xy).
+        #[arg(long, value_enum)]
+        plane: Option<cncsim::scenario::BallbarPlane>,
+        /// Centre in program coordinates, mm (x,y,z); default: the scenario's circle centre
+        /// or program start, else the middle of the travel.
+        #[arg(
+            long = "center-mm",
+            value_delimiter = ',',
+            allow_negative_numbers = true
+        )]
+        center_mm: Option<Vec<f64>>,
+        /// Overshoot arc before and after the 360° of data (degrees, 0 < o ≤ 180; default
+        /// 45): long enough for the planner's speed-up and slow-down to stay out of the data.
+        #[arg(long = "overshoot-deg", allow_negative_numbers = true)]
+        overshoot_deg: Option<f64>,
+        /// Print the report as JSON.
+        #[arg(long)]
+        json: bool,
+        /// Output folder (default: out/ballbar_<scenario name>).
+        #[arg(long)]
+        out: Option<PathBuf>,
+    },
     /// Plan a scenario's program only: cycle time, per-move durations, and max |v|, |a|, |j|
     /// per machine axis and at the tool tip on the workpiece.
     Plan {

@@ -62,6 +62,25 @@ pub fn dispatch(command: Option<Command>, interrupted: &AtomicBool) -> Result<Sh
             csv,
             rrd,
         }) => text(Box::new(plan(&scenario, profile, csv, rrd)?)),
+        Some(Command::Ballbar {
+            scenario,
+            radius_mm,
+            feed_mm_min,
+            plane,
+            center_mm,
+            overshoot_deg,
+            json,
+            out,
+        }) => {
+            let test = BallbarArgs {
+                radius_mm,
+                feed_mm_min,
+                plane,
+                center_mm,
+                overshoot_deg,
+            };
+            Ok((Box::new(ballbar(&scenario, test, out, interrupted)?), json))
+        }
         Some(Command::Inspect {
             program,
             euclidean_feed,
@@ -520,4 +539,76 @@ fn calibrate(
     Ok(CalibrationOutput::new(
         &cal, result, runs, &out, write, stopped,
     ))
+}
+
+/// The test `cncsim ballbar` is asked for, as given on the command line.
+struct BallbarArgs {
+    radius_mm: Vec<f64>,
+    feed_mm_min: Vec<f64>,
+    plane: Option<cncsim::scenario::BallbarPlane>,
+    center_mm: Option<Vec<f64>>,
+    overshoot_deg: Option<f64>,
+}
+
+fn ballbar(
+    path: &Path,
+    test: BallbarArgs,
+    out: Option<PathBuf>,
+    interrupted: &AtomicBool,
+) -> Result<cncsim::scenario::BallbarOutput, Refused> {
+    if let Some(o) = test.overshoot_deg.filter(|o| !(*o > 0.0 && *o <= 180.0)) {
+        return Err(Refused::BadInput(format!(
+            "--overshoot-deg {o}: must be more than 0 and at most 180"
+        )));
+    }
+    let scenario = Scenario::load(path)?;
+    let (own_plane, own_centre, own_overshoot) =
+        cncsim::scenario::default_plane_centre_overshoot(&scenario);
+    print_warnings(&scenario.warnings);
+    let (radius, feed) = cncsim::scenario::default_radius_and_feed(&scenario);
+    for (flag, values) in [
+        ("--radius-mm", &test.radius_mm),
+        ("--feed-mm-min", &test.feed_mm_min),
+    ] {
+        if let Some(v) = values.iter().find(|v| !(v.is_finite() && **v > 0.0)) {
+            return Err(Refused::BadInput(format!(
+                "{flag} {v}: must be a positive number"
+            )));
+        }
+    }
+    let centre = match test.center_mm.as_deref() {
+        None => own_centre,
+        Some(&[x, y, z]) if [x, y, z].iter().all(|v| v.is_finite()) => {
+            Some([x * 1e-3, y * 1e-3, z * 1e-3])
+        }
+        Some(v) => {
+            return Err(Refused::BadInput(format!(
+                "--center-mm takes 3 finite values (x,y,z in mm), got {v:?}"
+            )))
+        }
+    };
+    let given_or = |values: &[f64], to_si: fn(f64) -> f64, default: f64| -> Vec<f64> {
+        if values.is_empty() {
+            vec![default]
+        } else {
+            values.iter().map(|&v| to_si(v)).collect()
+        }
+    };
+    let options = cncsim::scenario::BallbarOptions {
+        radii: given_or(&test.radius_mm, |r| r * 1e-3, radius),
+        feeds: given_or(&test.feed_mm_min, |f| f / 60e3, feed),
+        plane: test.plane.map_or(own_plane, Into::into),
+        centre,
+        overshoot: test.overshoot_deg.map_or(own_overshoot, f64::to_radians),
+    };
+    let out = out.unwrap_or_else(|| {
+        Path::new("out").join(folder_name(&format!("ballbar_{}", scenario.name)))
+    });
+    let mut progress = |_: usize, _: usize| !interrupted.load(Ordering::Relaxed);
+    let report = cncsim::scenario::run_ballbar(&scenario, &options, &out, &mut progress)?;
+    Ok(cncsim::scenario::BallbarOutput {
+        report,
+        path: scenario.path,
+        out,
+    })
 }

@@ -4,24 +4,30 @@ use cncsim::command::{Ending, Report};
 use indicatif::{ProgressBar, ProgressStyle};
 
 /// Writes the report's files and shows it: its messages on the error stream, then the report
-/// (text, or JSON with `json` where the command has a JSON form) and the files written. A file
-/// that cannot be written makes the ending bad input.
+/// (text, or JSON with `json` where the command has a JSON form) and the files written (on the
+/// error stream under JSON, so that the report stream is JSON alone). A file that cannot be
+/// written makes the ending bad input.
 pub fn show(report: &dyn Report, json: bool) -> Ending {
     let files = report.write();
     for line in report.messages() {
         eprintln!("{line}");
     }
-    match report.json().filter(|_| json) {
+    let as_json = report.json().filter(|_| json);
+    match &as_json {
         Some(value) => println!(
             "{}",
-            serde_json::to_string_pretty(&value).expect("JSON of plain values")
+            serde_json::to_string_pretty(value).expect("JSON of plain values")
         ),
         None => print!("{}", report.text()),
     }
     match files {
         Ok(files) => {
             for f in files {
-                println!("  wrote {}", f.display());
+                if as_json.is_some() {
+                    eprintln!("  wrote {}", f.display());
+                } else {
+                    println!("  wrote {}", f.display());
+                }
             }
             report.ending()
         }

@@ -1,6 +1,7 @@
 //! Everything a run leaves behind: metrics (terminal table and `metrics.json`), the trace as
 //! CSV, and the Rerun recording. Units turn into mm, µm and degrees here, at the edge.
 
+mod ballbar;
 mod blueprint;
 mod csv;
 mod events;
@@ -12,6 +13,11 @@ mod run_report;
 mod table;
 mod thin;
 
+pub use ballbar::{
+    analyse as analyse_ballbar, ballbar_pairs, least_squares_circle, minimum_zone_circle,
+    write_polar_plot, BallbarInput, BallbarPass, BallbarReport, BallbarRun, DirectionFigures,
+    ReversalSpike, ServoMismatch, Vibration,
+};
 pub use blueprint::{ab_blueprint, run_blueprint};
 pub use csv::CsvWriter;
 pub use events::{Event, EventDetector, MAX_EVENTS_PER_KIND};

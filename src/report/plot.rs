@@ -20,7 +20,7 @@ pub struct ContourSeries<'a> {
 }
 
 const FONT: &[u8] = include_bytes!("../../assets/fonts/DejaVuSans.ttf");
-const FAMILY: &str = "sans-serif";
+pub(super) const FAMILY: &str = "sans-serif";
 
 fn register_font() {
     static ONCE: Once = Once::new();
@@ -42,7 +42,7 @@ pub fn write_contour_error_plot(
     render(path, |pixels| draw(pixels, series))
 }
 
-type DrawResult<T> = Result<T, Box<dyn std::error::Error>>;
+pub(super) type DrawResult<T> = Result<T, Box<dyn std::error::Error>>;
 
 fn draw(pixels: &mut [u8], series: &[ContourSeries<'_>]) -> DrawResult<()> {
     let root = BitMapBackend::with_buffer(pixels, PLOT_SIZE).into_drawing_area();
@@ -159,7 +159,10 @@ const PALETTE: [RGBColor; 8] = [
 
 /// Writes `pixels` (RGB, [`PLOT_SIZE`]) as a PNG.
 /// Draws a plot of `PLOT_SIZE` on white with `draw` and writes it to `path` as PNG.
-fn render(path: &Path, draw: impl FnOnce(&mut [u8]) -> DrawResult<()>) -> Result<(), ReportError> {
+pub(super) fn render(
+    path: &Path,
+    draw: impl FnOnce(&mut [u8]) -> DrawResult<()>,
+) -> Result<(), ReportError> {
     register_font();
     let (w, h) = PLOT_SIZE;
     let mut pixels = vec![255u8; (w * h * 3) as usize];

@@ -168,6 +168,13 @@ fn compare(a: &Scenario, ra: &RunOutput, b: &Scenario, rb: &RunOutput) -> AbRepo
             );
         }
     }
+    // The ISO 230-4 figures, when both ran the ballbar test.
+    if let (Some(x), Some(y)) = (&ra.ballbar, &rb.ballbar) {
+        for (name, p, q) in crate::report::ballbar_pairs(x, y) {
+            let unit = if name.ends_with("_ms") { "ms" } else { "µm" };
+            row(format!("ballbar {name}"), unit, p, q);
+        }
+    }
     row("simulated time".into(), "s", ma.sim_time_s, mb.sim_time_s);
     row("wall time".into(), "s", ma.wall_time_s, mb.wall_time_s);
     AbReport {

@@ -3,6 +3,7 @@
 
 mod ab;
 mod assemble;
+mod ballbar;
 mod check;
 mod file;
 mod machine_setup;
@@ -15,6 +16,11 @@ pub use ab::{run_ab, AbOutput, AbReport, AbRow};
 pub use assemble::{
     axis_map_for, keep_mechanics, load_checked_program, machine_for, plan_for, plan_settings,
     with_choices, Assembly, ControllerRecipe, PlanKey, ProgramOverview, RunError, GRAVITY,
+};
+pub use ballbar::{
+    ballbar_centre, ballbar_passes, ballbar_program, default_plane_centre_overshoot,
+    default_radius_and_feed, plane_axes, run_ballbar, BallbarOptions, BallbarOutput, BallbarPlane,
+    BallbarSpec,
 };
 pub use check::{check, check_scenarios, scenario_files, Breach, CheckReport, Verdict};
 pub use file::{

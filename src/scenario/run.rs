@@ -90,6 +90,9 @@ pub struct RunOutput {
     /// The machine's plausibility warnings (values that loaded but look wrong), and the
     /// planner's (stops its look-ahead added).
     pub warnings: Vec<FileError>,
+    /// The ISO 230-4 figures, when the program is the ballbar test (also in the metrics
+    /// under `ballbar`).
+    pub ballbar: Option<crate::report::BallbarRun>,
 }
 
 /// `cncsim run`: one scenario's run as the command reports it.
@@ -173,9 +176,14 @@ impl Assembly {
         };
         let mut keep_going = |_: usize, _: usize| true;
         let progress = progress.unwrap_or(&mut keep_going);
+        let ballbar_spec = match &s.program.source {
+            super::ProgramSource::Ballbar(spec) => Some(spec),
+            _ => None,
+        };
         let outcome = {
             let mut observers: Vec<&mut dyn Observer> = vec![&mut report];
-            if keep_trace {
+            // The ballbar figures are read from the trace after the run.
+            if keep_trace || ballbar_spec.is_some() {
                 observers.push(&mut recorder);
             }
             // Reborrowed for this block only: the caller's observers outlive it.
@@ -183,7 +191,23 @@ impl Assembly {
             self.simulate(&mut lanes_run, &mut Observers(observers), progress)
         };
         let metrics = report.metrics(&outcome);
-        let metrics_json = metrics.to_json();
+        let mut metrics_json = metrics.to_json();
+        let ballbar = match ballbar_spec {
+            Some(spec) => {
+                let completed = outcome.stop().is_none();
+                let run = super::ballbar::ballbar_of_run(
+                    self,
+                    spec,
+                    recorder.lane(0),
+                    &metrics,
+                    completed,
+                    out_dir.as_deref(),
+                )?;
+                metrics_json["ballbar"] = run.metrics_json();
+                Some(run)
+            }
+            None => None,
+        };
         let verdict = check(s, &metrics_json);
 
         // Everything computed so far is written, whether or not the run completed.
@@ -206,6 +230,9 @@ impl Assembly {
             .collect();
         let summary = summary_markdown(self, &metrics, &verdict);
         files.extend(report.finish(&outcome, &notes, &summary)?);
+        if let Some(b) = &ballbar {
+            files.extend(b.files.iter().cloned());
+        }
         let mut traces = recorder.into_traces().into_iter();
         let (trace, analytic) = if keep_trace {
             (traces.next(), traces.next().filter(|_| lanes.len() > 1))
@@ -223,6 +250,7 @@ impl Assembly {
             verdict,
             files,
             warnings: warnings_of(self),
+            ballbar,
         })
     }
 }

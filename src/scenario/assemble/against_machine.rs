@@ -86,6 +86,14 @@ pub(super) fn check_against_machine(
     .to_json();
     let mut known = Vec::new();
     collect_numeric_paths(&template, "", &mut known);
+    if let crate::scenario::ProgramSource::Ballbar(b) = &s.program.source {
+        let ([a1, a2], _) = crate::scenario::plane_axes(b.plane);
+        let letters = ["x", "y", "z"];
+        known.extend(crate::report::BallbarRun::metric_names([
+            letters[a1],
+            letters[a2],
+        ]));
+    }
     for e in &s.expect {
         if !known.contains(&e.metric) {
             return Err(FileError::new(

@@ -561,6 +561,12 @@ pub fn load_checked_program(s: &Scenario, machine: &Machine) -> Result<Program, 
     let mut program = match &s.program.source {
         ProgramSource::Circle(c) => circle(c, &s.path),
         ProgramSource::Polyline(p) => polyline(p, &s.path),
+        // Built in machine coordinates: its centre is placed (and the work offset applied)
+        // where the test is fitted into the travel.
+        ProgramSource::Ballbar(b) => {
+            let centre = super::ballbar::ballbar_centre(s, machine, b.radius, b.plane, b.centre)?;
+            super::ballbar::ballbar_program(centre, b.radius, b.feed, b.plane, b.overshoot, &s.path)
+        }
         ProgramSource::File { path, options } => {
             let options = crate::program::ReadOptions {
                 work_offset: s.program.work_offset,
@@ -569,7 +575,10 @@ pub fn load_checked_program(s: &Scenario, machine: &Machine) -> Result<Program, 
             read_program(path, &options).map_err(RunError::Program)?
         }
     };
-    if !matches!(s.program.source, ProgramSource::File { .. }) {
+    if !matches!(
+        s.program.source,
+        ProgramSource::File { .. } | ProgramSource::Ballbar(_)
+    ) {
         program.shift(s.program.work_offset);
     }
     if program.moves.is_empty() {

@@ -17,6 +17,8 @@ pub(super) struct RawProgram {
     file: Option<Spanned<String>>,
     circle: Option<Spanned<RawCircle>>,
     polyline: Option<Spanned<RawPolyline>>,
+    /// The ISO 230-4 circular test as the program (src/scenario/ballbar.rs).
+    ballbar: Option<Spanned<RawBallbar>>,
     /// Path speed of the built-in paths (mm/s).
     feed_mm_s: Option<Num>,
     /// How a program file's feed applies to moves with rotary axes.
@@ -74,6 +76,22 @@ enum Direction {
 
 #[derive(Deserialize)]
 #[serde(deny_unknown_fields)]
+struct RawBallbar {
+    radius_mm: f64,
+    feed_mm_min: f64,
+    #[serde(default)]
+    plane: crate::scenario::BallbarPlane,
+    center_mm: Option<[f64; 3]>,
+    #[serde(default = "default_overshoot")]
+    overshoot_deg: f64,
+}
+
+fn default_overshoot() -> f64 {
+    45.0
+}
+
+#[derive(Deserialize)]
+#[serde(deny_unknown_fields)]
 struct RawPolyline {
     points_mm: Vec<[f64; 3]>,
 }
@@ -83,6 +101,9 @@ struct RawPolyline {
 pub enum ProgramSource {
     Circle(CircleSpec),
     Polyline(PolylineSpec),
+    /// The ISO 230-4 circular test (`cncsim ballbar`'s program): its figures join the metrics
+    /// under `ballbar`.
+    Ballbar(crate::scenario::BallbarSpec),
     /// The reader settings are boxed: with the G-code tool table they outweigh the others.
     File {
         path: PathBuf,
@@ -118,13 +139,16 @@ impl TryFrom<InFile<'_, &RawProgram>> for ProgramSettings {
     type Error = FileError;
 
     fn try_from(InFile { raw: p, file }: InFile<'_, &RawProgram>) -> Result<Self, FileError> {
-        let count = p.file.is_some() as u8 + p.circle.is_some() as u8 + p.polyline.is_some() as u8;
+        let count = p.file.is_some() as u8
+            + p.circle.is_some() as u8
+            + p.polyline.is_some() as u8
+            + p.ballbar.is_some() as u8;
         let at = file.table("[program]");
         if count != 1 {
             return Err(file.error_at(
                 at,
                 format!(
-                    "[program] needs exactly one of `file`, `circle` or `polyline`, found {count}"
+                    "[program] needs exactly one of `file`, `circle`, `polyline` or `ballbar`, found {count}"
                 ),
             ));
         }
@@ -223,6 +247,35 @@ impl TryFrom<InFile<'_, &RawProgram>> for ProgramSettings {
                 clockwise: matches!(v.direction, Direction::Cw),
                 z: v.z_mm * 1e-3,
                 speed: feed()?,
+            })
+        } else if let Some(b) = &p.ballbar {
+            if let Some(feed) = &p.feed_mm_s {
+                return Err(file.error(
+                    feed.span(),
+                    "feed_mm_s applies to circle and polyline; the ballbar test takes feed_mm_min",
+                ));
+            }
+            let v = b.get_ref();
+            let (lo, hi) = limits::SPEED_MM_S;
+            let centre_ok = v
+                .center_mm
+                .is_none_or(|c| c.iter().all(|x| x.is_finite() && x.abs() <= c_mm));
+            if !(v.radius_mm > 0.0 && v.radius_mm <= c_mm)
+                || !(v.feed_mm_min >= lo * 60.0 && v.feed_mm_min <= hi * 60.0)
+                || !(v.overshoot_deg > 0.0 && v.overshoot_deg <= 180.0)
+                || !centre_ok
+            {
+                return Err(file.error(
+                    b.span(),
+                    format!("ballbar: expected 0 < radius_mm ≤ {c_mm:?}, feed_mm_min within [{}, {}], 0 < overshoot_deg ≤ 180 and center_mm within ±{c_mm:?} mm, found radius_mm = {:?}, feed_mm_min = {:?}, overshoot_deg = {:?}, center_mm = {:?}", lo * 60.0, hi * 60.0, v.radius_mm, v.feed_mm_min, v.overshoot_deg, v.center_mm),
+                ));
+            }
+            ProgramSource::Ballbar(crate::scenario::BallbarSpec {
+                radius: v.radius_mm * 1e-3,
+                feed: v.feed_mm_min / 60e3,
+                plane: v.plane.into(),
+                centre: v.center_mm.map(|c| c.map(|x| x * 1e-3)),
+                overshoot: v.overshoot_deg.to_radians(),
             })
         } else {
             let pl = p.polyline.as_ref().expect("counted above");
