@@ -766,11 +766,27 @@ fn read_program_dispatches_on_extension() {
             .len(),
         1
     );
-    let unknown = write("a.txt", "G0 X1");
+    // Recognised by content whatever the extension.
+    let gcode_txt = write("a.txt", "G0 X1");
+    let outcome = read_program_detailed(&gcode_txt, &ReadOptions::default()).unwrap();
+    assert_eq!(outcome.format, ProgramFormat::Gcode);
+    let plot_prn = write("a.prn", "\x03IN;SP1;PU0,0;PD40,0;");
+    let outcome = read_program_detailed(&plot_prn, &ReadOptions::default()).unwrap();
+    assert_eq!(outcome.format, ProgramFormat::Hpgl);
+    let cl_txt = write("cl.txt", "$$ header\nTOOL PATH/2_OP-1,TOOL,EM_10\nRAPID\nGOTO/1,1,1");
+    let outcome = read_program_detailed(&cl_txt, &ReadOptions::default()).unwrap();
+    assert_eq!(outcome.format, ProgramFormat::Apt);
+    // CL data in a file named as a plot file is still CL data.
+    let cl_plt = write("cl.plt", "UNITS/MM\nRAPID\nGOTO/1,1,1");
+    assert_eq!(
+        read_program_detailed(&cl_plt, &ReadOptions::default()).unwrap().format,
+        ProgramFormat::Apt
+    );
+    let unknown = write("a.txt", "hello world");
     assert_eq!(
         read_program(&unknown, &ReadOptions::default()).unwrap_err().to_string(),
         format!(
-            "{}: expected a part program extension, not '.txt'; hint: use .ngc .nc .gcode .tap (G-code), .plt .hpgl (HPGL) or .apt .cl .cls (APT CL data)",
+            "{}: expected a part program (G-code, HPGL or APT CL data); the content is none of them and '.txt' names none; hint: use .ngc .nc .gcode .tap (G-code), .plt .hpgl .hpg .hgl .hp .prn (HPGL) or .apt .cl .cls .clsf (APT CL data)",
             unknown.display()
         )
     );
