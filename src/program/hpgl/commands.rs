@@ -587,7 +587,7 @@ impl Reader<'_> {
                 &[mm] if mm > 0.0 && mm <= 5.0 => self.plotter.fill.pen_mm = mm,
                 // Out of range (PT0 is common): a plotter ignores the command.
                 &[mm] if !self.options.strict => {
-                    let what = format!("PT {} is out of the range 0.1 to 5 mm and does not change the pen thickness", fmt_number(mm));
+                    let what = format!("PT {} (pen thickness) is out of the range 0.1 to 5 mm", fmt_number(mm));
                     self.skip("PT range", start, self.scan.at, &what, "was ignored, as plotters ignore it");
                 }
                 &[mm] => {
