@@ -291,6 +291,16 @@ fn an_unfinished_pe_number_is_dropped_as_plotters_drop_it() {
     assert!(close(segments[0][0], [471.0, 471.0]) && close(segments[0][1], [354.0, 354.0]));
     assert!(program.warnings.iter().any(|w| w.message.starts_with("PE data that end in an unfinished number")));
     assert!(parse_hpgl(&text, "bad.plt", &strict()).is_err());
+    // The same file after a text tool re-encoded it as UTF-8 (0xCD → C3 8D, 0xCA → C3 8A):
+    // decoded back exactly, and said.
+    let mangled: Vec<u8> = String::from_utf8(text.iter().map(|&b| b as char).collect::<String>().into_bytes())
+        .unwrap()
+        .into_bytes();
+    assert_ne!(mangled, text);
+    let program = hpgl(&mangled);
+    assert_eq!(drawn(&program), segments);
+    assert!(program.warnings.iter().any(|w| w.message.starts_with("PE data re-encoded as UTF-8")));
+    assert!(parse_hpgl(&mangled, "bad.plt", &strict()).is_err());
 }
 
 #[test]

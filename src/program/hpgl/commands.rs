@@ -138,7 +138,42 @@ impl Reader<'_> {
             }
             "PE" => {
                 let (data_start, data_end) = self.scan.encoded();
-                match encoded::decode(self.scan.text, data_start, data_end, !self.options.strict) {
+                let undone = if self.options.strict {
+                    None
+                } else {
+                    encoded::undo_utf8(self.scan.text, data_start, data_end)
+                };
+                let result = match &undone {
+                    None => encoded::decode(self.scan.text, data_start, data_end, !self.options.strict),
+                    Some((bytes, offsets)) => {
+                        self.skip(
+                            "PE UTF-8",
+                            start,
+                            data_end,
+                            "PE data re-encoded as UTF-8 after the driver wrote them (bytes no PE data hold) are not what the driver wrote",
+                            "were decoded from UTF-8 back to the driver's bytes (exact), then read",
+                        );
+                        // Offsets back into the file, for spans and messages.
+                        let back = |at: usize| offsets.get(at).copied().unwrap_or(data_end);
+                        encoded::decode(bytes, 0, bytes.len(), true)
+                            .map(|(decoded, dropped)| {
+                                let decoded = decoded
+                                    .into_iter()
+                                    .map(|element| match element {
+                                        Encoded::Pen { number, at } => Encoded::Pen { number, at: back(at) },
+                                        Encoded::Point { xy, absolute, pen_up, at } => Encoded::Point { xy, absolute, pen_up, at: back(at) },
+                                    })
+                                    .collect();
+                                (decoded, dropped.map(back))
+                            })
+                            .map_err(|mut error| {
+                                error.start = back(error.start);
+                                error.end = back(error.end).max(error.start + 1);
+                                error
+                            })
+                    }
+                };
+                match result {
                     Ok((decoded, dropped)) => {
                         if let Some(dropped) = dropped {
                             self.skip(

@@ -128,6 +128,27 @@ pub(super) fn decode(
     Ok((out, None))
 }
 
+/// PE data whose bytes were re-encoded as UTF-8 after the driver wrote them (a text tool
+/// read the file as Latin-1 and saved it as UTF-8): the bytes the driver wrote and, for each,
+/// the offset in `text` it came from. `None` unless the data are exactly that: they hold a
+/// byte no PE data can hold (0x80–0xBE, a UTF-8 continuation byte), and they are valid UTF-8
+/// whose characters are all below U+0100, so undoing it is exact.
+pub(super) fn undo_utf8(text: &[u8], start: usize, end: usize) -> Option<(Vec<u8>, Vec<usize>)> {
+    let data = &text[start..end];
+    if !data.iter().any(|b| (0x80..=0xBE).contains(b)) {
+        return None;
+    }
+    let decoded = std::str::from_utf8(data).ok()?;
+    let mut bytes = Vec::with_capacity(data.len());
+    let mut offsets = Vec::with_capacity(data.len());
+    for (index, ch) in decoded.char_indices() {
+        let byte = u8::try_from(u32::from(ch)).ok()?;
+        bytes.push(byte);
+        offsets.push(start + index);
+    }
+    Some((bytes, offsets))
+}
+
 const UNFINISHED: &str = "expected a terminating digit to end the PE number";
 
 /// One encoded number starting at `at`: its value and the index after it. `None` if no digit
