@@ -525,6 +525,18 @@ fn cycles_that_cannot_be_expanded_are_refused_by_name() {
 }
 
 #[test]
+fn a_peck_step_that_would_need_too_many_pecks_is_an_error() {
+    let error = first_error(
+        "CYCLE/DRILL,DEEP,RAPTO,0,FEDTO,-1000,STEP,0.001,MMPM,100\nGOTO/0,0,0",
+        &ReadOptions::default(),
+    );
+    assert!(
+        error.starts_with("bad.cls:2:1: expected at most 100000 pecks per hole; CYCLE/DRILL,DEEP with its STEP needs 10000"),
+        "{error}"
+    );
+}
+
+#[test]
 fn cutter_compensation_is_read_and_said_once() {
     let program = apt(
         "FEDRAT/100\nGOTO/0,0,0\nCUTCOM/LEFT,XYPLAN\nGOTO/10,0,0\nCUTCOM/OFF\nCUTCOM/RIGHT,1\nGOTO/20,0,0\nCUTCOM/OFF\nTLCOMP/ON,3\n",

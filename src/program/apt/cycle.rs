@@ -50,7 +50,21 @@ pub(super) enum HoleMove {
     Dwell(f64),
 }
 
+/// At most this many pecks per hole (as the G-code reader allows).
+pub(super) const MAX_PECKS: f64 = 100_000.0;
+
 impl Cycle {
+    /// How many pecks a hole takes (1 unless DEEP or BRKCHP with STEP).
+    pub(super) fn pecks(&self) -> f64 {
+        if !matches!(self.kind, CycleKind::Deep | CycleKind::BreakChip) || self.steps.is_empty() {
+            return 1.0;
+        }
+        let total = self.rapid_to - self.feed_to;
+        let (last, first) = self.steps.split_last().expect("steps");
+        let listed: f64 = first.iter().sum();
+        first.len() as f64 + ((total - listed).max(0.0) / last).ceil()
+    }
+
     /// The moves that make the hole at `point` with the tool along `axis` (unit), from the
     /// tool's position `from`.
     pub(super) fn hole(&self, from: Vector3<f64>, point: Vector3<f64>, axis: Vector3<f64>) -> Vec<HoleMove> {

@@ -1246,6 +1246,20 @@ impl<'a> AptReader<'a> {
                 hint: None,
             });
         };
+        if cycle.pecks() > cycle::MAX_PECKS {
+            return Err(RecordError {
+                start: first.start,
+                end: record_end,
+                problem: format!(
+                    "expected at most {} pecks per hole; CYCLE/{} with its STEP needs {}",
+                    cycle::MAX_PECKS,
+                    cycle.name,
+                    cycle.pecks()
+                ),
+                found: None,
+                hint: Some("give a larger STEP"),
+            });
+        }
         let mut note = format!(
             "CYCLE/{}: each GOTO is a hole, expanded as NX's standard post does (rapid to RAPTO, feed to FEDTO, back to the retract point)",
             cycle.name
