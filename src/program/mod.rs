@@ -105,7 +105,7 @@ impl ProgramFormat {
         // HP-GL command that opens plots.
         let start = head
             .iter()
-            .position(|&b| b == 0x1b || !(b.is_ascii_whitespace() || b < 0x20 || b == b';'))?;
+            .position(|&b| b == 0x1b || !(b.is_ascii_whitespace() || b < 0x20))?;
         let rest = &head[start..];
         if rest[0] == 0x1b || rest.starts_with(b"@PJL") {
             return Some(ProgramFormat::Hpgl);

@@ -68,6 +68,14 @@ const NOT_DRAWING: &[(&str, &str)] = &[
     ("OW", "output window"),
 ];
 
+/// The commands `execute` carries out (the rest are described, or unknown).
+const CARRIED_OUT: &[&str] = &[
+    "LB", "BL", "DT", "SM", "PE", "IN", "DF", "SC", "IP", "IR", "RO", "PS", "WU", "PW", "IW",
+    "SP", "VS", "LT", "PU", "PD", "PA", "PR", "CT", "CI", "AA", "AR", "AT", "RT", "BZ", "BR",
+    "PM", "EP", "FP", "EA", "ER", "RA", "RR", "EW", "WG", "FT", "PT", "TL", "XT", "YT", "SI",
+    "SR", "DI", "DR", "SL", "ES", "LO", "CP", "PB", "SS", "SA", "CS", "CA", "DV", "UC",
+];
+
 /// Commands that draw in some plotter's dialect but are not drawn here: refused by name.
 const DRAWS: &[(&str, &str)] = &[
     ("UC", "user-defined characters"),
@@ -807,7 +815,11 @@ impl Reader<'_> {
     /// error 1), with one warning per mnemonic, unless it is known to draw. Not with
     /// `strict`.
     fn unknown_skipped(&mut self, name: &str, start: usize) -> bool {
-        if self.options.strict || DRAWS.iter().any(|(n, _)| *n == name) || description(name).is_some() {
+        if self.options.strict
+            || CARRIED_OUT.contains(&name)
+            || DRAWS.iter().any(|(n, _)| *n == name)
+            || description(name).is_some()
+        {
             return false;
         }
         let end = self.scan.at.max(start + 2);

@@ -201,7 +201,17 @@ impl<'a> Scanner<'a> {
                     return Ok(parameters);
                 }
                 None | Some(ESC) => return Ok(parameters),
-                Some(b) if b.is_ascii_alphabetic() && (!after_comma || self.lenient) => {
+                // After a comma, only the next command's two letters end the parameters
+                // (`PA,PU…`, lenient only).
+                Some(b)
+                    if b.is_ascii_alphabetic()
+                        && (!after_comma
+                            || (self.lenient
+                                && self
+                                    .text
+                                    .get(self.at + 1)
+                                    .is_some_and(u8::is_ascii_alphabetic))) =>
+                {
                     return Ok(parameters)
                 }
                 _ => {
