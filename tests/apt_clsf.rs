@@ -197,7 +197,10 @@ fn nx_clsf_arcs_follow_their_circle_records() {
         ]
     );
     assert_eq!(program.tools.len(), 1);
-    assert_eq!(program.tools[0].operation.as_deref(), Some("PLANAR_PROFILE"));
+    assert_eq!(
+        program.tools[0].operation.as_deref(),
+        Some("PLANAR_PROFILE")
+    );
     assert_eq!(program.tools[0].diameter, 0.01);
 }
 
@@ -355,7 +358,16 @@ fn nx_names_with_digits_underscores_and_dashes_and_tldata_read_into_the_tools() 
          RAPID\nGOTO/4,5,6\nEND-OF-PATH\n",
     );
     assert_eq!(program.moves.len(), 2);
-    let tools: Vec<(Option<&str>, Option<&str>, &str, f64, f64, f64, f64)> = program
+    type Described<'a> = (
+        Option<&'a str>,
+        Option<&'a str>,
+        &'a str,
+        f64,
+        f64,
+        f64,
+        f64,
+    );
+    let tools: Vec<Described> = program
         .tools
         .iter()
         .map(|t| {
@@ -373,8 +385,24 @@ fn nx_names_with_digits_underscores_and_dashes_and_tldata_read_into_the_tools() 
     assert_eq!(
         tools,
         [
-            (Some("2_TORETC_250_BOK"), Some("FACE_MILL_2"), "MILL", 0.25, 0.001, 0.05, 0.0),
-            (Some("BOK_7"), Some("R390-25A25L-17L"), "DRILL,MILL", 0.063, 0.0, 0.239, 35.0),
+            (
+                Some("2_TORETC_250_BOK"),
+                Some("FACE_MILL_2"),
+                "MILL",
+                0.25,
+                0.001,
+                0.05,
+                0.0
+            ),
+            (
+                Some("BOK_7"),
+                Some("R390-25A25L-17L"),
+                "DRILL,MILL",
+                0.063,
+                0.0,
+                0.239,
+                35.0
+            ),
         ]
     );
     // The inspect report names them.
@@ -384,7 +412,11 @@ fn nx_names_with_digits_underscores_and_dashes_and_tldata_read_into_the_tools() 
         "{report}"
     );
     // Skipped records are counted in one warning per kind.
-    let messages: Vec<&str> = program.warnings.iter().map(|w| w.message.as_str()).collect();
+    let messages: Vec<&str> = program
+        .warnings
+        .iter()
+        .map(|w| w.message.as_str())
+        .collect();
     assert_eq!(
         messages,
         [
@@ -415,9 +447,10 @@ fn moves_mm(program: &Program, from: usize) -> Vec<(String, [f64; 3])> {
 
 fn assert_moves(actual: &[(String, [f64; 3])], expected: &[(&str, [f64; 3])]) {
     let same = actual.len() == expected.len()
-        && actual.iter().zip(expected).all(|((ka, pa), (ke, pe))| {
-            ka == ke && (0..3).all(|i| (pa[i] - pe[i]).abs() < 1e-9)
-        });
+        && actual
+            .iter()
+            .zip(expected)
+            .all(|((ka, pa), (ke, pe))| ka == ke && (0..3).all(|i| (pa[i] - pe[i]).abs() < 1e-9));
     assert!(same, "expected\n{expected:?}\nfound\n{actual:?}");
 }
 
@@ -486,10 +519,9 @@ fn drill_cycles_make_each_goto_a_hole_as_the_cycle_defines_it() {
     // CYCLE/OFF: a GOTO is a move again.
     expected.push(("feed 1000.000", [70.0, 0.0, 40.0]));
     assert_moves(&moves_mm(&program, 0), &expected);
-    assert!(program
-        .warnings
-        .iter()
-        .any(|w| w.message.starts_with("CYCLE/DRILL,DEEP: each GOTO is a hole")));
+    assert!(program.warnings.iter().any(|w| w
+        .message
+        .starts_with("CYCLE/DRILL,DEEP: each GOTO is a hole")));
 }
 
 #[test]
@@ -504,7 +536,11 @@ fn a_hole_follows_the_tool_axis_and_the_msys_frame() {
     assert_eq!(last_kind, "rapid");
     assert!((last[0] - 100.0).abs() < 1e-9 && (last[1] - 12.0).abs() < 1e-9);
     let bottom = moves.iter().find(|(k, _)| k.starts_with("feed")).unwrap().1;
-    assert!((bottom[0] - 100.0).abs() < 1e-9 && (bottom[1] - 5.0).abs() < 1e-9 && bottom[2].abs() < 1e-9);
+    assert!(
+        (bottom[0] - 100.0).abs() < 1e-9
+            && (bottom[1] - 5.0).abs() < 1e-9
+            && bottom[2].abs() < 1e-9
+    );
 }
 
 #[test]
@@ -543,7 +579,11 @@ fn cutter_compensation_is_read_and_said_once() {
     );
     assert_eq!(program.moves.len(), 3);
     assert_eq!(program.moves[2].end.linear, [0.02, 0.0, 0.0]);
-    let messages: Vec<&str> = program.warnings.iter().map(|w| w.message.as_str()).collect();
+    let messages: Vec<&str> = program
+        .warnings
+        .iter()
+        .map(|w| w.message.as_str())
+        .collect();
     assert_eq!(
         messages,
         [
@@ -574,7 +614,10 @@ fn decoded_spline() -> (Program, Vec<Vector3<f64>>) {
 fn oracle_points(text: &str) -> Vec<Vector3<f64>> {
     text.lines()
         .map(|line| {
-            let v: Vec<f64> = line.split_whitespace().map(|f| f.parse().unwrap()).collect();
+            let v: Vec<f64> = line
+                .split_whitespace()
+                .map(|f| f.parse().unwrap())
+                .collect();
             Vector3::new(v[0], v[1], v[2])
         })
         .collect()
@@ -589,10 +632,16 @@ fn compare_spline(oracle: &[Vector3<f64>]) {
     assert!((ours.last().unwrap() - oracle.last().unwrap()).norm() < 1e-9);
     let tolerance_mm = ReadOptions::default().apt.chord_tolerance * 1e3;
     let oracle_to_ours = distance_to_polyline(oracle, &ours);
-    assert!(oracle_to_ours <= tolerance_mm + 1e-6, "geomdl's curve is {oracle_to_ours} mm from the chords");
+    assert!(
+        oracle_to_ours <= tolerance_mm + 1e-6,
+        "geomdl's curve is {oracle_to_ours} mm from the chords"
+    );
     // geomdl's points are 1000 steps apart: its polyline is within 1e-4 mm of its curve.
     let ours_to_oracle = distance_to_polyline(&ours, oracle);
-    assert!(ours_to_oracle <= 1e-4, "a chord point is {ours_to_oracle} mm off geomdl's curve");
+    assert!(
+        ours_to_oracle <= 1e-4,
+        "a chord point is {ours_to_oracle} mm off geomdl's curve"
+    );
     // The spline is said, once; the tool description comes with it.
     assert!(program
         .warnings
@@ -616,7 +665,10 @@ fn live_geomdl_agrees() {
         .is_ok_and(|o| o.status.success());
     if !available {
         let required = std::env::var("CNCSIM_REQUIRE_ORACLES").is_ok_and(|v| v == "1");
-        assert!(!required, "geomdl is not installed and CNCSIM_REQUIRE_ORACLES=1");
+        assert!(
+            !required,
+            "geomdl is not installed and CNCSIM_REQUIRE_ORACLES=1"
+        );
         eprintln!("skipped: geomdl is not installed");
         return;
     }
@@ -627,6 +679,10 @@ fn live_geomdl_agrees() {
         .arg("1000")
         .output()
         .unwrap();
-    assert!(output.status.success(), "{}", String::from_utf8_lossy(&output.stderr));
+    assert!(
+        output.status.success(),
+        "{}",
+        String::from_utf8_lossy(&output.stderr)
+    );
     compare_spline(&oracle_points(&String::from_utf8_lossy(&output.stdout)));
 }

@@ -138,7 +138,12 @@ fn drawing_after_a_page_advance_or_outside_the_window_is_refused() {
         "bad.plt:1:26: expected drawing inside the input window (IW 0,0,100,100 plotter units); clipping at the window is not supported, found 'PD90,90,150,90'; hint: re-plot without an input window, or keep the drawing inside it"
     );
     // An arc bulging out of the window is caught too, though its ends are inside.
-    assert!(parse_hpgl(b"IN;IW0,0,100,100;PU95,75;PD;AA50,50,-58;", "t.plt", &strict()).is_err());
+    assert!(parse_hpgl(
+        b"IN;IW0,0,100,100;PU95,75;PD;AA50,50,-58;",
+        "t.plt",
+        &strict()
+    )
+    .is_err());
 }
 
 /// Pen-down polylines in plotter units, arcs sampled every degree.
@@ -159,14 +164,31 @@ fn polylines(program: &Program) -> Vec<Vec<[f64; 2]>> {
         }
         let line = current.get_or_insert_with(|| vec![unit(from)]);
         match mv.motion {
-            Motion::Arc { center, clockwise, turns, .. } => {
-                let sweep = cncsim::program::arc_sweep(&from, &to, &center, cncsim::program::Plane::XY, clockwise, turns);
+            Motion::Arc {
+                center,
+                clockwise,
+                turns,
+                ..
+            } => {
+                let sweep = cncsim::program::arc_sweep(
+                    &from,
+                    &to,
+                    &center,
+                    cncsim::program::Plane::XY,
+                    clockwise,
+                    turns,
+                );
                 let radius = (from[0] - center[0]).hypot(from[1] - center[1]);
                 let start = (from[1] - center[1]).atan2(from[0] - center[0]);
                 let steps = sweep.to_degrees().ceil().max(1.0) as usize;
                 for k in 1..=steps {
-                    let a = start + if clockwise { -sweep } else { sweep } * k as f64 / steps as f64;
-                    line.push(unit([center[0] + radius * a.cos(), center[1] + radius * a.sin(), 0.0]));
+                    let a =
+                        start + if clockwise { -sweep } else { sweep } * k as f64 / steps as f64;
+                    line.push(unit([
+                        center[0] + radius * a.cos(),
+                        center[1] + radius * a.sin(),
+                        0.0,
+                    ]));
                 }
             }
             _ => line.push(unit(to)),
@@ -183,7 +205,11 @@ fn distance_to_polylines(p: [f64; 2], lines: &[Vec<[f64; 2]>]) -> f64 {
         for w in line.windows(2) {
             let d = [w[1][0] - w[0][0], w[1][1] - w[0][1]];
             let n = d[0] * d[0] + d[1] * d[1];
-            let t = if n == 0.0 { 0.0 } else { (((p[0] - w[0][0]) * d[0] + (p[1] - w[0][1]) * d[1]) / n).clamp(0.0, 1.0) };
+            let t = if n == 0.0 {
+                0.0
+            } else {
+                (((p[0] - w[0][0]) * d[0] + (p[1] - w[0][1]) * d[1]) / n).clamp(0.0, 1.0)
+            };
             best = best.min((p[0] - w[0][0] - d[0] * t).hypot(p[1] - w[0][1] - d[1] * t));
         }
     }
@@ -212,16 +238,27 @@ fn iw_clips_lines_and_arcs_at_the_window() {
         if inside(p) {
             checked += 1;
             let d = distance_to_polylines(p, &lines);
-            assert!(d <= 0.4 + 1e-6, "circle point {p:?} is {d} units from the drawing");
+            assert!(
+                d <= 0.4 + 1e-6,
+                "circle point {p:?} is {d} units from the drawing"
+            );
         }
     }
     assert!(checked > 1000);
     // The line is cut at the window's edges.
-    assert!(lines.iter().any(|l| l.len() == 2 && close(l[0], [200.0, 500.0]) && close(l[1], [800.0, 500.0])));
-    assert!(program.warnings.iter().any(|w| w.message.starts_with("drawing outside the input window (IW) is not drawn and was clipped")));
+    assert!(lines
+        .iter()
+        .any(|l| l.len() == 2 && close(l[0], [200.0, 500.0]) && close(l[1], [800.0, 500.0])));
+    assert!(program.warnings.iter().any(|w| w
+        .message
+        .starts_with("drawing outside the input window (IW) is not drawn and was clipped")));
     // A dot (pen down without a move) outside the window is not drawn either.
     let program = hpgl(b"IN;IW200,200,800,800;PU100,100;PD;PU;PU300,300;PD;PU;");
-    let plunges = program.moves.iter().filter(|m| m.tool_down == Some(true)).count();
+    let plunges = program
+        .moves
+        .iter()
+        .filter(|m| m.tool_down == Some(true))
+        .count();
     assert_eq!(plunges, 1);
 }
 
@@ -229,7 +266,11 @@ fn iw_clips_lines_and_arcs_at_the_window() {
 fn unknown_mnemonics_are_passed_over_unless_they_draw() {
     let program = hpgl(b"IN;SP1;ZZ1,2;QQ\"x\";PU0,0;ZZ;PD100,0;PU;");
     assert_eq!(drawn(&program).len(), 1);
-    let messages: Vec<&str> = program.warnings.iter().map(|w| w.message.as_str()).collect();
+    let messages: Vec<&str> = program
+        .warnings
+        .iter()
+        .map(|w| w.message.as_str())
+        .collect();
     assert_eq!(
         messages,
         [
@@ -258,7 +299,11 @@ fn comments_quoted_and_unquoted_control_characters_pt0_and_raster_fills() {
     let text = b"\x03\x1a IN;CO\"quoted; with a semicolon\";CO unquoted note;\nSP1;PT0;PU0,0;PD100,0;PU;\x04";
     let program = hpgl(text);
     assert_eq!(drawn(&program).len(), 1);
-    let messages: Vec<&str> = program.warnings.iter().map(|w| w.message.as_str()).collect();
+    let messages: Vec<&str> = program
+        .warnings
+        .iter()
+        .map(|w| w.message.as_str())
+        .collect();
     assert_eq!(
         messages,
         [
@@ -289,17 +334,27 @@ fn an_unfinished_pe_number_is_dropped_as_plotters_drop_it() {
     let segments = drawn(&program);
     assert_eq!(segments.len(), 1);
     assert!(close(segments[0][0], [471.0, 471.0]) && close(segments[0][1], [354.0, 354.0]));
-    assert!(program.warnings.iter().any(|w| w.message.starts_with("PE data that end in an unfinished number")));
+    assert!(program.warnings.iter().any(|w| w
+        .message
+        .starts_with("PE data that end in an unfinished number")));
     assert!(parse_hpgl(&text, "bad.plt", &strict()).is_err());
     // The same file after a text tool re-encoded it as UTF-8 (0xCD → C3 8D, 0xCA → C3 8A):
     // decoded back exactly, and said.
-    let mangled: Vec<u8> = String::from_utf8(text.iter().map(|&b| b as char).collect::<String>().into_bytes())
-        .unwrap()
-        .into_bytes();
+    let mangled: Vec<u8> = String::from_utf8(
+        text.iter()
+            .map(|&b| b as char)
+            .collect::<String>()
+            .into_bytes(),
+    )
+    .unwrap()
+    .into_bytes();
     assert_ne!(mangled, text);
     let program = hpgl(&mangled);
     assert_eq!(drawn(&program), segments);
-    assert!(program.warnings.iter().any(|w| w.message.starts_with("PE data re-encoded as UTF-8")));
+    assert!(program
+        .warnings
+        .iter()
+        .any(|w| w.message.starts_with("PE data re-encoded as UTF-8")));
     assert!(parse_hpgl(&mangled, "bad.plt", &strict()).is_err());
 }
 

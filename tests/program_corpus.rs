@@ -44,8 +44,12 @@ fn corpus_directory(variable: &str, required: bool) -> Option<PathBuf> {
     match std::env::var(variable) {
         Ok(directory) => Some(PathBuf::from(directory)),
         Err(_) => {
-            let require = required && std::env::var("CNCSIM_REQUIRE_ORACLES").is_ok_and(|v| v == "1");
-            assert!(!require, "{variable} is not set and CNCSIM_REQUIRE_ORACLES=1");
+            let require =
+                required && std::env::var("CNCSIM_REQUIRE_ORACLES").is_ok_and(|v| v == "1");
+            assert!(
+                !require,
+                "{variable} is not set and CNCSIM_REQUIRE_ORACLES=1"
+            );
             eprintln!("skipped: {variable} is not set");
             None
         }
@@ -62,12 +66,18 @@ fn goto_points(text: &str) -> Vec<(Vector3<f64>, Option<Vector3<f64>>)> {
     let mut axis = Vector3::z();
     let mut points = Vec::new();
     let numbers = |rest: &str| -> Vec<f64> {
-        rest.split(',').filter_map(|v| v.trim().parse().ok()).collect()
+        rest.split(',')
+            .filter_map(|v| v.trim().parse().ok())
+            .collect()
     };
     for line in text.lines() {
         let line = line.trim().to_ascii_uppercase();
         if let Some(rest) = line.strip_prefix("UNITS/") {
-            scale = if rest.starts_with("INCH") { 0.0254 } else { 1e-3 };
+            scale = if rest.starts_with("INCH") {
+                0.0254
+            } else {
+                1e-3
+            };
         } else if let Some(rest) = line.strip_prefix("MSYS/") {
             let v = numbers(rest);
             let x = Vector3::new(v[3], v[4], v[5]).normalize();
@@ -91,7 +101,11 @@ fn goto_points(text: &str) -> Vec<(Vector3<f64>, Option<Vector3<f64>>)> {
 /// Checks that the moves go through every GOTO point in order (a hole: a move on the line
 /// through it along the tool axis). Returns what is missing.
 fn every_goto_reached(text: &str, program: &Program) -> Result<(), String> {
-    let ends: Vec<Vector3<f64>> = program.moves.iter().map(|m| Vector3::from(m.end.linear)).collect();
+    let ends: Vec<Vector3<f64>> = program
+        .moves
+        .iter()
+        .map(|m| Vector3::from(m.end.linear))
+        .collect();
     let mut cursor = 0;
     for (index, (point, hole_axis)) in goto_points(text).iter().enumerate() {
         let hit = ends[cursor..].iter().position(|end| match hole_axis {
@@ -118,7 +132,8 @@ fn every_goto_reached(text: &str, program: &Program) -> Result<(), String> {
 }
 
 fn check(path: &Path) -> Result<(ProgramFormat, usize), String> {
-    let outcome = read_program_detailed(path, &ReadOptions::default()).map_err(|e| e.to_string())?;
+    let outcome =
+        read_program_detailed(path, &ReadOptions::default()).map_err(|e| e.to_string())?;
     if outcome.format == ProgramFormat::Apt {
         let text = String::from_utf8_lossy(&std::fs::read(path).unwrap()).into_owned();
         every_goto_reached(&text, &outcome.program)?;
@@ -136,13 +151,18 @@ fn the_listed_real_programs_decode_and_keep_their_geometry() {
     let mut failures = Vec::new();
     let mut decoded = 0;
     for entry in &entries {
-        let path = directory.join(entry.repo.replace('/', "+")).join(&entry.path);
+        let path = directory
+            .join(entry.repo.replace('/', "+"))
+            .join(&entry.path);
         let result = check(&path);
         println!("{}/{}: {result:?}", entry.repo, entry.path);
         match (&result, entry.expected.as_str()) {
             (Ok(_), "decodes") => decoded += 1,
             (Err(message), expected) if expected != "decodes" && message.contains(expected) => {}
-            _ => failures.push(format!("{}/{}: expected {}, got {result:?}", entry.repo, entry.path, entry.expected)),
+            _ => failures.push(format!(
+                "{}/{}: expected {}, got {result:?}",
+                entry.repo, entry.path, entry.expected
+            )),
         }
     }
     println!("{decoded} of {} decoded", entries.len());
@@ -154,7 +174,10 @@ fn cl_data_of_a_corpus_directory_keep_every_goto() {
     let Some(directory) = corpus_directory("CNCSIM_CL_CORPUS", false) else {
         return;
     };
-    let mut paths: Vec<PathBuf> = std::fs::read_dir(directory).unwrap().map(|e| e.unwrap().path()).collect();
+    let mut paths: Vec<PathBuf> = std::fs::read_dir(directory)
+        .unwrap()
+        .map(|e| e.unwrap().path())
+        .collect();
     paths.sort();
     let mut failures = Vec::new();
     for path in &paths {
@@ -164,6 +187,10 @@ fn cl_data_of_a_corpus_directory_keep_every_goto() {
             failures.push(format!("{}: {result:?}", path.display()));
         }
     }
-    println!("{} of {} decoded with every GOTO reached", paths.len() - failures.len(), paths.len());
+    println!(
+        "{} of {} decoded with every GOTO reached",
+        paths.len() - failures.len(),
+        paths.len()
+    );
     assert!(failures.is_empty(), "{}", failures.join("\n"));
 }

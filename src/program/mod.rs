@@ -90,15 +90,37 @@ impl ProgramFormat {
             let word = word.trim();
             let rest = &upper[word.len()..].trim_start();
             const APT_WORDS: &[&str] = &[
-                "TOOL PATH", "PARTNO", "UNITS", "MACHIN", "CUTTER", "TLDATA", "MSYS", "FROM",
-                "GOTO", "FEDRAT", "SPINDL", "LOADTL", "CLPRNT", "PPRINT", "REMARK", "MULTAX",
-                "COOLNT", "PAINT", "NOPOST", "INTOL", "OUTTOL", "TLAXIS",
+                "TOOL PATH",
+                "PARTNO",
+                "UNITS",
+                "MACHIN",
+                "CUTTER",
+                "TLDATA",
+                "MSYS",
+                "FROM",
+                "GOTO",
+                "FEDRAT",
+                "SPINDL",
+                "LOADTL",
+                "CLPRNT",
+                "PPRINT",
+                "REMARK",
+                "MULTAX",
+                "COOLNT",
+                "PAINT",
+                "NOPOST",
+                "INTOL",
+                "OUTTOL",
+                "TLAXIS",
             ];
             if APT_WORDS.contains(&word) && (rest.is_empty() || rest.starts_with('/')) {
                 return Some(ProgramFormat::Apt);
             }
         }
-        if text.lines().any(|line| line.trim_start().to_ascii_uppercase().starts_with("GOTO/")) {
+        if text
+            .lines()
+            .any(|line| line.trim_start().to_ascii_uppercase().starts_with("GOTO/"))
+        {
             return Some(ProgramFormat::Apt);
         }
         // Plot files: past leading blanks and control characters, an escape, PJL, or an
@@ -125,9 +147,14 @@ impl ProgramFormat {
         // none) the next command's letters.
         match upper.get(2) {
             None => Some(ProgramFormat::Hpgl),
-            Some(b';' | b',' | b'-' | b'+' | b'.' | b'"' | b'0'..=b'9') => Some(ProgramFormat::Hpgl),
+            Some(b';' | b',' | b'-' | b'+' | b'.' | b'"' | b'0'..=b'9') => {
+                Some(ProgramFormat::Hpgl)
+            }
             Some(b) if b.is_ascii_whitespace() => Some(ProgramFormat::Hpgl),
-            Some(b) if b.is_ascii_alphabetic() && matches!(&upper[..2], b"IN" | b"DF" | b"BP" | b"PU" | b"PD") => {
+            Some(b)
+                if b.is_ascii_alphabetic()
+                    && matches!(&upper[..2], b"IN" | b"DF" | b"BP" | b"PU" | b"PD") =>
+            {
                 Some(ProgramFormat::Hpgl)
             }
             _ => None,
@@ -143,9 +170,11 @@ impl ProgramFormat {
         let mut chars = line.chars();
         match chars.next().map(|c| c.to_ascii_uppercase()) {
             Some('%' | '(' | ';') => true,
-            Some('G' | 'M' | 'N' | 'O' | 'T' | 'F' | 'S' | 'X' | 'Y' | 'Z') => chars
-                .next()
-                .is_some_and(|c| c.is_ascii_digit() || matches!(c, ' ' | '-' | '+' | '.' | '#' | '[')),
+            Some('G' | 'M' | 'N' | 'O' | 'T' | 'F' | 'S' | 'X' | 'Y' | 'Z') => {
+                chars.next().is_some_and(|c| {
+                    c.is_ascii_digit() || matches!(c, ' ' | '-' | '+' | '.' | '#' | '[')
+                })
+            }
             _ => false,
         }
     }

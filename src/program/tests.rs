@@ -773,13 +773,18 @@ fn read_program_dispatches_on_extension() {
     let plot_prn = write("a.prn", "\x03IN;SP1;PU0,0;PD40,0;");
     let outcome = read_program_detailed(&plot_prn, &ReadOptions::default()).unwrap();
     assert_eq!(outcome.format, ProgramFormat::Hpgl);
-    let cl_txt = write("cl.txt", "$$ header\nTOOL PATH/2_OP-1,TOOL,EM_10\nRAPID\nGOTO/1,1,1");
+    let cl_txt = write(
+        "cl.txt",
+        "$$ header\nTOOL PATH/2_OP-1,TOOL,EM_10\nRAPID\nGOTO/1,1,1",
+    );
     let outcome = read_program_detailed(&cl_txt, &ReadOptions::default()).unwrap();
     assert_eq!(outcome.format, ProgramFormat::Apt);
     // CL data in a file named as a plot file is still CL data.
     let cl_plt = write("cl.plt", "UNITS/MM\nRAPID\nGOTO/1,1,1");
     assert_eq!(
-        read_program_detailed(&cl_plt, &ReadOptions::default()).unwrap().format,
+        read_program_detailed(&cl_plt, &ReadOptions::default())
+            .unwrap()
+            .format,
         ProgramFormat::Apt
     );
     let unknown = write("a.txt", "hello world");

@@ -67,7 +67,12 @@ impl Cycle {
 
     /// The moves that make the hole at `point` with the tool along `axis` (unit), from the
     /// tool's position `from`.
-    pub(super) fn hole(&self, from: Vector3<f64>, point: Vector3<f64>, axis: Vector3<f64>) -> Vec<HoleMove> {
+    pub(super) fn hole(
+        &self,
+        from: Vector3<f64>,
+        point: Vector3<f64>,
+        axis: Vector3<f64>,
+    ) -> Vec<HoleMove> {
         let mut moves = Vec::new();
         let at = |distance: f64| point + axis * distance;
         let rapid_point = at(self.rapid_to);
@@ -88,7 +93,12 @@ impl Cycle {
                 let mut depth = 0.0;
                 let mut index = 0;
                 while depth < total {
-                    let step = self.steps.get(index).or(self.steps.last()).copied().unwrap_or(total);
+                    let step = self
+                        .steps
+                        .get(index)
+                        .or(self.steps.last())
+                        .copied()
+                        .unwrap_or(total);
                     index += 1;
                     let next = (depth + step).min(total);
                     if depth > 0.0 {

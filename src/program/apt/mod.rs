@@ -291,8 +291,9 @@ impl<'a> AptReader<'a> {
                 .iter()
                 .find(|t| t.kind == TokenKind::Slash)
                 .map_or(record_end, |t| t.end);
-            let names = String::from_utf8_lossy(&self.text[names_start.min(record_end)..record_end])
-                .into_owned();
+            let names =
+                String::from_utf8_lossy(&self.text[names_start.min(record_end)..record_end])
+                    .into_owned();
             let parts: Vec<&str> = names.split(',').map(str::trim).collect();
             let operation = parts.first().map(|s| s.to_string()).unwrap_or_default();
             let tool = match parts.as_slice() {
@@ -753,27 +754,27 @@ impl<'a> AptReader<'a> {
             }
             "FINI" => self.finished = true,
             "TLDATA" => self.tool_data(&parameters, first, record_end, span)?,
-            "CYCLE" => {
-                match self.cycle_record(&parameters, first, record_end)? {
-                    CycleSetting::Off => self.cycle = None,
-                    CycleSetting::On => {
-                        let Some(cycle) = self.last_cycle.clone() else {
-                            return Err(RecordError {
-                                start: first.start,
-                                end: record_end,
-                                problem: "expected a CYCLE record that defines the cycle before CYCLE/ON".into(),
-                                found: None,
-                                hint: None,
-                            });
-                        };
-                        self.cycle = Some(cycle);
-                    }
-                    CycleSetting::Set(cycle) => {
-                        self.last_cycle = Some(cycle.clone());
-                        self.cycle = Some(cycle);
-                    }
+            "CYCLE" => match self.cycle_record(&parameters, first, record_end)? {
+                CycleSetting::Off => self.cycle = None,
+                CycleSetting::On => {
+                    let Some(cycle) = self.last_cycle.clone() else {
+                        return Err(RecordError {
+                            start: first.start,
+                            end: record_end,
+                            problem:
+                                "expected a CYCLE record that defines the cycle before CYCLE/ON"
+                                    .into(),
+                            found: None,
+                            hint: None,
+                        });
+                    };
+                    self.cycle = Some(cycle);
                 }
-            }
+                CycleSetting::Set(cycle) => {
+                    self.last_cycle = Some(cycle.clone());
+                    self.cycle = Some(cycle);
+                }
+            },
             "NURBS" => {
                 if !parameters.is_empty() {
                     return Err(RecordError::at(
@@ -785,7 +786,8 @@ impl<'a> AptReader<'a> {
                     return Err(RecordError {
                         start: first.start,
                         end: record_end,
-                        problem: "expected a GOTO to end the arc of the CIRCLE before, not NURBS".into(),
+                        problem: "expected a GOTO to end the arc of the CIRCLE before, not NURBS"
+                            .into(),
                         found: None,
                         hint: None,
                     });
@@ -821,7 +823,9 @@ impl<'a> AptReader<'a> {
                         return Err(RecordError {
                             start: first.start,
                             end: record_end,
-                            problem: "expected the KNOT records of a NURBS before its CNTRL records".into(),
+                            problem:
+                                "expected the KNOT records of a NURBS before its CNTRL records"
+                                    .into(),
                             found: None,
                             hint: None,
                         });
@@ -835,11 +839,15 @@ impl<'a> AptReader<'a> {
                             units.to_metres(values[2]),
                         )
                         + origin;
-                    nurbs.points.push((point, values.get(3).copied().unwrap_or(1.0)));
+                    nurbs
+                        .points
+                        .push((point, values.get(3).copied().unwrap_or(1.0)));
                 }
                 nurbs.end = record_end;
             }
-            "CUTCOM" | "TLCOMP" => self.compensation(&major, &parameters, first, record_end, span)?,
+            "CUTCOM" | "TLCOMP" => {
+                self.compensation(&major, &parameters, first, record_end, span)?
+            }
             _ => {
                 if lookup(NOT_MOTION, &major).is_some() {
                     self.skip_record(&major, first, record_end, span)?;
@@ -930,12 +938,10 @@ impl<'a> AptReader<'a> {
             match &token.kind {
                 TokenKind::Word(word) if values.is_empty() => words.push(word.clone()),
                 TokenKind::Number(value) => values.push(*value),
-                _ => {
-                    return Err(RecordError::at(
-                        token,
-                        "expected TLDATA/kind,diameter,corner radius,length,… (numbers after the kind)",
-                    ))
-                }
+                _ => return Err(RecordError::at(
+                    token,
+                    "expected TLDATA/kind,diameter,corner radius,length,… (numbers after the kind)",
+                )),
             }
         }
         let Some(kind) = words.first().cloned() else {
@@ -960,8 +966,13 @@ impl<'a> AptReader<'a> {
             });
         }
         let metres = |v: f64| self.units.to_metres(v);
-        let (diameter, corner_radius, length) = (metres(values[0]), metres(values[1]), metres(values[2]));
-        if diameter <= 0.0 || corner_radius < 0.0 || length < 0.0 || 2.0 * corner_radius > diameter + 1e-12 {
+        let (diameter, corner_radius, length) =
+            (metres(values[0]), metres(values[1]), metres(values[2]));
+        if diameter <= 0.0
+            || corner_radius < 0.0
+            || length < 0.0
+            || 2.0 * corner_radius > diameter + 1e-12
+        {
             return Err(RecordError {
                 start: first.start,
                 end: record_end,
@@ -1029,7 +1040,14 @@ impl<'a> AptReader<'a> {
             return Err(RecordError {
                 start: first.start,
                 end: record_end,
-                problem: format!("expected ON, OFF{} in {major}", if major == "CUTCOM" { ", LEFT or RIGHT" } else { "" }),
+                problem: format!(
+                    "expected ON, OFF{} in {major}",
+                    if major == "CUTCOM" {
+                        ", LEFT or RIGHT"
+                    } else {
+                        ""
+                    }
+                ),
                 found: None,
                 hint: None,
             });
@@ -1198,7 +1216,9 @@ impl<'a> AptReader<'a> {
             index += 1;
         }
         let Some(kind) = kind else {
-            return Err(whole("expected the kind of cycle (DRILL, DEEP, BRKCHP, BORE, …) in CYCLE".into()));
+            return Err(whole(
+                "expected the kind of cycle (DRILL, DEEP, BRKCHP, BORE, …) in CYCLE".into(),
+            ));
         };
         let Some(feed_to) = feed_to else {
             return Err(whole(format!("expected FEDTO (the depth) in CYCLE/{name}")));

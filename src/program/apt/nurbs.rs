@@ -50,11 +50,11 @@ impl Spline {
         }
         let mut knots = vec![0.0; degree + 1];
         knots.extend_from_slice(&written_knots[..k - 1]);
-        knots.extend(std::iter::repeat(last).take(degree + 1));
+        knots.extend(std::iter::repeat_n(last, degree + 1));
         let mut points = vec![start];
         let mut weights = vec![1.0];
         for (point, weight) in written_points {
-            if !(*weight > 0.0) {
+            if weight.is_nan() || *weight <= 0.0 {
                 return Err(format!("expected a positive CNTRL weight, found {weight}"));
             }
             points.push(*point);
@@ -104,7 +104,11 @@ impl Spline {
     /// Points along the curve after its start, the last one its end, such that no point
     /// of the curve is further than `tolerance` from the chords (checked at nine points of
     /// every chord's parameter interval); at most `max_points`.
-    pub(super) fn chords(&self, tolerance: f64, max_points: usize) -> Result<Vec<Vector3<f64>>, String> {
+    pub(super) fn chords(
+        &self,
+        tolerance: f64,
+        max_points: usize,
+    ) -> Result<Vec<Vector3<f64>>, String> {
         let mut out = Vec::new();
         let p = self.degree;
         let end = self.knots[self.knots.len() - 1];
@@ -114,7 +118,16 @@ impl Spline {
         let mut from_t = 0.0;
         let mut from = self.at(0.0);
         for &to_t in breaks.iter().skip(1) {
-            self.flatten(from_t, from, to_t, self.at(to_t.min(end)), tolerance, 0, &mut out, max_points)?;
+            self.flatten(
+                from_t,
+                from,
+                to_t,
+                self.at(to_t.min(end)),
+                tolerance,
+                0,
+                &mut out,
+                max_points,
+            )?;
             from_t = to_t;
             from = *out.last().unwrap_or(&from);
         }
@@ -182,7 +195,10 @@ mod tests {
         let spline = Spline::new(
             Vector3::zeros(),
             &[0.5, 1.0],
-            &[(Vector3::new(1.0, 0.0, 0.0), 1.0), (Vector3::new(1.0, 1.0, 0.0), 1.0)],
+            &[
+                (Vector3::new(1.0, 0.0, 0.0), 1.0),
+                (Vector3::new(1.0, 1.0, 0.0), 1.0),
+            ],
         )
         .unwrap();
         assert_eq!(spline.degree, 1);
@@ -203,8 +219,10 @@ mod tests {
         assert_eq!(spline.degree, 3);
         for t in [0.0, 0.2, 0.5, 0.9, 1.0] {
             let s = 1.0 - t;
-            let bernstein =
-                c[0] * s * s * s + c[1] * 3.0 * s * s * t + c[2] * 3.0 * s * t * t + c[3] * t * t * t;
+            let bernstein = c[0] * s * s * s
+                + c[1] * 3.0 * s * s * t
+                + c[2] * 3.0 * s * t * t
+                + c[3] * t * t * t;
             assert!((spline.at(t) - bernstein).norm() < 1e-12, "t = {t}");
         }
         let chords = spline.chords(1e-4, 100_000).unwrap();

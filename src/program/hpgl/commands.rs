@@ -70,10 +70,10 @@ const NOT_DRAWING: &[(&str, &str)] = &[
 
 /// The commands `execute` carries out (the rest are described, or unknown).
 const CARRIED_OUT: &[&str] = &[
-    "LB", "BL", "DT", "SM", "PE", "IN", "DF", "SC", "IP", "IR", "RO", "PS", "WU", "PW", "IW",
-    "SP", "VS", "LT", "PU", "PD", "PA", "PR", "CT", "CI", "AA", "AR", "AT", "RT", "BZ", "BR",
-    "PM", "EP", "FP", "EA", "ER", "RA", "RR", "EW", "WG", "FT", "PT", "TL", "XT", "YT", "SI",
-    "SR", "DI", "DR", "SL", "ES", "LO", "CP", "PB", "SS", "SA", "CS", "CA", "DV", "UC",
+    "LB", "BL", "DT", "SM", "PE", "IN", "DF", "SC", "IP", "IR", "RO", "PS", "WU", "PW", "IW", "SP",
+    "VS", "LT", "PU", "PD", "PA", "PR", "CT", "CI", "AA", "AR", "AT", "RT", "BZ", "BR", "PM", "EP",
+    "FP", "EA", "ER", "RA", "RR", "EW", "WG", "FT", "PT", "TL", "XT", "YT", "SI", "SR", "DI", "DR",
+    "SL", "ES", "LO", "CP", "PB", "SS", "SA", "CS", "CA", "DV", "UC",
 ];
 
 /// Commands that draw in some plotter's dialect but are not drawn here: refused by name.
@@ -152,7 +152,9 @@ impl Reader<'_> {
                     encoded::undo_utf8(self.scan.text, data_start, data_end)
                 };
                 let result = match &undone {
-                    None => encoded::decode(self.scan.text, data_start, data_end, !self.options.strict),
+                    None => {
+                        encoded::decode(self.scan.text, data_start, data_end, !self.options.strict)
+                    }
                     Some((bytes, offsets)) => {
                         self.skip(
                             "PE UTF-8",
@@ -168,8 +170,21 @@ impl Reader<'_> {
                                 let decoded = decoded
                                     .into_iter()
                                     .map(|element| match element {
-                                        Encoded::Pen { number, at } => Encoded::Pen { number, at: back(at) },
-                                        Encoded::Point { xy, absolute, pen_up, at } => Encoded::Point { xy, absolute, pen_up, at: back(at) },
+                                        Encoded::Pen { number, at } => Encoded::Pen {
+                                            number,
+                                            at: back(at),
+                                        },
+                                        Encoded::Point {
+                                            xy,
+                                            absolute,
+                                            pen_up,
+                                            at,
+                                        } => Encoded::Point {
+                                            xy,
+                                            absolute,
+                                            pen_up,
+                                            at: back(at),
+                                        },
                                     })
                                     .collect();
                                 (decoded, dropped.map(back))
@@ -202,7 +217,13 @@ impl Reader<'_> {
             }
             // The unquoted form some drivers write (`CO text;`).
             "CO" if !self.options.strict && self.scan.unquoted_comment() => {
-                self.skip("CO", start, self.scan.at, "CO (comment) is not a pen move", "was skipped");
+                self.skip(
+                    "CO",
+                    start,
+                    self.scan.at,
+                    "CO (comment) is not a pen move",
+                    "was skipped",
+                );
                 Ok(())
             }
             _ => {
@@ -590,7 +611,10 @@ impl Reader<'_> {
                                 &format!("FT {kind}"),
                                 start,
                                 self.scan.at,
-                                &format!("FT {} (a raster fill pattern) cannot be drawn with a pen", fmt_number(kind)),
+                                &format!(
+                                    "FT {} (a raster fill pattern) cannot be drawn with a pen",
+                                    fmt_number(kind)
+                                ),
                                 "its fills are drawn solid instead",
                             );
                             self.plotter.fill = FillStyle { pen_mm, ..defaults };
@@ -630,8 +654,17 @@ impl Reader<'_> {
                 &[mm] if mm > 0.0 && mm <= 5.0 => self.plotter.fill.pen_mm = mm,
                 // Out of range (PT0 is common): a plotter ignores the command.
                 &[mm] if !self.options.strict => {
-                    let what = format!("PT {} (pen thickness) is out of the range 0.1 to 5 mm", fmt_number(mm));
-                    self.skip("PT range", start, self.scan.at, &what, "was ignored, as plotters ignore it");
+                    let what = format!(
+                        "PT {} (pen thickness) is out of the range 0.1 to 5 mm",
+                        fmt_number(mm)
+                    );
+                    self.skip(
+                        "PT range",
+                        start,
+                        self.scan.at,
+                        &what,
+                        "was ignored, as plotters ignore it",
+                    );
                 }
                 &[mm] => {
                     return Err(Problem::new(format!(
@@ -827,7 +860,9 @@ impl Reader<'_> {
             &format!("unknown {name}"),
             start,
             end,
-            &format!("{name} is not an HP-GL command cncsim knows; a plotter passes over it (error 1)"),
+            &format!(
+                "{name} is not an HP-GL command cncsim knows; a plotter passes over it (error 1)"
+            ),
             "so was it",
         );
         true

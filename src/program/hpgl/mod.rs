@@ -296,7 +296,11 @@ impl<'a> Reader<'a> {
     fn count_skipped(&mut self) {
         for (index, count) in self.warned.values() {
             if let Some(warning) = self.warnings.get_mut(*index) {
-                let times = if *count == 1 { "once".to_string() } else { format!("{count} times") };
+                let times = if *count == 1 {
+                    "once".to_string()
+                } else {
+                    format!("{count} times")
+                };
                 warning.message = format!("{} ({times} in the file)", warning.message);
             }
         }

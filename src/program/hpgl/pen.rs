@@ -462,7 +462,10 @@ fn clip_segment(a: [f64; 2], b: [f64; 2], low: [f64; 2], high: [f64; 2]) -> Opti
     let (mut t0, mut t1) = (0.0_f64, 1.0_f64);
     let d = [b[0] - a[0], b[1] - a[1]];
     for axis in 0..2 {
-        for (p, q) in [(-d[axis], a[axis] - low[axis]), (d[axis], high[axis] - a[axis])] {
+        for (p, q) in [
+            (-d[axis], a[axis] - low[axis]),
+            (d[axis], high[axis] - a[axis]),
+        ] {
             if p == 0.0 {
                 if q < 0.0 {
                     return None;
