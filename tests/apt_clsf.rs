@@ -177,7 +177,8 @@ fn nx_clsf_arcs_follow_their_circle_records() {
         .iter()
         .find(|m| matches!(m.motion, Motion::Arc { turns: 1, .. }));
     assert!(helix.is_some());
-    // Each kind of skipped record warned about once.
+    // Each kind of skipped record warned about once; TLDATA is read into the tool and
+    // CUTCOM is read (and said), not skipped.
     let kinds: Vec<&str> = program
         .warnings
         .iter()
@@ -187,15 +188,20 @@ fn nx_clsf_arcs_follow_their_circle_records() {
         kinds,
         [
             "TOOL",
-            "TLDATA",
             "MSYS:",
             "PAINT",
             "LOAD",
             "COOLNT",
-            "CUTCOM",
+            "CUTCOM:",
             "END-OF-PATH"
         ]
     );
+    assert_eq!(program.tools.len(), 1);
+    assert_eq!(
+        program.tools[0].operation.as_deref(),
+        Some("PLANAR_PROFILE")
+    );
+    assert_eq!(program.tools[0].diameter, 0.01);
 }
 
 #[test]
@@ -298,7 +304,7 @@ fn records_that_cannot_be_followed_are_errors() {
         ("FEDRAT/100\nCIRCLE/0,0,0,0,0,1,10\nGODLTA/1,0,0", "bad.cls:3:1: expected a GOTO to end the arc of the CIRCLE before, not GODLTA, found 'GODLTA/1,0,0'"),
         ("CIRCLE/0,0,0,0,0,1", "bad.cls:1:1: expected at least 7 numbers after CIRCLE/ (centre, axis, radius), not 6, found 'CIRCLE/0,0,0,0,0,1'"),
         ("CIRCLE/0,0,0,0,0,0,5", "bad.cls:1:1: expected a non-zero axis vector and a positive radius in CIRCLE, found 'CIRCLE/0,0,0,0,0,0,5'"),
-        ("CYCLE/DRILL,RAPTO,2,FEDTO,-10,MMPM,100", "bad.cls:1:1: expected records cncsim can follow; CYCLE changes the tool path and canned cycles are not supported, found 'CYCLE/DRILL,RAPTO,2,FEDTO,-10,MMPM,100'; hint: post the CL data with the path written out as GOTO (and CIRCLE) records"),
+        ("CYCLE/MILL,RAPTO,2,FEDTO,-10,MMPM,100", "bad.cls:1:7: expected a cycle cncsim can expand; MILL in CYCLE is not one, found 'MILL'; hint: CYCLE/DRILL (plain, DEEP, BRKCHP), CSINK, BORE, REAM and TAP are expanded; post other cycles as GOTO records"),
         ("ORIGIN/10,0,0", "bad.cls:1:1: expected records cncsim can follow; ORIGIN changes the tool path and origin shifts are not supported, found 'ORIGIN/10,0,0'; hint: post the CL data with the path written out as GOTO (and CIRCLE) records"),
         ("WIBBLE/3", "bad.cls:1:1: expected an APT record cncsim knows; WIBBLE is not one, found 'WIBBLE'; hint: a record that may change the tool path is not skipped; remove it if it does not"),
         ("MSYS/0,0,0,1,0,0,1,0,0", "bad.cls:1:12: expected unit, perpendicular X and Y axis vectors in MSYS/x,y,z,xi,xj,xk,yi,yj,yk, found '1,0,0,1,0,0'"),
@@ -337,4 +343,346 @@ fn msys_rotates_points_and_tool_axes() {
     assert!((Vector3::from(mv.end.linear) - Vector3::new(0.010, 0.005, 0.0)).norm() < 1e-15);
     let axis = mv.tool_axis.unwrap();
     assert!((Vector3::from(axis) - Vector3::new(0.0, 1.0, 0.0)).norm() < 1e-15);
+}
+
+// ---------------------------------------------------------------------------------------
+// NX CLSF as NX writes it: names, tools, cycles, splines, cutter compensation
+// ---------------------------------------------------------------------------------------
+
+#[test]
+fn nx_names_with_digits_underscores_and_dashes_and_tldata_read_into_the_tools() {
+    let program = apt(
+        "TOOL PATH/2_TORETC_250_BOK,TOOL,FACE_MILL_2\nTLDATA/MILL,250.0000,1.0000,50.0000,0.0000,0.0000\n\
+         RAPID\nGOTO/1,2,3\nEND-OF-PATH\n\
+         TOOL PATH/BOK_7,TOOL,R390-25A25L-17L\nTLDATA/DRILL,MILL,63.0000,0.0000,239.0000,178.0000,35.0000\n\
+         RAPID\nGOTO/4,5,6\nEND-OF-PATH\n",
+    );
+    assert_eq!(program.moves.len(), 2);
+    type Described<'a> = (
+        Option<&'a str>,
+        Option<&'a str>,
+        &'a str,
+        f64,
+        f64,
+        f64,
+        f64,
+    );
+    let tools: Vec<Described> = program
+        .tools
+        .iter()
+        .map(|t| {
+            (
+                t.operation.as_deref(),
+                t.name.as_deref(),
+                t.kind.as_str(),
+                t.diameter,
+                t.corner_radius,
+                t.length,
+                t.tip_angle.to_degrees(),
+            )
+        })
+        .collect();
+    assert_eq!(
+        tools,
+        [
+            (
+                Some("2_TORETC_250_BOK"),
+                Some("FACE_MILL_2"),
+                "MILL",
+                0.25,
+                0.001,
+                0.05,
+                0.0
+            ),
+            (
+                Some("BOK_7"),
+                Some("R390-25A25L-17L"),
+                "DRILL,MILL",
+                0.063,
+                0.0,
+                0.239,
+                35.0
+            ),
+        ]
+    );
+    // The inspect report names them.
+    let report = cncsim::program::inspect_report(&program, None, &Default::default());
+    assert!(
+        report.contains("tool: 7:1: DRILL,MILL diameter 63.0000 mm, corner radius 0.0000 mm, length 239.0000 mm, taper 178.000 deg, tip 35.000 deg (operation BOK_7, tool R390-25A25L-17L)"),
+        "{report}"
+    );
+    // Skipped records are counted in one warning per kind.
+    let messages: Vec<&str> = program
+        .warnings
+        .iter()
+        .map(|w| w.message.as_str())
+        .collect();
+    assert_eq!(
+        messages,
+        [
+            "TOOL PATH (start of an NX tool path) does not move the tool and was skipped (2 records in the file)",
+            "END-OF-PATH (end of an NX tool path) does not move the tool and was skipped (2 records in the file)",
+        ]
+    );
+}
+
+/// A hole as the cycle's definition makes it, written out here from the definition
+/// (NX's posts: rapid-to, feed-to, retract-to = the GOTO point + the distance × tool axis):
+/// (rapid?, point mm) and dwells as `None` points.
+fn moves_mm(program: &Program, from: usize) -> Vec<(String, [f64; 3])> {
+    program.moves[from..]
+        .iter()
+        .map(|m| {
+            let kind = match (m.motion, m.feed) {
+                (Motion::Dwell { seconds }, _) => format!("dwell {seconds}"),
+                (_, cncsim::program::Feed::Rapid) => "rapid".to_string(),
+                (_, cncsim::program::Feed::PathSpeed(v)) => format!("feed {:.3}", v * 60_000.0),
+                (_, other) => format!("{other:?}"),
+            };
+            let p = m.end.linear;
+            (kind, [p[0] * 1e3, p[1] * 1e3, p[2] * 1e3])
+        })
+        .collect()
+}
+
+fn assert_moves(actual: &[(String, [f64; 3])], expected: &[(&str, [f64; 3])]) {
+    let same = actual.len() == expected.len()
+        && actual
+            .iter()
+            .zip(expected)
+            .all(|((ka, pa), (ke, pe))| ka == ke && (0..3).all(|i| (pa[i] - pe[i]).abs() < 1e-9));
+    assert!(same, "expected\n{expected:?}\nfound\n{actual:?}");
+}
+
+#[test]
+fn drill_cycles_make_each_goto_a_hole_as_the_cycle_defines_it() {
+    let rapid_to = 3.0;
+    let feed_to = -10.0;
+    let step = 4.0;
+    let clearance = 0.254; // the peck clearance cncsim states (LinuxCNC's 0.010 in)
+    let text = format!(
+        "FROM/0,0,50\nFEDRAT/MMPM,1000\n\
+         CYCLE/DRILL,RAPTO,{rapid_to},FEDTO,{feed_to},MMPM,250\nGOTO/10,20,0\nGOTO/30,20,0\n\
+         CYCLE/DRILL,DEEP,FEDTO,{feed_to},STEP,{step},RAPTO,{rapid_to},RTRCTO,AUTO,MMPM,200\nGOTO/50,0,0\n\
+         CYCLE/DRILL,BRKCHP,RAPTO,{rapid_to},FEDTO,{feed_to},STEP,{step},DWELL,0.5,RTRCTO,10\nGOTO/70,0,0\n\
+         CYCLE/OFF\nGOTO/70,0,40\n"
+    );
+    let program = apt(&text);
+    let (r, f) = (rapid_to, feed_to);
+    // First hole: from above, across at the FROM height, down to RAPTO, feed, back to RAPTO.
+    let mut expected: Vec<(&str, [f64; 3])> = vec![
+        ("rapid", [10.0, 20.0, 50.0]),
+        ("rapid", [10.0, 20.0, r]),
+        ("feed 250.000", [10.0, 20.0, f]),
+        ("rapid", [10.0, 20.0, r]),
+        // Next hole: at RAPTO height already, across.
+        ("rapid", [30.0, 20.0, r]),
+        ("feed 250.000", [30.0, 20.0, f]),
+        ("rapid", [30.0, 20.0, r]),
+        ("rapid", [50.0, 0.0, r]),
+    ];
+    // DEEP: pecks of STEP from RAPTO, back to RAPTO after each, down to the last depth
+    // less the clearance.
+    let mut depth = r;
+    let mut pecks = Vec::new();
+    while depth > f {
+        let next = (depth - step).max(f);
+        pecks.push((depth, next));
+        depth = next;
+    }
+    let deep: Vec<(&str, [f64; 3])> = pecks
+        .iter()
+        .enumerate()
+        .flat_map(|(k, &(top, bottom))| {
+            let mut v = Vec::new();
+            if k > 0 {
+                v.push(("rapid", [50.0, 0.0, r]));
+                v.push(("rapid", [50.0, 0.0, top + clearance]));
+            }
+            v.push(("feed 200.000", [50.0, 0.0, bottom]));
+            v
+        })
+        .collect();
+    expected.extend(deep);
+    expected.push(("rapid", [50.0, 0.0, r]));
+    // BRKCHP: the same pecks backing off by the clearance only; dwell; out to RTRCTO; the
+    // feed is the last FEDRAT (the cycle gives none).
+    expected.push(("rapid", [70.0, 0.0, r]));
+    for (k, &(top, bottom)) in pecks.iter().enumerate() {
+        if k > 0 {
+            expected.push(("rapid", [70.0, 0.0, top + clearance]));
+        }
+        expected.push(("feed 1000.000", [70.0, 0.0, bottom]));
+    }
+    expected.push(("dwell 0.5", [70.0, 0.0, f]));
+    expected.push(("rapid", [70.0, 0.0, 10.0]));
+    // CYCLE/OFF: a GOTO is a move again.
+    expected.push(("feed 1000.000", [70.0, 0.0, 40.0]));
+    assert_moves(&moves_mm(&program, 0), &expected);
+    assert!(program.warnings.iter().any(|w| w
+        .message
+        .starts_with("CYCLE/DRILL,DEEP: each GOTO is a hole")));
+}
+
+#[test]
+fn a_hole_follows_the_tool_axis_and_the_msys_frame() {
+    // MCS turned 90° about Z: the GOTO's tool axis (1,0,0) is +Y on the table.
+    let program = apt(
+        "MSYS/100,0,0,0,1,0,-1,0,0\nFROM/0,0,0\nCYCLE/DRILL,RAPTO,2,FEDTO,-5,MMPM,100\nGOTO/10,0,0,1,0,0\n",
+    );
+    // The hole's point: (100,0,0) + R(10,0,0) = (100,10,0); the axis +Y.
+    let moves = moves_mm(&program, 0);
+    let (last_kind, last) = moves.last().unwrap();
+    assert_eq!(last_kind, "rapid");
+    assert!((last[0] - 100.0).abs() < 1e-9 && (last[1] - 12.0).abs() < 1e-9);
+    let bottom = moves.iter().find(|(k, _)| k.starts_with("feed")).unwrap().1;
+    assert!(
+        (bottom[0] - 100.0).abs() < 1e-9
+            && (bottom[1] - 5.0).abs() < 1e-9
+            && bottom[2].abs() < 1e-9
+    );
+}
+
+#[test]
+fn cycles_that_cannot_be_expanded_are_refused_by_name() {
+    let options = ReadOptions::default();
+    for (input, expected) in [
+        ("CYCLE/THREAD,FEDTO,-5", "bad.cls:1:7: expected a cycle cncsim can expand; THREAD in CYCLE is not one, found 'THREAD'; hint: CYCLE/DRILL (plain, DEEP, BRKCHP), CSINK, BORE, REAM and TAP are expanded; post other cycles as GOTO records"),
+        ("CYCLE/DRILL,RAPTO,3", "bad.cls:1:1: expected FEDTO (the depth) in CYCLE/DRILL, found 'CYCLE/DRILL,RAPTO,3'"),
+        ("CYCLE/DRILL,RAPTO,3,FEDTO,5", "bad.cls:1:1: expected FEDTO (5.0000 mm) below RAPTO (3.0000 mm) along the tool axis in CYCLE/DRILL, found 'CYCLE/DRILL,RAPTO,3,FEDTO,5'"),
+        ("CYCLE/ON", "bad.cls:1:1: expected a CYCLE record that defines the cycle before CYCLE/ON, found 'CYCLE/ON'"),
+        ("CYCLE/DRILL,FEDTO,-5\nGOTO/0,0,0", "bad.cls:2:1: expected a feed (in the CYCLE or a FEDRAT before it) for the holes of CYCLE/DRILL, found 'GOTO/0,0,0'"),
+        ("FEDRAT/100\nCUTCOM/LEFT,PLUS", "bad.cls:2:13: expected a compensation setting cncsim can follow in CUTCOM; PLUS is not one, found 'PLUS'; hint: CUTCOM/LEFT|RIGHT|ON|OFF[,XYPLAN][,n] and TLCOMP/ON|OFF[,n] are read"),
+        ("KNOT/0.5,1", "bad.cls:1:1: expected NURBS/ before KNOT/, found 'KNOT/0.5,1'"),
+        ("FEDRAT/100\nGOTO/0,0,0\nNURBS/\nKNOT/0.5,1\nCNTRL/1,0,0\nFINI", "bad.cls:3:1: expected a NURBS of degree 1 to 9 (CNTRL points − KNOT values + 1), found degree 0 (2 knots, 1 control points), found 'NURBS/\\nKNOT/0.5,1\\nCNTRL/1,0,0'"),
+    ] {
+        assert_eq!(first_error(input, &options), expected, "{input:?}");
+    }
+}
+
+#[test]
+fn a_peck_step_that_would_need_too_many_pecks_is_an_error() {
+    let error = first_error(
+        "CYCLE/DRILL,DEEP,RAPTO,0,FEDTO,-1000,STEP,0.001,MMPM,100\nGOTO/0,0,0",
+        &ReadOptions::default(),
+    );
+    assert!(
+        error.starts_with("bad.cls:2:1: expected at most 100000 pecks per hole; CYCLE/DRILL,DEEP with its STEP needs 10000"),
+        "{error}"
+    );
+}
+
+#[test]
+fn cutter_compensation_is_read_and_said_once() {
+    let program = apt(
+        "FEDRAT/100\nGOTO/0,0,0\nCUTCOM/LEFT,XYPLAN\nGOTO/10,0,0\nCUTCOM/OFF\nCUTCOM/RIGHT,1\nGOTO/20,0,0\nCUTCOM/OFF\nTLCOMP/ON,3\n",
+    );
+    assert_eq!(program.moves.len(), 3);
+    assert_eq!(program.moves[2].end.linear, [0.02, 0.0, 0.0]);
+    let messages: Vec<&str> = program
+        .warnings
+        .iter()
+        .map(|w| w.message.as_str())
+        .collect();
+    assert_eq!(
+        messages,
+        [
+            "CUTCOM: the CL points are the tool centre's; the controller's compensation offsets them by the register's wear only, taken as 0 mm: the points are followed as written",
+            "TLCOMP: tool length compensation does not move the tool tip the CL points give: they are followed as written",
+        ]
+    );
+}
+
+/// The NURBS of `nx_nurbs.cls` as cncsim follows it: the GOTO before it, then its chords (mm).
+fn decoded_spline() -> (Program, Vec<Vector3<f64>>) {
+    let program = read_program(&fixture("nx_nurbs.cls"), &ReadOptions::default())
+        .unwrap_or_else(|e| panic!("{e}"));
+    let nurbs_line = 18;
+    let mut points = Vec::new();
+    for (index, mv) in program.moves.iter().enumerate() {
+        if mv.span.line == nurbs_line {
+            if points.is_empty() {
+                points.push(Vector3::from(program.moves[index - 1].end.linear) * 1e3);
+            }
+            assert_eq!(mv.motion, Motion::Linear);
+            points.push(Vector3::from(mv.end.linear) * 1e3);
+        }
+    }
+    (program, points)
+}
+
+fn oracle_points(text: &str) -> Vec<Vector3<f64>> {
+    text.lines()
+        .map(|line| {
+            let v: Vec<f64> = line
+                .split_whitespace()
+                .map(|f| f.parse().unwrap())
+                .collect();
+            Vector3::new(v[0], v[1], v[2])
+        })
+        .collect()
+}
+
+/// cncsim's chords against geomdl's evaluation of the same curve: every point geomdl gives
+/// within the chord tolerance (1 µm) of the chords, every chord point on geomdl's curve.
+fn compare_spline(oracle: &[Vector3<f64>]) {
+    let (program, ours) = decoded_spline();
+    assert!(ours.len() > 10, "{} chords", ours.len());
+    assert!((ours[0] - oracle[0]).norm() < 1e-9);
+    assert!((ours.last().unwrap() - oracle.last().unwrap()).norm() < 1e-9);
+    let tolerance_mm = ReadOptions::default().apt.chord_tolerance * 1e3;
+    let oracle_to_ours = distance_to_polyline(oracle, &ours);
+    assert!(
+        oracle_to_ours <= tolerance_mm + 1e-6,
+        "geomdl's curve is {oracle_to_ours} mm from the chords"
+    );
+    // geomdl's points are 1000 steps apart: its polyline is within 1e-4 mm of its curve.
+    let ours_to_oracle = distance_to_polyline(&ours, oracle);
+    assert!(
+        ours_to_oracle <= 1e-4,
+        "a chord point is {ours_to_oracle} mm off geomdl's curve"
+    );
+    // The spline is said, once; the tool description comes with it.
+    assert!(program
+        .warnings
+        .iter()
+        .any(|w| w.message == "NURBS: the B-spline is followed by chords within 0.0010 mm of it"));
+    assert_eq!(program.tools[0].name.as_deref(), Some("BALL_MILL-D6"));
+}
+
+#[test]
+fn nurbs_follow_the_committed_geomdl_evaluation() {
+    let text = std::fs::read_to_string(fixture("nx_nurbs.cls.geomdl.txt")).unwrap();
+    compare_spline(&oracle_points(&text));
+}
+
+#[test]
+fn live_geomdl_agrees() {
+    let python = std::env::var("CNCSIM_PYTHON").unwrap_or_else(|_| "python3".into());
+    let available = std::process::Command::new(&python)
+        .args(["-c", "import geomdl"])
+        .output()
+        .is_ok_and(|o| o.status.success());
+    if !available {
+        let required = std::env::var("CNCSIM_REQUIRE_ORACLES").is_ok_and(|v| v == "1");
+        assert!(
+            !required,
+            "geomdl is not installed and CNCSIM_REQUIRE_ORACLES=1"
+        );
+        eprintln!("skipped: geomdl is not installed");
+        return;
+    }
+    let script = Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/oracles/nurbs_oracle.py");
+    let output = std::process::Command::new(&python)
+        .arg(script)
+        .arg(fixture("nx_nurbs.cls"))
+        .arg("1000")
+        .output()
+        .unwrap();
+    assert!(
+        output.status.success(),
+        "{}",
+        String::from_utf8_lossy(&output.stderr)
+    );
+    compare_spline(&oracle_points(&String::from_utf8_lossy(&output.stdout)));
 }

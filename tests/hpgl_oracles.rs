@@ -262,6 +262,15 @@ const CASES: &[Case] = &[
         tolerance: 0.5,
         options: plain,
     },
+    // Read as plotters read them: control characters before IN, empty parameters, PT0,
+    // an unknown mnemonic, lines clipped by IW.
+    Case {
+        file: "plotter_reading.plt",
+        oracle: "hp2xx",
+        marks_only: false,
+        tolerance: 0.5,
+        options: plain,
+    },
     Case {
         file: "hpgl2_driver.plt",
         oracle: "ezdxf",

@@ -41,12 +41,24 @@ fn close(a: [f64; 2], b: [f64; 2]) -> bool {
     (a[0] - b[0]).abs() < 1e-6 && (a[1] - b[1]).abs() < 1e-6
 }
 
+fn strict() -> ReadOptions {
+    let mut options = ReadOptions::default();
+    options.hpgl.strict = true;
+    options
+}
+
 #[test]
 fn a_comma_before_the_terminator_is_allowed() {
     let program = hpgl(b"IN;PA100,100;PD200,100,200,200,;PU;");
     assert_eq!(drawn(&program).len(), 2);
+    // Empty parameters are passed over as plotters and hp2xx pass over them …
+    let program = hpgl(b"IN;PA,PU100,100;PD,200,100,,200,200,;PU;");
+    let segments = drawn(&program);
+    assert_eq!(segments.len(), 2);
+    assert!(close(segments[1][1], [200.0, 200.0]));
+    // … and refused with --strict, as before.
     assert_eq!(
-        first_error(b"PD1,2,,;", &ReadOptions::default()),
+        first_error(b"PD1,2,,;", &strict()),
         "bad.plt:1:7: expected a number after ',' in the parameters of PD, found ','"
     );
 }
@@ -64,10 +76,10 @@ fn commands_that_do_not_draw_warn_once_per_kind_and_strict_refuses_them() {
     assert_eq!(
         messages,
         [
-            "CO (comment) is not a pen move and was skipped; further ones without a warning",
-            "NP (number of pens) is not a pen move and was skipped; further ones without a warning",
-            "EC (enable cutter) is not a pen move and was skipped; further ones without a warning",
-            "PG (advance page) is not a pen move and was skipped; further ones without a warning",
+            "CO (comment) is not a pen move and was skipped (once in the file)",
+            "NP (number of pens) is not a pen move and was skipped (2 times in the file)",
+            "EC (enable cutter) is not a pen move and was skipped (2 times in the file)",
+            "PG (advance page) is not a pen move and was skipped (once in the file)",
         ]
     );
     assert_eq!(drawn(&program).len(), 1);
@@ -119,17 +131,231 @@ fn drawing_after_a_page_advance_or_outside_the_window_is_refused() {
         &ReadOptions::default()
     )
     .is_ok());
+    // With --strict, drawing outside the window is refused as before (IW clips otherwise:
+    // `iw_clips_lines_and_arcs_at_the_window`).
     assert_eq!(
-        first_error(b"IN;IW0,0,100,100;PU10,10;PD90,90,150,90;", &ReadOptions::default()),
+        first_error(b"IN;IW0,0,100,100;PU10,10;PD90,90,150,90;", &strict()),
         "bad.plt:1:26: expected drawing inside the input window (IW 0,0,100,100 plotter units); clipping at the window is not supported, found 'PD90,90,150,90'; hint: re-plot without an input window, or keep the drawing inside it"
     );
     // An arc bulging out of the window is caught too, though its ends are inside.
     assert!(parse_hpgl(
         b"IN;IW0,0,100,100;PU95,75;PD;AA50,50,-58;",
         "t.plt",
-        &ReadOptions::default()
+        &strict()
     )
     .is_err());
+}
+
+/// Pen-down polylines in plotter units, arcs sampled every degree.
+fn polylines(program: &Program) -> Vec<Vec<[f64; 2]>> {
+    let mut lines: Vec<Vec<[f64; 2]>> = Vec::new();
+    let mut from = program.start.linear;
+    let mut current: Option<Vec<[f64; 2]>> = None;
+    let unit = |p: [f64; 3]| [p[0] * UNITS_PER_METRE, p[1] * UNITS_PER_METRE];
+    for mv in &program.moves {
+        let to = mv.end.linear;
+        let drawing = mv.tool_down == Some(true) && from[2] == to[2];
+        if !drawing {
+            if let Some(line) = current.take() {
+                lines.push(line);
+            }
+            from = to;
+            continue;
+        }
+        let line = current.get_or_insert_with(|| vec![unit(from)]);
+        match mv.motion {
+            Motion::Arc {
+                center,
+                clockwise,
+                turns,
+                ..
+            } => {
+                let sweep = cncsim::program::arc_sweep(
+                    &from,
+                    &to,
+                    &center,
+                    cncsim::program::Plane::XY,
+                    clockwise,
+                    turns,
+                );
+                let radius = (from[0] - center[0]).hypot(from[1] - center[1]);
+                let start = (from[1] - center[1]).atan2(from[0] - center[0]);
+                let steps = sweep.to_degrees().ceil().max(1.0) as usize;
+                for k in 1..=steps {
+                    let a =
+                        start + if clockwise { -sweep } else { sweep } * k as f64 / steps as f64;
+                    line.push(unit([
+                        center[0] + radius * a.cos(),
+                        center[1] + radius * a.sin(),
+                        0.0,
+                    ]));
+                }
+            }
+            _ => line.push(unit(to)),
+        }
+        from = to;
+    }
+    lines.extend(current);
+    lines
+}
+
+fn distance_to_polylines(p: [f64; 2], lines: &[Vec<[f64; 2]>]) -> f64 {
+    let mut best = f64::INFINITY;
+    for line in lines {
+        for w in line.windows(2) {
+            let d = [w[1][0] - w[0][0], w[1][1] - w[0][1]];
+            let n = d[0] * d[0] + d[1] * d[1];
+            let t = if n == 0.0 {
+                0.0
+            } else {
+                (((p[0] - w[0][0]) * d[0] + (p[1] - w[0][1]) * d[1]) / n).clamp(0.0, 1.0)
+            };
+            best = best.min((p[0] - w[0][0] - d[0] * t).hypot(p[1] - w[0][1] - d[1] * t));
+        }
+    }
+    best
+}
+
+#[test]
+fn iw_clips_lines_and_arcs_at_the_window() {
+    // A circle of radius 350 about the window's centre crosses each side of the window
+    // (200..800): four arcs are inside it. Computed here from the circle itself.
+    let program = hpgl(b"IN;SP1;IW200,200,800,800;PU500,500;CI350;PU0,500;PD1000,500;PU;");
+    let lines = polylines(&program);
+    let (low, high) = (200.0, 800.0);
+    let inside = |p: [f64; 2]| (0..2).all(|i| p[i] >= low - 1e-6 && p[i] <= high + 1e-6);
+    // Nothing drawn outside the window.
+    for line in &lines {
+        for &p in line {
+            assert!(inside(p), "{p:?} is outside the window");
+        }
+    }
+    // Every point of the circle inside the window is drawn (to the 0.4-unit chords).
+    let mut checked = 0;
+    for k in 0..3600 {
+        let a = f64::from(k).to_radians() / 10.0;
+        let p = [500.0 + 350.0 * a.cos(), 500.0 + 350.0 * a.sin()];
+        if inside(p) {
+            checked += 1;
+            let d = distance_to_polylines(p, &lines);
+            assert!(
+                d <= 0.4 + 1e-6,
+                "circle point {p:?} is {d} units from the drawing"
+            );
+        }
+    }
+    assert!(checked > 1000);
+    // The line is cut at the window's edges.
+    assert!(lines
+        .iter()
+        .any(|l| l.len() == 2 && close(l[0], [200.0, 500.0]) && close(l[1], [800.0, 500.0])));
+    assert!(program.warnings.iter().any(|w| w
+        .message
+        .starts_with("drawing outside the input window (IW) is not drawn and was clipped")));
+    // A dot (pen down without a move) outside the window is not drawn either.
+    let program = hpgl(b"IN;IW200,200,800,800;PU100,100;PD;PU;PU300,300;PD;PU;");
+    let plunges = program
+        .moves
+        .iter()
+        .filter(|m| m.tool_down == Some(true))
+        .count();
+    assert_eq!(plunges, 1);
+}
+
+#[test]
+fn unknown_mnemonics_are_passed_over_unless_they_draw() {
+    let program = hpgl(b"IN;SP1;ZZ1,2;QQ\"x\";PU0,0;ZZ;PD100,0;PU;");
+    assert_eq!(drawn(&program).len(), 1);
+    let messages: Vec<&str> = program
+        .warnings
+        .iter()
+        .map(|w| w.message.as_str())
+        .collect();
+    assert_eq!(
+        messages,
+        [
+            "ZZ is not an HP-GL command cncsim knows; a plotter passes over it (error 1) and so was it (2 times in the file)",
+            "QQ is not an HP-GL command cncsim knows; a plotter passes over it (error 1) and so was it (once in the file)",
+        ]
+    );
+    // Commands that draw are refused by name, not passed over.
+    assert_eq!(
+        first_error(b"IN;PU0,0;UC99,1,1;", &ReadOptions::default()),
+        "bad.plt:1:10: expected a command cncsim draws; user-defined characters (UC) are not supported, found 'UC99,1,1'; hint: plot text as vectors"
+    );
+    assert_eq!(
+        first_error(b"IN;RP1;", &ReadOptions::default()),
+        "bad.plt:1:4: expected an HPGL command; RP is not one cncsim knows, found 'RP1'; hint: HP-GL/1 and HP-GL/2 commands are read; check the file is a plot file"
+    );
+    // --strict refuses unknown mnemonics as before.
+    assert_eq!(
+        first_error(b"IN;ZZ1,2;", &strict()),
+        "bad.plt:1:4: expected an HPGL command; ZZ is not one cncsim knows, found 'ZZ1,2'; hint: HP-GL/1 and HP-GL/2 commands are read; check the file is a plot file"
+    );
+}
+
+#[test]
+fn comments_quoted_and_unquoted_control_characters_pt0_and_raster_fills() {
+    let text = b"\x03\x1a IN;CO\"quoted; with a semicolon\";CO unquoted note;\nSP1;PT0;PU0,0;PD100,0;PU;\x04";
+    let program = hpgl(text);
+    assert_eq!(drawn(&program).len(), 1);
+    let messages: Vec<&str> = program
+        .warnings
+        .iter()
+        .map(|w| w.message.as_str())
+        .collect();
+    assert_eq!(
+        messages,
+        [
+            "a character between commands that is not part of one (a control character or stray punctuation) is not a pen move and was passed over, as plotters do (3 times in the file)",
+            "CO (comment) is not a pen move and was skipped (2 times in the file)",
+            "PT 0 (pen thickness) is out of the range 0.1 to 5 mm and was ignored, as plotters ignore it (once in the file)",
+        ]
+    );
+    for bad in [&text[..], b"IN;FT21;"] {
+        assert!(parse_hpgl(bad, "bad.plt", &strict()).is_err());
+    }
+    // FT 21 (a PCL raster pattern) is filled as solid fill is: the same drawing as FT 1.
+    let solid = hpgl(b"IN;SP1;FT1;PU0,0;RA400,400;");
+    let raster = hpgl(b"IN;SP1;FT21,3;PU0,0;RA400,400;");
+    assert_eq!(drawn(&solid), drawn(&raster));
+    assert!(drawn(&solid).len() > 10);
+    assert!(raster.warnings.iter().any(|w| w.message.starts_with("FT 21 (a raster fill pattern) cannot be drawn with a pen and its fills are drawn solid instead")));
+}
+
+#[test]
+fn an_unfinished_pe_number_is_dropped_as_plotters_drop_it() {
+    // As a driver wrote it: the PE data run into "PUSP0" without their ';'.
+    let mut text = b"IN;SP1;PE<=m".to_vec();
+    text.extend([0xCD, b'm', 0xCD, b'=', b'C', 0xCA, b'C', 0xCA]);
+    text.extend(b"PUSP0;");
+    let program = hpgl(&text);
+    // m + 0xCD: 46 + 14 × 64 = 942 → 471; C + 0xCA: 4 + 11 × 64 = 708 → 354.
+    let segments = drawn(&program);
+    assert_eq!(segments.len(), 1);
+    assert!(close(segments[0][0], [471.0, 471.0]) && close(segments[0][1], [354.0, 354.0]));
+    assert!(program.warnings.iter().any(|w| w
+        .message
+        .starts_with("PE data that end in an unfinished number")));
+    assert!(parse_hpgl(&text, "bad.plt", &strict()).is_err());
+    // The same file after a text tool re-encoded it as UTF-8 (0xCD → C3 8D, 0xCA → C3 8A):
+    // decoded back exactly, and said.
+    let mangled: Vec<u8> = String::from_utf8(
+        text.iter()
+            .map(|&b| b as char)
+            .collect::<String>()
+            .into_bytes(),
+    )
+    .unwrap()
+    .into_bytes();
+    assert_ne!(mangled, text);
+    let program = hpgl(&mangled);
+    assert_eq!(drawn(&program), segments);
+    assert!(program
+        .warnings
+        .iter()
+        .any(|w| w.message.starts_with("PE data re-encoded as UTF-8")));
+    assert!(parse_hpgl(&mangled, "bad.plt", &strict()).is_err());
 }
 
 #[test]
@@ -234,7 +460,9 @@ fn fills_are_outlines_plus_the_hatch_the_fill_type_asks_for() {
         first_error(b"IN;PT0.5;PU0,0;RA200,100;", &options),
         "bad.plt:1:16: expected at most 3 fill lines in a plot; this fill needs 5 more, found 'RA200,100'; hint: draw fills as outlines (--no-hatch), or widen the fill spacing (FT, PT, PW)"
     );
-    assert!(first_error(b"FT11;", &ReadOptions::default()).contains("raster fill patterns"));
+    // Raster patterns are filled solid (see below), refused with --strict as before.
+    assert!(first_error(b"FT11;", &strict()).contains("raster fill patterns"));
+    assert!(first_error(b"FT12;", &ReadOptions::default()).contains("expected fill type 1, 2"));
 }
 
 #[test]

@@ -906,6 +906,7 @@ impl AcTableKinematics {
             start: start.to_position(),
             moves,
             warnings,
+            tools: program.tools.clone(),
         })
     }
 }

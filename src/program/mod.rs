@@ -43,7 +43,8 @@ pub use self::report::{
     rotary_travel_degrees, summarize, InspectOptions, PenUpTravel, ProgramSummary,
 };
 pub use self::types::{
-    Blend, Feed, FeedRule, Motion, Move, Plane, Position, Program, Span, Spindle, Warning,
+    Blend, Feed, FeedRule, Motion, Move, Plane, Position, Program, ProgramTool, Span, Spindle,
+    Warning,
 };
 
 /// The languages cncsim reads.
@@ -56,14 +57,125 @@ pub enum ProgramFormat {
 
 impl ProgramFormat {
     /// The format a file name's extension stands for (case-insensitive): `.ngc .nc .gcode
-    /// .tap` G-code, `.plt .hpgl` HPGL, `.apt .cl .cls` APT CL data.
+    /// .tap` G-code, `.plt .hpgl .hpg .hgl .hp .hp2 .pl2 .prn` HPGL, `.apt .cl .cls .clsf`
+    /// APT CL data.
     pub fn from_path(path: &Path) -> Option<ProgramFormat> {
         let extension = path.extension()?.to_str()?.to_ascii_lowercase();
         match extension.as_str() {
             "ngc" | "nc" | "gcode" | "tap" => Some(ProgramFormat::Gcode),
-            "plt" | "hpgl" => Some(ProgramFormat::Hpgl),
-            "apt" | "cl" | "cls" => Some(ProgramFormat::Apt),
+            "plt" | "hpgl" | "hpg" | "hgl" | "hp" | "hp2" | "pl2" | "prn" => {
+                Some(ProgramFormat::Hpgl)
+            }
+            "apt" | "cl" | "cls" | "clsf" => Some(ProgramFormat::Apt),
             _ => None,
+        }
+    }
+
+    /// The format the first bytes of a file are unmistakably in: a plot file (an HP-GL
+    /// command, an escape sequence, PJL) or CL data (an APT statement word and '/', or GOTO
+    /// records). `None` when they could be either or neither.
+    pub fn from_content(head: &[u8]) -> Option<ProgramFormat> {
+        let text = String::from_utf8_lossy(head);
+        // CL data: the first statement is an APT word, or GOTO records come early.
+        let mut lines = text
+            .lines()
+            .map(str::trim)
+            .filter(|line| !line.is_empty() && !line.starts_with("$$"));
+        if let Some(line) = lines.next() {
+            let upper = line.to_ascii_uppercase();
+            let word: String = upper
+                .chars()
+                .take_while(|c| c.is_ascii_alphanumeric() || *c == '-' || *c == ' ')
+                .collect();
+            let word = word.trim();
+            let rest = &upper[word.len()..].trim_start();
+            const APT_WORDS: &[&str] = &[
+                "TOOL PATH",
+                "PARTNO",
+                "UNITS",
+                "MACHIN",
+                "CUTTER",
+                "TLDATA",
+                "MSYS",
+                "FROM",
+                "GOTO",
+                "FEDRAT",
+                "SPINDL",
+                "LOADTL",
+                "CLPRNT",
+                "PPRINT",
+                "REMARK",
+                "MULTAX",
+                "COOLNT",
+                "PAINT",
+                "NOPOST",
+                "INTOL",
+                "OUTTOL",
+                "TLAXIS",
+            ];
+            if APT_WORDS.contains(&word) && (rest.is_empty() || rest.starts_with('/')) {
+                return Some(ProgramFormat::Apt);
+            }
+        }
+        if text
+            .lines()
+            .any(|line| line.trim_start().to_ascii_uppercase().starts_with("GOTO/"))
+        {
+            return Some(ProgramFormat::Apt);
+        }
+        // Plot files: past leading blanks and control characters, an escape, PJL, or an
+        // HP-GL command that opens plots.
+        let start = head
+            .iter()
+            .position(|&b| b == 0x1b || !(b.is_ascii_whitespace() || b < 0x20))?;
+        let rest = &head[start..];
+        if rest[0] == 0x1b || rest.starts_with(b"@PJL") {
+            return Some(ProgramFormat::Hpgl);
+        }
+        let upper: Vec<u8> = rest.iter().take(3).map(u8::to_ascii_uppercase).collect();
+        if upper.len() < 2 || !upper[0].is_ascii_alphabetic() || !upper[1].is_ascii_alphabetic() {
+            return None;
+        }
+        const OPENERS: &[&[u8]] = &[
+            b"IN", b"DF", b"BP", b"SP", b"PU", b"PD", b"PA", b"PR", b"IP", b"SC", b"CO", b"PS",
+            b"RO", b"VS", b"PW", b"NP", b"IW", b"LT", b"WU", b"PC", b"PG", b"PT", b"SI", b"DT",
+        ];
+        if !OPENERS.contains(&&upper[..2]) {
+            return None;
+        }
+        // What follows the mnemonic: parameters, a terminator, or (for commands that take
+        // none) the next command's letters.
+        match upper.get(2) {
+            None => Some(ProgramFormat::Hpgl),
+            Some(b';' | b',' | b'-' | b'+' | b'.' | b'"' | b'0'..=b'9') => {
+                Some(ProgramFormat::Hpgl)
+            }
+            Some(b) if b.is_ascii_whitespace() => Some(ProgramFormat::Hpgl),
+            Some(b)
+                if b.is_ascii_alphabetic()
+                    && matches!(&upper[..2], b"IN" | b"DF" | b"BP" | b"PU" | b"PD") =>
+            {
+                Some(ProgramFormat::Hpgl)
+            }
+            _ => None,
+        }
+    }
+
+    /// G-code by its look: a first line that starts with '%', '(', ';' or a G-code word.
+    fn looks_like_gcode(head: &[u8]) -> bool {
+        let text = String::from_utf8_lossy(head);
+        let Some(line) = text.lines().map(str::trim).find(|line| !line.is_empty()) else {
+            return false;
+        };
+        let mut chars = line.chars();
+        match chars.next().map(|c| c.to_ascii_uppercase()) {
+            Some('%' | '(' | ';') => true,
+            Some('G' | 'M' | 'N' | 'O' | 'T' | 'F' | 'S' | 'X' | 'Y' | 'Z') => {
+                chars.next().is_some_and(|c| {
+                    c.is_ascii_digit() || matches!(c, ' ' | '-' | '+' | '.' | '#' | '[')
+                })
+            }
+            _ => false,
         }
     }
 }
@@ -87,22 +199,38 @@ pub fn read_program_detailed(
     path: &Path,
     options: &ReadOptions,
 ) -> Result<ReadOutcome, ProgramErrors> {
-    let Some(format) = ProgramFormat::from_path(path) else {
-        let extension = path.extension().map(|e| e.to_string_lossy().into_owned());
-        let problem = match extension {
-            Some(extension) => format!("expected a part program extension, not '.{extension}'"),
-            None => "expected a part program extension, the file name has none".to_string(),
-        };
-        return Err(ProgramErrors::single(ProgramError::new(path, None, problem).hint(
-            "use .ngc .nc .gcode .tap (G-code), .plt .hpgl (HPGL) or .apt .cl .cls (APT CL data)",
-        )));
-    };
     let open_error = |error: std::io::Error| {
         ProgramErrors::single(ProgramError::new(
             path,
             None,
             format!("could not read the program: {error}"),
         ))
+    };
+    // Recognised by content first (plot drivers write .prn, .hp, .000 …; CL data comes as
+    // .txt or .clsf), by extension where the content could be either.
+    let head = {
+        use std::io::Read;
+        let mut head = Vec::new();
+        File::open(path)
+            .map_err(open_error)?
+            .take(8192)
+            .read_to_end(&mut head)
+            .map_err(open_error)?;
+        head
+    };
+    let by_extension = ProgramFormat::from_path(path);
+    let format = ProgramFormat::from_content(&head)
+        .or(by_extension)
+        .or_else(|| ProgramFormat::looks_like_gcode(&head).then_some(ProgramFormat::Gcode));
+    let Some(format) = format else {
+        let extension = path.extension().map(|e| e.to_string_lossy().into_owned());
+        let problem = match extension {
+            Some(extension) => format!("expected a part program (G-code, HPGL or APT CL data); the content is none of them and '.{extension}' names none"),
+            None => "expected a part program (G-code, HPGL or APT CL data); the content is none of them and the file name has no extension".to_string(),
+        };
+        return Err(ProgramErrors::single(ProgramError::new(path, None, problem).hint(
+            "use .ngc .nc .gcode .tap (G-code), .plt .hpgl .hpg .hgl .hp .prn (HPGL) or .apt .cl .cls .clsf (APT CL data)",
+        )));
     };
     match format {
         ProgramFormat::Gcode => {

@@ -67,6 +67,7 @@ pub fn circle(spec: &CircleSpec, source: &Path) -> Program {
         // End = start: a full circle, as G2/G3 read it.
         moves: vec![base_move(arc, start, spec.speed)],
         warnings: Vec::new(),
+        tools: Vec::new(),
     }
 }
 
@@ -85,5 +86,6 @@ pub fn polyline(spec: &PolylineSpec, source: &Path) -> Program {
             .map(|p| base_move(Motion::Linear, *p, spec.speed))
             .collect(),
         warnings: Vec::new(),
+        tools: Vec::new(),
     }
 }

@@ -197,6 +197,32 @@ pub fn inspect_report(
         "moves: {} ({} cutting, {} rapid/pen-up, {} dwell)",
         summary.moves, summary.cut_moves, summary.rapid_moves, summary.dwells
     );
+    for tool in &program.tools {
+        let mut names = Vec::new();
+        if let Some(operation) = &tool.operation {
+            names.push(format!("operation {operation}"));
+        }
+        if let Some(name) = &tool.name {
+            names.push(format!("tool {name}"));
+        }
+        let _ = writeln!(
+            out,
+            "tool: {}:{}: {} diameter {:.4} mm, corner radius {:.4} mm, length {:.4} mm, taper {:.3} deg, tip {:.3} deg{}",
+            tool.span.line,
+            tool.span.column,
+            tool.kind,
+            tool.diameter * 1e3,
+            tool.corner_radius * 1e3,
+            tool.length * 1e3,
+            tool.taper_angle.to_degrees(),
+            tool.tip_angle.to_degrees(),
+            if names.is_empty() {
+                String::new()
+            } else {
+                format!(" ({})", names.join(", "))
+            }
+        );
+    }
     let listed: Vec<usize> = if program.moves.len() <= options.list_limit {
         (0..program.moves.len()).collect()
     } else {

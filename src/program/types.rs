@@ -126,6 +126,26 @@ pub struct Warning {
     pub message: String,
 }
 
+/// A tool the program describes (APT `TLDATA`), in metres and radians.
+#[derive(Debug, Clone, PartialEq, Default)]
+pub struct ProgramTool {
+    /// The operation it is used in (NX `TOOL PATH/operation,TOOL,tool`), where given.
+    pub operation: Option<String>,
+    /// The tool's name, where given.
+    pub name: Option<String>,
+    /// The kind as the record names it (`MILL`, `DRILL`, …).
+    pub kind: String,
+    pub diameter: f64,
+    pub corner_radius: f64,
+    pub length: f64,
+    /// Taper angle of the flank (rad).
+    pub taper_angle: f64,
+    /// Tip angle (rad): the bottom's angle for mills, the point angle for drills.
+    pub tip_angle: f64,
+    /// Where it was described.
+    pub span: Span,
+}
+
 /// A decoded part program.
 #[derive(Debug, Clone, PartialEq, Default)]
 pub struct Program {
@@ -135,6 +155,8 @@ pub struct Program {
     pub start: Position,
     pub moves: Vec<Move>,
     pub warnings: Vec<Warning>,
+    /// The tools the program describes, in the order described (APT `TLDATA`).
+    pub tools: Vec<ProgramTool>,
 }
 
 impl Program {

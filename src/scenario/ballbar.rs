@@ -298,6 +298,7 @@ pub fn ballbar_program(
             step(Motion::Linear, at(radius + FEED_IN, -overshoot)),
         ],
         warnings: Vec::new(),
+        tools: Vec::new(),
     }
 }
 

@@ -12,20 +12,26 @@
 //! machine axes is the 5-axis kinematics' job, so the tool axis is kept in each move.
 
 mod circle;
+mod cycle;
+mod nurbs;
 mod records;
 
-use std::collections::BTreeSet;
+use std::collections::BTreeMap;
 use std::path::Path;
 
 use nalgebra::{Matrix3, Unit, Vector3};
 
 pub use self::circle::CircleSense;
 use self::circle::{ArcPath, Circle};
+use self::cycle::{Cycle, CycleKind, HoleMove};
+use self::nurbs::Spline;
 use self::records::{records, tokens, Record, Token, TokenKind};
 use super::error::{display_text, ErrorSink, Found, ProgramError, ProgramErrors};
 use super::options::{FeedTimeBase, LengthUnit, ReadOptions};
 use super::source::LineIndex;
-use super::types::{Blend, Feed, Motion, Move, Position, Program, Span, Spindle, Warning};
+use super::types::{
+    Blend, Feed, Motion, Move, Position, Program, ProgramTool, Span, Spindle, Warning,
+};
 
 /// Decodes APT CL data held in memory. `source` names the program in messages.
 pub fn parse_apt(
@@ -55,7 +61,11 @@ pub fn parse_apt(
         frame: None,
         circle: None,
         home: None,
-        warned: BTreeSet::new(),
+        warned: BTreeMap::new(),
+        cycle: None,
+        last_cycle: None,
+        nurbs: None,
+        operation: None,
     };
     for record in records(text) {
         if reader.finished {
@@ -63,6 +73,8 @@ pub fn parse_apt(
         }
         reader.record(&record);
     }
+    reader.finish_nurbs();
+    reader.count_skipped();
     if let Some((_, span)) = reader.circle.take() {
         reader.errors.push(ProgramError::new(
             source,
@@ -80,7 +92,6 @@ pub fn parse_apt(
 const NOT_MOTION: &[(&str, &str)] = &[
     ("MACHIN", "post-processor selection"),
     ("CUTTER", "cutter description"),
-    ("TLDATA", "tool data"),
     ("LOADTL", "tool change"),
     ("LOAD", "tool change"),
     ("SELECT", "tool pre-selection"),
@@ -88,10 +99,6 @@ const NOT_MOTION: &[(&str, &str)] = &[
     ("TURRET", "turret selection"),
     ("TOOLNO", "tool number"),
     ("COOLNT", "coolant"),
-    (
-        "CUTCOM",
-        "cutter compensation, left to the controller: the CL points are followed as written",
-    ),
     ("END", "program stop"),
     ("STOP", "program stop"),
     ("OPSTOP", "optional stop"),
@@ -130,7 +137,6 @@ const NOT_MOTION: &[(&str, &str)] = &[
 
 /// Records that change the tool path in ways cncsim does not carry out: refused.
 const PATH_CHANGING: &[(&str, &str)] = &[
-    ("CYCLE", "canned cycles"),
     ("ORIGIN", "origin shifts"),
     ("TRANS", "transformations"),
     ("TRACUT", "transformations of the cutter path"),
@@ -142,6 +148,13 @@ const PATH_CHANGING: &[(&str, &str)] = &[
     ("MOVARC", "arcs given by MOVARC"),
     ("HEAD", "head changes"),
 ];
+
+/// What a CYCLE record does.
+enum CycleSetting {
+    Off,
+    On,
+    Set(Cycle),
+}
 
 fn lookup(table: &[(&str, &'static str)], word: &str) -> Option<&'static str> {
     table
@@ -178,8 +191,27 @@ struct AptReader<'a> {
     circle: Option<(Circle, Span)>,
     /// The FROM point (where GOHOME returns).
     home: Option<Position>,
-    /// Kinds of skipped record already warned about.
-    warned: BTreeSet<String>,
+    /// Kinds of skipped record: the index of the one warning about each in the program's
+    /// warnings, and how many there were.
+    warned: BTreeMap<String, (usize, usize)>,
+    /// The canned cycle every GOTO is a hole of, while one is on.
+    cycle: Option<Cycle>,
+    /// The last cycle set (CYCLE/ON turns it back on).
+    last_cycle: Option<Cycle>,
+    /// A NURBS being read: where it started, its knots and control points.
+    nurbs: Option<NurbsRecords>,
+    /// The operation and tool names of the last NX `TOOL PATH` record.
+    operation: Option<(String, Option<String>)>,
+}
+
+/// The records of a NURBS read so far (knots as written, control points in metres in the
+/// frame the moves are in, with weights).
+struct NurbsRecords {
+    span: Span,
+    start: usize,
+    end: usize,
+    knots: Vec<f64>,
+    points: Vec<(Vector3<f64>, f64)>,
 }
 
 struct RecordError {
@@ -245,10 +277,32 @@ impl<'a> AptReader<'a> {
             }
             _ => (major.clone(), &tokens[1..]),
         };
+        // A NURBS ends at the first record that is not one of its KNOT or CNTRL records.
+        if self.nurbs.is_some() && major != "KNOT" && major != "CNTRL" {
+            self.finish_nurbs();
+        }
         if TEXT_RECORDS.contains(&major.as_str()) {
             return Ok(());
         }
         let record_end = tokens.last().map_or(first.end, |t| t.end);
+        if major == "TOOL PATH" {
+            // NX names (operation, tool) are free text: digits first, '_', '-', '.'.
+            let names_start = rest
+                .iter()
+                .find(|t| t.kind == TokenKind::Slash)
+                .map_or(record_end, |t| t.end);
+            let names =
+                String::from_utf8_lossy(&self.text[names_start.min(record_end)..record_end])
+                    .into_owned();
+            let parts: Vec<&str> = names.split(',').map(str::trim).collect();
+            let operation = parts.first().map(|s| s.to_string()).unwrap_or_default();
+            let tool = match parts.as_slice() {
+                [_, kind, name, ..] if kind.eq_ignore_ascii_case("TOOL") => Some(name.to_string()),
+                _ => None,
+            };
+            self.operation = Some((operation, tool));
+            return self.skip_record(&major, first, record_end, span);
+        }
         // Parameters: after '/', separated by commas.
         let mut parameters: Vec<&Token> = Vec::new();
         if let Some(second) = rest.first() {
@@ -280,7 +334,8 @@ impl<'a> AptReader<'a> {
                     }
                 }
             }
-            if expect_item {
+            // `NURBS/` stands alone (its data follow in KNOT and CNTRL records).
+            if expect_item && !(parameters.is_empty() && major == "NURBS") {
                 return Err(RecordError {
                     start: record_end,
                     end: record_end,
@@ -381,6 +436,15 @@ impl<'a> AptReader<'a> {
             "RAPID" => self.rapid_next = true,
             "GOTO" | "GODLTA" | "FROM" => {
                 let values = numbers(&[3, 6])?;
+                if self.cycle.is_some() && major == "GODLTA" {
+                    return Err(RecordError {
+                        start: first.start,
+                        end: record_end,
+                        problem: "expected GOTO holes while a CYCLE is on; GODLTA under a cycle is not supported".into(),
+                        found: None,
+                        hint: Some("end the cycle with CYCLE/OFF first"),
+                    });
+                }
                 let (rotation, origin) = self.frame_or_identity();
                 let programmed = Vector3::new(
                     self.units.to_metres(values[0]),
@@ -438,6 +502,12 @@ impl<'a> AptReader<'a> {
                         self.program.start = end;
                         self.position = end;
                         return Ok(());
+                    }
+                }
+                if major == "GOTO" {
+                    if let Some(cycle) = self.cycle.clone() {
+                        self.rapid_next = false;
+                        return self.hole(&cycle, target, span, first, record_end);
                     }
                 }
                 let feed = if self.rapid_next || major == "FROM" {
@@ -621,6 +691,22 @@ impl<'a> AptReader<'a> {
                 let end = self.position;
                 self.push_move(Motion::Dwell { seconds }, end, Feed::Rapid, span);
             }
+            "GOHOME" if !parameters.is_empty() => {
+                // NX writes the point it returns to.
+                let values = numbers(&[3, 6])?;
+                let (rotation, origin) = self.frame_or_identity();
+                let target = rotation
+                    * Vector3::new(
+                        self.units.to_metres(values[0]),
+                        self.units.to_metres(values[1]),
+                        self.units.to_metres(values[2]),
+                    )
+                    + origin;
+                let mut end = self.position;
+                end.linear = [target.x, target.y, target.z];
+                self.rapid_next = false;
+                self.push_move(Motion::Linear, end, Feed::Rapid, span);
+            }
             "GOHOME" => {
                 let Some(home) = self.home else {
                     return Err(RecordError {
@@ -667,22 +753,104 @@ impl<'a> AptReader<'a> {
                 };
             }
             "FINI" => self.finished = true,
-            _ => {
-                if let Some(what) = lookup(NOT_MOTION, &major) {
-                    if self.options.apt.strict {
+            "TLDATA" => self.tool_data(&parameters, first, record_end, span)?,
+            "CYCLE" => match self.cycle_record(&parameters, first, record_end)? {
+                CycleSetting::Off => self.cycle = None,
+                CycleSetting::On => {
+                    let Some(cycle) = self.last_cycle.clone() else {
                         return Err(RecordError {
                             start: first.start,
                             end: record_end,
-                            problem: format!("expected a motion record; {major} ({what}) does not move the tool (refused with --strict)"),
+                            problem:
+                                "expected a CYCLE record that defines the cycle before CYCLE/ON"
+                                    .into(),
+                            found: None,
+                            hint: None,
+                        });
+                    };
+                    self.cycle = Some(cycle);
+                }
+                CycleSetting::Set(cycle) => {
+                    self.last_cycle = Some(cycle.clone());
+                    self.cycle = Some(cycle);
+                }
+            },
+            "NURBS" => {
+                if !parameters.is_empty() {
+                    return Err(RecordError::at(
+                        parameters[0],
+                        "expected NURBS/ with no parameters (KNOT/ and CNTRL/ records follow)",
+                    ));
+                }
+                if self.circle.is_some() {
+                    return Err(RecordError {
+                        start: first.start,
+                        end: record_end,
+                        problem: "expected a GOTO to end the arc of the CIRCLE before, not NURBS"
+                            .into(),
+                        found: None,
+                        hint: None,
+                    });
+                }
+                self.nurbs = Some(NurbsRecords {
+                    span,
+                    start: first.start,
+                    end: record_end,
+                    knots: Vec::new(),
+                    points: Vec::new(),
+                });
+            }
+            "KNOT" | "CNTRL" => {
+                let values = if major == "KNOT" {
+                    let count = parameters.len().max(1);
+                    numbers(&[count])?
+                } else {
+                    numbers(&[3, 4])?
+                };
+                let (rotation, origin) = self.frame_or_identity();
+                let units = self.units;
+                let Some(nurbs) = self.nurbs.as_mut() else {
+                    return Err(RecordError {
+                        start: first.start,
+                        end: record_end,
+                        problem: format!("expected NURBS/ before {major}/"),
+                        found: None,
+                        hint: None,
+                    });
+                };
+                if major == "KNOT" {
+                    if !nurbs.points.is_empty() {
+                        return Err(RecordError {
+                            start: first.start,
+                            end: record_end,
+                            problem:
+                                "expected the KNOT records of a NURBS before its CNTRL records"
+                                    .into(),
                             found: None,
                             hint: None,
                         });
                     }
-                    self.warn_once(
-                        &major,
-                        span,
-                        format!("{major} ({what}) does not move the tool and was skipped; further ones without a warning"),
-                    );
+                    nurbs.knots.extend(values);
+                } else {
+                    let point = rotation
+                        * Vector3::new(
+                            units.to_metres(values[0]),
+                            units.to_metres(values[1]),
+                            units.to_metres(values[2]),
+                        )
+                        + origin;
+                    nurbs
+                        .points
+                        .push((point, values.get(3).copied().unwrap_or(1.0)));
+                }
+                nurbs.end = record_end;
+            }
+            "CUTCOM" | "TLCOMP" => {
+                self.compensation(&major, &parameters, first, record_end, span)?
+            }
+            _ => {
+                if lookup(NOT_MOTION, &major).is_some() {
+                    self.skip_record(&major, first, record_end, span)?;
                 } else if let Some(what) = lookup(PATH_CHANGING, &major) {
                     return Err(RecordError {
                         start: first.start,
@@ -707,8 +875,490 @@ impl<'a> AptReader<'a> {
 
     /// One warning per `kind` of record.
     fn warn_once(&mut self, kind: &str, span: Span, message: String) {
-        if self.warned.insert(kind.to_string()) {
+        if !self.warned.contains_key(kind) {
+            self.warned
+                .insert(kind.to_string(), (self.program.warnings.len(), 0));
             self.program.warnings.push(Warning { span, message });
+        }
+    }
+
+    /// A record that does not move the tool: skipped (counted in one warning per kind), or
+    /// refused with `strict`.
+    fn skip_record(
+        &mut self,
+        major: &str,
+        first: &Token,
+        record_end: usize,
+        span: Span,
+    ) -> Result<(), RecordError> {
+        let what = lookup(NOT_MOTION, major).unwrap_or("record");
+        if self.options.apt.strict {
+            return Err(RecordError {
+                start: first.start,
+                end: record_end,
+                problem: format!("expected a motion record; {major} ({what}) does not move the tool (refused with --strict)"),
+                found: None,
+                hint: None,
+            });
+        }
+        let key = format!("skipped {major}");
+        self.warn_once(
+            &key,
+            span,
+            format!("{major} ({what}) does not move the tool and was skipped"),
+        );
+        if let Some((_, count)) = self.warned.get_mut(&key) {
+            *count += 1;
+        }
+        Ok(())
+    }
+
+    /// Puts the count of each kind of skipped record into its warning.
+    fn count_skipped(&mut self) {
+        for (key, (index, count)) in &self.warned {
+            if key.starts_with("skipped ") {
+                let warning = &mut self.program.warnings[*index];
+                let noun = if *count == 1 { "record" } else { "records" };
+                warning.message = format!("{} ({count} {noun} in the file)", warning.message);
+            }
+        }
+    }
+
+    /// `TLDATA/MILL,d,r,l,taper,tip[,…]`, `TLDATA/DRILL,MILL,d,r,l,point,flute`: the tool.
+    fn tool_data(
+        &mut self,
+        parameters: &[&Token],
+        first: &Token,
+        record_end: usize,
+        span: Span,
+    ) -> Result<(), RecordError> {
+        let mut words = Vec::new();
+        let mut values = Vec::new();
+        for token in parameters {
+            match &token.kind {
+                TokenKind::Word(word) if values.is_empty() => words.push(word.clone()),
+                TokenKind::Number(value) => values.push(*value),
+                _ => return Err(RecordError::at(
+                    token,
+                    "expected TLDATA/kind,diameter,corner radius,length,… (numbers after the kind)",
+                )),
+            }
+        }
+        let Some(kind) = words.first().cloned() else {
+            return Err(RecordError {
+                start: first.start,
+                end: record_end,
+                problem: "expected the tool's kind (MILL, DRILL, …) first in TLDATA".into(),
+                found: None,
+                hint: None,
+            });
+        };
+        if values.len() < 3 {
+            return Err(RecordError {
+                start: first.start,
+                end: record_end,
+                problem: format!(
+                    "expected at least diameter, corner radius and length in TLDATA/{kind}, found {} numbers",
+                    values.len()
+                ),
+                found: None,
+                hint: None,
+            });
+        }
+        let metres = |v: f64| self.units.to_metres(v);
+        let (diameter, corner_radius, length) =
+            (metres(values[0]), metres(values[1]), metres(values[2]));
+        if diameter <= 0.0
+            || corner_radius < 0.0
+            || length < 0.0
+            || 2.0 * corner_radius > diameter + 1e-12
+        {
+            return Err(RecordError {
+                start: first.start,
+                end: record_end,
+                problem: "expected a positive diameter, a corner radius of at most half of it and a length of 0 or more in TLDATA".into(),
+                found: None,
+                hint: None,
+            });
+        }
+        let (operation, name) = match &self.operation {
+            Some((operation, name)) => (Some(operation.clone()), name.clone()),
+            None => (None, None),
+        };
+        self.program.tools.push(ProgramTool {
+            operation,
+            name,
+            kind: words.join(","),
+            diameter,
+            corner_radius,
+            length,
+            taper_angle: values.get(3).copied().unwrap_or(0.0).to_radians(),
+            tip_angle: values.get(4).copied().unwrap_or(0.0).to_radians(),
+            span,
+        });
+        Ok(())
+    }
+
+    /// `CUTCOM/LEFT|RIGHT|ON[,plane][,register]`, `CUTCOM/OFF`; `TLCOMP/ON|OFF[,register]`.
+    ///
+    /// NX writes the tool's centre ("centerline data") even with compensation on: the post
+    /// outputs G41/G42, and the controller offsets the path by what is in the register,
+    /// which is the wear (the difference from the programmed tool). cncsim takes that as
+    /// 0 mm and follows the CL points as written, and says so once. Length compensation
+    /// does not move the tool tip, which CL points are.
+    fn compensation(
+        &mut self,
+        major: &str,
+        parameters: &[&Token],
+        first: &Token,
+        record_end: usize,
+        span: Span,
+    ) -> Result<(), RecordError> {
+        let mut on = None;
+        for token in parameters {
+            match &token.kind {
+                TokenKind::Word(word) => match word.as_str() {
+                    "OFF" => on = Some(false),
+                    "ON" => on = Some(true),
+                    "LEFT" | "RIGHT" if major == "CUTCOM" => on = Some(true),
+                    "XYPLAN" | "YZPLAN" | "ZXPLAN" | "ADJUST" if major == "CUTCOM" => {}
+                    _ => {
+                        return Err(RecordError {
+                            hint: Some("CUTCOM/LEFT|RIGHT|ON|OFF[,XYPLAN][,n] and TLCOMP/ON|OFF[,n] are read"),
+                            ..RecordError::at(
+                                token,
+                                format!("expected a compensation setting cncsim can follow in {major}; {word} is not one"),
+                            )
+                        })
+                    }
+                },
+                TokenKind::Number(_) => {}
+                _ => return Err(RecordError::at(token, format!("expected a word or number in {major}"))),
+            }
+        }
+        let Some(on) = on else {
+            return Err(RecordError {
+                start: first.start,
+                end: record_end,
+                problem: format!(
+                    "expected ON, OFF{} in {major}",
+                    if major == "CUTCOM" {
+                        ", LEFT or RIGHT"
+                    } else {
+                        ""
+                    }
+                ),
+                found: None,
+                hint: None,
+            });
+        };
+        if on {
+            let message = if major == "CUTCOM" {
+                "CUTCOM: the CL points are the tool centre's; the controller's compensation offsets them by the register's wear only, taken as 0 mm: the points are followed as written"
+            } else {
+                "TLCOMP: tool length compensation does not move the tool tip the CL points give: they are followed as written"
+            };
+            self.warn_once(major, span, message.into());
+        }
+        Ok(())
+    }
+
+    /// `CYCLE/…`: a cycle, or switching one off or back on.
+    fn cycle_record(
+        &self,
+        parameters: &[&Token],
+        first: &Token,
+        record_end: usize,
+    ) -> Result<CycleSetting, RecordError> {
+        let whole = |problem: String| RecordError {
+            start: first.start,
+            end: record_end,
+            problem,
+            found: None,
+            hint: None,
+        };
+        let Some(head) = parameters.first() else {
+            return Err(whole("expected CYCLE/DRILL,… or CYCLE/OFF".into()));
+        };
+        let word_of = |token: &Token| match &token.kind {
+            TokenKind::Word(word) => Some(word.clone()),
+            _ => None,
+        };
+        match word_of(head).as_deref() {
+            Some("OFF") if parameters.len() == 1 => return Ok(CycleSetting::Off),
+            Some("ON") if parameters.len() == 1 => return Ok(CycleSetting::On),
+            _ => {}
+        }
+        let mut name = String::new();
+        let mut kind = None;
+        let mut rapid_to = None;
+        let mut feed_to = None;
+        let mut retract_to = None;
+        let mut steps = Vec::new();
+        let mut dwell = 0.0;
+        let mut feed = None;
+        // Numbers without a keyword (APT's CYCLE/DRILL,depth,IPM,f,clearance): depth first.
+        let mut positional = 0;
+        let number_after = |index: usize, word: &str| -> Result<f64, RecordError> {
+            match parameters.get(index + 1).map(|t| &t.kind) {
+                Some(TokenKind::Number(value)) => Ok(*value),
+                _ => Err(RecordError::at(
+                    parameters[index],
+                    format!("expected a number after {word} in CYCLE"),
+                )),
+            }
+        };
+        let metres = |v: f64| self.units.to_metres(v);
+        let mut index = 0;
+        while index < parameters.len() {
+            let token = parameters[index];
+            match &token.kind {
+                TokenKind::Word(word) => match word.as_str() {
+                    "DRILL" | "CSINK" | "FACE" | "BORE" | "REAM" | "TAP" | "DEEP" | "BRKCHP" => {
+                        let this = match word.as_str() {
+                            "DEEP" => CycleKind::Deep,
+                            "BRKCHP" => CycleKind::BreakChip,
+                            "BORE" | "REAM" | "TAP" => CycleKind::FeedOut,
+                            _ => CycleKind::Drill,
+                        };
+                        // DRILL,DEEP: the modifier decides.
+                        kind = match (kind, this) {
+                            (None, k) | (Some(CycleKind::Drill), k) => Some(k),
+                            (Some(k), CycleKind::Drill) => Some(k),
+                            (Some(_), _) => {
+                                return Err(RecordError::at(token, format!("expected one kind of cycle in CYCLE, found {word} as well")))
+                            }
+                        };
+                        if !name.is_empty() {
+                            name.push(',');
+                        }
+                        name.push_str(word);
+                    }
+                    "RAPTO" => {
+                        rapid_to = Some(metres(number_after(index, word)?));
+                        index += 1;
+                    }
+                    "FEDTO" => {
+                        feed_to = Some(metres(number_after(index, word)?));
+                        index += 1;
+                    }
+                    "RTRCTO" => {
+                        // RTRCTO,AUTO | RTRCTO,v[,MANUAL] | RTRCTO,MANUAL,v
+                        while let Some(TokenKind::Word(w)) = parameters.get(index + 1).map(|t| &t.kind) {
+                            if w == "AUTO" || w == "MANUAL" {
+                                index += 1;
+                            } else {
+                                break;
+                            }
+                        }
+                        if let Some(TokenKind::Number(value)) = parameters.get(index + 1).map(|t| &t.kind) {
+                            retract_to = Some(metres(*value));
+                            index += 1;
+                        }
+                    }
+                    "AUTO" | "MANUAL" => {}
+                    "STEP" => {
+                        number_after(index, word)?;
+                        while let Some(TokenKind::Number(value)) = parameters.get(index + 1).map(|t| &t.kind) {
+                            if *value <= 0.0 {
+                                return Err(RecordError::at(parameters[index + 1], "expected positive STEP depths in CYCLE"));
+                            }
+                            steps.push(metres(*value));
+                            index += 1;
+                        }
+                    }
+                    "DWELL" => {
+                        let seconds = number_after(index, word)?;
+                        if !(0.0..=86_400.0).contains(&seconds) {
+                            return Err(RecordError::at(parameters[index + 1], "expected a dwell of 0 to 86400 s in CYCLE"));
+                        }
+                        dwell = seconds;
+                        index += 1;
+                    }
+                    "MMPM" | "IPM" | "MMPR" | "IPR" => {
+                        let value = number_after(index, word)?;
+                        if value <= 0.0 {
+                            return Err(RecordError::at(parameters[index + 1], "expected a positive feed in CYCLE"));
+                        }
+                        let per_minute = if matches!(word.as_str(), "MMPR" | "IPR") {
+                            match self.spindle {
+                                Spindle::Clockwise { rpm } | Spindle::CounterClockwise { rpm } if rpm > 0.0 => value * rpm,
+                                _ => {
+                                    return Err(RecordError {
+                                        hint: Some("start the spindle (SPINDL) before a cycle fed per revolution"),
+                                        ..RecordError::at(token, "expected a turning spindle for a cycle feed per revolution")
+                                    })
+                                }
+                            }
+                        } else {
+                            value
+                        };
+                        feed = Some(metres(per_minute) / 60.0);
+                        index += 1;
+                    }
+                    _ => {
+                        return Err(RecordError {
+                            hint: Some("CYCLE/DRILL (plain, DEEP, BRKCHP), CSINK, BORE, REAM and TAP are expanded; post other cycles as GOTO records"),
+                            ..RecordError::at(token, format!("expected a cycle cncsim can expand; {word} in CYCLE is not one"))
+                        })
+                    }
+                },
+                TokenKind::Number(value) => {
+                    match positional {
+                        0 => feed_to = Some(-metres(*value)),
+                        1 => rapid_to = Some(metres(*value)),
+                        _ => return Err(RecordError::at(token, "expected at most depth and clearance as plain numbers in CYCLE")),
+                    }
+                    positional += 1;
+                }
+                _ => return Err(RecordError::at(token, "expected a word or number in CYCLE")),
+            }
+            index += 1;
+        }
+        let Some(kind) = kind else {
+            return Err(whole(
+                "expected the kind of cycle (DRILL, DEEP, BRKCHP, BORE, …) in CYCLE".into(),
+            ));
+        };
+        let Some(feed_to) = feed_to else {
+            return Err(whole(format!("expected FEDTO (the depth) in CYCLE/{name}")));
+        };
+        let rapid_to = rapid_to.unwrap_or(0.0);
+        if feed_to > rapid_to {
+            return Err(whole(format!(
+                "expected FEDTO ({:.4} mm) below RAPTO ({:.4} mm) along the tool axis in CYCLE/{name}",
+                feed_to * 1e3,
+                rapid_to * 1e3
+            )));
+        }
+        Ok(CycleSetting::Set(Cycle {
+            name,
+            kind,
+            rapid_to,
+            feed_to,
+            retract_to,
+            steps,
+            dwell,
+            feed,
+        }))
+    }
+
+    /// A GOTO under a cycle: the hole at `point`.
+    fn hole(
+        &mut self,
+        cycle: &Cycle,
+        point: Vector3<f64>,
+        span: Span,
+        first: &Token,
+        record_end: usize,
+    ) -> Result<(), RecordError> {
+        let (rotation, _) = self.frame_or_identity();
+        let axis = match self.tool_axis {
+            Some(axis) => Vector3::from(axis),
+            None => rotation * Vector3::z(),
+        };
+        let Some(feed) = cycle.feed.or(self.feed) else {
+            return Err(RecordError {
+                start: first.start,
+                end: record_end,
+                problem: format!("expected a feed (in the CYCLE or a FEDRAT before it) for the holes of CYCLE/{}", cycle.name),
+                found: None,
+                hint: None,
+            });
+        };
+        if cycle.pecks() > cycle::MAX_PECKS {
+            return Err(RecordError {
+                start: first.start,
+                end: record_end,
+                problem: format!(
+                    "expected at most {} pecks per hole; CYCLE/{} with its STEP needs {}",
+                    cycle::MAX_PECKS,
+                    cycle.name,
+                    cycle.pecks()
+                ),
+                found: None,
+                hint: Some("give a larger STEP"),
+            });
+        }
+        let mut note = format!(
+            "CYCLE/{}: each GOTO is a hole, expanded as NX's standard post does (rapid to RAPTO, feed to FEDTO, back to the retract point)",
+            cycle.name
+        );
+        if matches!(cycle.kind, CycleKind::Deep | CycleKind::BreakChip) {
+            if cycle.steps.is_empty() {
+                note.push_str("; no STEP given: drilled in one peck");
+            } else {
+                note.push_str(&format!(
+                    "; pecks of STEP, {:.3} mm peck clearance",
+                    cycle::PECK_CLEARANCE * 1e3
+                ));
+            }
+        }
+        self.warn_once(&format!("cycle {}", cycle.name), span, note);
+        let from = Vector3::from(self.position.linear);
+        for step in cycle.hole(from, point, axis) {
+            let mut end = self.position;
+            match step {
+                HoleMove::Rapid(p) => {
+                    end.linear = [p.x, p.y, p.z];
+                    self.push_move(Motion::Linear, end, Feed::Rapid, span);
+                }
+                HoleMove::Feed(p) => {
+                    end.linear = [p.x, p.y, p.z];
+                    self.push_move(Motion::Linear, end, Feed::PathSpeed(feed), span);
+                }
+                HoleMove::Dwell(seconds) => {
+                    self.push_move(Motion::Dwell { seconds }, end, Feed::Rapid, span)
+                }
+            }
+        }
+        Ok(())
+    }
+
+    /// The NURBS read so far becomes chords from the tool's position (errors reported at
+    /// the NURBS record).
+    fn finish_nurbs(&mut self) {
+        let Some(nurbs) = self.nurbs.take() else {
+            return;
+        };
+        let start = Vector3::from(self.position.linear);
+        let tolerance = self.options.apt.chord_tolerance;
+        let result = Spline::new(start, &nurbs.knots, &nurbs.points)
+            .and_then(|spline| spline.chords(tolerance, self.options.apt.max_chords));
+        let feed = if self.rapid_next {
+            Some(Feed::Rapid)
+        } else {
+            self.feed.map(Feed::PathSpeed)
+        };
+        match (result, feed) {
+            (Ok(points), Some(feed)) => {
+                self.rapid_next = false;
+                self.warn_once(
+                    "NURBS",
+                    nurbs.span,
+                    format!(
+                        "NURBS: the B-spline is followed by chords within {:.4} mm of it",
+                        tolerance * 1e3
+                    ),
+                );
+                for point in points {
+                    let mut to = self.position;
+                    to.linear = [point.x, point.y, point.z];
+                    self.push_move(Motion::Linear, to, feed, nurbs.span);
+                }
+            }
+            (Err(problem), _) => self.errors.push(
+                ProgramError::new(self.source, Some(nurbs.span), problem)
+                    .found_text(&self.text[nurbs.start..nurbs.end.min(self.text.len())]),
+            ),
+            (Ok(_), None) => self.errors.push(
+                ProgramError::new(
+                    self.source,
+                    Some(nurbs.span),
+                    "expected a FEDRAT (or RAPID) before the first NURBS",
+                )
+                .found_text(&self.text[nurbs.start..nurbs.end.min(self.text.len())]),
+            ),
         }
     }
 

@@ -68,6 +68,20 @@ const NOT_DRAWING: &[(&str, &str)] = &[
     ("OW", "output window"),
 ];
 
+/// The commands `execute` carries out (the rest are described, or unknown).
+const CARRIED_OUT: &[&str] = &[
+    "LB", "BL", "DT", "SM", "PE", "IN", "DF", "SC", "IP", "IR", "RO", "PS", "WU", "PW", "IW", "SP",
+    "VS", "LT", "PU", "PD", "PA", "PR", "CT", "CI", "AA", "AR", "AT", "RT", "BZ", "BR", "PM", "EP",
+    "FP", "EA", "ER", "RA", "RR", "EW", "WG", "FT", "PT", "TL", "XT", "YT", "SI", "SR", "DI", "DR",
+    "SL", "ES", "LO", "CP", "PB", "SS", "SA", "CS", "CA", "DV", "UC",
+];
+
+/// Commands that draw in some plotter's dialect but are not drawn here: refused by name.
+const DRAWS: &[(&str, &str)] = &[
+    ("UC", "user-defined characters"),
+    ("RP", "replot (the plot drawn again)"),
+];
+
 fn description(name: &str) -> Option<&'static str> {
     NOT_DRAWING
         .iter()
@@ -132,17 +146,94 @@ impl Reader<'_> {
             }
             "PE" => {
                 let (data_start, data_end) = self.scan.encoded();
-                match encoded::decode(self.scan.text, data_start, data_end) {
-                    Ok(decoded) => self.encoded_polyline(&decoded),
+                let undone = if self.options.strict {
+                    None
+                } else {
+                    encoded::undo_utf8(self.scan.text, data_start, data_end)
+                };
+                let result = match &undone {
+                    None => {
+                        encoded::decode(self.scan.text, data_start, data_end, !self.options.strict)
+                    }
+                    Some((bytes, offsets)) => {
+                        self.skip(
+                            "PE UTF-8",
+                            start,
+                            data_end,
+                            "PE data re-encoded as UTF-8 after the driver wrote them (bytes no PE data hold) are not what the driver wrote",
+                            "were decoded from UTF-8 back to the driver's bytes (exact), then read",
+                        );
+                        // Offsets back into the file, for spans and messages.
+                        let back = |at: usize| offsets.get(at).copied().unwrap_or(data_end);
+                        encoded::decode(bytes, 0, bytes.len(), true)
+                            .map(|(decoded, dropped)| {
+                                let decoded = decoded
+                                    .into_iter()
+                                    .map(|element| match element {
+                                        Encoded::Pen { number, at } => Encoded::Pen {
+                                            number,
+                                            at: back(at),
+                                        },
+                                        Encoded::Point {
+                                            xy,
+                                            absolute,
+                                            pen_up,
+                                            at,
+                                        } => Encoded::Point {
+                                            xy,
+                                            absolute,
+                                            pen_up,
+                                            at: back(at),
+                                        },
+                                    })
+                                    .collect();
+                                (decoded, dropped.map(back))
+                            })
+                            .map_err(|mut error| {
+                                error.start = back(error.start);
+                                error.end = back(error.end).max(error.start + 1);
+                                error
+                            })
+                    }
+                };
+                match result {
+                    Ok((decoded, dropped)) => {
+                        if let Some(dropped) = dropped {
+                            self.skip(
+                                "PE tail",
+                                dropped,
+                                data_end,
+                                "PE data that end in an unfinished number (no terminating digit before ';') are not a pen move",
+                                "the unfinished number was dropped, as plotters and ezdxf drop it",
+                            );
+                        }
+                        self.encoded_polyline(&decoded)
+                    }
                     Err(error) => {
                         self.scan_error(error);
                         return;
                     }
                 }
             }
+            // The unquoted form some drivers write (`CO text;`).
+            "CO" if !self.options.strict && self.scan.unquoted_comment() => {
+                self.skip(
+                    "CO",
+                    start,
+                    self.scan.at,
+                    "CO (comment) is not a pen move",
+                    "was skipped",
+                );
+                Ok(())
+            }
             _ => {
                 let parameters = match self.scan.parameters(&name, takes_strings(&name)) {
                     Ok(parameters) => parameters,
+                    // A command a plotter does not know is passed over, parameters and all.
+                    Err(_) if self.unknown_skipped(&name, start) => {
+                        self.scan.skip_to_terminator();
+                        return;
+                    }
                     Err(error) => {
                         self.scan_error(error);
                         self.scan.skip_to_terminator();
@@ -512,6 +603,23 @@ impl Reader<'_> {
                     [] => defaults,
                     [kind, ref rest @ ..] if rest.len() <= 2 => {
                         let kind_ok = [1.0, 2.0, 3.0, 4.0, 10.0].contains(&kind);
+                        let raster = [11.0, 21.0, 22.0].contains(&kind);
+                        if raster && !self.options.strict {
+                            // A raster pattern cannot be drawn with a pen: filled solid,
+                            // as ezdxf reads these types.
+                            self.skip(
+                                &format!("FT {kind}"),
+                                start,
+                                self.scan.at,
+                                &format!(
+                                    "FT {} (a raster fill pattern) cannot be drawn with a pen",
+                                    fmt_number(kind)
+                                ),
+                                "its fills are drawn solid instead",
+                            );
+                            self.plotter.fill = FillStyle { pen_mm, ..defaults };
+                            return Ok(());
+                        }
                         if !kind_ok {
                             return Err(Problem::new(format!(
                                 "expected fill type 1, 2 (solid), 3, 4 (hatch) or 10 (shading) after FT, not {}", fmt_number(kind)
@@ -544,6 +652,20 @@ impl Reader<'_> {
             "PT" => match values.as_slice() {
                 [] => self.plotter.fill.pen_mm = FillStyle::default().pen_mm,
                 &[mm] if mm > 0.0 && mm <= 5.0 => self.plotter.fill.pen_mm = mm,
+                // Out of range (PT0 is common): a plotter ignores the command.
+                &[mm] if !self.options.strict => {
+                    let what = format!(
+                        "PT {} (pen thickness) is out of the range 0.1 to 5 mm",
+                        fmt_number(mm)
+                    );
+                    self.skip(
+                        "PT range",
+                        start,
+                        self.scan.at,
+                        &what,
+                        "was ignored, as plotters ignore it",
+                    );
+                }
                 &[mm] => {
                     return Err(Problem::new(format!(
                         "expected a pen thickness of more than 0 and at most 5 mm after PT, not {}",
@@ -710,6 +832,7 @@ impl Reader<'_> {
                     }
                     let what = format!("{name} ({what}) is not a pen move");
                     self.skip(name, start, self.scan.at, &what, "was skipped");
+                } else if self.unknown_skipped(name, start) {
                 } else {
                     return Err(Problem::new(format!(
                         "expected an HPGL command; {name} is not one cncsim knows"
@@ -719,6 +842,30 @@ impl Reader<'_> {
             }
         }
         Ok(())
+    }
+
+    /// A mnemonic cncsim does not know: passed over as a plotter passes over it (it raises
+    /// error 1), with one warning per mnemonic, unless it is known to draw. Not with
+    /// `strict`.
+    fn unknown_skipped(&mut self, name: &str, start: usize) -> bool {
+        if self.options.strict
+            || CARRIED_OUT.contains(&name)
+            || DRAWS.iter().any(|(n, _)| *n == name)
+            || description(name).is_some()
+        {
+            return false;
+        }
+        let end = self.scan.at.max(start + 2);
+        self.skip(
+            &format!("unknown {name}"),
+            start,
+            end,
+            &format!(
+                "{name} is not an HP-GL command cncsim knows; a plotter passes over it (error 1)"
+            ),
+            "so was it",
+        );
+        true
     }
 
     fn default_p1_p2(&mut self) {

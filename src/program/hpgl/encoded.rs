@@ -19,7 +19,14 @@ pub(super) enum Encoded {
 }
 
 /// Decodes the data of one PE command (`text[start..end]`, without its ';').
-pub(super) fn decode(text: &[u8], start: usize, end: usize) -> Result<Vec<Encoded>, ScanError> {
+/// With `lenient`, data that end in an unfinished number (no terminating digit before the
+/// end) decode to what came before it, and the offset of the unfinished number is returned.
+pub(super) fn decode(
+    text: &[u8],
+    start: usize,
+    end: usize,
+    lenient: bool,
+) -> Result<(Vec<Encoded>, Option<usize>), ScanError> {
     let mut out = Vec::new();
     let mut at = start;
     let mut base: u64 = 64;
@@ -78,8 +85,15 @@ pub(super) fn decode(text: &[u8], start: usize, end: usize) -> Result<Vec<Encode
             }
             63..=254 => {
                 let value_at = at;
-                let (value, next) = number(text, at, end, base, fraction_bits)
-                    .ok_or_else(|| error(at, "expected a PE number"))??;
+                let (value, next) = match number(text, at, end, base, fraction_bits) {
+                    None => return Err(error(at, "expected a PE number")),
+                    Some(Err(problem)) if lenient && problem.problem == UNFINISHED => {
+                        // Nothing after it decodes; the pair it would finish is dropped too.
+                        let dropped = pending.map_or(value_at, |(_, x_at)| x_at);
+                        return Ok((out, Some(dropped)));
+                    }
+                    Some(result) => result?,
+                };
                 at = next;
                 match pending.take() {
                     None => pending = Some((value, value_at)),
@@ -111,8 +125,31 @@ pub(super) fn decode(text: &[u8], start: usize, end: usize) -> Result<Vec<Encode
             "expected x,y pairs in PE: an odd number of coordinates",
         ));
     }
-    Ok(out)
+    Ok((out, None))
 }
+
+/// PE data whose bytes were re-encoded as UTF-8 after the driver wrote them (a text tool
+/// read the file as Latin-1 and saved it as UTF-8): the bytes the driver wrote and, for each,
+/// the offset in `text` it came from. `None` unless the data are exactly that: they hold a
+/// byte no PE data can hold (0x80–0xBE, a UTF-8 continuation byte), and they are valid UTF-8
+/// whose characters are all below U+0100, so undoing it is exact.
+pub(super) fn undo_utf8(text: &[u8], start: usize, end: usize) -> Option<(Vec<u8>, Vec<usize>)> {
+    let data = &text[start..end];
+    if !data.iter().any(|b| (0x80..=0xBE).contains(b)) {
+        return None;
+    }
+    let decoded = std::str::from_utf8(data).ok()?;
+    let mut bytes = Vec::with_capacity(data.len());
+    let mut offsets = Vec::with_capacity(data.len());
+    for (index, ch) in decoded.char_indices() {
+        let byte = u8::try_from(u32::from(ch)).ok()?;
+        bytes.push(byte);
+        offsets.push(start + index);
+    }
+    Some((bytes, offsets))
+}
+
+const UNFINISHED: &str = "expected a terminating digit to end the PE number";
 
 /// One encoded number starting at `at`: its value and the index after it. `None` if no digit
 /// byte is there; an error if the number does not end within the data or is too large.
@@ -133,7 +170,15 @@ fn number(
     let mut magnitude: u64 = 0;
     let mut weight: u64 = 1;
     loop {
-        let byte = *text.get(at).filter(|_| at < end)?;
+        let Some(&byte) = text.get(at).filter(|_| at < end) else {
+            return (at > start).then(|| {
+                Err(ScanError {
+                    start,
+                    end: at,
+                    problem: UNFINISHED.into(),
+                })
+            });
+        };
         let ends = terminating.contains(&byte);
         if !ends && !digits.contains(&byte) {
             return if at == start {
@@ -142,7 +187,7 @@ fn number(
                 Some(Err(ScanError {
                     start,
                     end: at,
-                    problem: "expected a terminating digit to end the PE number".into(),
+                    problem: UNFINISHED.into(),
                 }))
             };
         }
@@ -199,7 +244,7 @@ mod tests {
         data.extend(encode(-7));
         data.push(b':');
         data.extend(encode(2));
-        let decoded = decode(&data, 0, data.len()).unwrap();
+        let decoded = decode(&data, 0, data.len(), false).unwrap().0;
         assert_eq!(
             decoded,
             vec![
@@ -228,7 +273,7 @@ mod tests {
         // 7-bit: digits 63..94 and terminators 95..126; 3 fractional bits: 12 / 8 = 1.5.
         // 3 is sent as 6 (sign bit), 12 as 24: single terminating digits 95 + 6 and 95 + 24.
         let data = [b'7', b'>', 95 + 6, 119, 119];
-        let decoded = decode(&data, 0, data.len()).unwrap();
+        let decoded = decode(&data, 0, data.len(), false).unwrap().0;
         assert_eq!(
             decoded,
             vec![Encoded::Point {
@@ -242,9 +287,9 @@ mod tests {
 
     #[test]
     fn broken_data_is_an_error() {
-        assert!(decode(&[63, 63], 0, 2).is_err());
-        assert!(decode(&[200], 0, 1).is_err());
-        assert!(decode(b"!", 0, 1).is_err());
-        assert!(decode(&[63; 12], 0, 12).is_err());
+        assert!(decode(&[63, 63], 0, 2, false).is_err());
+        assert!(decode(&[200], 0, 1, false).is_err());
+        assert!(decode(b"!", 0, 1, false).is_err());
+        assert!(decode(&[63; 12], 0, 12, false).is_err());
     }
 }

@@ -57,6 +57,35 @@ const FLATNESS: f64 = 0.4;
 /// At most this many chords per arc of a fill boundary.
 const MAX_CHORDS: f64 = 4096.0;
 
+/// Points along an arc (all its turns) from `from` to `to`, `to` last, `from` not given:
+/// chords within `FLATNESS` of the arc.
+pub(super) fn arc_points(
+    from: [f64; 2],
+    to: [f64; 2],
+    centre: [f64; 2],
+    clockwise: bool,
+    turns: u32,
+) -> Vec<[f64; 2]> {
+    let radius = (from[0] - centre[0]).hypot(from[1] - centre[1]);
+    let angle = sweep(from, to, centre, clockwise, turns);
+    let step = if radius > FLATNESS {
+        2.0 * (1.0 - FLATNESS / radius).acos()
+    } else {
+        TAU
+    };
+    let count = (angle / step).ceil().clamp(1.0, MAX_CHORDS * 64.0) as usize;
+    let start = (from[1] - centre[1]).atan2(from[0] - centre[0]);
+    let signed = if clockwise { -angle } else { angle };
+    let mut points: Vec<[f64; 2]> = (1..count)
+        .map(|index| {
+            let a = start + signed * index as f64 / count as f64;
+            [centre[0] + radius * a.cos(), centre[1] + radius * a.sin()]
+        })
+        .collect();
+    points.push(to);
+    points
+}
+
 /// The vertices of a sub-path with arcs replaced by chords (closing edge implied).
 fn flatten(path: &SubPath) -> Vec<[f64; 2]> {
     let mut points = vec![path.start];

@@ -25,7 +25,7 @@ mod pen;
 mod plotter;
 mod scan;
 
-use std::collections::BTreeSet;
+use std::collections::BTreeMap;
 use std::path::Path;
 
 use self::drawing::{generate_moves, pen_up_travel, Element, Stroke};
@@ -65,13 +65,13 @@ pub fn parse_hpgl_detailed(
     let text = text.as_ref();
     let source = source.as_ref();
     let mut reader = Reader {
-        scan: Scanner::new(text),
+        scan: Scanner::new(text, !options.hpgl.strict),
         lines: LineIndex::new(text),
         source,
         options: &options.hpgl,
         errors: ErrorSink::new(options.max_errors),
         warnings: Vec::new(),
-        warned: BTreeSet::new(),
+        warned: BTreeMap::new(),
         plotter: Plotter::new(&options.hpgl),
         drawing: Vec::new(),
         stroke: None,
@@ -84,6 +84,7 @@ pub fn parse_hpgl_detailed(
         fill_budget: options.hpgl.max_fill_lines,
     };
     reader.run();
+    reader.count_skipped();
     let Reader {
         errors,
         warnings,
@@ -155,8 +156,9 @@ struct Reader<'a> {
     options: &'a HpglOptions,
     errors: ErrorSink,
     warnings: Vec<Warning>,
-    /// Kinds of skipped command already warned about (one warning each).
-    warned: BTreeSet<String>,
+    /// Kinds of skipped command: the index of the one warning about each, and how many
+    /// there were.
+    warned: BTreeMap<String, (usize, usize)>,
     plotter: Plotter,
     drawing: Vec<Element>,
     /// The stroke being drawn while the pen is down.
@@ -185,6 +187,24 @@ impl<'a> Reader<'a> {
                     Mode::Hpgl => match byte {
                         b';' => self.scan.at += 1,
                         _ if byte.is_ascii_alphabetic() => self.command(),
+                        // Control characters and stray punctuation between commands: HP
+                        // plotters and hp2xx pass over them. A stray number is not passed
+                        // over: it may be a coordinate whose command was lost.
+                        _ if !self.options.strict
+                            && (byte < 0x20 || byte == 0x7f || byte.is_ascii_punctuation())
+                            && !matches!(byte, b'+' | b'-' | b'.') =>
+                        {
+                            let start = self.scan.at;
+                            let end = self.scan.char_end(start);
+                            self.skip(
+                                "stray",
+                                start,
+                                end,
+                                "a character between commands that is not part of one (a control character or stray punctuation) is not a pen move",
+                                "was passed over, as plotters do",
+                            );
+                            self.scan.at = end;
+                        }
                         _ => {
                             let start = self.scan.at;
                             let end = self.scan.char_end(start);
@@ -261,12 +281,28 @@ impl<'a> Reader<'a> {
                 format!("expected a command that draws; {what} (refused with --strict)"),
                 None,
             );
-        } else if self.warned.insert(kind.to_string()) {
-            let span = self.span(start);
-            self.warn(
-                span,
-                format!("{what} and {done}; further ones without a warning"),
-            );
+        } else {
+            let index = self.warnings.len();
+            let entry = self.warned.entry(kind.to_string()).or_insert((index, 0));
+            entry.1 += 1;
+            if entry.0 == index && entry.1 == 1 {
+                let span = self.span(start);
+                self.warn(span, format!("{what} and {done}"));
+            }
+        }
+    }
+
+    /// Puts the count of each kind of skipped command into its warning.
+    fn count_skipped(&mut self) {
+        for (index, count) in self.warned.values() {
+            if let Some(warning) = self.warnings.get_mut(*index) {
+                let times = if *count == 1 {
+                    "once".to_string()
+                } else {
+                    format!("{count} times")
+                };
+                warning.message = format!("{} ({times} in the file)", warning.message);
+            }
         }
     }
 

@@ -32,7 +32,9 @@ impl Reader<'_> {
     }
 
     pub(super) fn pen_down(&mut self, span: Span) {
-        if self.stroke.is_none() && !self.polygon_mode {
+        // A dot outside the input window is clipped away.
+        let outside = self.window_clips() && !self.inside_window(self.plotter.position);
+        if self.stroke.is_none() && !self.polygon_mode && !outside {
             self.stroke = Some(Stroke {
                 start: self.metres(self.plotter.position),
                 steps: Vec::new(),
@@ -44,8 +46,89 @@ impl Reader<'_> {
         self.plotter.pen_down = true;
     }
 
+    /// Whether drawing is clipped at the input window (IW; refused instead with `strict`).
+    fn window_clips(&self) -> bool {
+        self.plotter.window.is_some() && !self.options.strict
+    }
+
+    fn inside_window(&self, point: [f64; 2]) -> bool {
+        let Some((low, high)) = self.plotter.window else {
+            return true;
+        };
+        let slack = 1e-6;
+        (0..2).all(|axis| point[axis] >= low[axis] - slack && point[axis] <= high[axis] + slack)
+    }
+
+    /// A pen-down piece from the pen to `to` that leaves the input window, drawn as HP-GL
+    /// defines IW: only what lies inside the window is drawn; the pen stays down, lifting
+    /// where the piece leaves the window and lowering where it comes back. An arc that
+    /// crosses the window's edge is drawn as chords within `fill::FLATNESS`.
+    fn clipped(&mut self, to: [f64; 2], piece: Piece, span: Span) -> Result<(), Problem> {
+        let from = self.plotter.position;
+        let at = span.byte_offset as usize;
+        self.skip(
+            "IW clip",
+            at,
+            at,
+            "drawing outside the input window (IW) is not drawn",
+            "was clipped at the window as HP-GL defines (arcs crossing its edge as chords within 0.01 mm)",
+        );
+        let points = match piece {
+            Piece::Line => vec![to],
+            Piece::Arc {
+                centre,
+                clockwise,
+                turns,
+            } => fill::arc_points(from, to, centre, clockwise, turns),
+        };
+        let (low, high) = self.plotter.window.expect("a window");
+        let mut a = from;
+        for b in points {
+            match clip_segment(a, b, low, high) {
+                None => self.lift_for_window(span),
+                Some((t0, t1)) => {
+                    let lerp = |t: f64| [a[0] + (b[0] - a[0]) * t, a[1] + (b[1] - a[1]) * t];
+                    let (p0, p1) = (lerp(t0), lerp(t1));
+                    if t0 > 0.0 || self.stroke.is_none() {
+                        self.lift_for_window(span);
+                        self.stroke = Some(Stroke {
+                            start: self.metres(p0),
+                            steps: Vec::new(),
+                            down_span: span,
+                            up_span: span,
+                            open_at_end: false,
+                        });
+                    }
+                    let step = Step {
+                        segment: Segment::Line,
+                        to: self.metres(p1),
+                        speed: self.plotter.speed,
+                        span,
+                    };
+                    if let Some(stroke) = &mut self.stroke {
+                        stroke.steps.push(step);
+                    }
+                    if t1 < 1.0 {
+                        self.lift_for_window(span);
+                    }
+                }
+            }
+            a = b;
+        }
+        self.plotter.position = to;
+        Ok(())
+    }
+
+    /// Ends the stroke where the drawing leaves the window; the pen stays down.
+    fn lift_for_window(&mut self, span: Span) {
+        if let Some(mut stroke) = self.stroke.take() {
+            stroke.up_span = span;
+            self.drawing.push(Element::Stroke(stroke));
+        }
+    }
+
     /// Whether a pen-down piece from the pen to `to` may be drawn: not on a later page, not
-    /// outside the input window (clipping is not supported).
+    /// outside the input window (with `strict`, which does not clip).
     fn drawable(&self, to: [f64; 2], piece: Piece) -> Result<(), Problem> {
         if let Some((span, command)) = &self.page_advance {
             return Err(Problem::new(format!(
@@ -115,6 +198,12 @@ impl Reader<'_> {
         if self.polygon_mode {
             self.record(to, piece);
         } else if self.plotter.pen_down {
+            if self.window_clips() && self.page_advance.is_none() {
+                let inside = self.drawable(to, piece).is_ok();
+                if !inside || self.stroke.is_none() && !self.inside_window(self.plotter.position) {
+                    return self.clipped(to, piece, span);
+                }
+            }
             self.drawable(to, piece)?;
             let segment = match piece {
                 Piece::Line => Segment::Line,
@@ -365,4 +454,31 @@ impl Reader<'_> {
         }
         self.return_pen(position, was_down, span)
     }
+}
+
+/// The part of the segment `a`–`b` inside the rectangle `low`–`high` as parameters
+/// `t0 < t1` along it (Liang–Barsky), or `None` when none of it is inside.
+fn clip_segment(a: [f64; 2], b: [f64; 2], low: [f64; 2], high: [f64; 2]) -> Option<(f64, f64)> {
+    let (mut t0, mut t1) = (0.0_f64, 1.0_f64);
+    let d = [b[0] - a[0], b[1] - a[1]];
+    for axis in 0..2 {
+        for (p, q) in [
+            (-d[axis], a[axis] - low[axis]),
+            (d[axis], high[axis] - a[axis]),
+        ] {
+            if p == 0.0 {
+                if q < 0.0 {
+                    return None;
+                }
+            } else {
+                let r = q / p;
+                if p < 0.0 {
+                    t0 = t0.max(r);
+                } else {
+                    t1 = t1.min(r);
+                }
+            }
+        }
+    }
+    (t0 < t1).then_some((t0, t1))
 }

@@ -46,11 +46,43 @@ pub(super) enum Escape {
 pub(super) struct Scanner<'a> {
     pub(super) text: &'a [u8],
     pub(super) at: usize,
+    /// Read parameters as plotters and hp2xx do: empty parameters (`PA,PU`, `PD1,,2`) are
+    /// passed over.
+    lenient: bool,
 }
 
 impl<'a> Scanner<'a> {
-    pub(super) fn new(text: &'a [u8]) -> Self {
-        Scanner { text, at: 0 }
+    pub(super) fn new(text: &'a [u8], lenient: bool) -> Self {
+        Scanner {
+            text,
+            at: 0,
+            lenient,
+        }
+    }
+
+    /// An unquoted `CO` comment (some drivers write `CO text;`): to the terminator, an
+    /// escape or the end of the line. Returns whether there was one.
+    pub(super) fn unquoted_comment(&mut self) -> bool {
+        let mut at = self.at;
+        while matches!(self.text.get(at), Some(b' ' | b'\t')) {
+            at += 1;
+        }
+        match self.text.get(at) {
+            None | Some(b'"' | b';') => return false,
+            Some(_) => {}
+        }
+        while let Some(&byte) = self.text.get(at) {
+            if byte == b';' {
+                at += 1;
+                break;
+            }
+            if byte == ESC || byte == b'\n' {
+                break;
+            }
+            at += 1;
+        }
+        self.at = at;
+        true
     }
 
     pub(super) fn peek(&self) -> Option<u8> {
@@ -158,13 +190,30 @@ impl<'a> Scanner<'a> {
                     self.at += 1;
                     after_comma = true;
                 }
+                // An empty parameter: passed over, as plotters and hp2xx do.
+                Some(b',') if self.lenient => {
+                    self.at += 1;
+                    after_comma = true;
+                }
                 // A comma may stand before the terminator, not before the next command.
                 Some(b';') => {
                     self.at += 1;
                     return Ok(parameters);
                 }
                 None | Some(ESC) => return Ok(parameters),
-                Some(b) if b.is_ascii_alphabetic() && !after_comma => return Ok(parameters),
+                // After a comma, only the next command's two letters end the parameters
+                // (`PA,PU…`, lenient only).
+                Some(b)
+                    if b.is_ascii_alphabetic()
+                        && (!after_comma
+                            || (self.lenient
+                                && self
+                                    .text
+                                    .get(self.at + 1)
+                                    .is_some_and(u8::is_ascii_alphabetic))) =>
+                {
+                    return Ok(parameters)
+                }
                 _ => {
                     let what = if after_comma {
                         "a number after ','"

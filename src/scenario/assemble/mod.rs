@@ -370,6 +370,7 @@ fn approach_for(
             span: first,
         }],
         warnings: Vec::new(),
+        tools: Vec::new(),
     };
     let settings = plan_settings(s, machine, s.planner.profile)?;
     plan_program(&way, axis_map, &settings).map_err(|source| RunError::Plan {
