@@ -10,7 +10,8 @@
 //! 3. [`Assembly::run`] runs it with [`RunOptions`]: here with a controller of one's own (any
 //!    type that implements [`Controller`]), a fresh one per lane; `RunOptions::write_to(dir)`
 //!    would also write `metrics.json`, the CSV trace and the recording, `.observer(..)` add an
-//!    observer of every tick, `.traced()` keep the ticks in memory;
+//!    observer of every tick, `.traced()` keep the ticks in memory, `.plant(..)` run a plant of
+//!    one's own (any type that implements `sim::Plant`) in each lane;
 //! 4. `RunOutput::metrics` holds the figures of `metrics.json`.
 //!
 //! The controller here is a PD on each axis plus exact velocity feed-forward from the linear

@@ -214,3 +214,28 @@ fn a_divergence_keeps_everything_and_names_time_and_axis() {
         };
     }
 }
+
+/// A plant of one's own through `RunOptions::plant`: with the analytic model as the plant of
+/// both lanes, the "physics" lane runs the very same model as the analytic one, so the two
+/// agree exactly, where with the scenario's own plants they differ.
+#[test]
+fn an_own_plant_runs_in_the_scenario_lanes() {
+    use cncsim::sim::{LaneKind, Plant};
+    let s = scenario(true, 1);
+    let assembly = Assembly::new(&s).unwrap();
+    let built = std::cell::RefCell::new(Vec::new());
+    let make = |kind: LaneKind, start: &[f64]| -> Box<dyn Plant> {
+        built.borrow_mut().push(kind);
+        assembly.plant(LaneKind::Analytic, start).unwrap()
+    };
+    let own = assembly.run(RunOptions::new().plant(&make)).unwrap();
+    assert_eq!(*built.borrow(), [LaneKind::Physics, LaneKind::Analytic]);
+    let theirs = assembly.run(RunOptions::new()).unwrap();
+    assert!(own.stop.is_none() && theirs.stop.is_none());
+    for (axis, a) in &own.metrics.axes {
+        let apart = |m: &cncsim::report::Metrics| m.axes[axis].max_physics_vs_analytic_mm.unwrap();
+        assert_eq!(apart(&own.metrics), 0.0, "{axis}");
+        assert!(apart(&theirs.metrics) > 0.0, "{axis}");
+        assert!(a.max_following_error_mm.is_some());
+    }
+}

@@ -12,7 +12,7 @@ use crate::report::{
     metrics_table, Envelope, Metrics, PathTracker, RecordingSetup, ReportError, ReportSetup,
     RunReport,
 };
-use crate::sim::{Observer, Observers, Outcome, Stop, Trace, TraceRecorder};
+use crate::sim::{Lane, LaneKind, Observer, Observers, Outcome, Plant, Stop, Trace, TraceRecorder};
 use std::path::PathBuf;
 
 /// How a run is carried out and what it keeps besides its figures: where its files go, whether
@@ -27,6 +27,7 @@ pub struct RunOptions<'a> {
     observers: Vec<&'a mut dyn Observer>,
     progress: Option<&'a mut dyn FnMut(usize, usize) -> bool>,
     controller: Option<&'a dyn Fn() -> Box<dyn Controller>>,
+    plant: Option<&'a dyn Fn(LaneKind, &[f64]) -> Box<dyn Plant>>,
 }
 
 impl<'a> RunOptions<'a> {
@@ -65,6 +66,14 @@ impl<'a> RunOptions<'a> {
     /// every lane.
     pub fn controller(mut self, make: &'a dyn Fn() -> Box<dyn Controller>) -> Self {
         self.controller = Some(make);
+        self
+    }
+
+    /// Runs a plant of one's own in each lane instead of the scenario's: `make(lane, start)`
+    /// builds it at rest at `start` (joint units, the machine's axis order). The lane keeps its
+    /// name in the report and the recording.
+    pub fn plant(mut self, make: &'a dyn Fn(LaneKind, &[f64]) -> Box<dyn Plant>) -> Self {
+        self.plant = Some(make);
         self
     }
 }
@@ -145,6 +154,7 @@ impl Assembly {
             observers: mut extra,
             progress,
             controller,
+            plant,
         } = options;
         let s = &self.scenario;
         let recording = &s.recording;
@@ -170,10 +180,22 @@ impl Assembly {
         )?;
         let mut recorder =
             TraceRecorder::new(s.timing.servo_period, self.labels.len(), lanes.len());
-        let mut lanes_run = match controller {
-            Some(make) => self.lanes_with(make)?,
-            None => self.lanes()?,
-        };
+        // Each lane: the scenario's plant and controller, or the caller's.
+        let scenario_controller = || self.controller();
+        let make_controller = controller.unwrap_or(&scenario_controller);
+        let start = self.start();
+        let mut lanes_run = (lanes.iter())
+            .map(|&kind| {
+                Ok(Lane {
+                    kind,
+                    plant: match plant {
+                        Some(make) => make(kind, &start),
+                        None => self.plant(kind, &start)?,
+                    },
+                    controller: make_controller(),
+                })
+            })
+            .collect::<Result<Vec<_>, RunError>>()?;
         let mut keep_going = |_: usize, _: usize| true;
         let progress = progress.unwrap_or(&mut keep_going);
         let ballbar_spec = match &s.program.source {

@@ -268,12 +268,9 @@ impl Assembly {
         kinds
     }
 
-    /// The lanes of a run, each at rest where the machine starts, with a controller from
-    /// `controller` (the scenario's own: `|| assembly.controller()`).
-    pub fn lanes_with(
-        &self,
-        controller: &dyn Fn() -> Box<dyn Controller>,
-    ) -> Result<Vec<Lane<'static>>, RunError> {
+    /// The lanes of a run with the scenario's plants and controller, each at rest where the
+    /// machine starts.
+    pub fn lanes(&self) -> Result<Vec<Lane<'static>>, RunError> {
         let start = self.start();
         self.lane_kinds()
             .into_iter()
@@ -281,15 +278,10 @@ impl Assembly {
                 Ok(Lane {
                     kind,
                     plant: self.plant(kind, &start)?,
-                    controller: controller(),
+                    controller: self.controller(),
                 })
             })
             .collect()
-    }
-
-    /// The lanes of a run with the scenario's own controller.
-    pub fn lanes(&self) -> Result<Vec<Lane<'static>>, RunError> {
-        self.lanes_with(&|| self.controller())
     }
 
     /// Runs `lanes` on the scenario's setpoints through the servo loop.
