@@ -15,7 +15,8 @@ mod tune;
 pub use ab::{run_ab, AbOutput, AbReport, AbRow};
 pub use assemble::{
     axis_map_for, keep_mechanics, load_checked_program, machine_for, plan_for, plan_settings,
-    with_choices, Assembly, ControllerRecipe, PlanKey, ProgramOverview, RunError, GRAVITY,
+    with_choices, Assembly, ControllerRecipe, MakeController, MakePlant, PlanKey, ProgramOverview,
+    RunError, GRAVITY,
 };
 pub use ballbar::{
     ballbar_centre, ballbar_passes, ballbar_program, default_plane_centre_overshoot,

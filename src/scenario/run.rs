@@ -2,17 +2,17 @@
 //! run, and the report. A run that stops early (divergence, following-error fault, Ctrl-C)
 //! still writes everything it computed and says where it stopped.
 
-use super::assemble::{Assembly, RunError};
+use super::assemble::{Assembly, MakeController, MakePlant, RunError};
 use super::{check, Verdict};
 use crate::command::{Ending, Report, WriteError};
-use crate::control::{ActuatorKind, Controller};
+use crate::control::ActuatorKind;
 use crate::diagnostics::FileError;
 use crate::program::PathGeometry;
 use crate::report::{
     metrics_table, Envelope, Metrics, PathTracker, RecordingSetup, ReportError, ReportSetup,
     RunReport,
 };
-use crate::sim::{Lane, LaneKind, Observer, Observers, Outcome, Plant, Stop, Trace, TraceRecorder};
+use crate::sim::{Observer, Observers, Outcome, Stop, Trace, TraceRecorder};
 use std::path::PathBuf;
 
 /// How a run is carried out and what it keeps besides its figures: where its files go, whether
@@ -26,8 +26,8 @@ pub struct RunOptions<'a> {
     keep_trace: bool,
     observers: Vec<&'a mut dyn Observer>,
     progress: Option<&'a mut dyn FnMut(usize, usize) -> bool>,
-    controller: Option<&'a dyn Fn() -> Box<dyn Controller>>,
-    plant: Option<&'a dyn Fn(LaneKind, &[f64]) -> Box<dyn Plant>>,
+    controller: Option<&'a MakeController<'a>>,
+    plant: Option<&'a MakePlant<'a>>,
 }
 
 impl<'a> RunOptions<'a> {
@@ -64,7 +64,7 @@ impl<'a> RunOptions<'a> {
 
     /// Runs a controller of one's own instead of the scenario's: `make` builds a fresh one for
     /// every lane.
-    pub fn controller(mut self, make: &'a dyn Fn() -> Box<dyn Controller>) -> Self {
+    pub fn controller(mut self, make: &'a MakeController<'a>) -> Self {
         self.controller = Some(make);
         self
     }
@@ -72,7 +72,7 @@ impl<'a> RunOptions<'a> {
     /// Runs a plant of one's own in each lane instead of the scenario's: `make(lane, start)`
     /// builds it at rest at `start` (joint units, the machine's axis order). The lane keeps its
     /// name in the report and the recording.
-    pub fn plant(mut self, make: &'a dyn Fn(LaneKind, &[f64]) -> Box<dyn Plant>) -> Self {
+    pub fn plant(mut self, make: &'a MakePlant<'a>) -> Self {
         self.plant = Some(make);
         self
     }
@@ -180,22 +180,7 @@ impl Assembly {
         )?;
         let mut recorder =
             TraceRecorder::new(s.timing.servo_period, self.labels.len(), lanes.len());
-        // Each lane: the scenario's plant and controller, or the caller's.
-        let scenario_controller = || self.controller();
-        let make_controller = controller.unwrap_or(&scenario_controller);
-        let start = self.start();
-        let mut lanes_run = (lanes.iter())
-            .map(|&kind| {
-                Ok(Lane {
-                    kind,
-                    plant: match plant {
-                        Some(make) => make(kind, &start),
-                        None => self.plant(kind, &start)?,
-                    },
-                    controller: make_controller(),
-                })
-            })
-            .collect::<Result<Vec<_>, RunError>>()?;
+        let mut lanes_run = self.lanes_with(plant, controller)?;
         let mut keep_going = |_: usize, _: usize| true;
         let progress = progress.unwrap_or(&mut keep_going);
         let ballbar_spec = match &s.program.source {

@@ -30,6 +30,12 @@ use std::sync::OnceLock;
 /// Points of the programmed path drawn in a recording (evenly thinned over the program).
 const PROGRAMMED_PATH_POINTS: usize = 50_000;
 
+/// Builds a plant of one's own for a lane, at rest at the given start (joint units).
+pub type MakePlant<'a> = dyn Fn(LaneKind, &[f64]) -> Box<dyn sim::Plant> + 'a;
+
+/// Builds a fresh controller of one's own.
+pub type MakeController<'a> = dyn Fn() -> Box<dyn Controller> + 'a;
+
 /// Gravity in the machine base frame: URDF convention, z up.
 pub const GRAVITY: [f64; 3] = [0.0, 0.0, -9.81];
 
@@ -271,14 +277,27 @@ impl Assembly {
     /// The lanes of a run with the scenario's plants and controller, each at rest where the
     /// machine starts.
     pub fn lanes(&self) -> Result<Vec<Lane<'static>>, RunError> {
+        self.lanes_with(None, None)
+    }
+
+    /// The lanes of a run, each at rest where the machine starts: the scenario's plant and
+    /// controller in each, or those `plant(lane, start)` and `controller()` make.
+    pub fn lanes_with(
+        &self,
+        plant: Option<&MakePlant<'_>>,
+        controller: Option<&MakeController<'_>>,
+    ) -> Result<Vec<Lane<'static>>, RunError> {
         let start = self.start();
         self.lane_kinds()
             .into_iter()
             .map(|kind| {
                 Ok(Lane {
                     kind,
-                    plant: self.plant(kind, &start)?,
-                    controller: self.controller(),
+                    plant: match plant {
+                        Some(make) => make(kind, &start),
+                        None => self.plant(kind, &start)?,
+                    },
+                    controller: controller.map_or_else(|| self.controller(), |make| make()),
                 })
             })
             .collect()
