@@ -11,6 +11,8 @@ pub mod control;
 pub(crate) mod convert;
 pub mod diagnostics;
 pub mod dynamics;
+pub mod fmi;
+pub mod frequency;
 pub mod kinematics;
 pub mod machine;
 pub mod model;

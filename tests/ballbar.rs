@@ -9,34 +9,17 @@
 
 mod common;
 
+use common::{cncsim, stderr};
 use std::path::{Path, PathBuf};
-use std::process::{Command, Output};
+use std::process::Command;
 
 fn root() -> &'static Path {
     Path::new(env!("CARGO_MANIFEST_DIR"))
 }
 
-fn cncsim(args: &[&str]) -> Output {
-    Command::new(env!("CARGO_BIN_EXE_cncsim"))
-        .args(args)
-        .current_dir(root())
-        .output()
-        .unwrap()
-}
-
-fn stderr(o: &Output) -> String {
-    String::from_utf8_lossy(&o.stderr).into_owned()
-}
-
 /// Runs `cncsim ballbar ARGS --json --out OUT` and returns the report.
 fn ballbar_json(args: &[&str], out: &Path) -> serde_json::Value {
-    let mut all: Vec<&str> = vec!["ballbar"];
-    all.extend_from_slice(args);
-    let out_s = out.display().to_string();
-    all.extend_from_slice(&["--json", "--out", &out_s]);
-    let o = cncsim(&all);
-    assert!(o.status.success(), "cncsim {all:?} failed: {}", stderr(&o));
-    serde_json::from_slice(&o.stdout).expect("--json prints JSON")
+    common::cncsim_json("ballbar", args, out)
 }
 
 fn num(v: &serde_json::Value, path: &str) -> f64 {
@@ -181,20 +164,7 @@ fn bad_input_exits_2_with_a_clear_message() {
 
 /// The Python with numpy and scipy, or `None` (a failure under `CNCSIM_REQUIRE_ORACLES=1`).
 fn python_with_scipy() -> Option<String> {
-    let python = std::env::var("CNCSIM_PYTHON").unwrap_or_else(|_| "python3".into());
-    let ok = Command::new(&python)
-        .args(["-c", "import numpy, scipy.optimize"])
-        .output()
-        .is_ok_and(|o| o.status.success());
-    if ok {
-        return Some(python);
-    }
-    assert!(
-        !std::env::var("CNCSIM_REQUIRE_ORACLES").is_ok_and(|v| v == "1"),
-        "CNCSIM_REQUIRE_ORACLES=1 but {python} cannot import numpy and scipy (CNCSIM_PYTHON names the interpreter)"
-    );
-    eprintln!("skipped: {python} cannot import numpy and scipy");
-    None
+    common::oracle_python("import numpy, scipy.optimize", "numpy and scipy")
 }
 
 #[test]

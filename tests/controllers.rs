@@ -75,7 +75,7 @@ fn x_error(dir: &Path, overrides: &[&str]) -> (f64, f64) {
         .unwrap()
         .run(RunOptions::write_to(dir.join("out")).traced())
         .unwrap();
-    assert!(run.stop.is_none(), "{overrides:?}: {:?}", run.stop);
+    assert!(run.stop().is_none(), "{overrides:?}: {:?}", run.stop());
     let analytic = run.analytic.as_ref().expect("analytic lane");
     let worst = |t: &cncsim::sim::Trace| {
         (0..t.len())

@@ -77,7 +77,7 @@ fn a_following_error_fault_keeps_everything() {
             .unwrap()
             .run(RunOptions::write_to(out.path()))
             .unwrap();
-        let stop = run.stop.expect("the fault");
+        let stop = run.stop().cloned().expect("the fault");
         assert!(stop.to_string().contains("following-error fault"), "{stop}");
         assert_kept(
             out.path(),
@@ -103,8 +103,7 @@ fn an_interruption_keeps_everything() {
             .run(RunOptions::write_to(out.path()).progress(&mut progress))
             .unwrap();
         assert!(run
-            .stop
-            .as_ref()
+            .stop()
             .unwrap()
             .to_string()
             .starts_with("interrupted"));
@@ -231,7 +230,7 @@ fn an_own_plant_runs_in_the_scenario_lanes() {
     let own = assembly.run(RunOptions::new().plant(&make)).unwrap();
     assert_eq!(*built.borrow(), [LaneKind::Physics, LaneKind::Analytic]);
     let theirs = assembly.run(RunOptions::new()).unwrap();
-    assert!(own.stop.is_none() && theirs.stop.is_none());
+    assert!(own.stop().is_none() && theirs.stop().is_none());
     for (axis, a) in &own.metrics.axes {
         let apart = |m: &cncsim::report::Metrics| m.axes[axis].max_physics_vs_analytic_mm.unwrap();
         assert_eq!(apart(&own.metrics), 0.0, "{axis}");

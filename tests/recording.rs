@@ -146,7 +146,7 @@ fn backlash_crossings_and_a_stop_are_in_the_event_log() {
         .unwrap()
         .run(RunOptions::write_to(out.path()).traced())
         .unwrap();
-    assert!(run.stop.is_none());
+    assert!(run.stop().is_none());
     let all = rrd_strings(&out.path().join("run.rrd"));
     let events: Vec<String> = strings(&all, "TextLog:text")
         .into_iter()
@@ -170,7 +170,7 @@ fn backlash_crossings_and_a_stop_are_in_the_event_log() {
         .unwrap()
         .run(RunOptions::write_to(out.path()).traced())
         .unwrap();
-    let stop = run.stop.expect("the fault");
+    let stop = run.stop().cloned().expect("the fault");
     let all = rrd_strings(&out.path().join("run.rrd"));
     let events: Vec<String> = strings(&all, "TextLog:text")
         .into_iter()
@@ -274,7 +274,7 @@ fn a_run_with_a_chain_longer_than_the_look_ahead_says_so_in_its_summary() {
         .unwrap()
         .run(RunOptions::write_to(&out).traced())
         .unwrap();
-    assert!(run.stop.is_none(), "{:?}", run.stop);
+    assert!(run.stop().is_none(), "{:?}", run.stop());
     assert!(run.warnings.is_empty(), "{:?}", run.warnings);
     let all = rrd_strings(&out.join("run.rrd"));
     let summary = &strings(&all, "TextDocument:text")[0].1;

@@ -23,7 +23,7 @@ fn circle_scenario_meets_its_bounds_and_writes_a_readable_recording() {
         .unwrap()
         .run(RunOptions::write_to(out.path()).traced())
         .unwrap();
-    assert!(run.stop.is_none(), "{:?}", run.stop);
+    assert!(run.stop().is_none(), "{:?}", run.stop());
     let verdict = check(&scenario, &run.metrics_json);
     assert!(verdict.passed(), "breaches: {:?}", verdict.breaches);
     assert_eq!(verdict.checked, 9);
@@ -178,7 +178,7 @@ fn a_runaway_is_stopped_with_time_and_axis_and_the_recording_is_kept() {
         .unwrap()
         .run(RunOptions::write_to(out.path()).traced())
         .unwrap();
-    let stop = run.stop.expect("the run must stop");
+    let stop = run.stop().cloned().expect("the run must stop");
     let text = stop.to_string();
     assert!(
         text.contains("axis 'x'") && text.contains("following-error fault at t = "),
@@ -314,7 +314,7 @@ fn four_millisecond_servo_period_works() {
         .unwrap()
         .run(RunOptions::write_to(out.path()).traced())
         .unwrap();
-    assert!(run.stop.is_none(), "{:?}", run.stop);
+    assert!(run.stop().is_none(), "{:?}", run.stop());
     assert_eq!(
         run.metrics.physics_steps,
         (run.trace.as_ref().unwrap().len() as u64 + 125) * 16
@@ -393,7 +393,7 @@ fn an_interrupted_run_keeps_what_it_computed() {
                 .progress(&mut progress),
         )
         .unwrap();
-    let stop = run.stop.expect("interrupted");
+    let stop = run.stop().cloned().expect("interrupted");
     assert!(
         stop.to_string().starts_with("interrupted at t = 1.547"),
         "{stop}"
@@ -491,7 +491,7 @@ fn stick_slip_hunting_is_counted() {
         .unwrap()
         .run(RunOptions::write_to(out.path()))
         .unwrap();
-    assert!(run.stop.is_none());
+    assert!(run.stop().is_none());
     let stalls = ["x", "y"].map(|a| run.metrics.axes[a].stick_slip_stalls);
     assert!(stalls[0] > 0 && stalls[1] > 0, "stalls X/Y {stalls:?}");
     assert_eq!(run.metrics.axes["z"].stick_slip_stalls, 0);

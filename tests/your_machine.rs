@@ -372,7 +372,7 @@ fn run_gantry_with(
         .unwrap()
         .run(RunOptions::write_to(&out).traced())
         .unwrap();
-    assert!(run.stop.is_none(), "{:?}", run.stop);
+    assert!(run.stop().is_none(), "{:?}", run.stop());
     let trace = run.trace.expect("traced");
     let axes = [0, 1, 2].map(|c| assembly.machine.axis_index(["x", "y", "z"][c]).unwrap());
     let worst = contour_within_following_error(&trace, &setup, &axes);

@@ -95,6 +95,19 @@ pub enum Command {
         #[arg(long)]
         rrd: Option<PathBuf>,
     },
+    /// Export the scenario's plant (machine, drives, friction, backlash, physics step) as an
+    /// FMI 3.0 co-simulation FMU: input command_<axis>, outputs measured_position_<axis>,
+    /// measured_velocity_<axis>, motor_position_<axis>, the planned setpoint_*_<axis>, …
+    /// (docs/fmi.md). Needs the plant library built (`cargo build -p cncsim-fmu`).
+    ExportFmu {
+        scenario: PathBuf,
+        /// The FMU file to write.
+        #[arg(long, value_name = "FILE.fmu")]
+        out: PathBuf,
+        /// Print the report as JSON.
+        #[arg(long)]
+        json: bool,
+    },
     /// Your own machine: `check` shows how cncsim reads a URDF and its drive file (letter →
     /// joint, direction, sign, travel, masses, meshes, what is missing); `init` writes a
     /// commented drive file for a URDF, its letters guessed from the kinematics.
@@ -170,6 +183,39 @@ pub enum Command {
         /// G43 and cutter compensation.
         #[arg(long)]
         tool_table: Option<PathBuf>,
+    },
+    /// Frequency response of one axis measured on the physics through the scenario's loop
+    /// (stepped sine), with the linear model from the drive data laid over it: resonances,
+    /// antiresonances, −3 dB bandwidth, gain and phase margins; writes OUT/bode.png, bode.csv,
+    /// bode.json and bode.rrd (docs/frequency-response.md).
+    Bode {
+        scenario: PathBuf,
+        /// Machine axis to measure (e.g. x).
+        #[arg(long)]
+        axis: String,
+        /// What to measure: the plant (excitation added to the controller output, the loop
+        /// holding the axis), the closed velocity loop of a cascade, or the closed position
+        /// loop; the open loop at the plant input is measured with each.
+        #[arg(long = "loop", value_enum, default_value_t = BodeLoop::Plant)]
+        lp: BodeLoop,
+        /// Lowest frequency (Hz; default 2).
+        #[arg(long, allow_negative_numbers = true)]
+        from: Option<f64>,
+        /// Highest frequency (Hz; default 0.4 of the servo rate; below the Nyquist frequency).
+        #[arg(long, allow_negative_numbers = true)]
+        to: Option<f64>,
+        /// Frequencies per decade.
+        #[arg(long, default_value_t = 12)]
+        per_decade: usize,
+        /// Measure the analytic reference model instead of the physics.
+        #[arg(long)]
+        analytic: bool,
+        /// Print the report as JSON.
+        #[arg(long)]
+        json: bool,
+        /// Output folder (default: out/bode_<scenario>_<axis>_<loop>).
+        #[arg(long)]
+        out: Option<PathBuf>,
     },
     /// Ziegler–Nichols gains for one axis: find the ultimate gain K_cr and period P_cr of the
     /// scenario's simulated axis (P only, raised until sustained oscillation), print Kp, Ki, Kd
@@ -286,4 +332,12 @@ pub enum MachineCommand {
         #[arg(long)]
         force: bool,
     },
+}
+
+/// The loop `cncsim bode` measures.
+#[derive(clap::ValueEnum, Debug, Clone, Copy, PartialEq, Eq)]
+pub enum BodeLoop {
+    Plant,
+    Velocity,
+    Position,
 }

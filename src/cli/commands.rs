@@ -1,7 +1,7 @@
 //! Each command: its arguments in, its report out. Progress goes to the error stream as the
 //! command works; everything it found is in the report.
 
-use super::args::{Command, MachineCommand};
+use super::args::{BodeLoop, Command, MachineCommand};
 use super::show::progress_bar;
 use cncsim::command::{Report, Stream};
 use cncsim::machine::{DrivesFile, Machine};
@@ -81,6 +81,34 @@ pub fn dispatch(command: Option<Command>, interrupted: &AtomicBool) -> Result<Sh
             };
             Ok((Box::new(ballbar(&scenario, test, out, interrupted)?), json))
         }
+        Some(Command::Bode {
+            scenario,
+            axis,
+            lp,
+            from,
+            to,
+            per_decade,
+            analytic,
+            json,
+            out,
+        }) => {
+            let lp = match lp {
+                BodeLoop::Plant => cncsim::frequency::Loop::Plant,
+                BodeLoop::Velocity => cncsim::frequency::Loop::Velocity,
+                BodeLoop::Position => cncsim::frequency::Loop::Position,
+            };
+            let mut options = cncsim::scenario::BodeOptions::new(&axis, lp);
+            options.from = from;
+            options.to = to;
+            options.per_decade = per_decade;
+            options.plant = lane(analytic);
+            Ok((Box::new(bode(&scenario, &options, out, interrupted)?), json))
+        }
+        Some(Command::ExportFmu {
+            scenario,
+            out,
+            json,
+        }) => Ok((Box::new(export_fmu(&scenario, &out)?), json)),
         Some(Command::Inspect {
             program,
             euclidean_feed,
@@ -320,6 +348,46 @@ fn check(
             Stream::Err => eprintln!("{line}"),
         },
     ))
+}
+
+/// `export-fmu`: the scenario's plant as an FMI 3.0 co-simulation FMU.
+fn export_fmu(scenario: &Path, out: &Path) -> Result<ExportFmuReport, Refused> {
+    let s = Scenario::load(scenario)?;
+    let text = std::fs::read_to_string(scenario)?;
+    let assembly = Assembly::new(&s)?;
+    let library = cncsim::fmi::export::find_library().map_err(Refused::Failed)?;
+    let exported = cncsim::fmi::export::export(&s, &text, &assembly, &library, out)
+        .map_err(|e| Refused::BadInput(format!("{}: {e}", scenario.display())))?;
+    Ok(ExportFmuReport(exported))
+}
+
+/// What `export-fmu` wrote.
+struct ExportFmuReport(cncsim::fmi::export::Exported);
+
+impl Report for ExportFmuReport {
+    fn write(&self) -> Result<Vec<PathBuf>, cncsim::command::WriteError> {
+        Ok(vec![self.0.fmu.clone()])
+    }
+
+    fn text(&self) -> String {
+        let e = &self.0;
+        format!(
+            "{}: FMI 3.0 co-simulation FMU of the plant of '{}'\n  step: {} ms (the servo period); {} ticks from t = {:.6} s (settle and approach before the program at t = 0)\n  inputs: {}\n  outputs: {}\n  resources: {}\n  library: {}\n",
+            e.fmu.display(),
+            e.model_name,
+            e.servo_period * 1e3,
+            e.ticks,
+            e.start_time,
+            e.inputs.join(", "),
+            e.outputs.join(", "),
+            e.resources.join(", "),
+            e.library.display()
+        )
+    }
+
+    fn json(&self) -> Option<serde_json::Value> {
+        serde_json::to_value(&self.0).ok()
+    }
 }
 
 fn plan(
@@ -611,4 +679,28 @@ fn ballbar(
         path: scenario.path,
         out,
     })
+}
+
+fn bode(
+    path: &Path,
+    options: &cncsim::scenario::BodeOptions,
+    out: Option<PathBuf>,
+    interrupted: &AtomicBool,
+) -> Result<cncsim::scenario::BodeOutput, Refused> {
+    let scenario = Scenario::load(path)?;
+    print_warnings(&scenario.warnings);
+    let out = out.unwrap_or_else(|| {
+        Path::new("out").join(folder_name(&format!(
+            "bode_{}_{}_{}",
+            scenario.name,
+            options.axis,
+            cncsim::scenario::loop_name(options.lp)
+        )))
+    });
+    let mut progress = |_: usize, _: usize| !interrupted.load(Ordering::Relaxed);
+    match cncsim::scenario::run_bode(&scenario, options, &mut progress) {
+        Ok(run) => Ok(cncsim::scenario::BodeOutput { run, out }),
+        Err(cncsim::scenario::BodeError::Failed(m)) => Err(Refused::Failed(m)),
+        Err(e) => Err(Refused::BadInput(e.to_string())),
+    }
 }

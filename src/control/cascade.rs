@@ -16,8 +16,11 @@
 //! samples (the velocity half a period ago), then a first-order low-pass at
 //! `velocity_filter_hz` (none when 0), as drives do to tame quantisation noise. Both
 //! integrators stop while their output is saturated in the direction of their error
-//! (conditional integration: no windup).
+//! (conditional integration: no windup). The command can pass a low-pass and a notch filter
+//! (`super::filters`) before the clamp, as a drive's current-setpoint filters, against the drive
+//! train's resonance.
 
+use super::filters::{Biquad, TorqueFilters};
 use super::{command_for_torque, ActuatorKind, Controller, ControllerInput};
 use crate::dynamics::{DynamicsModel, DynamicsWorkspace};
 use crate::machine::Drive;
@@ -39,6 +42,8 @@ pub struct CascadeAxis {
     pub velocity_limit: f64,
     /// |output| limit (infinite for none).
     pub output_limit: f64,
+    /// Filters on the command, after the velocity loop and the feed-forward.
+    pub filters: TorqueFilters,
 }
 
 /// State of one axis's two loops.
@@ -51,9 +56,20 @@ struct AxisState {
     velocity: f64,
 }
 
+/// The command filters of one axis, with their state.
+#[derive(Debug, Clone, Default)]
+struct FilterChain(Vec<Biquad>);
+
+impl FilterChain {
+    fn step(&mut self, x: f64) -> f64 {
+        self.0.iter_mut().fold(x, |v, b| b.step(v))
+    }
+}
+
 pub struct Cascade {
     axes: Vec<CascadeAxis>,
     state: Vec<AxisState>,
+    filters: Vec<FilterChain>,
     /// Low-pass coefficient of the velocity estimate (1 = no filter).
     smoothing: f64,
     model: DynamicsModel,
@@ -84,6 +100,10 @@ impl Cascade {
         };
         Cascade {
             state: vec![AxisState::default(); n],
+            filters: axes
+                .iter()
+                .map(|a| FilterChain(a.filters.biquads(period)))
+                .collect(),
             axes,
             smoothing,
             workspace: model.workspace(),
@@ -116,7 +136,14 @@ impl Controller for Cascade {
             let a = DVector::from_column_slice(input.setpoint_acceleration);
             self.mass.mul_to(&a, &mut self.torque);
         }
-        for (i, (axis, s)) in self.axes.iter().zip(&mut self.state).enumerate() {
+        let chains = self.filters.iter_mut();
+        for (i, ((axis, s), chain)) in self
+            .axes
+            .iter()
+            .zip(&mut self.state)
+            .zip(chains)
+            .enumerate()
+        {
             let x = input.measured_position[i];
             let motor = input.motor_position[i];
             let raw = match s.previous_position {
@@ -147,9 +174,11 @@ impl Controller for Cascade {
             } else {
                 0.0
             };
-            let unclamped_u = axis.velocity_kp * velocity_error
-                + axis.velocity_ki * (s.velocity_integral + t * velocity_error)
-                + feed_forward;
+            let unclamped_u = chain.step(
+                axis.velocity_kp * velocity_error
+                    + axis.velocity_ki * (s.velocity_integral + t * velocity_error)
+                    + feed_forward,
+            );
             let u = unclamped_u.clamp(-axis.output_limit, axis.output_limit);
             integrate(&mut s.velocity_integral, t, velocity_error, unclamped_u, u);
             command[i] = u;
@@ -160,5 +189,8 @@ impl Controller for Cascade {
         self.state
             .iter_mut()
             .for_each(|s| *s = AxisState::default());
+        for chain in &mut self.filters {
+            chain.0.iter_mut().for_each(Biquad::reset);
+        }
     }
 }

@@ -105,6 +105,10 @@ impl Controller for Compensated {
             .iter_mut()
             .for_each(|s| *s = AxisState::default());
     }
+
+    fn fault(&self) -> Option<&str> {
+        self.inner.fault()
+    }
 }
 
 #[cfg(test)]

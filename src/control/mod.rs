@@ -6,6 +6,7 @@ mod actuator;
 mod cascade;
 mod compensation;
 mod computed_torque;
+pub mod filters;
 mod pid;
 mod task_space;
 
@@ -13,6 +14,7 @@ pub use actuator::{command_for_torque, Actuator, ActuatorKind, ActuatorOutput};
 pub use cascade::{Cascade, CascadeAxis};
 pub use compensation::{AxisCompensation, Compensated};
 pub use computed_torque::ComputedTorque;
+pub use filters::{Notch, TorqueFilters};
 pub use pid::{Pid, PidForm, PidGains, PidSettings};
 pub use task_space::TaskSpace;
 
@@ -44,6 +46,11 @@ pub trait Controller {
     fn update(&mut self, input: &ControllerInput<'_>, command: &mut [f64]);
     /// Forgets all state (integrators, previous samples), as after power-up.
     fn reset(&mut self);
+    /// Why the controller could not compute its last command, if it could not (a controller
+    /// FMU whose step failed): the loop stops the lane there. Built-in controllers never fail.
+    fn fault(&self) -> Option<&str> {
+        None
+    }
 }
 
 /// Independent PID loops with feed-forward, one per axis.

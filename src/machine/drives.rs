@@ -338,6 +338,20 @@ pub struct Drive {
     /// dead band of this width between the drive side and the carriage.
     #[serde(default)]
     pub backlash: f64,
+    /// Equivalent stiffness of the transmission at the joint, between the drive side and the
+    /// carriage (linear axes, N/m): screw, nut and bearings, or belt, in series with the
+    /// coupling and gearbox reflected through the ratio. Absent: a rigid transmission.
+    #[serde(default)]
+    pub transmission_stiffness_n_per_m: Option<f64>,
+    /// Viscous damping across that stiffness (N·s/m); needs the stiffness.
+    #[serde(default)]
+    pub transmission_damping_n_s_per_m: Option<f64>,
+    /// Rotary axes: the transmission's torsional stiffness at the joint (N·m/rad).
+    #[serde(default)]
+    pub transmission_stiffness_nm_per_rad: Option<f64>,
+    /// Rotary axes: damping across it (N·m·s/rad).
+    #[serde(default)]
+    pub transmission_damping_nm_s_per_rad: Option<f64>,
     /// Guide contact with friction (linear axes); absent = a frictionless rigid joint.
     #[serde(default)]
     pub guide: Option<Guide>,
@@ -400,6 +414,41 @@ impl Drive {
         self.viscous_damping_nm_s_per_rad * self.ratio().powi(2)
     }
 
+    /// The transmission's compliance at the joint, if it has one (`None`: rigid).
+    pub fn compliance(&self) -> Option<Compliance> {
+        let (stiffness, damping) = match self.transmission.joint_kind() {
+            JointKind::Revolute => (
+                self.transmission_stiffness_nm_per_rad,
+                self.transmission_damping_nm_s_per_rad,
+            ),
+            _ => (
+                self.transmission_stiffness_n_per_m,
+                self.transmission_damping_n_s_per_m,
+            ),
+        };
+        Some(Compliance {
+            stiffness: stiffness?,
+            damping: damping.unwrap_or(0.0),
+        })
+    }
+
+    /// Sets (or with `None` removes) the transmission's compliance, in the keys of this
+    /// drive's joint kind.
+    pub fn set_compliance(&mut self, compliance: Option<Compliance>) {
+        let stiffness = compliance.map(|c| c.stiffness);
+        let damping = compliance.map(|c| c.damping);
+        match self.transmission.joint_kind() {
+            JointKind::Revolute => {
+                self.transmission_stiffness_nm_per_rad = stiffness;
+                self.transmission_damping_nm_s_per_rad = damping;
+            }
+            _ => {
+                self.transmission_stiffness_n_per_m = stiffness;
+                self.transmission_damping_n_s_per_m = damping;
+            }
+        }
+    }
+
     /// Joint units per encoder count, if the encoder is modelled.
     pub fn encoder_resolution(&self) -> Option<f64> {
         self.encoder_counts_per_rev
@@ -445,6 +494,7 @@ impl Drive {
                 self.backlash
             ));
         }
+        self.check_compliance()?;
         if let Some(guide) = &self.guide {
             guide.validate()?;
             if self.transmission.joint_kind() != JointKind::Prismatic {
@@ -468,6 +518,84 @@ impl Drive {
         Ok(())
     }
 }
+
+impl Drive {
+    /// The compliance keys match the transmission's joint kind, and their values their ranges.
+    fn check_compliance(&self) -> Result<(), String> {
+        let linear = [
+            (
+                "transmission_stiffness_n_per_m",
+                self.transmission_stiffness_n_per_m,
+            ),
+            (
+                "transmission_damping_n_s_per_m",
+                self.transmission_damping_n_s_per_m,
+            ),
+        ];
+        let rotary = [
+            (
+                "transmission_stiffness_nm_per_rad",
+                self.transmission_stiffness_nm_per_rad,
+            ),
+            (
+                "transmission_damping_nm_s_per_rad",
+                self.transmission_damping_nm_s_per_rad,
+            ),
+        ];
+        let (own, other, kind) = match self.transmission.joint_kind() {
+            JointKind::Revolute => (rotary, linear, "a rotary (gear) axis"),
+            _ => (linear, rotary, "a linear (belt or screw) axis"),
+        };
+        if let Some((name, _)) = other.iter().find(|(_, v)| v.is_some()) {
+            return Err(format!(
+                "{name} does not fit {kind}: expected {} and {}",
+                own[0].0, own[1].0
+            ));
+        }
+        match own {
+            [(_, None), (damping, Some(_))] => Err(format!(
+                "{damping} without {}: damping acts across the transmission's stiffness",
+                own[0].0
+            )),
+            [(stiffness, Some(k)), (damping, c)] => {
+                let &(_, unit, lo, hi) = COMPLIANCE_RANGES
+                    .iter()
+                    .find(|r| r.0 == stiffness)
+                    .expect("every compliance key has a range");
+                check_range(stiffness, k, unit, lo, hi)?;
+                if let Some(c) = c {
+                    let &(_, unit, lo, hi) = COMPLIANCE_RANGES
+                        .iter()
+                        .find(|r| r.0 == damping)
+                        .expect("every compliance key has a range");
+                    check_range(damping, c, unit, lo, hi)?;
+                }
+                Ok(())
+            }
+            _ => Ok(()),
+        }
+    }
+}
+
+/// A transmission's compliance at the joint: the spring and damper between the drive side
+/// (rotor, coupling, gearbox, pulley or screw, reflected through the ratio) and the carriage.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Compliance {
+    /// N/m at a linear joint, N·m/rad at a rotary one.
+    pub stiffness: f64,
+    /// N·s/m or N·m·s/rad.
+    pub damping: f64,
+}
+
+/// Ranges of the compliance keys: from a long rubber belt to a preloaded large ball screw (a
+/// feed drive's axial stiffness is typically 10–1000 N/µm), and from the softest to the
+/// stiffest gearbox and direct drive.
+pub const COMPLIANCE_RANGES: &[(&str, &str, f64, f64)] = &[
+    ("transmission_stiffness_n_per_m", "N/m", 1e2, 1e11),
+    ("transmission_damping_n_s_per_m", "N·s/m", 0.0, 1e8),
+    ("transmission_stiffness_nm_per_rad", "N·m/rad", 1e-1, 1e10),
+    ("transmission_damping_nm_s_per_rad", "N·m·s/rad", 0.0, 1e7),
+];
 
 /// The tool point: a point fixed in one link.
 #[derive(Debug, Clone, PartialEq, Deserialize)]

@@ -14,8 +14,9 @@ mod visual;
 mod xml_outline;
 
 pub use drives::{
-    AmplifierMode, DcMotor, Drive, DrivesFile, Feedback, Guide, InertiaFromGeometry, JointMode,
-    JointSetting, StribeckCurve, Tool, Transmission, Workpiece, AXIS_LETTERS, DENSITY_RANGE_KG_M3,
+    AmplifierMode, Compliance, DcMotor, Drive, DrivesFile, Feedback, Guide, InertiaFromGeometry,
+    JointMode, JointSetting, StribeckCurve, Tool, Transmission, Workpiece, AXIS_LETTERS,
+    COMPLIANCE_RANGES, DENSITY_RANGE_KG_M3,
 };
 pub use joints::Undriven;
 pub use mesh::{MAX_MESH_FILE_BYTES, MAX_MESH_TRIANGLES};

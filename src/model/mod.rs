@@ -4,6 +4,13 @@
 //! reflected through the transmission ratio. Drives push with a generalised force on their
 //! joint (reaction on the parent link, where the motor is mounted).
 //!
+//! A compliant transmission (a drive with a stiffness) splits the axis in two bodies: the drive
+//! side (rotor, coupling, gearbox, pulley or screw, its inertia the armature of its own DOF)
+//! and the carriage, on a free DOF relative to it. The spring and damper between them, with the
+//! backlash as a dead zone inside (no force within the gap), push the two apart every physics
+//! step ([`TransmissionSpring`]). Without a stiffness the backlash is a rigid stop instead: a
+//! joint limit of the dead-band DOF.
+//!
 //! This is the only module that knows about Rapier. Its inputs and outputs are plain numbers
 //! per machine axis, in joint units (m or rad) at the joint side of the transmission.
 
@@ -48,7 +55,77 @@ pub enum ModelError {
     MasslessMovingLink(String),
     #[error("Rapier refused joint '{0}' (it would close a loop)")]
     Joint(String),
+    #[error("axis '{axis}': a compliant transmission needs inertia on its drive side (rotor_inertia_kg_m2 > 0, and the drives' dynamics included)")]
+    CompliantWithoutDriveInertia { axis: String },
+    #[error("axis '{axis}': a compliant transmission needs a moving carriage with mass")]
+    CompliantWithoutLoad { axis: String },
+    #[error("axis '{axis}': the transmission's mode at {frequency_hz:.1} Hz (stiffness {stiffness:e}, damping {damping:e}) needs a physics step of at most {max_step:.3e} s to be integrated faithfully; the step is {step:.3e} s (lower [timing] physics_step_ms)")]
+    StepTooLongForMode {
+        axis: String,
+        frequency_hz: f64,
+        stiffness: f64,
+        damping: f64,
+        max_step: f64,
+        step: f64,
+    },
 }
+
+/// The spring and damper of a compliant transmission between the drive side and the carriage,
+/// in joint units, with the backlash as a dead zone: the drive passes
+/// λ = k·(δ − clamp(δ, ±b/2)) + c·δ̇ to the carriage while the gap is closed (|δ| > b/2),
+/// nothing while it is open; δ = drive − carriage.
+#[derive(Debug, Clone, Copy, PartialEq)]
+struct TransmissionSpring {
+    stiffness: f64,
+    damping: f64,
+    half_gap: f64,
+}
+
+impl TransmissionSpring {
+    /// Stretch of the spring beyond the gap for gap δ (zero within it).
+    fn stretch(&self, gap: f64) -> f64 {
+        gap - gap.clamp(-self.half_gap, self.half_gap)
+    }
+
+    /// Force on the carriage (N or N·m) over a step of length `h` that starts at gap δ moving
+    /// at δ̇. Within the gap or beyond it for the whole step (δ moving on at δ̇): the force at
+    /// the start of the step, the engine's symplectic Euler step. A step in which the gap
+    /// closes or opens gets the mean force over the part of the step the spring is engaged,
+    /// δ taken as moving linearly: the engagement then starts where the gap ends, not at the
+    /// step boundary, as the analytic model's located events have it (the rebound off the
+    /// spring converges to the analytic one as the step shrinks, `tests/compliant_drives.rs`).
+    fn force(&self, gap: f64, gap_rate: f64, h: f64) -> f64 {
+        let start = self.stretch(gap);
+        let end = self.stretch(gap + gap_rate * h);
+        let engaged = |stretch: f64| stretch != 0.0;
+        if !engaged(start) && !engaged(end) {
+            return 0.0;
+        }
+        if engaged(start) && engaged(end) && end.signum() == start.signum() {
+            return self.stiffness * start + self.damping * gap_rate;
+        }
+        if gap_rate == 0.0 {
+            return self.stiffness * start;
+        }
+        // Engaged over [0, h·a) with stretch start → 0 (leaving) and over (h·(1 − e), h] with
+        // stretch 0 → end (entering); a step can leave one side and enter the other.
+        let mut impulse_per_h = 0.0;
+        if engaged(start) {
+            let leaving = (start / gap_rate).abs() / h;
+            impulse_per_h += leaving * (self.stiffness * start / 2.0 + self.damping * gap_rate);
+        }
+        if engaged(end) {
+            let entering = (end / gap_rate).abs() / h;
+            impulse_per_h += entering * (self.stiffness * end / 2.0 + self.damping * gap_rate);
+        }
+        impulse_per_h
+    }
+}
+
+/// Largest ω·h (mode angular frequency × physics step) at which a compliant transmission is
+/// integrated: the engine's symplectic Euler step is stable below 2 and shifts the mode by
+/// (ω·h)²/24, 1 % here. The same bound holds the damper's explicit step, c·h/m.
+const MAX_MODE_PHASE_PER_STEP: f64 = 0.5;
 
 /// One degree of freedom of the multibody that moves the tool.
 struct ChainDof {
@@ -75,6 +152,8 @@ struct AxisBinding {
     drive_dof: usize,
     /// Multibody link and DOF of the dead band between drive and carriage, if any.
     slack: Option<(usize, usize)>,
+    /// The carriage's body and the spring of a compliant transmission (on the `slack` DOF).
+    spring: Option<(RigidBodyHandle, TransmissionSpring)>,
     /// Index into a joint's coordinate array (0 = translation along the joint x, 3 = rotation).
     coordinate: usize,
     /// Multibody link and DOF of the carriage's pitch on two runners, if it has them.
@@ -115,6 +194,10 @@ pub struct Plant {
     multibody: Option<MultibodyJointHandle>,
     tool_link: usize,
     tool_offset: Point3<f64>,
+    /// The drives' generalised forces, held between calls of [`Plant::set_joint_forces`].
+    joint_forces: Vec<f64>,
+    /// Whether an axis has a compliant transmission: then every step reapplies the forces.
+    compliant: bool,
     steps: u64,
 }
 
@@ -236,6 +319,7 @@ impl Plant {
             let axis = machine.axes.iter().position(|a| a.joint == j);
             let drive = axis.map(|a| &machine.axes[a].drive);
             let backlash = drive.map_or(0.0, |d| d.backlash);
+            let compliance = drive.and_then(|d| d.compliance());
             let guide = drive.and_then(|d| d.guide);
             let parent = link_bodies[joint.parent];
             let child = link_bodies[joint.child];
@@ -261,10 +345,11 @@ impl Plant {
                 multibody.get_or_insert(handle);
                 Ok::<_, ModelError>(handle)
             };
-            if backlash > 0.0 {
+            if backlash > 0.0 || compliance.is_some() {
                 // The drive side (motor, gearbox, pulley or screw nut) as its own body: no mass
                 // of its own, its inertia is the drive's armature on its DOF. The carriage
-                // follows it through a short-travel joint with rigid limits ±b/2.
+                // follows it through a short-travel joint with rigid limits ±b/2, or, through
+                // a compliant transmission, a free one (the spring acts every step).
                 let d = world.insert_body(
                     RigidBodyBuilder::dynamic()
                         .can_sleep(false)
@@ -279,12 +364,15 @@ impl Plant {
                     JointKind::Revolute => (JointAxis::AngX, JointAxesMask::LOCKED_REVOLUTE_AXES),
                     _ => (JointAxis::LinX, JointAxesMask::LOCKED_PRISMATIC_AXES),
                 };
-                let slack_data = GenericJointBuilder::new(slack_locked & !free_normal)
+                let mut slack_builder = GenericJointBuilder::new(slack_locked & !free_normal)
                     .local_frame1(to_pose(&frame))
                     .local_frame2(to_pose(&frame))
-                    .limits(slack_axis, [-backlash / 2.0, backlash / 2.0])
-                    .contacts_enabled(false)
-                    .build();
+                    .contacts_enabled(false);
+                if compliance.is_none() {
+                    slack_builder =
+                        slack_builder.limits(slack_axis, [-backlash / 2.0, backlash / 2.0]);
+                }
+                let slack_data = slack_builder.build();
                 drive_joint.push(Some(insert(&mut world, parent, d, drive_data)?));
                 child_joint.push(Some(insert(&mut world, d, child, slack_data)?));
                 drive_body.push(d);
@@ -346,6 +434,13 @@ impl Plant {
                 .drive
                 .guide
                 .is_some_and(|g| g.runner_spacing_m.is_some());
+            let spring = match axis.drive.compliance() {
+                Some(c) => Some((
+                    link_bodies[joint.child],
+                    transmission_spring(machine, axis, c, options)?,
+                )),
+                None => None,
+            };
             axes.push(AxisBinding {
                 driven: drive_body[j],
                 parent: link_bodies[joint.parent],
@@ -354,6 +449,7 @@ impl Plant {
                 drive_link: link_of(&world, drive),
                 drive_dof: usize::MAX, // known once the fixed root is resolved (configure_dofs)
                 slack: slack.map(|link| (link, usize::MAX)),
+                spring,
                 coordinate: coordinate(joint.kind),
                 pitch: pitches.then(|| (link_of(&world, carriage), usize::MAX)),
                 feedback: axis.drive.feedback,
@@ -432,9 +528,14 @@ impl Plant {
 
         let mut forced_bodies: Vec<RigidBodyHandle> = axes
             .iter()
-            .flat_map(|a| [a.driven, a.parent])
+            .flat_map(|a| {
+                [a.driven, a.parent]
+                    .into_iter()
+                    .chain(a.spring.map(|(c, _)| c))
+            })
             .filter(|&body| world.bodies[body].is_dynamic())
             .collect();
+        let compliant = axes.iter().any(|a| a.spring.is_some());
         forced_bodies.sort_unstable_by_key(|body| body.into_raw_parts());
         forced_bodies.dedup();
         let mut plant = Plant {
@@ -452,6 +553,8 @@ impl Plant {
             multibody,
             tool_link: machine.tool_link,
             tool_offset: Point3::from(machine.tool.offset_m),
+            joint_forces: vec![0.0; machine.axes.len()],
+            compliant,
             steps: 0,
         };
         let passive_dofs = machine
@@ -559,13 +662,24 @@ impl Plant {
     /// (the URDF's axis line), not through the carriage's centre of mass: on a carriage that
     /// pitches, the drive's line decides the moment that shifts the load between the runners.
     pub fn set_joint_forces(&mut self, forces: &[f64]) {
+        for (held, &f) in self.joint_forces.iter_mut().zip(forces) {
+            *held = f;
+        }
+        if !self.compliant {
+            self.apply_forces();
+        }
+    }
+
+    /// Applies the held drive forces and, on compliant axes, the transmission springs at the
+    /// present state.
+    fn apply_forces(&mut self) {
         // Only these bodies: touching a body marks it modified, which Rapier then processes.
         for &body in &self.forced_bodies {
             let rb = &mut self.world.bodies[body];
             rb.reset_forces(false);
             rb.reset_torques(false);
         }
-        for (binding, &f) in self.axes.iter().zip(forces) {
+        for (binding, &f) in self.axes.iter().zip(&self.joint_forces) {
             // The driven body's origin is the joint origin (the drive side of a backlash sits
             // at its carriage's pose).
             let (direction, origin) = {
@@ -594,10 +708,53 @@ impl Plant {
                 JointKind::Fixed => {}
             }
         }
+        if self.compliant {
+            self.apply_transmission_springs();
+        }
+    }
+
+    /// Pushes drive side and carriage of each compliant axis apart by the spring's force at
+    /// the state at the start of the step (explicit, see [`MAX_MODE_PHASE_PER_STEP`]).
+    fn apply_transmission_springs(&mut self) {
+        let Some(handle) = self.multibody else { return };
+        let Some((mb, _)) = self.world.multibody_joints.get(handle) else {
+            return;
+        };
+        let v = mb.generalized_velocity();
+        let step = self.world.integration_parameters.dt;
+        for b in &self.axes {
+            let (Some((carriage, spring)), Some((link, dof))) = (b.spring, b.slack) else {
+                continue;
+            };
+            // The slack coordinate is carriage − drive, δ its negative.
+            let slack = Self::coordinate(mb, link, b.coordinate);
+            let lambda = spring.force(-slack, -v[dof], step);
+            if lambda == 0.0 {
+                continue;
+            }
+            let driven = from_pose(self.world.bodies[b.driven].position());
+            let direction = driven.rotation * b.local_axis;
+            let load = to_vec(&(direction * lambda));
+            match b.kind {
+                JointKind::Prismatic => {
+                    let at = to_vec(&driven.translation.vector);
+                    self.world.bodies[carriage].add_force_at_point(load, at, false);
+                    self.world.bodies[b.driven].add_force_at_point(-load, at, false);
+                }
+                JointKind::Revolute => {
+                    self.world.bodies[carriage].add_torque(load, false);
+                    self.world.bodies[b.driven].add_torque(-load, false);
+                }
+                JointKind::Fixed => {}
+            }
+        }
     }
 
     /// Advances the physics by one step.
     pub fn step(&mut self) {
+        if self.compliant {
+            self.apply_forces();
+        }
         self.update_guide_friction();
         self.world.step();
         self.steps += 1;
@@ -926,6 +1083,85 @@ impl RigidGroups {
         }
         sums
     }
+}
+
+/// The spring of axis `axis`'s compliant transmission, refused where the engine's explicit step
+/// could not integrate its mode faithfully.
+fn transmission_spring(
+    machine: &Machine,
+    axis: &crate::machine::Axis,
+    compliance: crate::machine::Compliance,
+    options: &PlantOptions,
+) -> Result<TransmissionSpring, ModelError> {
+    let drive_mass = if options.include_drive_dynamics {
+        axis.drive.reflected_inertia()
+    } else {
+        0.0
+    };
+    if !(drive_mass > 0.0) {
+        return Err(ModelError::CompliantWithoutDriveInertia {
+            axis: axis.name.clone(),
+        });
+    }
+    let load = moved_inertia(machine, axis.joint);
+    if !(load > 0.0) {
+        return Err(ModelError::CompliantWithoutLoad {
+            axis: axis.name.clone(),
+        });
+    }
+    // The two-mass mode: ω² = k·(1/m_d + 1/m_c); the damper's rate c·(1/m_d + 1/m_c).
+    let flexibility = 1.0 / drive_mass + 1.0 / load;
+    let omega = (compliance.stiffness * flexibility).sqrt();
+    let rate = compliance.damping * flexibility;
+    let max_step = MAX_MODE_PHASE_PER_STEP / omega.max(rate);
+    if options.step > max_step {
+        return Err(ModelError::StepTooLongForMode {
+            axis: axis.name.clone(),
+            frequency_hz: omega / std::f64::consts::TAU,
+            stiffness: compliance.stiffness,
+            damping: compliance.damping,
+            max_step,
+            step: options.step,
+        });
+    }
+    Ok(TransmissionSpring {
+        stiffness: compliance.stiffness,
+        damping: compliance.damping,
+        half_gap: axis.drive.backlash / 2.0,
+    })
+}
+
+/// What joint `j` moves, at the home pose: the mass of everything downstream of a prismatic
+/// joint (kg), the moment of inertia of it about a revolute joint's axis (kg·m²).
+pub fn moved_inertia(machine: &Machine, j: usize) -> f64 {
+    let joint = &machine.joints[j];
+    let home = home_poses(machine);
+    let mut moved = vec![false; machine.links.len()];
+    moved[joint.child] = true;
+    // Joints are ordered parents first, so one pass collects the subtree.
+    for other in &machine.joints {
+        if moved[other.parent] {
+            moved[other.child] = true;
+        }
+    }
+    let frame = home[joint.parent] * joint.origin;
+    let axis = (frame.rotation * joint.axis).normalize();
+    let pivot = Point3::from(frame.translation.vector);
+    machine
+        .links
+        .iter()
+        .enumerate()
+        .filter(|(i, _)| moved[*i])
+        .map(|(i, link)| match joint.kind {
+            JointKind::Revolute => {
+                let rotation = home[i].rotation.to_rotation_matrix();
+                let inertia = rotation.matrix() * link.inertia * rotation.matrix().transpose();
+                let arm = (home[i] * link.center_of_mass - pivot).cross(&axis);
+                axis.dot(&(inertia * axis)) + link.mass * arm.norm_squared()
+            }
+            _ => link.mass,
+        })
+        .sum()
 }
 
 /// Pose of every link with all joint coordinates at zero.

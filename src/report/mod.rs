@@ -3,6 +3,7 @@
 
 mod ballbar;
 mod blueprint;
+mod bode;
 mod csv;
 mod events;
 mod metrics;
@@ -19,6 +20,7 @@ pub use ballbar::{
     ReversalSpike, ServoMismatch, Vibration,
 };
 pub use blueprint::{ab_blueprint, run_blueprint};
+pub use bode::{BodeRun, Curve, Figures, MIN_COHERENCE, PROMINENCE_DB};
 pub use csv::CsvWriter;
 pub use events::{Event, EventDetector, MAX_EVENTS_PER_KIND};
 pub use metrics::{AxisMetrics, Metrics, MetricsAccumulator, StallCounter};

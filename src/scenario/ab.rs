@@ -251,7 +251,7 @@ impl Report for AbOutput {
         match self
             .runs
             .iter()
-            .find_map(|(path, r)| r.stop.as_ref().map(|s| (path, s)))
+            .find_map(|(path, r)| r.stop().map(|s| (path, s)))
         {
             Some((path, stop)) => Ending::Failed(Some(format!("{}: {stop}", path.display()))),
             None => Ending::Done,

@@ -176,7 +176,7 @@ pub fn check_scenarios(
         };
         warn(show, &output.warnings);
         let verdict = &output.verdict;
-        if verdict.passed() && output.stop.is_none() {
+        if verdict.passed() && output.stop().is_none() {
             show(
                 Stream::Out,
                 format!("PASS {} ({} bounds)", f.display(), verdict.checked),
@@ -185,7 +185,7 @@ pub fn check_scenarios(
             continue;
         }
         show(Stream::Out, format!("FAIL {}", f.display()));
-        if let Some(stop) = &output.stop {
+        if let Some(stop) = output.stop() {
             show(Stream::Out, format!("  {stop}"));
         }
         for b in &verdict.breaches {

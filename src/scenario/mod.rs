@@ -4,6 +4,7 @@
 mod ab;
 mod assemble;
 mod ballbar;
+mod bode;
 mod check;
 mod file;
 mod machine_setup;
@@ -23,12 +24,17 @@ pub use ballbar::{
     default_radius_and_feed, plane_axes, run_ballbar, BallbarOptions, BallbarOutput, BallbarPlane,
     BallbarSpec,
 };
+pub use bode::{
+    axis_linear_model, check_range, loop_name, run_bode, AxisLinearModel, BodeError, BodeOptions,
+    BodeOutput, DEFAULT_FROM_HZ, DEFAULT_TO_SHARE,
+};
 pub use check::{check, check_scenarios, scenario_files, Breach, CheckReport, Verdict};
 pub use file::{
     limits, ActuatorSettings, AnalyticSettings, Approach, AxisCascade, AxisGains, CascadeTable,
     CompensationEntry, ControlSpace, ControllerSettings, ControllerType, DeclaredVariants,
-    Expectation, FeedbackSettings, InverseDynamicsSettings, Mechanics, PidTable, PlannerSettings,
-    ProfileName, ProgramSettings, ProgramSource, RecordingSettings, Scenario, Timing,
+    Expectation, FeedbackSettings, FmuSettings, FrequencyResponse, InverseDynamicsSettings,
+    Mechanics, PidTable, PlannerSettings, ProfileName, ProgramSettings, ProgramSource,
+    RecordingSettings, Scenario, Timing, TransmissionEntry,
 };
 pub use machine_setup::{
     check_machine, drive_file_template, AxisRow, DriveFileDraft, MachineReport,

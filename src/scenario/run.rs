@@ -83,7 +83,6 @@ impl<'a> RunOptions<'a> {
 pub struct RunOutput {
     pub metrics: Metrics,
     pub metrics_json: serde_json::Value,
-    pub stop: Option<Stop>,
     /// How each lane ended and what it cost.
     pub outcome: Outcome,
     /// The physics, tick by tick, when asked for ([`RunOptions::traced`]).
@@ -102,6 +101,14 @@ pub struct RunOutput {
     /// The ISO 230-4 figures, when the program is the ballbar test (also in the metrics
     /// under `ballbar`).
     pub ballbar: Option<crate::report::BallbarRun>,
+}
+
+impl RunOutput {
+    /// Why the run stopped before the end of its program (its first lane, the physics, stopped
+    /// early); `None` when it ran to the end.
+    pub fn stop(&self) -> Option<&Stop> {
+        self.outcome.stop()
+    }
 }
 
 /// `cncsim run`: one scenario's run as the command reports it.
@@ -135,7 +142,7 @@ impl Report for ScenarioRun {
     }
 
     fn ending(&self) -> Ending {
-        match &self.output.stop {
+        match self.output.stop() {
             Some(stop) => Ending::Failed(Some(format!("{}: {stop}", self.path.display()))),
             None => Ending::Done,
         }
@@ -215,6 +222,40 @@ impl Assembly {
             }
             None => None,
         };
+        // The frequency responses the scenario asks for, measured after the program (each
+        // from rest, on its own machine); a sweep that stops leaves its figures out, so their
+        // bounds fail as not produced.
+        let mut bode_files = Vec::new();
+        if !s.frequency_response.is_empty() && outcome.stop().is_none() {
+            let mut figures = serde_json::Map::new();
+            for f in &s.frequency_response {
+                let mut options = super::BodeOptions::new(&f.axis, f.lp);
+                options.from = f.from_hz;
+                options.to = f.to_hz;
+                options.per_decade = f.per_decade;
+                match super::bode::bode_on(self, &options, progress) {
+                    Ok(run) => {
+                        figures.insert(f.axis.clone(), run.figures().metrics_json());
+                        if let Some(dir) = &out_dir {
+                            let out = dir.join(format!(
+                                "frequency_response_{}_{}",
+                                f.axis,
+                                super::loop_name(f.lp)
+                            ));
+                            let written = crate::command::Report::write(&super::BodeOutput {
+                                run,
+                                out: out.clone(),
+                            })
+                            .map_err(|e| FileError::new(&out, None, e.to_string()))?;
+                            bode_files.extend(written);
+                        }
+                    }
+                    Err(super::BodeError::Failed(_)) => {}
+                    Err(super::BodeError::Input(e)) => return Err(e),
+                }
+            }
+            metrics_json["frequency_response"] = serde_json::Value::Object(figures);
+        }
         let verdict = check(s, &metrics_json);
 
         // Everything computed so far is written, whether or not the run completed.
@@ -240,6 +281,7 @@ impl Assembly {
         if let Some(b) = &ballbar {
             files.extend(b.files.iter().cloned());
         }
+        files.extend(bode_files);
         let mut traces = recorder.into_traces().into_iter();
         let (trace, analytic) = if keep_trace {
             (traces.next(), traces.next().filter(|_| lanes.len() > 1))
@@ -247,7 +289,6 @@ impl Assembly {
             (None, None)
         };
         Ok(RunOutput {
-            stop: outcome.stop().cloned(),
             outcome,
             metrics,
             metrics_json,

@@ -18,8 +18,8 @@ use crate::sim::analytic::AxisModel;
 use crate::sim::LaneKind;
 use crate::sim::{self, Lane, LoopSettings, Trace, TraceRecorder};
 use crate::tune::{
-    design_cascade, find_ultimate, CascadeDesign, LinearActuator, LinearAxis, Response,
-    SearchError, SearchSettings, Trial, Ultimate, UltimateCycle, ZieglerNichols,
+    design_cascade, find_ultimate, CascadeDesign, LinearActuator, LinearAxis, LoopShape, Response,
+    SearchError, SearchSettings, Trial, TwoMass, Ultimate, UltimateCycle, ZieglerNichols,
 };
 use serde::Serialize;
 use std::path::PathBuf;
@@ -713,13 +713,24 @@ pub fn tune_cascade(
         .controller
         .as_ref()
         .map_or(0.0, |c| c.cascade.velocity_filter_hz);
-    let design = design_cascade(
-        &linear,
-        s.timing.servo_period,
+    // The command filters the scenario gives this axis, and its drive train.
+    let torque_filters = s
+        .controller
+        .as_ref()
+        .and_then(|c| c.cascade.axes.get(axis_name))
+        .map_or_else(Default::default, |a| a.settings.filters);
+    let drive = &machine.axes[axis].drive;
+    let shape = LoopShape {
         velocity_filter_hz,
-        bandwidth_hz,
-    )
-    .map_err(|m| bad(format!("--axis {axis_name}: {m}")))?;
+        torque_filters,
+        drive_train: drive.compliance().map(|c| TwoMass {
+            drive_mass: drive.reflected_inertia(),
+            stiffness: c.stiffness,
+            damping: c.damping,
+        }),
+    };
+    let design = design_cascade(&linear, s.timing.servo_period, &shape, bandwidth_hz)
+        .map_err(|m| bad(format!("--axis {axis_name}: {m}")))?;
 
     // The check: the velocity loop alone (no position loop) on a setpoint that ramps from rest
     // at a modest speed: its velocity feed-forward is a velocity step.
@@ -785,8 +796,20 @@ pub fn tune_cascade(
         .collect();
     let (rise, overshoot) = step_figures(&v, speed, s.timing.servo_period);
     let a = &design.axis;
+    let mut filters = String::new();
+    if let Some(hz) = a.filters.lowpass_hz {
+        filters += &format!(", torque_lowpass_hz = {}", toml_number(hz));
+    }
+    if let Some(n) = a.filters.notch {
+        filters += &format!(
+            ", notch_hz = {}, notch_width_hz = {}, notch_depth = {}",
+            toml_number(n.hz),
+            toml_number(n.width_hz),
+            toml_number(n.depth)
+        );
+    }
     let toml = format!(
-        "cascade.{axis_name} = {{ position_kp = {}, velocity_kp = {}, velocity_ki = {}, velocity_ff = 1.0, acceleration_ff = 1.0 }}",
+        "cascade.{axis_name} = {{ position_kp = {}, velocity_kp = {}, velocity_ki = {}, velocity_ff = 1.0, acceleration_ff = 1.0{filters} }}",
         toml_number(a.position_kp),
         toml_number(a.velocity_kp),
         toml_number(a.velocity_ki)
@@ -903,6 +926,22 @@ impl CascadeTuneReport {
         t += &format!(
             "  velocity     PI, crossover {:.2} Hz with {:.1}° phase margin (servo period, current lag, filter and PI zero counted): Kpv = {:.5e} per {speed}, Kiv = {:.5e} per {unit}\n",
             d.velocity_bandwidth_hz, d.phase_margin_deg, d.axis.velocity_kp, d.axis.velocity_ki
+        );
+        if let (Some(r), Some(a)) = (d.resonance_hz, d.antiresonance_hz) {
+            t += &format!(
+                "  drive train  compliant: resonance {r:.2} Hz, antiresonance {a:.2} Hz (seen from the motor); crossover chosen for {:.0}° phase and {:.0} dB gain margin\n",
+                crate::tune::PHASE_MARGIN_DEG,
+                crate::tune::GAIN_MARGIN_DB
+            );
+        }
+        t += &format!(
+            "  margins      phase {:.1}°, gain {} (read off the open loop's frequency response)\n",
+            d.phase_margin_deg,
+            if d.gain_margin_db.is_finite() {
+                format!("{:.1} dB", d.gain_margin_db)
+            } else {
+                "infinite".into()
+            }
         );
         t += &format!(
             "  position     P at a quarter of it: Kpp = {:.4} 1/s ({:.2} Hz), velocity and acceleration feed-forward 1\n",

@@ -40,6 +40,19 @@
 //! the source data and no step small enough to resolve a contact oscillation. The price is
 //! the same as for friction: impacts and separations are events located inside the step.
 //!
+//! # Compliant transmissions: two masses, a spring and a damper, the backlash a dead zone
+//!
+//! With a transmission stiffness k and damping c (the drive file's `transmission_stiffness_*`)
+//! the drive side and the carriage are two bodies for good, joined by
+//!
+//! ```text
+//!   λ = k·(δ − side·b/2) + c·(v_d − v_c)   while |δ| > b/2 (side = sign δ),   λ = 0 within the gap
+//! ```
+//!
+//! (side = 0 without backlash: the spring is always engaged). Entering and leaving the gap are
+//! events located in the step like the others; in each mode the equations are linear, so they
+//! are solved exactly as well.
+//!
 //! # Integration and the loop
 //!
 //! Fixed steps (the servo period over `steps_per_period`), restarted at every event. A mode
@@ -53,7 +66,9 @@
 //! controller are the very ones the physics runs with.
 
 use super::{Hold, Plant, Sensors};
-use crate::machine::{AmplifierMode, Drive, Feedback, JointKind, Machine, StribeckCurve};
+use crate::machine::{
+    AmplifierMode, Compliance, Drive, Feedback, JointKind, Machine, StribeckCurve,
+};
 use nalgebra::{UnitQuaternion, Vector3};
 
 mod exact;
@@ -68,6 +83,8 @@ pub struct AxisModelOptions {
     pub backlash: f64,
     /// Command is motor torque clamped to `Drive::peak_torque_nm`, instead of amplifier input.
     pub ideal_actuator: bool,
+    /// The transmission's stiffness and damping at the joint; `None`: rigid.
+    pub compliance: Option<Compliance>,
     pub feedback: Feedback,
 }
 
@@ -153,6 +170,9 @@ enum Contact {
     Open,
     /// Gap closed at δ = side·b/2 (side = +1: the drive pushes the carriage forward).
     Closed { side: f64 },
+    /// A compliant transmission beyond the gap's end `side` (±1; 0 without backlash): the
+    /// spring and damper pass λ to the carriage.
+    Compliant { side: f64 },
 }
 
 /// State of the guide friction of the body that carries the carriage.
@@ -196,6 +216,7 @@ pub struct AxisModel {
     gravity_force: f64,
     friction: StribeckCurve,
     backlash: f64,
+    compliance: Option<Compliance>,
     feedback: Feedback,
     state: AxisState,
     mode: Mode,
@@ -274,8 +295,22 @@ impl AxisModel {
                 value: gravity_along_axis,
             });
         }
-        if options.backlash > 0.0 && moved_mass == 0.0 {
+        if (options.backlash > 0.0 || options.compliance.is_some()) && moved_mass == 0.0 {
             return Err(AxisModelError::MasslessCarriage);
+        }
+        if let Some(c) = options.compliance {
+            if !(c.stiffness.is_finite() && c.stiffness > 0.0) {
+                return Err(AxisModelError::NotPositive {
+                    name: "transmission stiffness",
+                    value: c.stiffness,
+                });
+            }
+            if !(c.damping.is_finite() && c.damping >= 0.0) {
+                return Err(AxisModelError::Negative {
+                    name: "transmission damping",
+                    value: c.damping,
+                });
+            }
         }
         let actuator = if options.ideal_actuator {
             Actuator::IdealTorque {
@@ -303,6 +338,7 @@ impl AxisModel {
             gravity_force: moved_mass * gravity_along_axis,
             friction: options.friction,
             backlash: options.backlash,
+            compliance: options.compliance,
             feedback: options.feedback,
             state: AxisState::default(),
             mode: Mode {
@@ -383,6 +419,7 @@ impl AxisModel {
                     friction,
                     backlash: axis.drive.backlash,
                     ideal_actuator,
+                    compliance: axis.drive.compliance(),
                     feedback: axis.drive.feedback,
                 };
                 AxisModel::from_drive(&axis.drive, mass, along, joint.damping, options)
@@ -577,10 +614,19 @@ impl AxisModel {
         }
     }
 
+    /// Force a compliant transmission passes to the carriage beyond gap end `side`.
+    fn spring_force(&self, y: &AxisState, side: f64) -> f64 {
+        let Some(c) = self.compliance else { return 0.0 };
+        let gap = y.drive_position - y.carriage_position;
+        c.stiffness * (gap - side * self.backlash / 2.0)
+            + c.damping * (y.drive_velocity - y.carriage_velocity)
+    }
+
     /// Force on the friction-carrying body other than friction and damping, at rest.
     fn applied_force_at_rest(&self, y: &AxisState, contact: Contact, input: ActuatorInput) -> f64 {
         match contact {
             Contact::Open => self.gravity_force,
+            Contact::Compliant { side } => self.spring_force(y, side) + self.gravity_force,
             Contact::Rigid | Contact::Closed { .. } => self.motor(y, input).0 + self.gravity_force,
         }
     }
@@ -606,15 +652,21 @@ impl AxisModel {
                 rate.drive_velocity = a;
                 rate.carriage_velocity = a;
             }
-            Contact::Open => {
+            Contact::Open | Contact::Compliant { .. } => {
+                // What the transmission passes to the carriage: nothing across an open gap.
+                let lambda = match mode.contact {
+                    Contact::Compliant { side } => self.spring_force(y, side),
+                    _ => 0.0,
+                };
                 rate.drive_position = y.drive_velocity;
                 rate.drive_velocity =
-                    (motor_force - self.drive_damping * y.drive_velocity) / self.drive_mass;
+                    (motor_force - self.drive_damping * y.drive_velocity - lambda)
+                        / self.drive_mass;
                 rate.carriage_position = y.carriage_velocity;
                 rate.carriage_velocity = match mode.guide {
                     Guide::Stuck => 0.0,
                     Guide::Sliding { direction } => {
-                        (self.gravity_force
+                        (lambda + self.gravity_force
                             - self.carriage_damping * y.carriage_velocity
                             - self.friction.sliding(y.carriage_velocity) * direction)
                             / self.carriage_mass
@@ -652,9 +704,13 @@ impl AxisModel {
         next
     }
 
-    /// Whether no guard of the current mode can fail: one rigid body without Coulomb friction.
+    /// Whether no guard of the current mode can fail: one rigid body, or a compliant
+    /// transmission without backlash, without Coulomb friction.
     fn mode_cannot_end(&self) -> bool {
-        self.mode.contact == Contact::Rigid && self.mode.guide == Guide::Sliding { direction: 0.0 }
+        matches!(
+            self.mode.contact,
+            Contact::Rigid | Contact::Compliant { side: 0.0 }
+        ) && self.mode.guide == Guide::Sliding { direction: 0.0 }
     }
 
     fn rk4(&self, y: &AxisState, mode: Mode, input: ActuatorInput, h: f64) -> AxisState {
@@ -672,6 +728,10 @@ impl AxisModel {
             Contact::Rigid => true,
             Contact::Open => (y.drive_position - y.carriage_position).abs() <= self.backlash / 2.0,
             Contact::Closed { side } => side * self.contact_force(y, mode.guide, input) >= 0.0,
+            Contact::Compliant { side } => {
+                side == 0.0
+                    || side * (y.drive_position - y.carriage_position) >= self.backlash / 2.0
+            }
         };
         let guide_holds = match mode.guide {
             Guide::Sliding { direction } => direction * y.carriage_velocity >= 0.0,
@@ -685,6 +745,22 @@ impl AxisModel {
     /// Picks the mode that fits state `y`, applying the jumps a switch implies: the velocity
     /// jump of an inelastic impact, exact zero velocity on sticking.
     fn resolve(&self, y: &mut AxisState, input: ActuatorInput) -> Mode {
+        if self.compliance.is_some() {
+            // No impacts: the spring takes over smoothly where the gap ends.
+            let gap = y.drive_position - y.carriage_position;
+            let half = self.backlash / 2.0;
+            let contact = if half == 0.0 {
+                Contact::Compliant { side: 0.0 }
+            } else if gap.abs() > half {
+                Contact::Compliant { side: gap.signum() }
+            } else {
+                Contact::Open
+            };
+            return Mode {
+                contact,
+                guide: self.resolve_guide(y, contact, input),
+            };
+        }
         if self.backlash == 0.0 {
             let contact = Contact::Rigid;
             return Mode {
@@ -741,7 +817,7 @@ impl AxisModel {
             };
         }
         y.carriage_velocity = 0.0;
-        if contact != Contact::Open {
+        if matches!(contact, Contact::Rigid | Contact::Closed { .. }) {
             y.drive_velocity = 0.0;
         }
         let applied = self.applied_force_at_rest(y, contact, input);
@@ -797,7 +873,7 @@ impl AxisModel {
                 y.drive_position = y.carriage_position + side * self.backlash / 2.0;
                 y.drive_velocity = y.carriage_velocity;
             }
-            Contact::Open => {}
+            Contact::Open | Contact::Compliant { .. } => {}
         }
         y
     }

@@ -107,6 +107,8 @@ pub enum Stop {
         error: f64,
         limit: f64,
     },
+    #[error("the controller failed at t = {time:.6} s: {what}")]
+    Controller { time: f64, what: String },
 }
 
 impl Stop {
@@ -115,7 +117,8 @@ impl Stop {
         match self {
             Stop::Diverged { time, .. }
             | Stop::Interrupted { time }
-            | Stop::FollowingError { time, .. } => *time,
+            | Stop::FollowingError { time, .. }
+            | Stop::Controller { time, .. } => *time,
         }
     }
 }
@@ -231,68 +234,24 @@ pub fn run(
             stop: None,
         })
         .collect();
-    let mut sample = SetpointSample::zeros(n);
     let settle_ticks = (settings.settle_time / t).round() as usize;
-    let approach = &settings.approach;
-    let total = approach.len() + settle_ticks + setpoints.len();
-    let mut ticks = 0;
+    let total = settings.approach.len() + settle_ticks + setpoints.len();
     let mut done = 0;
-
-    // Before the program, not observed: the machine first settles at rest where it starts (the
-    // approach's first point, or the program's), as an enabled machine holds position before
-    // cycle start; then it comes to the program's first point along the approach.
-    let has_program = setpoints.next_sample(&mut sample);
-    let mut way = approach.stream();
-    let mut step = SetpointSample::zeros(n);
-    let mut on_way = way.next_sample(&mut step);
-    let mut hold = if on_way { step.clone() } else { sample.clone() };
-    hold.velocity.iter_mut().for_each(|v| *v = 0.0);
-    hold.acceleration.iter_mut().for_each(|a| *a = 0.0);
-    let before = (approach.len() + settle_ticks) as f64;
-    let mut settle = settle_ticks;
-    while state[0].stop.is_none() && (settle > 0 || on_way) && has_program {
-        let time = (done as f64 - before) * t;
-        let target = if settle > 0 { &hold } else { &step };
-        if !tick_lanes(settings, lanes, &mut state, time, target, None, observer) {
-            break;
+    let ticks = for_each_tick(settings, setpoints, &mut |time, setpoint, k| {
+        let alive = tick_lanes(settings, lanes, &mut state, time, setpoint, k, observer);
+        if !alive && k.is_none() {
+            return false;
         }
         done += 1;
+        if !alive {
+            return false;
+        }
         if done % PROGRESS_EVERY == 0 && !progress(done, total) {
             interrupt(&mut state, time, observer);
-            break;
+            return false;
         }
-        if settle > 0 {
-            settle -= 1;
-        } else {
-            on_way = way.next_sample(&mut step);
-        }
-    }
-    if state[0].stop.is_none() && has_program {
-        // The program.
-        let mut more = state[0].stop.is_none();
-        while more {
-            let time = ticks as f64 * t;
-            let alive = tick_lanes(
-                settings,
-                lanes,
-                &mut state,
-                time,
-                &sample,
-                Some(ticks),
-                observer,
-            );
-            ticks += 1;
-            done += 1;
-            if !alive {
-                break;
-            }
-            if done % PROGRESS_EVERY == 0 && !progress(done, total) {
-                interrupt(&mut state, time, observer);
-                break;
-            }
-            more = setpoints.next_sample(&mut sample);
-        }
-    }
+        true
+    });
     progress(done, total);
     Outcome {
         ticks,
@@ -306,6 +265,63 @@ pub fn run(
             })
             .collect(),
         wall_time: started.elapsed().as_secs_f64(),
+    }
+}
+
+/// Visits the setpoint of every servo tick of a run, in order, with its time: first, not
+/// observed, the settle (the machine held at rest where it starts: the approach's first sample,
+/// or the program's, at zero velocity and acceleration) and the approach to the program's
+/// first point; then the program (`k`, the program tick, is `Some` there). Nothing is visited
+/// without a program. `visit` returns whether to go on. Returns the program ticks visited.
+pub fn for_each_tick(
+    settings: &LoopSettings,
+    setpoints: &mut dyn SetpointStream,
+    visit: &mut dyn FnMut(f64, &SetpointSample, Option<usize>) -> bool,
+) -> usize {
+    let n = setpoints.axes();
+    let t = settings.servo_period;
+    let mut sample = SetpointSample::zeros(n);
+    let settle_ticks = (settings.settle_time / t).round() as usize;
+    let approach = &settings.approach;
+    let mut ticks = 0;
+    let mut done = 0;
+
+    // Before the program, not observed: the machine first settles at rest where it starts (the
+    // approach's first point, or the program's), as an enabled machine holds position before
+    // cycle start; then it comes to the program's first point along the approach.
+    let has_program = setpoints.next_sample(&mut sample);
+    if !has_program {
+        return 0;
+    }
+    let mut way = approach.stream();
+    let mut step = SetpointSample::zeros(n);
+    let mut on_way = way.next_sample(&mut step);
+    let mut hold = if on_way { step.clone() } else { sample.clone() };
+    hold.velocity.iter_mut().for_each(|v| *v = 0.0);
+    hold.acceleration.iter_mut().for_each(|a| *a = 0.0);
+    let before = (approach.len() + settle_ticks) as f64;
+    let mut settle = settle_ticks;
+    while settle > 0 || on_way {
+        let time = (done as f64 - before) * t;
+        let target = if settle > 0 { &hold } else { &step };
+        if !visit(time, target, None) {
+            return 0;
+        }
+        done += 1;
+        if settle > 0 {
+            settle -= 1;
+        } else {
+            on_way = way.next_sample(&mut step);
+        }
+    }
+    // The program.
+    loop {
+        let time = ticks as f64 * t;
+        let go_on = visit(time, &sample, Some(ticks));
+        ticks += 1;
+        if !go_on || !setpoints.next_sample(&mut sample) {
+            return ticks;
+        }
     }
 }
 
@@ -332,9 +348,16 @@ fn tick_lanes(
         if s.stop.is_some() {
             continue;
         }
-        lane.plant.sample(&mut s.sensors);
-        let checked = settings.trip.check(time, &setpoint.position, &s.sensors);
-        if let Err(stop) = checked {
+        let sensed = sense(
+            settings,
+            lane.plant.as_mut(),
+            time,
+            &setpoint.position,
+            &mut s.sensors,
+            &mut s.measured,
+            &mut s.motor,
+        );
+        if let Err(stop) = sensed {
             // A tripped drive disables its outputs; the sample that tripped it is evidence
             // worth keeping. A state that is not finite is not.
             if let (Some(k), Stop::FollowingError { .. }) = (k, &stop) {
@@ -350,9 +373,6 @@ fn tick_lanes(
             s.stop = Some(stop);
             continue;
         }
-        settings
-            .encoder
-            .measure(&s.sensors, &mut s.measured, &mut s.motor);
         let input = ControllerInput {
             time,
             setpoint_position: &setpoint.position,
@@ -362,12 +382,41 @@ fn tick_lanes(
             motor_position: &s.motor,
         };
         lane.controller.update(&input, &mut s.command);
+        if let Some(what) = lane.controller.fault() {
+            // No command for this tick: it is not observed, the lane stops here.
+            let stop = Stop::Controller {
+                time,
+                what: what.to_string(),
+            };
+            observer.stopped(index, &stop);
+            s.stop = Some(stop);
+            continue;
+        }
         lane.plant.hold(&s.command, &mut s.hold);
         if let Some(k) = k {
             observer.tick(index, &record(k, time, setpoint, s));
         }
     }
     state[0].stop.is_none()
+}
+
+/// What the loop does with a plant at the start of every servo period: samples its sensors,
+/// checks them (divergence, the following-error trip against `setpoint_position`) and, if
+/// they pass, quantises the feedback into `measured` and `motor` as the controller sees it.
+/// The exported plant FMU calls it too, so its outputs are the loop's.
+pub fn sense(
+    settings: &LoopSettings,
+    plant: &mut dyn Plant,
+    time: f64,
+    setpoint_position: &[f64],
+    sensors: &mut Sensors,
+    measured: &mut [f64],
+    motor: &mut [f64],
+) -> Result<(), Stop> {
+    plant.sample(sensors);
+    settings.trip.check(time, setpoint_position, sensors)?;
+    settings.encoder.measure(sensors, measured, motor);
+    Ok(())
 }
 
 fn record<'a>(

@@ -137,9 +137,9 @@ fn run_job(job: &Job, cache: &PlanCache, interrupted: &AtomicBool) -> JobResult 
     match assembly.run(RunOptions::write_to(&job.out_dir).progress(&mut keep_going)) {
         Ok(run) => JobResult {
             index: job.index,
+            stopped: run.stop().cloned(),
             metrics: Some(run.metrics_json),
             error: None,
-            stopped: run.stop,
             wall_time_s: started.elapsed().as_secs_f64(),
         },
         Err(e) => failed(e.to_string()),

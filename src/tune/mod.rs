@@ -15,7 +15,9 @@ pub mod linear;
 pub mod oscillation;
 pub mod search;
 
-pub use cascade::{design_cascade, CascadeDesign, PHASE_MARGIN_DEG};
+pub use cascade::{
+    design_cascade, CascadeDesign, LoopShape, TwoMass, GAIN_MARGIN_DB, PHASE_MARGIN_DEG,
+};
 pub use linear::{LinearActuator, LinearAxis, UltimateCycle};
 pub use oscillation::{analyse, Oscillation, Verdict};
 pub use search::{find_ultimate, Outcome, Response, SearchError, SearchSettings, Trial, Ultimate};

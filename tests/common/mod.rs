@@ -430,3 +430,49 @@ pub fn raster_gcode(lines: usize) -> String {
     }
     text
 }
+
+/// Runs the `cncsim` binary with `args` from the repository's root.
+pub fn cncsim(args: &[&str]) -> std::process::Output {
+    // `option_env!`: examples include this module too, and only tests have the binary.
+    let binary = option_env!("CARGO_BIN_EXE_cncsim").expect("run from an integration test");
+    std::process::Command::new(binary)
+        .args(args)
+        .current_dir(env!("CARGO_MANIFEST_DIR"))
+        .output()
+        .unwrap()
+}
+
+pub fn stderr(o: &std::process::Output) -> String {
+    String::from_utf8_lossy(&o.stderr).into_owned()
+}
+
+/// Runs `cncsim COMMAND ARGS --json --out OUT`, expects success and returns the report.
+pub fn cncsim_json(command: &str, args: &[&str], out: &std::path::Path) -> serde_json::Value {
+    let mut all: Vec<&str> = vec![command];
+    all.extend_from_slice(args);
+    let out_s = out.display().to_string();
+    all.extend_from_slice(&["--json", "--out", &out_s]);
+    let o = cncsim(&all);
+    assert!(o.status.success(), "cncsim {all:?} failed: {}", stderr(&o));
+    serde_json::from_slice(&o.stdout).expect("--json prints JSON")
+}
+
+/// The Python interpreter of the oracles (`CNCSIM_PYTHON`, else `python3`) if it runs
+/// `import_line`; without it the test is skipped, or fails under `CNCSIM_REQUIRE_ORACLES=1`.
+/// `what` names the missing package in the message.
+pub fn oracle_python(import_line: &str, what: &str) -> Option<String> {
+    let python = std::env::var("CNCSIM_PYTHON").unwrap_or_else(|_| "python3".into());
+    let ok = std::process::Command::new(&python)
+        .args(["-c", import_line])
+        .output()
+        .is_ok_and(|o| o.status.success());
+    if ok {
+        return Some(python);
+    }
+    assert!(
+        !std::env::var("CNCSIM_REQUIRE_ORACLES").is_ok_and(|v| v == "1"),
+        "CNCSIM_REQUIRE_ORACLES=1 but {python} cannot import {what} (CNCSIM_PYTHON names the interpreter)"
+    );
+    eprintln!("skipped: {python} cannot import {what}");
+    None
+}

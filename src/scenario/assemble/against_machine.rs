@@ -65,6 +65,31 @@ pub(super) fn check_against_machine(
             }
         }
     }
+    for (axis, t) in &s.mechanics.transmission {
+        let Some(i) = machine.axis_index(axis) else {
+            return Err(FileError::new(
+                &s.path,
+                t.at,
+                format!(
+                    "mechanics.transmission.{axis}: the machine '{}' has no axis '{axis}' (its axes: {})",
+                    machine.name,
+                    names.join(", ")
+                ),
+            ));
+        };
+        if t.rotary_units != labels[i].rotary {
+            let (kind, keys) = if labels[i].rotary {
+                ("rotary", "stiffness_nm_per_rad and damping_nm_s_per_rad")
+            } else {
+                ("linear", "stiffness_n_per_m and damping_n_s_per_m")
+            };
+            return Err(FileError::new(
+                &s.path,
+                t.at,
+                format!("mechanics.transmission.{axis}: axis '{axis}' is {kind}: expected {keys}"),
+            ));
+        }
+    }
     for (axis, (_, at)) in &s.feedback.encoder_counts_per_rev {
         if !names.contains(&axis.as_str()) {
             return Err(FileError::new(
@@ -93,6 +118,31 @@ pub(super) fn check_against_machine(
             letters[a1],
             letters[a2],
         ]));
+    }
+    for f in &s.frequency_response {
+        if !labels.iter().any(|l| l.name == f.axis) {
+            return Err(FileError::new(
+                &s.path,
+                f.at,
+                format!(
+                    "frequency_response.{}: the machine has no axis '{}'",
+                    f.axis, f.axis
+                ),
+            ));
+        }
+        let cascade = s.controller_type() == Some(crate::scenario::ControllerType::Cascade);
+        if f.lp == crate::frequency::Loop::Velocity && !cascade {
+            return Err(FileError::new(
+                &s.path,
+                f.at,
+                format!("frequency_response.{}: loop = \"velocity\" measures the velocity loop of a cascade controller; this scenario's controller has none (use \"plant\" or \"position\")", f.axis),
+            ));
+        }
+        known.extend(
+            crate::report::Figures::METRICS
+                .iter()
+                .map(|m| format!("frequency_response.{}.{m}", f.axis)),
+        );
     }
     for e in &s.expect {
         if !known.contains(&e.metric) {

@@ -10,9 +10,11 @@ use crate::control::{
 };
 use crate::diagnostics::FileError;
 use crate::dynamics::DynamicsModel;
+use crate::fmi::{AxesSpec, FmuController, FmuModel};
 use crate::kinematics::AcTableKinematics;
 use crate::machine::{Drive, Machine};
 use crate::scenario::{ControlSpace, ControllerType, InverseDynamicsSettings, Scenario};
+use std::sync::Arc;
 
 /// The control law with its settings per axis.
 #[derive(Debug, Clone)]
@@ -33,6 +35,8 @@ enum Law {
         /// much smaller).
         task: Option<Box<AcTableKinematics>>,
     },
+    /// A controller FMU, loaded and checked once; each controller is an instance of it.
+    Fmu(Arc<FmuModel>),
 }
 
 /// Everything needed to build the scenario's controller for its machine.
@@ -127,6 +131,28 @@ impl ControllerRecipe {
                     task,
                 }
             }
+            ControllerType::Fmu => {
+                let fmu = c.fmu.as_ref().ok_or_else(|| {
+                    FileError::new(&s.path, c.at, "type = \"fmu\" needs fmu = \"PATH.fmu\"")
+                })?;
+                let axes = AxesSpec {
+                    names: machine.axes.iter().map(|a| a.name.clone()).collect(),
+                    rotary: machine.axes.iter().map(|a| a.is_rotary(machine)).collect(),
+                    actuator,
+                    servo_period: period,
+                };
+                let fail = |e: String| {
+                    FileError::new(
+                        &s.path,
+                        fmu.at.or(c.at),
+                        format!("controller FMU {}: {e}", fmu.request.path.display()),
+                    )
+                };
+                let model = Arc::new(FmuModel::load(&fmu.request, &axes).map_err(fail)?);
+                // One instance now, so an FMU that cannot start is refused before any run.
+                model.instantiate().map_err(fail)?;
+                Law::Fmu(model)
+            }
         };
         let compensation = (!s.compensation.is_empty()).then(|| {
             machine
@@ -147,6 +173,23 @@ impl ControllerRecipe {
             actuator,
             period,
         })
+    }
+
+    /// The recipe with axis `axis` of a cascade switched to velocity mode, as a drive is for
+    /// measuring its velocity loop: the position loop opened (K_pp = K_ip = 0), the setpoint
+    /// velocity passed through whole (kvff = 1) as the velocity command, no acceleration
+    /// feed-forward. `None` for any other law.
+    pub fn velocity_mode(&self, axis: usize) -> Option<ControllerRecipe> {
+        let mut recipe = self.clone();
+        let Law::Cascade { axes, .. } = &mut recipe.law else {
+            return None;
+        };
+        let a = axes.get_mut(axis)?;
+        a.position_kp = 0.0;
+        a.position_ki = 0.0;
+        a.velocity_ff = 1.0;
+        a.acceleration_ff = 0.0;
+        Some(recipe)
     }
 
     /// A fresh controller (with its compensation), in the machine's axis order.
@@ -189,6 +232,10 @@ impl ControllerRecipe {
                     ))),
                 }
             }
+            Law::Fmu(model) => match model.instantiate() {
+                Ok(controller) => Box::new(controller),
+                Err(e) => Box::new(FmuController::broken(model, e)),
+            },
         };
         match &self.compensation {
             None => inner,

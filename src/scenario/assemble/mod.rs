@@ -453,6 +453,14 @@ pub fn with_choices(s: &Scenario, mut machine: Machine) -> Machine {
 }
 
 fn apply_choices(s: &Scenario, machine: &mut Machine) {
+    for axis in &mut machine.axes {
+        if let Some(t) = s.mechanics.transmission.get(&axis.name) {
+            axis.drive.set_compliance(Some(t.compliance));
+        }
+        if !s.mechanics.compliance {
+            axis.drive.set_compliance(None);
+        }
+    }
     keep_mechanics(machine, s.mechanics.friction, s.mechanics.backlash);
     for axis in &mut machine.axes {
         if let Some(feedback) = s.feedback.position {

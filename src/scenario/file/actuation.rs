@@ -5,7 +5,7 @@ use super::limits;
 use super::source::{InFile, Num};
 use crate::control::{ActuatorKind, AxisCompensation};
 use crate::diagnostics::{check_range, FileError, LineColumn};
-use crate::machine::{AmplifierMode, Feedback};
+use crate::machine::{AmplifierMode, Compliance, Feedback, COMPLIANCE_RANGES};
 use serde::Deserialize;
 use std::collections::BTreeMap;
 use toml::Spanned;
@@ -118,21 +118,19 @@ impl TryFrom<InFile<'_, &RawFeedback>> for FeedbackSettings {
     }
 }
 
-/// Which of the machine's nonlinear mechanics the run keeps (both on by default): turning one
-/// off removes it from the physics and the analytic model alike.
-#[derive(Deserialize, Debug, Clone, Copy, PartialEq)]
-#[serde(deny_unknown_fields)]
+/// Which of the machine's mechanics the run keeps (all on by default), and transmissions made
+/// compliant or stiffer than the drive file says: turning one off removes it from the physics
+/// and the analytic model alike.
+#[derive(Debug, Clone, PartialEq)]
 pub struct Mechanics {
     /// The guides' contact friction.
-    #[serde(default = "yes")]
     pub friction: bool,
     /// The transmissions' backlash.
-    #[serde(default = "yes")]
     pub backlash: bool,
-}
-
-fn yes() -> bool {
-    true
+    /// The transmissions' compliance (false: every drive train rigid).
+    pub compliance: bool,
+    /// `[mechanics.transmission.<axis>]`: stiffness and damping replacing the drive file's.
+    pub transmission: BTreeMap<String, TransmissionEntry>,
 }
 
 impl Default for Mechanics {
@@ -140,7 +138,97 @@ impl Default for Mechanics {
         Mechanics {
             friction: true,
             backlash: true,
+            compliance: true,
+            transmission: BTreeMap::new(),
         }
+    }
+}
+
+#[derive(Deserialize, Default)]
+#[serde(deny_unknown_fields)]
+pub(super) struct RawMechanics {
+    friction: Option<bool>,
+    backlash: Option<bool>,
+    compliance: Option<bool>,
+    #[serde(default)]
+    transmission: BTreeMap<String, Spanned<RawTransmission>>,
+}
+
+#[derive(Deserialize)]
+#[serde(deny_unknown_fields)]
+struct RawTransmission {
+    stiffness_n_per_m: Option<f64>,
+    damping_n_s_per_m: Option<f64>,
+    stiffness_nm_per_rad: Option<f64>,
+    damping_nm_s_per_rad: Option<f64>,
+}
+
+/// One axis's transmission compliance from the scenario, SI; `rotary_units` says which unit
+/// family its keys used, checked against the axis kind when the machine is known.
+#[derive(Debug, Clone, PartialEq)]
+pub struct TransmissionEntry {
+    pub compliance: Compliance,
+    pub rotary_units: bool,
+    pub at: Option<LineColumn>,
+}
+
+impl TryFrom<InFile<'_, &RawMechanics>> for Mechanics {
+    type Error = FileError;
+
+    fn try_from(InFile { raw, file }: InFile<'_, &RawMechanics>) -> Result<Self, FileError> {
+        let mut transmission = BTreeMap::new();
+        for (axis, entry) in &raw.transmission {
+            let v = entry.get_ref();
+            let fail =
+                |m: String| file.error(entry.span(), format!("mechanics.transmission.{axis}: {m}"));
+            let (stiffness, damping, rotary_units) = match (
+                v.stiffness_n_per_m,
+                v.damping_n_s_per_m,
+                v.stiffness_nm_per_rad,
+                v.damping_nm_s_per_rad,
+            ) {
+                (Some(k), c, None, None) => (k, c, false),
+                (None, None, Some(k), c) => (k, c, true),
+                _ => return Err(fail("expected stiffness_n_per_m (with an optional damping_n_s_per_m) on a linear axis, or stiffness_nm_per_rad (with damping_nm_s_per_rad) on a rotary one".into())),
+            };
+            let keys: &[&str] = if rotary_units {
+                &[
+                    "transmission_stiffness_nm_per_rad",
+                    "transmission_damping_nm_s_per_rad",
+                ]
+            } else {
+                &[
+                    "transmission_stiffness_n_per_m",
+                    "transmission_damping_n_s_per_m",
+                ]
+            };
+            for (key, value) in keys.iter().zip([Some(stiffness), damping]) {
+                let Some(value) = value else { continue };
+                let &(_, unit, lo, hi) = COMPLIANCE_RANGES
+                    .iter()
+                    .find(|r| r.0 == *key)
+                    .expect("every compliance key has a range");
+                let short = key.trim_start_matches("transmission_");
+                check_range(short, value, unit, lo, hi).map_err(fail)?;
+            }
+            transmission.insert(
+                axis.clone(),
+                TransmissionEntry {
+                    compliance: Compliance {
+                        stiffness,
+                        damping: damping.unwrap_or(0.0),
+                    },
+                    rotary_units,
+                    at: file.at(entry.span().start),
+                },
+            );
+        }
+        Ok(Mechanics {
+            friction: raw.friction.unwrap_or(true),
+            backlash: raw.backlash.unwrap_or(true),
+            compliance: raw.compliance.unwrap_or(true),
+            transmission,
+        })
     }
 }
 

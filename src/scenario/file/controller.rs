@@ -6,7 +6,7 @@
 
 use super::limits;
 use super::source::{InFile, Num, Source};
-use crate::control::{CascadeAxis, PidForm, PidSettings};
+use crate::control::{CascadeAxis, Notch, PidForm, PidSettings, TorqueFilters};
 use crate::diagnostics::{check_range, FileError, LineColumn};
 use serde::Deserialize;
 use std::collections::BTreeMap;
@@ -37,6 +37,12 @@ pub(super) struct RawController {
     /// Task space: damping λ of the least-squares inverse of the task Jacobian near its
     /// singularity (units of its singular values).
     task_damping: Option<Num>,
+    /// FMU: the co-simulation FMU file, relative to the scenario (`type = "fmu"`).
+    fmu: Option<Spanned<String>>,
+    /// FMU: start values of its parameters, by variable name.
+    parameters: Option<Spanned<BTreeMap<String, Spanned<f64>>>>,
+    /// FMU: cncsim's signal name → the FMU's variable name, where they differ.
+    variables: Option<Spanned<BTreeMap<String, Spanned<String>>>>,
 }
 
 #[derive(Deserialize, Default, Clone, Copy)]
@@ -91,6 +97,12 @@ struct RawCascade {
     acceleration_ff: f64,
     velocity_limit: Option<f64>,
     output_limit: Option<f64>,
+    /// Second-order low-pass on the command (Hz).
+    torque_lowpass_hz: Option<f64>,
+    /// Notch on the command: centre (Hz), −3 dB width (Hz), gain at the centre.
+    notch_hz: Option<f64>,
+    notch_width_hz: Option<f64>,
+    notch_depth: Option<f64>,
 }
 
 /// Default least-squares damping of the task-space controller: about the smallest singular
@@ -107,6 +119,8 @@ pub enum ControllerType {
     Cascade,
     /// Computed torque from the machine's rigid-body model.
     InverseDynamics,
+    /// A co-simulation FMU (FMI 3.0 or 2.0), stepped once per servo period.
+    Fmu,
 }
 
 impl ControllerType {
@@ -115,6 +129,7 @@ impl ControllerType {
             ControllerType::Pid => "pid",
             ControllerType::Cascade => "cascade",
             ControllerType::InverseDynamics => "inverse-dynamics",
+            ControllerType::Fmu => "fmu",
         }
     }
 }
@@ -185,6 +200,17 @@ pub struct InverseDynamicsSettings {
     pub task_damping: f64,
 }
 
+/// A controller FMU as the scenario asks for it (loaded and checked against the machine when
+/// the scenario is assembled).
+#[derive(Debug, Clone, PartialEq)]
+pub struct FmuSettings {
+    /// The FMU file (resolved against the scenario's folder), its parameters and the variable
+    /// names that differ from cncsim's.
+    pub request: crate::fmi::FmuRequest,
+    /// Where `fmu = …` is written.
+    pub at: Option<LineColumn>,
+}
+
 /// The `[controller]` section: the type that runs and the settings of every type given.
 #[derive(Debug, Clone, PartialEq)]
 pub struct ControllerSettings {
@@ -193,6 +219,8 @@ pub struct ControllerSettings {
     pub cascade: CascadeTable,
     /// Given with natural_frequency_hz.
     pub inverse_dynamics: Option<InverseDynamicsSettings>,
+    /// Given with `fmu = "PATH"`.
+    pub fmu: Option<FmuSettings>,
     /// Where the `[controller]` table is.
     pub at: Option<LineColumn>,
 }
@@ -209,6 +237,9 @@ impl TryFrom<InFile<'_, &RawController>> for ControllerSettings {
             }
             ControllerType::Pid if c.axes.is_none() => Some(
                 "type = \"pid\" needs gains per axis: axes.<name> = { kp = …, ki = …, kd = … }",
+            ),
+            ControllerType::Fmu if c.fmu.is_none() => Some(
+                "type = \"fmu\" needs the FMU file: fmu = \"PATH.fmu\" (relative to the scenario)",
             ),
             ControllerType::Cascade if c.cascade.is_none() => Some(
                 "type = \"cascade\" needs loop settings per axis: cascade.<name> = { position_kp = …, velocity_kp = …, velocity_ki = … }",
@@ -253,14 +284,68 @@ impl TryFrom<InFile<'_, &RawController>> for ControllerSettings {
                 limits::VELOCITY_FILTER_HZ,
             )?
             .unwrap_or(0.0);
+        let fmu = fmu_settings(c, file)?;
         Ok(ControllerSettings {
             kind: c.kind,
             pid,
             cascade,
             inverse_dynamics,
+            fmu,
             at,
         })
     }
+}
+
+/// The FMU settings, where `fmu` is given: the file must exist; parameters must be finite.
+fn fmu_settings(c: &RawController, file: &Source<'_>) -> Result<Option<FmuSettings>, FileError> {
+    let Some(written) = &c.fmu else {
+        if let Some(p) = &c.parameters {
+            return Err(file.error(
+                p.span(),
+                "controller.parameters are an FMU's: they need fmu = \"PATH.fmu\"",
+            ));
+        }
+        if let Some(v) = &c.variables {
+            return Err(file.error(
+                v.span(),
+                "controller.variables map an FMU's variables: they need fmu = \"PATH.fmu\"",
+            ));
+        }
+        return Ok(None);
+    };
+    let path = file.resolve(written.get_ref());
+    if !path.is_file() {
+        return Err(file.error(
+            written.span(),
+            format!(
+                "controller FMU '{}' not found (looked for {})",
+                written.get_ref(),
+                path.display()
+            ),
+        ));
+    }
+    let mut request = crate::fmi::FmuRequest {
+        path,
+        ..Default::default()
+    };
+    for (name, value) in c.parameters.iter().flat_map(|p| p.get_ref()) {
+        if !value.get_ref().is_finite() {
+            return Err(file.error(
+                value.span(),
+                format!("controller.parameters.{name} must be a finite number"),
+            ));
+        }
+        request.parameters.insert(name.clone(), *value.get_ref());
+    }
+    for (ours, theirs) in c.variables.iter().flat_map(|v| v.get_ref()) {
+        request
+            .variables
+            .insert(ours.clone(), theirs.get_ref().clone());
+    }
+    Ok(Some(FmuSettings {
+        request,
+        at: file.at(written.span().start),
+    }))
 }
 
 /// The computed-torque settings, where natural_frequency_hz is given.
@@ -378,6 +463,29 @@ fn cascade_axis(v: &RawCascade) -> Result<CascadeAxis, String> {
             check_range(name, x, "", f64::MIN_POSITIVE, g_max)?;
         }
     }
+    let notch = match (v.notch_hz, v.notch_width_hz, v.notch_depth) {
+        (None, None, None) => None,
+        (Some(hz), Some(width_hz), depth) => {
+            check_range("notch_hz", hz, "Hz", 1e-3, 1e6)?;
+            check_range("notch_width_hz", width_hz, "Hz", 1e-3, 2.0 * hz)?;
+            let depth = depth.unwrap_or(0.0);
+            check_range("notch_depth", depth, "", 0.0, 1.0)?;
+            Some(Notch {
+                hz,
+                width_hz,
+                depth,
+            })
+        }
+        _ => {
+            return Err(
+                "a notch takes notch_hz and notch_width_hz (and optionally notch_depth, its gain at the centre: 0 by default)"
+                    .into(),
+            )
+        }
+    };
+    if let Some(hz) = v.torque_lowpass_hz {
+        check_range("torque_lowpass_hz", hz, "Hz", 1e-3, 1e6)?;
+    }
     Ok(CascadeAxis {
         position_kp: v.position_kp,
         position_ki: v.position_ki,
@@ -387,5 +495,9 @@ fn cascade_axis(v: &RawCascade) -> Result<CascadeAxis, String> {
         acceleration_ff: v.acceleration_ff,
         velocity_limit: v.velocity_limit.unwrap_or(f64::INFINITY),
         output_limit: v.output_limit.unwrap_or(f64::INFINITY),
+        filters: TorqueFilters {
+            lowpass_hz: v.torque_lowpass_hz,
+            notch,
+        },
     })
 }

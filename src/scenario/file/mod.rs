@@ -8,6 +8,7 @@
 mod actuation;
 mod checks;
 mod controller;
+mod frequency;
 pub mod limits;
 mod outputs;
 mod planner;
@@ -15,12 +16,15 @@ mod program;
 mod source;
 mod timing;
 
-pub use actuation::{ActuatorSettings, CompensationEntry, FeedbackSettings, Mechanics};
+pub use actuation::{
+    ActuatorSettings, CompensationEntry, FeedbackSettings, Mechanics, TransmissionEntry,
+};
 pub use checks::{DeclaredVariants, Expectation};
 pub use controller::{
     AxisCascade, AxisGains, CascadeTable, ControlSpace, ControllerSettings, ControllerType,
-    InverseDynamicsSettings, PidTable,
+    FmuSettings, InverseDynamicsSettings, PidTable,
 };
+pub use frequency::FrequencyResponse;
 pub use outputs::{AnalyticSettings, RecordingSettings};
 pub use planner::{PlannerSettings, ProfileName};
 pub use program::{Approach, ProgramSettings, ProgramSource};
@@ -50,7 +54,7 @@ struct RawScenario {
     #[serde(default)]
     feedback: actuation::RawFeedback,
     #[serde(default)]
-    mechanics: Mechanics,
+    mechanics: actuation::RawMechanics,
     #[serde(default)]
     recording: outputs::RawRecording,
     /// Backlash and friction compensation per axis.
@@ -58,6 +62,9 @@ struct RawScenario {
     compensation: BTreeMap<String, Spanned<actuation::RawCompensation>>,
     /// Run the analytic reference model beside the physics.
     analytic: Option<outputs::RawAnalytic>,
+    /// Frequency-response measurements per axis, whose figures `[expect]` can bound.
+    #[serde(default)]
+    frequency_response: BTreeMap<String, Spanned<frequency::RawFrequencyResponse>>,
     #[serde(default)]
     expect: BTreeMap<String, Spanned<toml::Value>>,
     /// The variants `cncsim ab FILE` runs when no --a/--b overrides are given.
@@ -89,6 +96,9 @@ pub struct Scenario {
     /// The analytic reference model beside the physics; `None` = not run.
     pub analytic: Option<AnalyticSettings>,
     pub expect: Vec<Expectation>,
+    /// `[frequency_response.<axis>]`: measurements a run makes after its program (by axis
+    /// name).
+    pub frequency_response: Vec<FrequencyResponse>,
     /// `[ab]`: the variants `cncsim ab` runs on this file alone.
     pub ab: Option<DeclaredVariants>,
     /// Values that are legal but look wrong, located in the file.
@@ -138,6 +148,11 @@ impl Scenario {
             Some(c) => Some(ControllerSettings::try_from(file.section(c))?),
             None => None,
         };
+        // The command filters of a cascade are discrete at the servo period.
+        for (axis, c) in controller.iter().flat_map(|c| &c.cascade.axes) {
+            crate::control::filters::check_filters(&c.settings.filters, timing.servo_period)
+                .map_err(|m| file.error_at(c.at, format!("controller.cascade.{axis}: {m}")))?;
+        }
         let mut compensation = BTreeMap::new();
         for (axis, entry) in &raw.compensation {
             let entry = actuation::AxisEntry { axis, entry };
@@ -147,6 +162,7 @@ impl Scenario {
             );
         }
         let feedback = FeedbackSettings::try_from(file.section(&raw.feedback))?;
+        let mechanics = Mechanics::try_from(file.section(&raw.mechanics))?;
         let recording = RecordingSettings::try_from(file.section(&raw.recording))?;
         let planner = PlannerSettings::try_from(file.section(&raw.planner))?;
         let analytic = match &raw.analytic {
@@ -158,6 +174,19 @@ impl Scenario {
             None => None,
         };
         let expect = checks::Expectations::try_from(file.section(&raw.expect))?.0;
+        let mut frequency_response = Vec::new();
+        for (axis, table) in &raw.frequency_response {
+            let entry =
+                FrequencyResponse::try_from(file.section(frequency::AxisTable { axis, table }))?;
+            let nyquist = 0.5 / timing.servo_period;
+            if let Some(to) = entry.to_hz.filter(|&f| f >= nyquist) {
+                return Err(file.error(
+                    table.span(),
+                    format!("frequency_response.{axis}: to_hz = {to} is at or above the Nyquist frequency {nyquist} Hz of the servo period"),
+                ));
+            }
+            frequency_response.push(entry);
+        }
         let machine_at = file.at(raw.machine.span().start);
         Ok(Scenario {
             name: raw.name.unwrap_or_else(|| {
@@ -174,11 +203,12 @@ impl Scenario {
             actuator,
             controller,
             feedback,
-            mechanics: raw.mechanics,
+            mechanics,
             compensation,
             recording,
             analytic,
             expect,
+            frequency_response,
             ab,
             warnings: file.into_warnings(),
         })
@@ -220,6 +250,9 @@ impl Scenario {
             map(&mut c.at);
             map(&mut c.pid.at);
             map(&mut c.cascade.at);
+            if let Some(f) = &mut c.fmu {
+                map(&mut f.at);
+            }
             for g in c.pid.axes.values_mut() {
                 map(&mut g.at);
             }
@@ -232,6 +265,9 @@ impl Scenario {
         }
         for (_, at) in self.feedback.encoder_counts_per_rev.values_mut() {
             map(at);
+        }
+        for f in &mut self.frequency_response {
+            map(&mut f.at);
         }
         for e in &mut self.expect {
             map(&mut e.at);

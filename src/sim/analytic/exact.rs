@@ -141,6 +141,30 @@ impl AxisModel {
                     }
                 }
             }
+            Contact::Compliant { side } => {
+                // λ = k·(x_d − x_c) + c·(v_d − v_c) − k·side·b/2 on the carriage, −λ on the drive.
+                let (k, c) = self
+                    .compliance
+                    .map_or((0.0, 0.0), |c| (c.stiffness, c.damping));
+                let preload = k * side * self.backlash / 2.0;
+                let (md, mc) = (self.drive_mass, self.carriage_mass);
+                a[(XD, VD)] = 1.0;
+                a[(VD, I)] = force_per_current / md;
+                a[(VD, XD)] = -k / md;
+                a[(VD, XC)] = k / md;
+                a[(VD, VD)] = -(self.drive_damping + c) / md;
+                a[(VD, VC)] = c / md;
+                b[(VD, 0)] = force_per_input / md;
+                b[(VD, 1)] = preload / md;
+                a[(XC, VC)] = 1.0;
+                if sliding {
+                    a[(VC, XD)] = k / mc;
+                    a[(VC, XC)] = -k / mc;
+                    a[(VC, VD)] = c / mc;
+                    a[(VC, VC)] = -(self.carriage_damping + c) / mc;
+                    b[(VC, 1)] = (self.gravity_force - friction - preload) / mc;
+                }
+            }
             Contact::Open => {
                 a[(XD, VD)] = 1.0;
                 a[(VD, I)] = force_per_current / self.drive_mass;

@@ -681,20 +681,38 @@ fn linear_system_is_the_rate_of_every_linear_mode() {
         )
         .unwrap();
         let input = axis.input(command);
+        let compliant = AxisModel::from_drive(
+            &x_drive(),
+            20.0,
+            -9.81,
+            35.0,
+            AxisModelOptions {
+                ideal_actuator,
+                compliance: Some(Compliance {
+                    stiffness: 3.0e5,
+                    damping: 410.0,
+                }),
+                ..options
+            },
+        )
+        .unwrap();
         let contacts = [
-            Contact::Rigid,
-            Contact::Open,
-            Contact::Closed { side: 1.0 },
-            Contact::Closed { side: -1.0 },
+            (Contact::Rigid, &axis),
+            (Contact::Open, &axis),
+            (Contact::Closed { side: 1.0 }, &axis),
+            (Contact::Closed { side: -1.0 }, &axis),
+            (Contact::Compliant { side: 1.0 }, &compliant),
+            (Contact::Compliant { side: -1.0 }, &compliant),
+            (Contact::Compliant { side: 0.0 }, &compliant),
         ];
         let guides = [-1.0, 0.0, 1.0]
             .map(|direction| Guide::Sliding { direction })
             .into_iter()
             .chain([Guide::Stuck]);
-        for contact in contacts {
+        for (contact, axis) in contacts {
             for guide in guides.clone() {
                 let mode = Mode { contact, guide };
-                let exact = exact::rate_from_system(&axis, mode, &y, input).unwrap();
+                let exact = exact::rate_from_system(axis, mode, &y, input).unwrap();
                 let rate = axis.rate(&y, mode, input);
                 for (a, b) in [
                     (exact.drive_position, rate.drive_position),
@@ -713,7 +731,7 @@ fn linear_system_is_the_rate_of_every_linear_mode() {
             }
         }
     }
-    assert_eq!(checked, 48);
+    assert_eq!(checked, 84);
     // Not linear: the current-mode amplifier, and a Stribeck curve while sliding.
     let current = x_axis_current_mode(options);
     let rigid = |guide| Mode {
@@ -847,5 +865,129 @@ fn the_controller_sees_encoder_counts() {
         let counts = seen / resolution;
         assert!((counts - counts.round()).abs() < 1e-6, "tick {k}: {seen:e}");
         assert!((seen - trace.actual[k]).abs() <= resolution / 2.0 + 1e-15);
+    }
+}
+
+/// The X drive without viscous damping and a 20 kg carriage on a spring of stiffness `k`
+/// (and damper `c`), with `backlash`: a conservative two-mass system when c = 0.
+fn two_mass(k: f64, c: f64, backlash: f64) -> AxisModel {
+    let mut drive = x_drive();
+    drive.viscous_damping_nm_s_per_rad = 0.0;
+    AxisModel::from_drive(
+        &drive,
+        20.0,
+        0.0,
+        0.0,
+        AxisModelOptions {
+            ideal_actuator: true,
+            backlash,
+            compliance: Some(Compliance {
+                stiffness: k,
+                damping: c,
+            }),
+            ..Default::default()
+        },
+    )
+    .unwrap()
+}
+
+/// Kinetic plus spring energy of a two-mass axis (J).
+fn energy(axis: &AxisModel) -> f64 {
+    let y = &axis.state;
+    let k = axis.compliance.unwrap().stiffness;
+    let gap = y.drive_position - y.carriage_position;
+    let stretch = gap - gap.clamp(-axis.backlash / 2.0, axis.backlash / 2.0);
+    0.5 * axis.drive_mass * y.drive_velocity.powi(2)
+        + 0.5 * axis.carriage_mass * y.carriage_velocity.powi(2)
+        + 0.5 * k * stretch * stretch
+}
+
+#[test]
+fn a_compliant_axis_rings_at_the_two_mass_frequency() {
+    // Drive side 622.4 kg (J·k²), carriage 20 kg, k = 2·10⁵ N/m: the gap, released from
+    // δ₀ = 10 µm with both at rest and no torque, swings as δ₀·cos(ωt) with
+    // ω² = k·(1/m_d + 1/m_c), while the centre of mass stays where it was.
+    let k = 2.0e5;
+    let mut axis = two_mass(k, 0.0, 0.0);
+    let (md, mc) = (axis.drive_mass, axis.carriage_mass);
+    let omega = (k * (1.0 / md + 1.0 / mc)).sqrt();
+    let delta0 = 1e-5;
+    axis.state.drive_position = delta0;
+    let centre = md * delta0 / (md + mc);
+    let mut worst: f64 = 0.0;
+    for tick in 1..=500 {
+        axis.advance(0.0, 1e-3, 4);
+        let t = tick as f64 * 1e-3;
+        let y = axis.state;
+        let gap = y.drive_position - y.carriage_position;
+        worst = worst.max((gap - delta0 * (omega * t).cos()).abs() / delta0);
+        let moved = (md * y.drive_position + mc * y.carriage_position) / (md + mc);
+        assert!((moved - centre).abs() < 1e-15, "centre of mass moved");
+    }
+    assert!(worst < 1e-9, "relative error {worst:e}");
+}
+
+#[test]
+fn the_backlash_is_a_dead_zone_inside_the_compliant_chain() {
+    // The carriage, pushed at 10 mm/s with the drive at rest in the middle of a 0.2 mm gap,
+    // coasts free (no force within the gap) until δ = −b/2 at t = 0.1 mm / 10 mm/s = 10 ms,
+    // then the spring takes it; without damping no energy is lost over many crossings.
+    let mut axis = two_mass(2.0e5, 0.0, 0.2e-3);
+    axis.state.carriage_velocity = 0.01;
+    let start = energy(&axis);
+    for _ in 0..9 {
+        axis.advance(0.0, 1e-3, 4);
+        assert_eq!(
+            axis.drive_velocity(),
+            0.0,
+            "the drive is pushed within the gap"
+        );
+    }
+    axis.advance(0.0, 1e-3, 4);
+    axis.advance(0.0, 1e-3, 4);
+    assert!(
+        axis.drive_velocity() > 0.0,
+        "engaged at 10 ms: the spring pulls the drive along"
+    );
+    let mut crossings = 0;
+    let mut open = false;
+    for _ in 0..3000 {
+        axis.advance(0.0, 1e-3, 4);
+        let gap = axis.drive_position() - axis.position();
+        let now_open = gap.abs() <= 0.1e-3;
+        crossings += usize::from(now_open != open);
+        open = now_open;
+        let e = energy(&axis);
+        assert!((e - start).abs() < 1e-9 * start, "energy {e} vs {start}");
+    }
+    assert!(crossings > 10, "only {crossings} gap crossings");
+}
+
+#[test]
+fn the_transmission_damper_dissipates_at_the_two_mass_damping_ratio() {
+    // Damping c across the spring: the gap's swing decays as exp(−ζωt) with
+    // ζ = c/(2·√(k·m_eff)), m_eff = m_d·m_c/(m_d + m_c).
+    let (k, c) = (2.0e5, 150.0);
+    let mut axis = two_mass(k, c, 0.0);
+    let (md, mc) = (axis.drive_mass, axis.carriage_mass);
+    let m_eff = md * mc / (md + mc);
+    let omega_n = (k / m_eff).sqrt();
+    let zeta = c / (2.0 * (k * m_eff).sqrt());
+    let omega_d = omega_n * (1.0 - zeta * zeta).sqrt();
+    let delta0 = 1e-5;
+    axis.state.drive_position = delta0;
+    for tick in 1..=300 {
+        axis.advance(0.0, 1e-3, 4);
+        let t = tick as f64 * 1e-3;
+        let y = axis.state;
+        let gap = y.drive_position - y.carriage_position;
+        // δ(t) = δ₀·e^(−ζω_n t)·(cos ω_d t + ζω_n/ω_d·sin ω_d t) from rest.
+        let expected = delta0
+            * (-zeta * omega_n * t).exp()
+            * ((omega_d * t).cos() + zeta * omega_n / omega_d * (omega_d * t).sin());
+        assert!(
+            (gap - expected).abs() < 1e-9 * delta0,
+            "t = {t}: {gap} vs {expected}"
+        );
     }
 }
