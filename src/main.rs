@@ -23,6 +23,10 @@ fn main() -> ExitCode {
         libc::signal(libc::SIGPIPE, libc::SIG_DFL);
     }
     let cli = Cli::parse();
+    if let Err(message) = cli::add_package_paths(&cli.package_path) {
+        eprintln!("error: {message}");
+        return ExitCode::from(2);
+    }
     // A second Ctrl-C while the first is being handled ends the process the usual way.
     let _ = ctrlc::set_handler(|| {
         if INTERRUPTED.swap(true, Ordering::Relaxed) {

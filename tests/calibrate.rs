@@ -244,3 +244,21 @@ fn a_bad_spec_is_refused_with_its_location_before_anything_runs() {
     }
     let _ = std::fs::remove_dir_all(&dir);
 }
+
+/// The bundled specs load: their keys, ranges, targets and prediction scenarios are valid.
+#[test]
+fn the_bundled_calibration_specs_load() {
+    let dir = root().join("calibrations");
+    let mut specs: Vec<PathBuf> = std::fs::read_dir(&dir)
+        .unwrap()
+        .map(|e| e.unwrap().path())
+        .filter(|p| p.extension().is_some_and(|e| e == "toml"))
+        .collect();
+    specs.sort();
+    assert!(specs.len() >= 2, "{specs:?}");
+    for spec in specs {
+        let cal = cncsim::sweep::calibrate::Calibration::load(&spec)
+            .unwrap_or_else(|e| panic!("{}: {e}", spec.display()));
+        assert!(!cal.parameters.is_empty(), "{}", spec.display());
+    }
+}

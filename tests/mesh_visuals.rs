@@ -6,7 +6,7 @@ mod common;
 
 use cncsim::machine::{Machine, Shape};
 use cncsim::report::{AxisLabel, RecordingSetup, RrdWriter};
-use common::rrd_components;
+use common::{cncsim, rrd_components, stderr};
 use std::path::PathBuf;
 
 fn root() -> PathBuf {
@@ -128,3 +128,75 @@ fn a_machine_with_mesh_and_primitive_visuals_is_recorded_with_each_shape() {
         1
     );
 }
+
+/// `package://` meshes of a package that lies neither above the URDF nor on
+/// `ROS_PACKAGE_PATH` are found through `--package-path`, and named in a warning without it.
+#[test]
+fn package_meshes_are_found_through_the_package_path_option() {
+    let dir = tempfile::tempdir().unwrap();
+    let models = root().join("models");
+    let (machine_dir, workspace) = (dir.path().join("machine"), dir.path().join("ws"));
+    let package = workspace.join("src/tetra_parts");
+    std::fs::create_dir_all(&machine_dir).unwrap();
+    std::fs::create_dir_all(package.join("meshes")).unwrap();
+    std::fs::write(
+        package.join("package.xml"),
+        "<?xml version=\"1.0\"?>\n<package format=\"2\"><name>tetra_parts</name><version>1.0.0</version></package>\n",
+    )
+    .unwrap();
+    std::fs::write(package.join("meshes/part.stl"), tetrahedron_stl()).unwrap();
+    let urdf = std::fs::read_to_string(models.join("xyz_table.urdf")).unwrap();
+    let added = "    <visual><geometry><mesh filename=\"package://tetra_parts/meshes/part.stl\" scale=\"0.001 0.001 0.001\"/></geometry></visual>\n  </link>\n\n  <!-- X carriage";
+    let urdf = urdf.replacen("  </link>\n\n  <!-- X carriage", added, 1);
+    assert!(urdf.contains("tetra_parts"), "the base link's end was not found");
+    let path = machine_dir.join("xyz_table.urdf");
+    std::fs::write(&path, urdf).unwrap();
+    std::fs::copy(
+        models.join("xyz_table.drives.toml"),
+        machine_dir.join("xyz_table.drives.toml"),
+    )
+    .unwrap();
+    let path = path.to_str().unwrap();
+
+    let check = |extra: &[&str]| {
+        let mut args = vec!["machine", "check", path];
+        args.extend_from_slice(extra);
+        let out = std::process::Command::new(env!("CARGO_BIN_EXE_cncsim"))
+            .args(&args)
+            .env_remove("ROS_PACKAGE_PATH")
+            .output()
+            .unwrap();
+        (
+            out.status.code(),
+            String::from_utf8_lossy(&out.stdout).into_owned(),
+            stderr(&out),
+        )
+    };
+    // The report's warnings (on either stream) that name the package.
+    let warned = |out: &str| {
+        out.lines()
+            .any(|l| l.starts_with("warning:") && l.contains("tetra_parts"))
+    };
+    let (status, text, errors) = check(&[]);
+    assert_eq!(status, Some(0), "{errors}");
+    assert!(
+        (warned(&text) || warned(&errors)) && !text.contains("(4 triangles)"),
+        "without the option the package is not found: {text}\n{errors}"
+    );
+    let ws = workspace.to_str().unwrap();
+    let (status, text, errors) = check(&["--package-path", ws]);
+    assert_eq!(status, Some(0), "{errors}");
+    assert!(
+        text.contains("part.stl (4 triangles)") && !warned(&text) && !warned(&errors),
+        "with --package-path the mesh is drawn: {text}\n{errors}"
+    );
+    // A directory that is not there is bad input, named.
+    let o = cncsim(&["machine", "check", path, "--package-path", "/no/such/dir"]);
+    assert_eq!(o.status.code(), Some(2));
+    assert!(
+        stderr(&o).contains("--package-path /no/such/dir: no such directory"),
+        "{}",
+        stderr(&o)
+    );
+}
+

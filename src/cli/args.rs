@@ -8,6 +8,11 @@ use std::path::PathBuf;
 pub struct Cli {
     #[command(subcommand)]
     pub command: Option<Command>,
+    /// A directory to look for the ROS packages of `package://` mesh files in (it may be a
+    /// package, or hold packages below it), searched before `ROS_PACKAGE_PATH`; may be given
+    /// more than once.
+    #[arg(long = "package-path", value_name = "DIR", global = true, action = clap::ArgAction::Append)]
+    pub package_path: Vec<PathBuf>,
 }
 
 #[derive(Subcommand, Debug)]

@@ -40,6 +40,8 @@ pub const PHYSICS: [u8; 3] = [255, 120, 40];
 pub const ANALYTIC: [u8; 3] = [40, 180, 90];
 pub const DRIVE: [u8; 3] = [170, 90, 220];
 pub const DIFFERENCE: [u8; 3] = [220, 40, 120];
+/// The analytic model's drive side.
+const ANALYTIC_DRIVE: [u8; 3] = [120, 200, 220];
 /// Machine visuals are see-through, so no path hides inside the machine's own geometry.
 const MACHINE_ALPHA: f32 = 0.3;
 
@@ -63,8 +65,8 @@ pub struct RecordingSetup<'a> {
 #[derive(Default)]
 struct Columns {
     time: Vec<f64>,
-    /// (entity, values) in a fixed order, one value per row.
-    series: Vec<(String, Vec<f64>)>,
+    /// The lane's series ([`RrdWriter::series`], in its order) and their values, one per row.
+    series: Vec<(String, Quantity, Vec<f64>)>,
     /// Link poses per row (physics lane only).
     poses: Vec<Vec<Isometry3<f64>>>,
     /// Tool point on the workpiece per row (physics lane only).
@@ -79,10 +81,39 @@ impl Columns {
         self.poses.clear();
         self.tool.clear();
         self.drawn = 0;
-        for (_, v) in &mut self.series {
+        for (_, _, v) in &mut self.series {
             v.clear();
         }
     }
+}
+
+/// What a recorded series shows, per recorded tick (axis index where it is an axis's).
+#[derive(Debug, Clone, Copy)]
+enum Quantity {
+    Commanded(usize),
+    Position(usize),
+    /// The drive side's position, on an axis whose drive side can part from the carriage.
+    DriveSide(usize),
+    FollowingError(usize),
+    /// The physics lane's position minus this lane's at the same tick.
+    PhysicsMinusAnalytic(usize),
+    Torque(usize),
+    Voltage(usize),
+    ContourError,
+    CommandedSpeed,
+    PathSpeed,
+}
+
+/// One recorded series: where it is logged, its legend and colour, and what it shows. The
+/// table of a lane's series ([`RrdWriter::series`]) lays out the recording (names and colours,
+/// logged once) and fills its rows, so the two cannot disagree.
+struct Series {
+    /// Entity path below the writer's prefix.
+    entity: String,
+    /// Legend, without the A/B variant's name.
+    legend: String,
+    colour: [u8; 3],
+    quantity: Quantity,
 }
 
 /// One magnified-path sample: nearest programmed point, actual tool point (program frame, m),
@@ -180,37 +211,107 @@ impl RrdWriter {
         self.entity(&format!("world/machine/{link}"))
     }
 
-    /// The series a lane records, in the order its rows fill them.
-    fn lane_columns(&self, lane: usize) -> Columns {
-        let name = self.lanes[lane];
-        let mut series = Vec::new();
+    /// The series lane `lane` records, in the order its rows fill them.
+    fn series(&self, lane: usize) -> Vec<Series> {
+        let kind = &self.lanes[lane];
+        let colour = self.colour(kind);
+        let mut table = Vec::new();
+        let mut add = |entity: String, legend: String, colour: [u8; 3], quantity: Quantity| {
+            table.push(Series {
+                entity,
+                legend,
+                colour,
+                quantity,
+            })
+        };
         for (i, l) in self.labels.iter().enumerate() {
-            let a = &l.name;
+            let (a, u, e) = (&l.name, l.unit(), error_unit(l));
             if lane == 0 {
-                series.push(format!("axes/{a}/position/commanded"));
+                add(
+                    format!("axes/{a}/position/commanded"),
+                    format!("{a} commanded ({u})"),
+                    COMMANDED,
+                    Quantity::Commanded(i),
+                );
             }
-            series.push(format!("axes/{a}/position/{name}"));
+            add(
+                format!("axes/{a}/position/{kind}"),
+                format!("{a} {kind} ({u})"),
+                colour,
+                Quantity::Position(i),
+            );
             if self.slack[i] {
-                series.push(format!("axes/{a}/position/{name}_drive"));
+                let drive = if *kind == LaneKind::Physics {
+                    DRIVE
+                } else {
+                    ANALYTIC_DRIVE
+                };
+                add(
+                    format!("axes/{a}/position/{kind}_drive"),
+                    format!("{a} {kind} drive side ({u})"),
+                    drive,
+                    Quantity::DriveSide(i),
+                );
             }
-            series.push(format!("axes/{a}/following_error/{name}"));
+            add(
+                format!("axes/{a}/following_error/{kind}"),
+                format!("{a} following error, {kind} ({e})"),
+                colour,
+                Quantity::FollowingError(i),
+            );
             if lane > 0 {
-                series.push(format!("axes/{a}/physics_minus_analytic"));
+                add(
+                    format!("axes/{a}/physics_minus_analytic"),
+                    format!("{a} physics − analytic ({e})"),
+                    DIFFERENCE,
+                    Quantity::PhysicsMinusAnalytic(i),
+                );
             }
-            series.push(format!("axes/{a}/torque/{name}"));
+            add(
+                format!("axes/{a}/torque/{kind}"),
+                format!("{a} torque, {kind} (N·m)"),
+                colour,
+                Quantity::Torque(i),
+            );
             if self.dc_motor {
-                series.push(format!("axes/{a}/voltage/{name}"));
+                add(
+                    format!("axes/{a}/voltage/{kind}"),
+                    format!("{a} voltage, {kind} (V)"),
+                    colour,
+                    Quantity::Voltage(i),
+                );
             }
         }
-        series.push(format!("path/contour_error/{name}"));
+        add(
+            format!("path/contour_error/{kind}"),
+            format!("contour error, {kind} (µm)"),
+            colour,
+            Quantity::ContourError,
+        );
         if lane == 0 {
-            series.push("path/speed/commanded".into());
+            add(
+                "path/speed/commanded".into(),
+                "commanded (mm/s)".into(),
+                COMMANDED,
+                Quantity::CommandedSpeed,
+            );
         }
-        series.push(format!("path/speed/{name}"));
+        add(
+            format!("path/speed/{kind}"),
+            format!("{kind} (mm/s)"),
+            colour,
+            Quantity::PathSpeed,
+        );
+        table
+    }
+
+    /// Empty columns for lane `lane`'s rows.
+    fn lane_columns(&self, lane: usize) -> Columns {
         Columns {
-            series: series
+            series: self
+                .series(lane)
                 .into_iter()
-                .map(|e| (self.entity(&e), Vec::new()))
+                .map(|s| (self.entity(&s.entity), s.quantity, Vec::new()))
                 .collect(),
             ..Default::default()
         }
@@ -251,89 +352,23 @@ impl RrdWriter {
             .variant
             .as_ref()
             .map_or(String::new(), |(name, _)| format!("{name}: "));
-        let named = |entity: String, name: String, colour: [u8; 3]| {
-            rec.log_static(
-                self.entity(&entity),
-                &rerun::SeriesLines::new()
-                    .with_names([format!("{lead}{name}")])
-                    .with_colors([rgb(colour)]),
-            )
-        };
-        for (i, l) in self.labels.iter().enumerate() {
-            let (a, u) = (&l.name, l.unit());
-            let e = error_unit(l);
-            named(
-                format!("axes/{a}/position/commanded"),
-                format!("{a} commanded ({u})"),
-                COMMANDED,
-            )?;
-            for lane in &self.lanes {
-                let colour = self.colour(lane);
-                named(
-                    format!("axes/{a}/position/{lane}"),
-                    format!("{a} {lane} ({u})"),
-                    colour,
-                )?;
-                if self.slack[i] {
-                    named(
-                        format!("axes/{a}/position/{lane}_drive"),
-                        format!("{a} {lane} drive side ({u})"),
-                        if *lane == LaneKind::Physics {
-                            DRIVE
-                        } else {
-                            [120, 200, 220]
-                        },
-                    )?;
-                }
-                named(
-                    format!("axes/{a}/following_error/{lane}"),
-                    format!("{a} following error, {lane} ({e})"),
-                    colour,
-                )?;
-                named(
-                    format!("axes/{a}/torque/{lane}"),
-                    format!("{a} torque, {lane} (N·m)"),
-                    colour,
-                )?;
-                if self.dc_motor {
-                    named(
-                        format!("axes/{a}/voltage/{lane}"),
-                        format!("{a} voltage, {lane} (V)"),
-                        colour,
-                    )?;
-                }
-            }
-            if self.lanes.len() > 1 {
-                named(
-                    format!("axes/{a}/physics_minus_analytic"),
-                    format!("{a} physics − analytic ({e})"),
-                    DIFFERENCE,
+        for lane in 0..self.lanes.len() {
+            for series in self.series(lane) {
+                rec.log_static(
+                    self.entity(&series.entity),
+                    &rerun::SeriesLines::new()
+                        .with_names([format!("{lead}{}", series.legend)])
+                        .with_colors([rgb(series.colour)]),
                 )?;
             }
+        }
+        for l in &self.labels {
             rec.log_static(
-                self.entity(&format!("axes/{a}/following_error/max")),
+                self.entity(&format!("axes/{}/following_error/max", l.name)),
                 &rerun::SeriesPoints::new()
-                    .with_names([format!("{a} largest error ({e})")])
+                    .with_names([format!("{} largest error ({})", l.name, error_unit(l))])
                     .with_colors([rgb([200, 0, 0])])
                     .with_marker_sizes([6.0]),
-            )?;
-        }
-        named(
-            "path/speed/commanded".into(),
-            "commanded (mm/s)".into(),
-            COMMANDED,
-        )?;
-        for lane in &self.lanes {
-            let colour = self.colour(lane);
-            named(
-                format!("path/contour_error/{lane}"),
-                format!("contour error, {lane} (µm)"),
-                colour,
-            )?;
-            named(
-                format!("path/speed/{lane}"),
-                format!("{lane} (mm/s)"),
-                colour,
             )?;
         }
         Ok(())
@@ -358,38 +393,28 @@ impl RrdWriter {
         let compare = lane > 0 && self.primary_tick == Some(r.k);
         let poses =
             (lane == 0).then(|| crate::kinematics::link_poses(&self.machine, &r.sensors.position));
+        let (labels, primary) = (&self.labels, &self.primary);
+        let (setpoint, position) = (&r.setpoint.position, &r.sensors.position);
+        let value = |quantity: Quantity| match quantity {
+            Quantity::Commanded(i) => setpoint[i] * labels[i].scale(),
+            Quantity::Position(i) => position[i] * labels[i].scale(),
+            Quantity::DriveSide(i) => r.sensors.drive_position[i] * labels[i].scale(),
+            Quantity::FollowingError(i) => (setpoint[i] - position[i]) * error_scale(&labels[i]),
+            Quantity::PhysicsMinusAnalytic(i) if compare => {
+                (primary[i] - position[i]) * error_scale(&labels[i])
+            }
+            Quantity::PhysicsMinusAnalytic(_) => f64::NAN,
+            Quantity::Torque(i) => r.hold.mean_torque[i],
+            Quantity::Voltage(i) => r.hold.voltage[i],
+            Quantity::ContourError => path.contour_error * 1e6,
+            Quantity::CommandedSpeed => path.commanded_speed * 1e3,
+            Quantity::PathSpeed => path.actual_speed * 1e3,
+        };
         let c = &mut self.columns[lane];
         c.time.push(r.time);
-        let mut values = c.series.iter_mut().map(|(_, v)| v);
-        let mut put = |x: f64| values.next().expect("one column per value").push(x);
-        for (i, l) in self.labels.iter().enumerate() {
-            let (s, es) = (l.scale(), error_scale(l));
-            let (q, d) = (r.sensors.position[i], r.sensors.drive_position[i]);
-            if lane == 0 {
-                put(r.setpoint.position[i] * s);
-            }
-            put(q * s);
-            if self.slack[i] {
-                put(d * s);
-            }
-            put((r.setpoint.position[i] - q) * es);
-            if lane > 0 {
-                put(if compare {
-                    (self.primary[i] - q) * es
-                } else {
-                    f64::NAN
-                });
-            }
-            put(r.hold.mean_torque[i]);
-            if self.dc_motor {
-                put(r.hold.voltage[i]);
-            }
+        for (_, quantity, values) in &mut c.series {
+            values.push(value(*quantity));
         }
-        put(path.contour_error * 1e6);
-        if lane == 0 {
-            put(path.commanded_speed * 1e3);
-        }
-        put(path.actual_speed * 1e3);
         if let Some(poses) = poses {
             let workpiece = poses[self.machine.workpiece_link];
             let tool = poses[self.machine.tool_link] * Point3::from(self.machine.tool.offset_m);
@@ -448,7 +473,7 @@ impl RrdWriter {
             return Ok(());
         }
         let times = || TimeColumn::new_duration_secs("sim_time", c.time.iter().copied());
-        for (entity, values) in &c.series {
+        for (entity, _, values) in &c.series {
             self.rec.send_columns(
                 entity.as_str(),
                 [times()],
