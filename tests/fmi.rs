@@ -8,6 +8,8 @@
 //! else gcc); without them the tests skip, unless CNCSIM_REQUIRE_ORACLES=1 (CI), where they
 //! fail.
 
+mod common;
+
 use cncsim::scenario::{Assembly, RunOptions, Scenario};
 use cncsim::sim::Trace;
 use std::io::{Read, Write};
@@ -26,26 +28,22 @@ const GAINS: [(&str, [f64; 6]); 3] = [
     ("z", [9700.0, 3.0e5, 85.0, 13.7, 0.39, 3.125]),
 ];
 
+/// The oracle's Python, when it has FMPy and a C compiler is there for the controller FMU.
 fn python() -> Option<String> {
-    let python = std::env::var("CNCSIM_PYTHON").unwrap_or_else(|_| "python3".into());
     let cc = std::env::var("CC").unwrap_or_else(|_| "gcc".into());
-    let ok = Command::new(&python)
-        .args(["-c", "import fmpy, jinja2"])
+    let compiler = Command::new(&cc)
+        .arg("--version")
         .output()
-        .is_ok_and(|o| o.status.success())
-        && Command::new(&cc)
-            .arg("--version")
-            .output()
-            .is_ok_and(|o| o.status.success());
-    if ok {
-        return Some(python);
+        .is_ok_and(|o| o.status.success());
+    if !compiler {
+        assert!(
+            !std::env::var("CNCSIM_REQUIRE_ORACLES").is_ok_and(|v| v == "1"),
+            "CNCSIM_REQUIRE_ORACLES=1 but the C compiler {cc} is missing"
+        );
+        eprintln!("skipped: the C compiler {cc} is missing");
+        return None;
     }
-    assert!(
-        !std::env::var("CNCSIM_REQUIRE_ORACLES").is_ok_and(|v| v == "1"),
-        "CNCSIM_REQUIRE_ORACLES=1 but {python} cannot import fmpy (pip install fmpy) or {cc} is missing"
-    );
-    eprintln!("skipped: {python} cannot import fmpy, or {cc} is missing");
-    None
+    common::oracle_python("import fmpy, jinja2", "fmpy (pip install fmpy)")
 }
 
 /// The controller FMU, built once per test binary.

@@ -23,8 +23,11 @@ pub use task_space::TaskSpace;
 pub struct ControllerInput<'a> {
     /// Program time of the tick (s); negative while the machine settles before the program.
     pub time: f64,
+    /// Setpoint position (m, or rad on a rotary axis).
     pub setpoint_position: &'a [f64],
+    /// Setpoint velocity (m/s, or rad/s).
     pub setpoint_velocity: &'a [f64],
+    /// Setpoint acceleration (m/s², or rad/s²).
     pub setpoint_acceleration: &'a [f64],
     /// Measured position of the axis's feedback device, the one its position loop closes on:
     /// the motor encoder, or a linear scale on the carriage (quantised by the encoder if one
@@ -59,6 +62,7 @@ pub struct PidBank {
 }
 
 impl PidBank {
+    /// A bank of `loops`, one per axis in the machine's axis order.
     pub fn new(loops: Vec<Pid>) -> Self {
         PidBank { loops }
     }

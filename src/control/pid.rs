@@ -22,27 +22,38 @@
 /// The three gains of a plain PID.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct PidGains {
+    /// Proportional gain (output per m, or per rad on a rotary axis).
     pub kp: f64,
+    /// Integral gain (output per m·s, or per rad·s).
     pub ki: f64,
+    /// Derivative gain (output per m/s, or per rad/s).
     pub kd: f64,
 }
 
 /// Every term of one axis's PID (LinuxCNC `pid` parameter names; limits `None` = none).
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct PidSettings {
+    /// Proportional gain (output per m, or per rad on a rotary axis).
     pub kp: f64,
+    /// Integral gain (output per m·s, or per rad·s).
     pub ki: f64,
+    /// Derivative gain (output per m/s, or per rad/s).
     pub kd: f64,
     /// Feed-forward of the setpoint position, velocity and acceleration.
     pub ff0: f64,
+    /// Feed-forward of the setpoint velocity (output per m/s, or per rad/s).
     pub ff1: f64,
+    /// Feed-forward of the setpoint acceleration (output per m/s², or per rad/s²).
     pub ff2: f64,
     /// Constant added to the output.
     pub bias: f64,
     /// Errors within ±deadband count as zero; beyond it, the excess counts.
     pub deadband: f64,
+    /// Limit on |error| before the deadband (m, or rad).
     pub max_error: Option<f64>,
+    /// Limit on |I|, the positional form's error integral (m·s, or rad·s).
     pub max_error_i: Option<f64>,
+    /// Limit on |D|, the error's derivative (m/s, or rad/s).
     pub max_error_d: Option<f64>,
     /// |output| limit (LinuxCNC's maxoutput); infinite for none.
     pub output_limit: f64,
@@ -67,6 +78,7 @@ impl PidSettings {
         }
     }
 
+    /// Its Kp, Ki and Kd.
     pub fn gains(&self) -> PidGains {
         PidGains {
             kp: self.kp,
@@ -76,13 +88,20 @@ impl PidSettings {
     }
 }
 
+/// Which of the two discrete PID forms runs; unclamped, both give the same output for the
+/// same error sequence.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
 pub enum PidForm {
+    /// u(k) = Kp·e + Ki·I + Kd·D + feed-forward, with a clamped integral I that stops while
+    /// the output saturates.
     #[default]
     Positional,
+    /// The velocity form: the PID output accumulates its increments within ±output_limit
+    /// (anti-windup by construction), feed-forward added on top.
     Incremental,
 }
 
+/// One axis's discrete PID with feed-forward and its state.
 #[derive(Debug, Clone, PartialEq)]
 pub struct Pid {
     settings: PidSettings,
@@ -99,6 +118,7 @@ pub struct Pid {
 }
 
 impl Pid {
+    /// A PID at rest with `settings` in `form`, run every `period` (s).
     pub fn new(settings: PidSettings, form: PidForm, period: f64) -> Self {
         Pid {
             settings,
@@ -111,6 +131,7 @@ impl Pid {
         }
     }
 
+    /// Its terms.
     pub fn settings(&self) -> &PidSettings {
         &self.settings
     }

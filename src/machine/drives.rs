@@ -48,17 +48,24 @@ pub const SUSPECT_BACKLASH: f64 = 2e-3;
 pub enum Transmission {
     /// Gearbox then a belt pulley (linear joint): x = (r/N)·θ.
     Belt {
+        /// Gearbox ratio N: motor turns per pulley turn.
         gear_ratio: f64,
+        /// Pulley radius r (m).
         pulley_radius_m: f64,
     },
     /// Optional gearbox then a ball screw of the given lead (linear joint): z = (lead/2πN)·θ.
     Screw {
+        /// Gearbox ratio N: motor turns per screw turn (1 without a gearbox).
         #[serde(default = "one")]
         gear_ratio: f64,
+        /// Screw lead: travel per screw turn (m).
         lead_m: f64,
     },
     /// Gearbox on a rotary joint: q = θ/N.
-    Gear { ratio: f64 },
+    Gear {
+        /// Gearbox ratio N: motor turns per joint turn.
+        ratio: f64,
+    },
 }
 
 fn one() -> f64 {
@@ -110,9 +117,13 @@ impl Transmission {
 #[derive(Debug, Clone, Copy, PartialEq, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct DcMotor {
+    /// Torque constant K_m (N·m/A).
     pub torque_constant_nm_per_a: f64,
+    /// Back-EMF constant K_b (V·s/rad).
     pub back_emf_v_s_per_rad: f64,
+    /// Armature resistance R (Ω).
     pub resistance_ohm: f64,
+    /// Armature inductance L (H).
     pub inductance_h: f64,
 }
 
@@ -268,6 +279,7 @@ impl Guide {
 /// curve serves as coefficients (a [`Guide`]) or as forces (scaled by the normal load).
 #[derive(Debug, Clone, Copy, PartialEq, Default)]
 pub struct StribeckCurve {
+    /// Level while sliding fast (kinetic force or coefficient); the floor of the curve.
     pub kinetic: f64,
     /// Largest force (or coefficient) that holds a body at rest; ≥ `kinetic`.
     pub breakaway: f64,
@@ -295,6 +307,7 @@ impl StribeckCurve {
         self.kinetic + excess * (-ratio * ratio).exp()
     }
 
+    /// Whether the breakaway level is above the kinetic one (the curve has a Stribeck drop).
     pub fn has_stiction(&self) -> bool {
         self.breakaway > self.kinetic
     }
@@ -319,18 +332,23 @@ fn up() -> [f64; 3] {
 pub struct Drive {
     /// URDF joint this drive moves.
     pub joint: String,
+    /// How motor rotation becomes joint motion.
     pub transmission: Transmission,
+    /// Motor rotor inertia (kg·m²).
     pub rotor_inertia_kg_m2: f64,
     /// Gearbox, pulley or screw inertia on the motor side (kg·m²).
     #[serde(default)]
     pub transmission_inertia_kg_m2: f64,
     /// Motor-side viscous damping (N·m·s/rad).
     pub viscous_damping_nm_s_per_rad: f64,
+    /// The motor's electrical and torque constants.
     pub motor: DcMotor,
     /// Amplifier gain K_a (V per volt of controller output), see [`AmplifierMode`].
     pub amplifier_gain: f64,
+    /// Voltage or current (torque) mode; voltage by default.
     #[serde(default)]
     pub amplifier_mode: AmplifierMode,
+    /// Supply voltage (V): the largest armature voltage the amplifier can apply.
     pub supply_voltage_v: f64,
     /// Torque limit of the ideal torque actuator (N·m at the motor).
     pub peak_torque_nm: f64,
@@ -601,6 +619,7 @@ pub const COMPLIANCE_RANGES: &[(&str, &str, f64, f64)] = &[
 #[derive(Debug, Clone, PartialEq, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct Tool {
+    /// The URDF link the tool point is fixed in.
     pub link: String,
     /// Tool point in the tool link's frame (m).
     #[serde(default)]
@@ -611,6 +630,7 @@ pub struct Tool {
 #[derive(Debug, Clone, PartialEq, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct Workpiece {
+    /// The URDF link that carries the workpiece.
     pub link: String,
 }
 
@@ -628,6 +648,7 @@ pub enum JointMode {
 #[derive(Debug, Clone, Copy, PartialEq, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct JointSetting {
+    /// Locked or passive.
     pub mode: JointMode,
     /// Where a locked joint is held (m or rad); absent: 0, or the nearer limit if 0 is
     /// outside the travel.
@@ -640,6 +661,7 @@ pub struct JointSetting {
 #[derive(Debug, Clone, Copy, PartialEq, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct InertiaFromGeometry {
+    /// Uniform density of the geometry (kg/m³).
     pub density_kg_m3: f64,
 }
 
@@ -655,6 +677,7 @@ pub const AXIS_LETTERS: [&str; 6] = ["x", "y", "z", "a", "b", "c"];
 pub struct DrivesFile {
     /// The URDF `<robot name>` this file belongs to, or the URDF's file name.
     pub machine: String,
+    /// The tool point.
     pub tool: Tool,
     /// Absent: the workpiece sits on the machine base.
     #[serde(default)]
@@ -664,6 +687,8 @@ pub struct DrivesFile {
     /// Moving joints no axis drives, keyed by URDF joint name.
     #[serde(default)]
     pub joints: BTreeMap<String, toml::Spanned<JointSetting>>,
+    /// Masses and inertias for links the URDF leaves massless; absent: such links are
+    /// refused.
     #[serde(default)]
     pub inertia_from_geometry: Option<InertiaFromGeometry>,
     #[serde(skip)]
@@ -677,6 +702,7 @@ impl DrivesFile {
         urdf.with_extension("drives.toml")
     }
 
+    /// Reads the drives file at `path`.
     pub fn load(path: &Path) -> Result<DrivesFile, FileError> {
         let text = read_text(path, "drive data (the .drives.toml next to the URDF)")?;
         Self::parse(path, &text)

@@ -38,26 +38,36 @@ use std::path::{Path, PathBuf};
 pub struct Solid {
     /// Pose of the shape's frame in the link frame.
     pub pose: Isometry3<f64>,
+    /// The shape, in the shape's frame.
     pub shape: SolidShape,
 }
 
+/// The shape of a [`Solid`], as a URDF `<geometry>` gives it.
 #[derive(Debug, Clone, PartialEq)]
 pub enum SolidShape {
+    /// A box centred on the shape frame's origin, aligned with its axes.
     Box {
+        /// Half the box's size along x, y, z (m).
         half_extents: Vector3<f64>,
     },
     /// Along the shape frame's z axis, centred on its origin (URDF).
     Cylinder {
+        /// Radius (m).
         radius: f64,
+        /// Length along z (m).
         length: f64,
     },
+    /// A sphere centred on the shape frame's origin.
     Sphere {
+        /// Radius (m).
         radius: f64,
     },
     /// A mesh file, as the URDF names it, with its scale: read only when its volume is asked
     /// for (`inertia_from_geometry`).
     Mesh {
+        /// The mesh file as the URDF writes it (a path or a `package://` URL).
         filename: String,
+        /// Scale along x, y, z applied to the mesh's coordinates.
         scale: [f64; 3],
     },
 }
@@ -65,6 +75,7 @@ pub enum SolidShape {
 /// A rigid link.
 #[derive(Debug, Clone, PartialEq)]
 pub struct Link {
+    /// The URDF link name.
     pub name: String,
     /// Mass (kg); zero only for massless frames such as the fixed base.
     pub mass: f64,
@@ -80,10 +91,14 @@ pub struct Link {
     pub place: Option<LineColumn>,
 }
 
+/// How a joint moves its child link.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub enum JointKind {
+    /// Does not move.
     Fixed,
+    /// Slides along its axis (coordinate in m).
     Prismatic,
+    /// Turns about its axis (coordinate in rad).
     Revolute,
 }
 
@@ -91,10 +106,15 @@ pub enum JointKind {
 /// frame when the joint coordinate is zero and moves along / about `axis` (child frame).
 #[derive(Debug, Clone, PartialEq)]
 pub struct Joint {
+    /// The URDF joint name.
     pub name: String,
+    /// How the joint moves.
     pub kind: JointKind,
+    /// Index of the parent link.
     pub parent: usize,
+    /// Index of the child link.
     pub child: usize,
+    /// Pose of the child frame in the parent frame at joint coordinate zero.
     pub origin: Isometry3<f64>,
     /// Unit axis in the joint (child) frame.
     pub axis: Vector3<f64>,
@@ -116,7 +136,9 @@ pub struct Joint {
 pub struct Mimic {
     /// Name of the joint followed.
     pub joint: String,
+    /// Factor on the leader's position (1 when the URDF gives none).
     pub multiplier: f64,
+    /// Added to the scaled leader position (m or rad; 0 when the URDF gives none).
     pub offset: f64,
 }
 
@@ -125,7 +147,9 @@ pub struct Mimic {
 pub struct Axis {
     /// Program letter of the axis (`x`, `y`, `z`, `a`, `b`, `c`).
     pub name: String,
+    /// Index of the joint the axis drives.
     pub joint: usize,
+    /// The axis's motor, amplifier and transmission.
     pub drive: Drive,
 }
 
@@ -148,6 +172,7 @@ impl Joint {
 }
 
 impl Axis {
+    /// Whether the axis drives a revolute joint (joint units rad, not m).
     pub fn is_rotary(&self, machine: &Machine) -> bool {
         machine.joints[self.joint].kind == JointKind::Revolute
     }
@@ -156,12 +181,17 @@ impl Axis {
 /// A machine: links, joints (parents before children), its driven axes and its tool.
 #[derive(Debug, Clone, PartialEq)]
 pub struct Machine {
+    /// The URDF `<robot name>`, or the URDF's file name without the extension.
     pub name: String,
+    /// The URDF file it was loaded from.
     pub urdf_path: PathBuf,
+    /// The links, indexed by the joints' `parent` and `child`.
     pub links: Vec<Link>,
     /// Joints ordered so that a joint's parent link is placed before its child.
     pub joints: Vec<Joint>,
+    /// Index of the root link (the machine base).
     pub root: usize,
+    /// The driven axes, in the machine's axis order.
     pub axes: Vec<Axis>,
     /// What became of each moving URDF joint no axis drives (locked ones are fixed joints
     /// now, followers of a driven axis ride on its link).
@@ -169,6 +199,7 @@ pub struct Machine {
     /// Links whose mass and inertia were computed from their geometry
     /// (`inertia_from_geometry`), not read from the URDF.
     pub masses_from_geometry: Vec<String>,
+    /// The tool point, as the drive file gives it.
     pub tool: Tool,
     /// Index of the tool link.
     pub tool_link: usize,
@@ -222,10 +253,12 @@ impl Machine {
             .collect()
     }
 
+    /// Index of the axis with program letter `name`, if the machine has it.
     pub fn axis_index(&self, name: &str) -> Option<usize> {
         self.axes.iter().position(|a| a.name == name)
     }
 
+    /// Index of the link named `name`, if any.
     pub fn link_index(&self, name: &str) -> Option<usize> {
         self.links.iter().position(|l| l.name == name)
     }
@@ -239,11 +272,17 @@ impl Machine {
 /// The URDF part of a machine, before drives are attached.
 #[derive(Debug, Clone, PartialEq)]
 pub struct KinematicTree {
+    /// The URDF `<robot name>`, or the file name without the extension.
     pub name: String,
+    /// The URDF file.
     pub path: PathBuf,
+    /// The URDF's text as read.
     pub text: String,
+    /// The links, in the file's order.
     pub links: Vec<Link>,
+    /// The joints, parents before children.
     pub joints: Vec<Joint>,
+    /// Index of the root link.
     pub root: usize,
     /// Values that load but look wrong (e.g. a 10 t carriage), located in the file.
     pub warnings: Vec<FileError>,

@@ -8,7 +8,7 @@
 //! side (rotor, coupling, gearbox, pulley or screw, its inertia the armature of its own DOF)
 //! and the carriage, on a free DOF relative to it. The spring and damper between them, with the
 //! backlash as a dead zone inside (no force within the gap), push the two apart every physics
-//! step ([`TransmissionSpring`]). Without a stiffness the backlash is a rigid stop instead: a
+//! step (`TransmissionSpring`). Without a stiffness the backlash is a rigid stop instead: a
 //! joint limit of the dead-band DOF.
 //!
 //! This is the only module that knows about Rapier. Its inputs and outputs are plain numbers

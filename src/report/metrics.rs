@@ -7,15 +7,20 @@ use crate::sim::{Outcome, TickRecord};
 use serde::Serialize;
 use std::collections::BTreeMap;
 
+/// The figures of one axis, in display units: errors in mm on a linear axis and in degrees on
+/// a rotary one (only the fields of the axis's kind are set).
 #[derive(Debug, Clone, PartialEq, Serialize)]
 pub struct AxisMetrics {
     /// Linear axes: mm; rotary axes: the `_deg` fields instead.
     #[serde(skip_serializing_if = "Option::is_none")]
     pub max_following_error_mm: Option<f64>,
+    /// RMS following error over the program's ticks (mm; linear axes).
     #[serde(skip_serializing_if = "Option::is_none")]
     pub rms_following_error_mm: Option<f64>,
+    /// Largest |setpoint − position| (deg; rotary axes).
     #[serde(skip_serializing_if = "Option::is_none")]
     pub max_following_error_deg: Option<f64>,
+    /// RMS following error over the program's ticks (deg; rotary axes).
     #[serde(skip_serializing_if = "Option::is_none")]
     pub rms_following_error_deg: Option<f64>,
     /// Time of the largest following error (s).
@@ -28,10 +33,15 @@ pub struct AxisMetrics {
     /// Largest difference between the physics and the analytic reference model (when run).
     #[serde(skip_serializing_if = "Option::is_none")]
     pub max_physics_vs_analytic_mm: Option<f64>,
+    /// Largest position difference between the physics and the analytic reference model
+    /// (deg; rotary axes, when the model runs).
     #[serde(skip_serializing_if = "Option::is_none")]
     pub max_physics_vs_analytic_deg: Option<f64>,
+    /// Largest |mean motor torque| over a servo period (N·m).
     pub peak_torque_nm: f64,
+    /// RMS of the mean motor torque over the program's ticks (N·m).
     pub rms_torque_nm: f64,
+    /// Largest |armature voltage| (V); only with the DC-motor actuator.
     #[serde(skip_serializing_if = "Option::is_none")]
     pub peak_voltage_v: Option<f64>,
     /// Stick-slip: how often the axis stalled again after it had got going, while its setpoint
@@ -60,10 +70,13 @@ pub struct StallCounter {
     /// Peak commanded speed of the axis over the whole program.
     peak: f64,
     moving: bool,
+    /// Stalls counted so far.
     pub stalls: usize,
 }
 
 impl StallCounter {
+    /// A counter for an axis whose peak commanded speed over the program is
+    /// `peak_commanded_speed` (m/s, or rad/s; its sign is ignored).
     pub fn new(peak_commanded_speed: f64) -> StallCounter {
         StallCounter {
             peak: peak_commanded_speed.abs(),
@@ -90,14 +103,21 @@ impl StallCounter {
     }
 }
 
+/// The figures of a run, in display units (mm, deg, s, N·m, V): what `metrics.json` holds
+/// (see [`Metrics::to_json`]) and `[expect]` bounds refer to. Lane 0 (the physics) gives every
+/// figure.
 #[derive(Debug, Clone, PartialEq, Serialize)]
 pub struct Metrics {
+    /// The scenario's name.
     pub scenario: String,
     /// True when the run reached the end of its setpoints.
     pub completed: bool,
     #[serde(skip_serializing_if = "Option::is_none")]
+    /// Why the run stopped early (the stop's message); `None` when it completed.
     pub stopped: Option<String>,
+    /// Largest contour error: the tool point's distance from the programmed path (mm).
     pub max_contour_error_mm: f64,
+    /// RMS contour error over the program's ticks (mm).
     pub rms_contour_error_mm: f64,
     /// Largest |commanded − actual| path speed of the moving machine: left out are the ticks
     /// at which the command steps between rest and motion (there the difference is the step,
@@ -108,11 +128,17 @@ pub struct Metrics {
     /// Longest time the actual path speed took to reach the commanded one after the command
     /// stepped from rest to motion (the window's length where it never did).
     pub path_speed_catch_up_s: f64,
+    /// Simulated program time: servo ticks × servo period (s).
     pub sim_time_s: f64,
+    /// Wall-clock time the loop took (s).
     pub wall_time_s: f64,
+    /// Simulated over wall-clock time (infinite when the wall time is zero).
     pub real_time_factor: f64,
+    /// Integration steps the first lane's plant took (physics steps for Rapier).
     pub physics_steps: u64,
+    /// Program ticks observed on the first lane.
     pub servo_ticks: usize,
+    /// Each axis's figures, by axis name.
     pub axes: BTreeMap<String, AxisMetrics>,
 }
 

@@ -16,18 +16,26 @@ const ENVELOPE_BINS: usize = 4096;
 
 /// What the report of a run is told before it starts (plain data).
 pub struct ReportSetup {
+    /// The scenario's name.
     pub name: String,
+    /// How each machine axis is shown, in the machine's axis order.
     pub labels: Vec<AxisLabel>,
+    /// Whether the actuator is the DC-motor model (the metrics then report peak voltage).
     pub dc_motor: bool,
+    /// Servo period (s).
     pub period: f64,
+    /// The programmed path and program frame that contour error and path speed are measured
+    /// against.
     pub path: PathTracker,
     /// Largest |commanded velocity| per axis over the program (for stick-slip).
     pub peak_velocity: Vec<f64>,
     /// Program ticks the run will have, if it completes (for the plot envelope).
     pub ticks: usize,
+    /// What each lane simulates, in lane order (a second lane is compared with the first).
     pub lanes: Vec<LaneKind>,
     /// Backlash per axis (joint units) and the source line of each move, for the event log.
     pub backlash: Vec<f64>,
+    /// Source line of each program move.
     pub move_lines: Vec<u32>,
 }
 
@@ -56,15 +64,19 @@ impl Envelope {
         }
     }
 
+    /// Time of each bin's largest value (s).
     pub fn times(&self) -> Vec<f64> {
         self.points.iter().map(|p| p.0).collect()
     }
 
+    /// Each bin's largest contour error (m).
     pub fn values(&self) -> Vec<f64> {
         self.points.iter().map(|p| p.1).collect()
     }
 }
 
+/// The report of one run as it goes: the observer that accumulates its metrics and writes its
+/// CSV trace, Rerun recording and event log.
 pub struct RunReport {
     setup: ReportSetup,
     metrics: MetricsAccumulator,
@@ -127,6 +139,7 @@ impl RunReport {
         self.metrics.finish(&self.setup.name, outcome)
     }
 
+    /// The contour-error envelope of the run so far.
     pub fn contour_envelope(&self) -> &Envelope {
         &self.envelope
     }

@@ -81,7 +81,11 @@ impl<'a> RunOptions<'a> {
 /// What a run produced.
 #[derive(Debug, Clone)]
 pub struct RunOutput {
+    /// The run's figures: contour, path-speed and per-axis errors, torques, times.
     pub metrics: Metrics,
+    /// The metrics as written to `metrics.json` ([`Metrics::to_json`]), with the `ballbar`
+    /// and `frequency_response` figures when the scenario has them; what the `[expect]`
+    /// bounds are checked against.
     pub metrics_json: serde_json::Value,
     /// How each lane ended and what it cost.
     pub outcome: Outcome,
@@ -116,6 +120,7 @@ impl RunOutput {
 pub struct ScenarioRun {
     /// The scenario file.
     pub path: PathBuf,
+    /// What the run produced.
     pub output: RunOutput,
 }
 

@@ -43,6 +43,7 @@ const PROGRESS_EVERY: usize = 1024;
 /// How the loop runs; the same for every lane.
 #[derive(Debug, Clone, PartialEq)]
 pub struct LoopSettings {
+    /// Servo period T (s).
     pub servo_period: f64,
     /// The way the machine comes to the program's first point, run after the settle and not
     /// observed; the plants start at rest at its first sample. Empty: they start at the first
@@ -52,7 +53,9 @@ pub struct LoopSettings {
     /// or the program's) before it moves (s): the machine is enabled and in position before
     /// cycle start. Not observed.
     pub settle_time: f64,
+    /// How the feedback is quantised before the controller sees it.
     pub encoder: Encoder,
+    /// The drive's following-error limits, and the divergence check.
     pub trip: FollowingErrorTrip,
 }
 
@@ -85,30 +88,52 @@ impl std::fmt::Display for LaneKind {
 pub struct Lane<'a> {
     /// What the lane simulates.
     pub kind: LaneKind,
+    /// The plant the lane advances.
     pub plant: Box<dyn Plant + 'a>,
+    /// The lane's own controller instance.
     pub controller: Box<dyn Controller + 'a>,
 }
 
 /// Why a lane stopped before the end of its setpoints.
 #[derive(Debug, Clone, PartialEq, thiserror::Error)]
 pub enum Stop {
+    /// An axis's sampled position or velocity is no longer finite.
     #[error("simulation diverged at t = {time:.6} s on axis '{axis}': {what}")]
     Diverged {
+        /// Program time (s).
         time: f64,
+        /// The axis's name.
         axis: String,
+        /// Which values were not finite.
         what: String,
     },
+    /// The progress callback asked the run to stop (e.g. Ctrl-C).
     #[error("interrupted at t = {time:.6} s")]
-    Interrupted { time: f64 },
+    Interrupted {
+        /// Program time (s).
+        time: f64,
+    },
+    /// An axis's |setpoint − position| exceeded its following-error limit: the drive tripped.
     #[error("following-error fault at t = {time:.6} s on axis '{axis}': |error| = {error:.6e} exceeds the limit {limit:.6e}")]
     FollowingError {
+        /// Program time (s).
         time: f64,
+        /// The axis's name.
         axis: String,
+        /// |setpoint − position| (joint units: m, or rad on a rotary axis).
         error: f64,
+        /// The axis's limit (joint units).
         limit: f64,
     },
+    /// The controller could not compute its command (e.g. a controller FMU whose step
+    /// failed).
     #[error("the controller failed at t = {time:.6} s: {what}")]
-    Controller { time: f64, what: String },
+    Controller {
+        /// Program time (s).
+        time: f64,
+        /// The controller's reason.
+        what: String,
+    },
 }
 
 impl Stop {
@@ -131,19 +156,24 @@ pub struct TickRecord<'a> {
     pub k: usize,
     /// Program time (s).
     pub time: f64,
+    /// The setpoint of the tick (position, velocity, acceleration per axis).
     pub setpoint: &'a SetpointSample,
+    /// The plant's sensors at the start of the period.
     pub sensors: &'a Sensors,
     /// Positions the controller saw (after the encoder): of the feedback device, and of the
     /// motor encoder.
     pub measured: &'a [f64],
+    /// Motor-encoder (drive-side) positions the controller saw, after the encoder.
     pub motor: &'a [f64],
     /// Controller output (V at the amplifier input, or N·m).
     pub command: &'a [f64],
+    /// What the actuators did over the period (mean torque, voltage).
     pub hold: &'a Hold,
 }
 
 /// Receives what the loop does, tick by tick (lanes in order within a tick).
 pub trait Observer {
+    /// Lane `lane` ran one program tick (settle and approach ticks are not observed).
     fn tick(&mut self, lane: usize, record: &TickRecord<'_>);
     /// Lane `lane` stopped early (the tick it stopped on was not observed when its state was
     /// not finite, and was observed with zero command after a following-error trip).
@@ -177,7 +207,9 @@ impl Observer for Observers<'_> {
 /// How one lane ended.
 #[derive(Debug, Clone, PartialEq)]
 pub struct LaneOutcome {
+    /// What the lane simulated.
     pub kind: LaneKind,
+    /// Why the lane stopped early; `None` when it ran to the end of the run.
     pub stop: Option<Stop>,
     /// Integration steps the plant took (physics steps for Rapier).
     pub steps: u64,
@@ -189,7 +221,9 @@ pub struct LaneOutcome {
 pub struct Outcome {
     /// Program ticks observed on the first lane.
     pub ticks: usize,
+    /// How each lane ended, in lane order.
     pub lanes: Vec<LaneOutcome>,
+    /// Wall-clock time the run took (s).
     pub wall_time: f64,
 }
 

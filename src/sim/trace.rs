@@ -6,12 +6,19 @@ use super::{Observer, Stop, TickRecord};
 /// Per-tick record of one lane; sample k of axis i at `k * axes + i`. Joint units (SI).
 #[derive(Debug, Clone, PartialEq, Default)]
 pub struct Trace {
+    /// Servo period (s).
     pub period: f64,
+    /// Number of machine axes (the stride of the per-axis series).
     pub axes: usize,
+    /// Program time of each sample (s).
     pub time: Vec<f64>,
+    /// Setpoint position (m, or rad on a rotary axis).
     pub commanded: Vec<f64>,
+    /// Setpoint velocity (m/s, or rad/s on a rotary axis).
     pub commanded_velocity: Vec<f64>,
+    /// Carriage (load-side) position sampled at the start of the period (m, or rad).
     pub actual: Vec<f64>,
+    /// Carriage velocity sampled at the start of the period (m/s, or rad/s).
     pub actual_velocity: Vec<f64>,
     /// Drive-side position (motor angle over the ratio); equals `actual` without backlash.
     pub drive: Vec<f64>,
@@ -25,12 +32,14 @@ pub struct Trace {
     pub current: Vec<f64>,
     /// Tool point and its velocity (m, m/s).
     pub tool_point: Vec<[f64; 3]>,
+    /// Tool-point velocity in the machine base frame, one per sample (m/s).
     pub tool_velocity: Vec<[f64; 3]>,
     /// Program move of the setpoint.
     pub segment: Vec<u32>,
 }
 
 impl Trace {
+    /// An empty trace of `axes` axes sampled every `period` (s).
     pub fn new(period: f64, axes: usize) -> Trace {
         Trace {
             period,
@@ -39,10 +48,12 @@ impl Trace {
         }
     }
 
+    /// Number of samples (ticks) kept.
     pub fn len(&self) -> usize {
         self.time.len()
     }
 
+    /// Whether no tick was kept.
     pub fn is_empty(&self) -> bool {
         self.time.is_empty()
     }
@@ -75,13 +86,17 @@ impl Trace {
 /// Keeps every tick of every lane as a [`Trace`], and each lane's stop.
 #[derive(Debug, Clone, Default)]
 pub struct TraceRecorder {
+    /// Each lane's trace, in lane order.
     pub traces: Vec<Trace>,
+    /// Why each lane stopped early; `None` while it runs or when it ran to the end.
     pub stops: Vec<Option<Stop>>,
     period: f64,
     axes: usize,
 }
 
 impl TraceRecorder {
+    /// A recorder of `lanes` empty traces of `axes` axes at the servo period `period` (s)
+    /// (lanes beyond these are added as they tick).
     pub fn new(period: f64, axes: usize, lanes: usize) -> TraceRecorder {
         TraceRecorder {
             traces: vec![Trace::new(period, axes); lanes],

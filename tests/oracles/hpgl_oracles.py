@@ -1,9 +1,11 @@
 #!/usr/bin/env python3
 """Independent readings of HPGL files and of the Hershey font, for tests/hpgl_oracles.rs.
 
-    hpgl_oracles.py hp2xx FILE [OPTION …]
+    hpgl_oracles.py hp2xx FILE [--solid] [OPTION …]
                                   pen-down polylines as GNU hp2xx (Debian package) draws them
-                                  (options go to hp2xx, e.g. -W 10000 -H 7200)
+                                  (options go to hp2xx, e.g. -W 10000 -H 7200); --solid: every
+                                  line type set back to solid first (hp2xx draws the dashes a
+                                  plotter would, cncsim the path the tool follows)
     hpgl_oracles.py ezdxf FILE    pen-down polylines and polygon outlines as ezdxf's HP-GL/2
                                   reader (PyPI package ezdxf) draws them
     hpgl_oracles.py hershey       Roman Simplex glyphs as the PyPI package Hershey-Fonts
@@ -14,11 +16,26 @@ Output, one item a line: `pen x,y x,y ...` (plotter units) for polylines, and
 hp2xx shifts its output so that the drawing's lower-left corner is at 0,0.
 """
 
+import re
 import subprocess
 import sys
+import tempfile
+
+# `LT` with its parameters, where a command starts (after a terminator, a separator or the
+# previous command's last number).
+LINE_TYPE = re.compile(rb"(?:(?<=^)|(?<=[;\s0-9.]))LT[-+0-9., ]*")
 
 
 def hp2xx(path, options=()):
+    options = list(options)
+    if "--solid" in options:
+        options.remove("--solid")
+        with open(path, "rb") as f:
+            text = LINE_TYPE.sub(b"LT", f.read())
+        with tempfile.NamedTemporaryFile(suffix=".hp") as solid:
+            solid.write(text)
+            solid.flush()
+            return hp2xx(solid.name, options)
     # -m hpgl writes the drawing back as plain PU/PD vectors in plotter units (-t: true
     # size); labels, circles and arcs come out as the vectors hp2xx draws them with.
     output = subprocess.run(

@@ -39,16 +39,33 @@ pub type MakeController<'a> = dyn Fn() -> Box<dyn Controller> + 'a;
 /// Gravity in the machine base frame: URDF convention, z up.
 pub const GRAVITY: [f64; 3] = [0.0, 0.0, -9.81];
 
+/// Why a scenario could not be assembled or run.
 #[derive(Debug, thiserror::Error)]
 pub enum RunError {
+    /// A file (scenario, machine, drive file, program) is missing, unreadable or wrong, or the
+    /// scenario does not fit its machine.
     #[error("{0}")]
     File(#[from] FileError),
+    /// The physics model could not be built from the machine.
     #[error("{path}: {source}")]
-    Model { path: PathBuf, source: ModelError },
+    Model {
+        /// The scenario file.
+        path: PathBuf,
+        /// What the model builder refused.
+        source: ModelError,
+    },
+    /// The program (or the approach) could not be planned.
     #[error("{path}: {source}")]
-    Plan { path: PathBuf, source: PlanError },
+    Plan {
+        /// The file whose plan failed: the program's source, or the scenario for its approach.
+        path: PathBuf,
+        /// What the planner refused.
+        source: PlanError,
+    },
+    /// Writing the report or the recording failed.
     #[error(transparent)]
     Report(#[from] crate::report::ReportError),
+    /// The program file has errors.
     #[error("{0}")]
     Program(ProgramErrors),
 }
@@ -58,16 +75,24 @@ pub enum RunError {
 /// so is the setpoint stream: no sample is kept, so memory does not grow with the program's
 /// duration.
 pub struct Assembly {
+    /// The scenario as loaded.
     pub scenario: Scenario,
+    /// The machine with the scenario's `[mechanics]`, `[feedback]` and `[actuator]` choices
+    /// applied (and the program frame's warnings added).
     pub machine: Machine,
+    /// How each machine axis is shown, in the machine's axis order.
     pub labels: Vec<AxisLabel>,
+    /// How program coordinates map onto the machine's axes (sign and home per axis).
     pub axis_map: AxisMap,
     /// The program frame: where contour error, path speed and the tool path are measured.
     pub frame: ProgramFrame,
+    /// The planned program, from which the setpoints are streamed.
     pub plan: PlannedProgram,
+    /// The actuator model of every axis (the scenario's `[actuator]`).
     pub actuator: ActuatorKind,
     /// The controller, resolved on the machine (a fresh instance for every lane and run).
     pub controller: ControllerRecipe,
+    /// The servo loop's period, approach, settle time, encoder and following-error trip.
     pub loop_settings: LoopSettings,
     /// What the reports need of the whole program, from one pass over its setpoints when first
     /// asked for.
@@ -185,6 +210,7 @@ impl Assembly {
         })
     }
 
+    /// The program as planned (in machine coordinates, work offset applied).
     pub fn program(&self) -> &Program {
         self.plan.program()
     }
@@ -425,6 +451,7 @@ pub struct PlanKey {
 }
 
 impl PlanKey {
+    /// The key of `s`'s plan on `machine`.
     pub fn new(s: &Scenario, machine: &Machine) -> Self {
         PlanKey {
             source: s.program.source.clone(),

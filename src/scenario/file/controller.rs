@@ -124,6 +124,7 @@ pub enum ControllerType {
 }
 
 impl ControllerType {
+    /// The type as the scenario's `type` key spells it (`"pid"`, `"inverse-dynamics"`, …).
     pub fn name(self) -> &'static str {
         match self {
             ControllerType::Pid => "pid",
@@ -148,15 +149,19 @@ pub enum ControlSpace {
 /// PID settings of one axis.
 #[derive(Debug, Clone, PartialEq)]
 pub struct AxisGains {
+    /// Every PID term of the axis, checked.
     pub settings: PidSettings,
+    /// Where the axis's entry is in the file.
     pub at: Option<LineColumn>,
 }
 
 impl AxisGains {
+    /// The axis's Kp, Ki and Kd.
     pub fn gains(&self) -> crate::control::PidGains {
         self.settings.gains()
     }
 
+    /// The axis's |output| limit (N·m or V; infinite for none).
     pub fn output_limit(&self) -> f64 {
         self.settings.output_limit
     }
@@ -165,14 +170,19 @@ impl AxisGains {
 /// Cascade settings of one axis.
 #[derive(Debug, Clone, PartialEq)]
 pub struct AxisCascade {
+    /// The axis's position and velocity loops, feed-forward, limits and command filters,
+    /// checked.
     pub settings: CascadeAxis,
+    /// Where the axis's entry is in the file.
     pub at: Option<LineColumn>,
 }
 
 /// The PID controller's settings: its form and each axis's terms.
 #[derive(Debug, Clone, PartialEq, Default)]
 pub struct PidTable {
+    /// Positional or incremental (the `form` key; positional by default).
     pub form: PidForm,
+    /// Each axis's terms, by axis name.
     pub axes: BTreeMap<String, AxisGains>,
     /// Where the `axes` table is.
     pub at: Option<LineColumn>,
@@ -181,6 +191,7 @@ pub struct PidTable {
 /// The cascade controller's settings: each axis's loops and the velocity estimate's filter.
 #[derive(Debug, Clone, PartialEq, Default)]
 pub struct CascadeTable {
+    /// Each axis's loops, by axis name.
     pub axes: BTreeMap<String, AxisCascade>,
     /// Cut-off of the velocity estimate (Hz; 0 = unfiltered).
     pub velocity_filter_hz: f64,
@@ -193,8 +204,12 @@ pub struct CascadeTable {
 pub struct InverseDynamicsSettings {
     /// Closed-loop natural frequency (rad/s).
     pub omega_n: f64,
+    /// Closed-loop damping ratio (1 by default).
     pub damping_ratio: f64,
+    /// Scale on every link mass and inertia of the controller's model (1 = the true machine),
+    /// to study robustness to model error.
     pub model_mass_scale: f64,
+    /// Where the error dynamics are imposed: joint space or at the tool tip.
     pub space: ControlSpace,
     /// Task space: the least-squares damping λ (0 in joint space).
     pub task_damping: f64,
@@ -214,8 +229,11 @@ pub struct FmuSettings {
 /// The `[controller]` section: the type that runs and the settings of every type given.
 #[derive(Debug, Clone, PartialEq)]
 pub struct ControllerSettings {
+    /// The type that runs (the `type` key).
     pub kind: ControllerType,
+    /// The PID settings (empty when no `axes` table is given).
     pub pid: PidTable,
+    /// The cascade settings (empty when no `cascade` table is given).
     pub cascade: CascadeTable,
     /// Given with natural_frequency_hz.
     pub inverse_dynamics: Option<InverseDynamicsSettings>,

@@ -75,26 +75,38 @@ struct RawScenario {
 /// Each field is one section of the file.
 #[derive(Debug, Clone, PartialEq)]
 pub struct Scenario {
+    /// The scenario's `name`, or else its file name without the extension.
     pub name: String,
+    /// The scenario file it was read from.
     pub path: PathBuf,
+    /// The free-text `description` (empty when not given).
     pub description: String,
     /// The machine's URDF (its drive file beside it).
     pub machine: PathBuf,
+    /// Where the `machine` value is in the file.
     pub machine_at: Option<LineColumn>,
+    /// `[program]`: what runs, and where (work offset, approach).
     pub program: ProgramSettings,
+    /// `[planner]`: the motion profile and its parameters.
     pub planner: PlannerSettings,
+    /// `[timing]`: servo period, physics substeps and solver iterations, settle time.
     pub timing: Timing,
     /// `None`: the scenario has no `[actuator]` (it can be planned, not run).
     pub actuator: Option<ActuatorSettings>,
     /// `None`: the scenario has no `[controller]` (it can be planned, not run).
     pub controller: Option<ControllerSettings>,
+    /// `[feedback]`: position feedback, encoder resolution, following-error limits.
     pub feedback: FeedbackSettings,
+    /// `[mechanics]`: which of the machine's friction, backlash and compliance the run keeps,
+    /// and transmissions whose stiffness and damping it replaces.
     pub mechanics: Mechanics,
     /// Backlash and friction compensation per axis.
     pub compensation: BTreeMap<String, CompensationEntry>,
+    /// `[recording]`: which files a run writes, and every how many ticks.
     pub recording: RecordingSettings,
     /// The analytic reference model beside the physics; `None` = not run.
     pub analytic: Option<AnalyticSettings>,
+    /// `[expect]`: the bounds on the run's metrics, each flattened to its dotted metric path.
     pub expect: Vec<Expectation>,
     /// `[frequency_response.<axis>]`: measurements a run makes after its program (by axis
     /// name).
@@ -106,6 +118,7 @@ pub struct Scenario {
 }
 
 impl Scenario {
+    /// Reads and checks the scenario file at `path` (a URDF or xacro is refused with a hint).
     pub fn load(path: &Path) -> Result<Scenario, FileError> {
         let extension = path.extension().and_then(|e| e.to_str()).unwrap_or("");
         if ["urdf", "xacro"].contains(&extension.to_ascii_lowercase().as_str()) {
@@ -123,6 +136,8 @@ impl Scenario {
         Self::parse(path, &text)
     }
 
+    /// Checks a scenario's `text`, read from `path` (against whose folder its paths resolve;
+    /// the machine named must exist).
     pub fn parse(path: &Path, text: &str) -> Result<Scenario, FileError> {
         let raw: RawScenario = toml::from_str(text).map_err(|e| toml_error(path, text, &e))?;
         let file = Source::new(path, text);
