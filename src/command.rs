@@ -45,6 +45,7 @@ pub trait Report {
         Vec::new()
     }
 
+    /// How the command ended, which sets the exit status; by default it did what was asked.
     fn ending(&self) -> Ending {
         Ending::Done
     }
@@ -64,6 +65,8 @@ pub fn cannot_write(path: &Path, error: impl std::fmt::Display) -> FileError {
 /// Where a line a command shows as it goes belongs: the report stream or the error stream.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub enum Stream {
+    /// The report stream (standard output).
     Out,
+    /// The error stream (standard error): errors and warnings.
     Err,
 }

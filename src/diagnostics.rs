@@ -6,7 +6,9 @@ use std::path::{Path, PathBuf};
 /// A position in a text file, 1-based.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub struct LineColumn {
+    /// Line number, from 1.
     pub line: usize,
+    /// Column in characters (not bytes), from 1.
     pub column: usize,
 }
 
@@ -37,12 +39,16 @@ fn floor_char_boundary(text: &str, mut i: usize) -> usize {
 /// An error in a user's file, with the place it was found where there is one.
 #[derive(Debug, Clone, PartialEq)]
 pub struct FileError {
+    /// The file the error is in.
     pub path: PathBuf,
+    /// Where in the file; `None` when the error is about the file as a whole.
     pub at: Option<LineColumn>,
+    /// What is wrong, without the place.
     pub message: String,
 }
 
 impl FileError {
+    /// An error in `path`, at `at` if given.
     pub fn new(path: &Path, at: Option<LineColumn>, message: impl Into<String>) -> Self {
         FileError {
             path: path.to_path_buf(),

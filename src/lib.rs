@@ -5,6 +5,7 @@
 //! Rapier [`model`]) → [`report`]; [`scenario`] ties a run together. [`machine`] is the
 //! machine description every stage reads, [`dynamics`] its rigid-body dynamics (used by the
 //! inverse-dynamics controller). A stage never imports a later one.
+#![warn(missing_docs)]
 
 pub mod command;
 pub mod control;

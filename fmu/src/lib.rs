@@ -322,7 +322,7 @@ pub unsafe extern "C" fn fmi3SetFloat64(
 }
 
 #[no_mangle]
-#[allow(clippy::too_many_arguments)]
+#[allow(clippy::too_many_arguments)] // fmi3DoStep's signature is the FMI 3.0 standard's
 pub unsafe extern "C" fn fmi3DoStep(
     handle: *mut c_void,
     current_communication_point: f64,

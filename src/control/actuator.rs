@@ -57,6 +57,7 @@ pub struct ActuatorOutput {
 }
 
 impl Actuator {
+    /// The actuator of `kind` for `drive`, at rest (no current).
     pub fn new(kind: ActuatorKind, drive: &Drive) -> Self {
         Actuator {
             kind,

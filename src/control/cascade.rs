@@ -30,9 +30,13 @@ use nalgebra::{DMatrix, DVector};
 /// units per (m/s), Kiv in command units per m, the velocity limit in m/s.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct CascadeAxis {
+    /// Kpp, position loop proportional gain (1/s).
     pub position_kp: f64,
+    /// Kip, position loop integral gain (1/s²).
     pub position_ki: f64,
+    /// Kpv, velocity loop proportional gain (command units per m/s, or per rad/s).
     pub velocity_kp: f64,
+    /// Kiv, velocity loop integral gain (command units per m, or per rad).
     pub velocity_ki: f64,
     /// Share of the setpoint velocity fed into the velocity command (1 = all).
     pub velocity_ff: f64,
@@ -66,6 +70,7 @@ impl FilterChain {
     }
 }
 
+/// The cascaded position/velocity controller of every axis (see the module documentation).
 pub struct Cascade {
     axes: Vec<CascadeAxis>,
     state: Vec<AxisState>,

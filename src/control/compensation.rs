@@ -50,6 +50,8 @@ pub struct Compensated {
 }
 
 impl Compensated {
+    /// `inner` with the compensation of `axes` (one per axis, machine order) around it, at servo
+    /// period `period` (s).
     pub fn new(inner: Box<dyn Controller>, axes: Vec<AxisCompensation>, period: f64) -> Self {
         let n = axes.len();
         Compensated {

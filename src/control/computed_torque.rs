@@ -16,6 +16,8 @@ use super::{command_for_torque, ActuatorKind, Controller, ControllerInput, TaskS
 use crate::dynamics::{DynamicsModel, DynamicsWorkspace};
 use crate::machine::Drive;
 
+/// The inverse-dynamics (computed-torque) controller of every axis, in joint space or, with a
+/// [`TaskSpace`], at the tool tip (see the module documentation).
 pub struct ComputedTorque {
     model: DynamicsModel,
     workspace: DynamicsWorkspace,

@@ -18,8 +18,11 @@ use std::f64::consts::TAU;
 /// A notch at `hz` of −3 dB width `width_hz` and gain `depth` at its centre.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct Notch {
+    /// Centre frequency (Hz).
     pub hz: f64,
+    /// −3 dB bandwidth (Hz, that of the full notch, depth 0).
     pub width_hz: f64,
+    /// Gain at the centre frequency (0: a full notch, 1: no notch).
     pub depth: f64,
 }
 
@@ -28,10 +31,12 @@ pub struct Notch {
 pub struct TorqueFilters {
     /// Corner of the second-order (Butterworth) low-pass, Hz.
     pub lowpass_hz: Option<f64>,
+    /// The notch, after the low-pass.
     pub notch: Option<Notch>,
 }
 
 impl TorqueFilters {
+    /// Whether there is no filter (the command passes unchanged).
     pub fn is_empty(&self) -> bool {
         self.lowpass_hz.is_none() && self.notch.is_none()
     }
@@ -103,6 +108,7 @@ impl Biquad {
         }
     }
 
+    /// Filters one sample: the output for input `x`, advancing the state by one period.
     pub fn step(&mut self, x: f64) -> f64 {
         let y = self.b[0] * x + self.state[0];
         self.state[0] = self.b[1] * x - self.a[0] * y + self.state[1];
@@ -110,6 +116,7 @@ impl Biquad {
         y
     }
 
+    /// Clears the state: the filter at rest, as before its first sample.
     pub fn reset(&mut self) {
         self.state = [0.0; 2];
     }

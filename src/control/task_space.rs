@@ -33,6 +33,8 @@ const JACOBIAN_STEP: f64 = 1e-6;
 /// Largest joint displacement of the second difference that gives J̇q̇ (m or rad).
 const CURVATURE_STEP: f64 = 1e-4;
 
+/// The task-space law of a table-tilting A-C mill: resolves the acceleration at the tool tip
+/// and tool axis through a damped least-squares inverse of J (see the module documentation).
 pub struct TaskSpace {
     kinematics: AcTableKinematics,
     /// Machine-axis index of X, Y, Z, A, C.
@@ -66,6 +68,8 @@ impl TaskSpace {
         Task::new(p.x, p.y, p.z, u.x, u.y, u.z)
     }
 
+    /// J = ∂x/∂q at joints `q` (X, Y, Z, A, C), 6×5, by central differences of
+    /// [`TaskSpace::task`].
     pub fn jacobian(&self, q: &Joints) -> Jacobian {
         let mut j = Jacobian::zeros();
         for i in 0..5 {

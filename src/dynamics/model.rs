@@ -18,7 +18,9 @@ use nalgebra::{DMatrix, Isometry3, Vector3};
 /// The motion a joint allows, in its own (child) frame.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub enum JointMotion {
+    /// Rotation about the joint axis (coordinate in rad).
     Revolute,
+    /// Translation along the joint axis (coordinate in m).
     Prismatic,
 }
 
@@ -29,6 +31,7 @@ pub struct Body {
     pub joint_name: String,
     /// Index of the joint in the tree's `joints`.
     pub joint_index: usize,
+    /// Whether the joint rotates or translates.
     pub motion: JointMotion,
     /// Unit axis in the joint (child) frame.
     pub axis: Vector3<f64>,
@@ -217,6 +220,8 @@ impl DynamicsModel {
         self.with_armature(&armature)
     }
 
+    /// Sets per-joint armature in place (kg·m² or kg), one finite value ≥ 0 per coordinate;
+    /// on an error the model is unchanged.
     pub fn set_armature(&mut self, armature: &[f64]) -> Result<(), DynamicsError> {
         self.check_len("armature", armature.len())?;
         for (i, &a) in armature.iter().enumerate() {
@@ -235,6 +240,7 @@ impl DynamicsModel {
         Ok(())
     }
 
+    /// Sets the gravitational acceleration (m/s², root link frame); refused unless finite.
     pub fn set_gravity(&mut self, gravity: Vector3<f64>) -> Result<(), DynamicsError> {
         if !gravity.iter().all(|g| g.is_finite()) {
             return Err(DynamicsError::BadGravity(gravity.into()));
@@ -270,6 +276,7 @@ impl DynamicsModel {
         self.joint_names.iter().position(|n| n == name)
     }
 
+    /// Gravitational acceleration in the root link frame (m/s²).
     pub fn gravity(&self) -> Vector3<f64> {
         self.gravity
     }
@@ -320,6 +327,7 @@ pub struct DynamicsWorkspace {
 }
 
 impl DynamicsWorkspace {
+    /// Scratch space for a model with `dof` coordinates (see [`DynamicsModel::workspace`]).
     pub fn new(dof: usize) -> Self {
         DynamicsWorkspace {
             parent_to_body: vec![Transform::identity(); dof],

@@ -10,13 +10,19 @@ use std::fmt;
 /// All terms of `τ = M(q)q̈ + C(q,q̇)q̇ + F q̇ + g(q)` at one state, joints in coordinate order.
 #[derive(Debug, Clone, PartialEq)]
 pub struct DynamicsReport {
+    /// Name of the machine (the kinematic tree's name).
     pub machine: String,
+    /// Gravitational acceleration in the root link frame (m/s²).
     pub gravity_vector: [f64; 3],
+    /// Names of the moving joints, in coordinate order.
     pub joints: Vec<String>,
     /// Per joint: true for revolute (rad, N·m), false for prismatic (m, N).
     pub revolute: Vec<bool>,
+    /// Joint positions `q` (rad or m).
     pub q: Vec<f64>,
+    /// Joint velocities `q̇` (rad/s or m/s).
     pub qd: Vec<f64>,
+    /// Joint accelerations `q̈` (rad/s² or m/s²).
     pub qdd: Vec<f64>,
     /// `τ`, including damping and armature.
     pub tau: Vec<f64>,

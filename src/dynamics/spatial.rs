@@ -21,23 +21,30 @@ pub fn skew(a: &Vector3<f64>) -> Matrix3<f64> {
 /// A spatial motion vector `[ω; v_O]` (velocity, acceleration or a joint's motion subspace).
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct Motion {
+    /// `ω`: the angular part (rad/s for a velocity, rad/s² for an acceleration).
     pub angular: Vector3<f64>,
+    /// `v_O`: the linear part at the frame origin (m/s for a velocity, m/s² for an
+    /// acceleration).
     pub linear: Vector3<f64>,
 }
 
 /// A spatial force vector `[n_O; f]` (moment about the frame origin, force).
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct Force {
+    /// `n_O`: the moment about the frame origin (N·m).
     pub angular: Vector3<f64>,
+    /// `f`: the resultant force (N).
     pub linear: Vector3<f64>,
 }
 
 impl Motion {
+    /// The zero motion vector.
     pub const ZERO: Motion = Motion {
         angular: Vector3::new(0.0, 0.0, 0.0),
         linear: Vector3::new(0.0, 0.0, 0.0),
     };
 
+    /// `[angular; linear]`.
     pub fn new(angular: Vector3<f64>, linear: Vector3<f64>) -> Self {
         Motion { angular, linear }
     }
@@ -68,11 +75,13 @@ impl Motion {
 }
 
 impl Force {
+    /// The zero force vector.
     pub const ZERO: Force = Force {
         angular: Vector3::new(0.0, 0.0, 0.0),
         linear: Vector3::new(0.0, 0.0, 0.0),
     };
 
+    /// `[angular; linear]`.
     pub fn new(angular: Vector3<f64>, linear: Vector3<f64>) -> Self {
         Force { angular, linear }
     }
@@ -124,11 +133,14 @@ vector_ops!(Force);
 /// products and a cross product.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct Transform {
+    /// `E`: rotates A coordinates into B coordinates.
     pub rotation: Matrix3<f64>,
+    /// `r`: the position of B's origin in A coordinates (m).
     pub translation: Vector3<f64>,
 }
 
 impl Transform {
+    /// The transform between coincident frames (E = 1, r = 0).
     pub fn identity() -> Self {
         Transform {
             rotation: Matrix3::identity(),
@@ -238,12 +250,16 @@ impl Mul for Transform {
 /// origin. As a 6×6 matrix it is `[[Ī, h×], [h×ᵀ, m 1]]` (RBDA eq. 2.63).
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct SpatialInertia {
+    /// `m` (kg).
     pub mass: f64,
+    /// `h = m c`, c the centre of mass in this frame (kg·m).
     pub first_moment: Vector3<f64>,
+    /// `Ī`: the rotational inertia about the frame origin (kg·m²).
     pub rotational: Matrix3<f64>,
 }
 
 impl SpatialInertia {
+    /// No body at all: zero mass, first moment and rotational inertia.
     pub const ZERO: SpatialInertia = SpatialInertia {
         mass: 0.0,
         first_moment: Vector3::new(0.0, 0.0, 0.0),

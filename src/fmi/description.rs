@@ -6,7 +6,9 @@ use std::collections::BTreeMap;
 /// The FMI version an FMU implements.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub enum FmiVersion {
+    /// FMI 2.0.
     Fmi2,
+    /// FMI 3.0.
     Fmi3,
 }
 
@@ -23,12 +25,20 @@ impl FmiVersion {
 /// What a variable is to the master (FMI `causality`).
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub enum Causality {
+    /// A value the master may set before the run (`parameter`).
     Parameter,
+    /// A value the FMU computes from parameters (`calculatedParameter`).
     CalculatedParameter,
+    /// A value the master sets during the run (`input`).
     Input,
+    /// A value the FMU gives the master (`output`).
     Output,
+    /// An internal value the master may read but need not (`local`).
     Local,
+    /// The independent variable, time (`independent`).
     Independent,
+    /// A parameter that changes the FMU's structure, such as array sizes (FMI 3.0
+    /// `structuralParameter`).
     StructuralParameter,
 }
 
@@ -63,8 +73,11 @@ impl Causality {
 /// One model variable.
 #[derive(Debug, Clone, PartialEq)]
 pub struct Variable {
+    /// The variable's name.
     pub name: String,
+    /// The handle the FMU's get and set functions take for this variable (`valueReference`).
     pub value_reference: u32,
+    /// What the variable is to the master.
     pub causality: Causality,
     /// `fixed`, `tunable`, `continuous`, …, as written (default `continuous`).
     pub variability: String,
@@ -89,19 +102,24 @@ impl Variable {
 pub struct BaseUnit {
     /// Exponents of kg, m, s, A, K, mol, cd, rad.
     pub exponents: [i32; 8],
+    /// Factor of the conversion to SI: value in SI = `factor` · value + `offset`.
     pub factor: f64,
+    /// Offset of the conversion to SI, in SI units (see `factor`).
     pub offset: f64,
 }
 
 /// The model description of a co-simulation FMU.
 #[derive(Debug, Clone)]
 pub struct ModelDescription {
+    /// The FMI version the FMU implements.
     pub version: FmiVersion,
+    /// The model's name (`modelName`; empty when not given).
     pub model_name: String,
     /// `instantiationToken` (3.0) or `guid` (2.0).
     pub token: String,
     /// The co-simulation interface's model identifier (the shared library's name).
     pub model_identifier: String,
+    /// The model variables, in the order the file lists them.
     pub variables: Vec<Variable>,
     /// Unit definitions that give their base units.
     pub units: BTreeMap<String, BaseUnit>,
@@ -274,13 +292,21 @@ impl ModelDescription {
 /// A physical quantity cncsim exchanges, with its SI unit.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub enum Quantity {
+    /// Position on a linear axis (m).
     Length,
+    /// Velocity on a linear axis (m/s).
     Velocity,
+    /// Acceleration on a linear axis (m/s²).
     Acceleration,
+    /// Position on a rotary axis (rad).
     Angle,
+    /// Velocity on a rotary axis (rad/s).
     AngularVelocity,
+    /// Acceleration on a rotary axis (rad/s²).
     AngularAcceleration,
+    /// Voltage (V), such as a drive's command.
     Voltage,
+    /// Torque (N·m).
     Torque,
 }
 

@@ -79,14 +79,21 @@ pub fn find_library() -> Result<PathBuf, String> {
 /// What `export-fmu` wrote.
 #[derive(Debug, Clone, PartialEq, serde::Serialize)]
 pub struct Exported {
+    /// The FMU file written.
     pub fmu: PathBuf,
+    /// The plant library packed into it.
     pub library: PathBuf,
+    /// The model's name: the scenario's.
     pub model_name: String,
+    /// Servo period (s): the FMU's step size.
     pub servo_period: f64,
     /// Servo ticks of the whole run (settle, approach, program) and the first one's time.
     pub ticks: usize,
+    /// Program time of the first tick (s; negative with a settle or an approach).
     pub start_time: f64,
+    /// Names of the input variables (the axes' commands).
     pub inputs: Vec<String>,
+    /// Names of the output variables, `program_time` last.
     pub outputs: Vec<String>,
     /// Files in `resources/`.
     pub resources: Vec<String>,

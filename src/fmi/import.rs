@@ -74,9 +74,11 @@ pub struct FmuRequest {
 pub struct AxesSpec {
     /// Axis names as the scenario writes them.
     pub names: Vec<String>,
+    /// Per axis, whether it is rotary (its signals in rad, else in m).
     pub rotary: Vec<bool>,
     /// What the commands are (V at the amplifier input, or N·m).
     pub actuator: ActuatorKind,
+    /// Servo period (s): the FMU's communication step.
     pub servo_period: f64,
 }
 
@@ -85,6 +87,7 @@ pub struct AxesSpec {
 pub struct FmuModel {
     /// The FMU file (for messages).
     pub path: PathBuf,
+    /// The FMU's model description.
     pub description: ModelDescription,
     api: Arc<Api>,
     /// The unpacked FMU (removed when the model is dropped).

@@ -21,8 +21,11 @@ pub const TIME_REFERENCE: u32 = 0;
 pub enum Signal {
     /// Input: the controller's command (V at the amplifier input, or N·m).
     Command,
+    /// Output: the planned position setpoint of the tick (m or rad).
     SetpointPosition,
+    /// Output: the planned velocity setpoint of the tick (m/s or rad/s).
     SetpointVelocity,
+    /// Output: the planned acceleration setpoint of the tick (m/s² or rad/s²).
     SetpointAcceleration,
     /// The position the loop closes on, after the encoder.
     MeasuredPosition,
@@ -32,6 +35,7 @@ pub enum Signal {
     MotorPosition,
     /// The carriage (load side), exact.
     CarriagePosition,
+    /// The carriage's velocity (load side), exact.
     CarriageVelocity,
 }
 
@@ -99,15 +103,20 @@ impl Signal {
 /// One variable of the plant FMU.
 #[derive(Debug, Clone, PartialEq)]
 pub struct PlantVariable {
+    /// The variable's name: `<stem>_<axis>` in lower case, or `program_time`.
     pub name: String,
+    /// Its FMI value reference (counted from 1, after `time`).
     pub value_reference: u32,
     /// `None`: `program_time`.
     pub signal: Option<(usize, Signal)>,
+    /// The SI unit as FMI writes unit names (`m`, `m/s2`, `N.m`, `s`, …).
     pub unit: &'static str,
+    /// The human-readable description written into the model description.
     pub description: String,
 }
 
 impl PlantVariable {
+    /// Whether the master sets this variable: only the axes' commands are inputs.
     pub fn is_input(&self) -> bool {
         matches!(self.signal, Some((_, Signal::Command)))
     }

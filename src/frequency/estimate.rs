@@ -51,6 +51,7 @@ pub struct SweepTiming {
     pub min_block: f64,
     /// Shortest settling before measuring (s), and at least `settle_periods` periods.
     pub min_settle: f64,
+    /// Fewest periods of the excitation to settle over before measuring.
     pub settle_periods: f64,
     /// Blocks measured per frequency.
     pub blocks: usize,
@@ -165,6 +166,7 @@ pub fn db(x: f64) -> f64 {
 /// A gain or phase crossover.
 #[derive(Debug, Clone, Copy, PartialEq, Serialize)]
 pub struct Crossover {
+    /// Where the crossing is (Hz), interpolated in log-frequency.
     pub frequency_hz: f64,
     /// The margin there: dB (gain margin) or degrees (phase margin).
     pub margin: f64,

@@ -79,11 +79,15 @@ impl Transmission {
 pub enum Motor {
     /// Command in V at the amplifier input.
     DcMotor {
+        /// K_a, amplifier output per command (V/V).
         amplifier_gain: f64,
+        /// K_m (N·m/A).
         torque_constant: f64,
         /// The back-EMF the current loop sees: K_b in voltage mode, 0 in current mode.
         back_emf_constant: f64,
+        /// Armature resistance R (Ω).
         resistance: f64,
+        /// Armature inductance L (H).
         inductance: f64,
     },
     /// Command is the motor torque (N·m).
@@ -103,7 +107,9 @@ pub struct AxisPlant {
     pub carriage_damping: f64,
     /// Motor radians per joint unit.
     pub ratio: f64,
+    /// Between drive side and carriage: rigid, or a spring and damper.
     pub transmission: Transmission,
+    /// The actuator the command drives: DC motor behind its amplifier, or ideal torque.
     pub motor: Motor,
     /// Where the position loop's feedback is measured.
     pub feedback: Feedback,
@@ -308,20 +314,32 @@ impl SampledPlant {
 pub enum LinearController {
     /// PID (positional or incremental: the same law while unclamped) with feed-forward.
     Pid {
+        /// Proportional gain (command per m, or per rad on a rotary axis).
         kp: f64,
+        /// Integral gain (command per m·s, or per rad·s).
         ki: f64,
+        /// Derivative gain (command per m/s, or per rad/s).
         kd: f64,
+        /// Feed-forward of the setpoint position (command per m, or per rad).
         ff0: f64,
+        /// Feed-forward of the setpoint velocity (command per m/s, or per rad/s).
         ff1: f64,
+        /// Feed-forward of the setpoint acceleration (command per m/s², or per rad/s²).
         ff2: f64,
     },
     /// Cascade: PI position loop over a PI velocity loop on the differenced motor encoder.
     Cascade {
+        /// K_pp, position loop proportional gain (1/s).
         position_kp: f64,
+        /// K_ip, position loop integral gain (1/s²).
         position_ki: f64,
+        /// K_pv, velocity loop proportional gain (command per m/s, or per rad/s).
         velocity_kp: f64,
+        /// K_iv, velocity loop integral gain (command per m, or per rad).
         velocity_ki: f64,
+        /// kvff, share of the setpoint velocity fed into the velocity command (1 = all).
         velocity_ff: f64,
+        /// kaff, share of the inertia force for the setpoint acceleration (1 = all).
         acceleration_ff: f64,
         /// Low-pass coefficient α of the velocity estimate (1 = none).
         smoothing: f64,
@@ -346,6 +364,7 @@ pub enum Loop {
 /// The loops of one axis at one frequency.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct LoopResponse {
+    /// The plant's own responses at this frequency.
     pub plant: PlantResponse,
     /// The loop broken at the plant input, L = B_fb·P_fb + B_m·P_m.
     pub open: C64,

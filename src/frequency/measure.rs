@@ -23,13 +23,17 @@ pub enum Injection {
 /// A stepped-sine excitation of one axis; the other axes hold where the machine starts.
 #[derive(Debug, Clone, PartialEq)]
 pub struct Excitation {
+    /// Index of the excited axis, in the machine's axis order.
     pub axis: usize,
+    /// Where the excitation enters.
     pub injection: Injection,
     /// Amplitude in the units of what is excited (command units, m or rad, m/s or rad/s).
     pub amplitude: f64,
+    /// The sweep's frequencies, in the order they are run.
     pub segments: Vec<Segment>,
     /// Where every axis starts and holds (joint units).
     pub start: Vec<f64>,
+    /// Servo period (s): one tick of the sweep.
     pub period: f64,
 }
 
@@ -133,7 +137,9 @@ impl SetpointStream for ExcitationStream<'_> {
 /// A controller with the excitation added to one axis's output during the sweep (after its
 /// own limit: the plant input is what the amplifier gets).
 pub struct Injected<'a> {
+    /// The controller whose output the excitation is added to.
     pub inner: Box<dyn Controller + 'a>,
+    /// The excitation added to its output on `excitation.axis`.
     pub excitation: &'a Excitation,
     /// Ticks from the start of the loop (settle included) to the sweep's first tick.
     pub lead_in: usize,
@@ -255,6 +261,7 @@ pub fn lead_in(settings: &LoopSettings) -> usize {
 /// The transfer functions estimated at one frequency.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct Estimate {
+    /// The segment's excitation frequency (Hz).
     pub frequency: f64,
     /// The closed loop excitation → response (position loop: x_fb/r; velocity loop: v/v_cmd;
     /// controller output: the complementary sensitivity L/(1 + L) = −c/d).
@@ -262,7 +269,9 @@ pub struct Estimate {
     /// From an injection at the controller output: the plant u → x_fb and u → x_motor and the
     /// open loop L = −c/u; `None` for a setpoint sweep.
     pub plant_feedback: Option<C64>,
+    /// The plant from its input to the motor encoder, u → x_motor; `None` for a setpoint sweep.
     pub plant_motor: Option<C64>,
+    /// The open loop L = −c/u broken at the plant input; `None` for a setpoint sweep.
     pub open: Option<C64>,
     /// Coherence of the response with the excitation.
     pub coherence: f64,

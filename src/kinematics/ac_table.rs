@@ -119,14 +119,20 @@ const TRAVEL_SLACK: f64 = 1e-9;
 /// The five axes of the A-C mill.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
 pub enum AcAxis {
+    /// Spindle along base X (linear).
     X,
+    /// Spindle along base Y (linear).
     Y,
+    /// Spindle along base Z (linear).
     Z,
+    /// Cradle tilt about base X (rotary).
     A,
+    /// Rotary table about the cradle's Z (rotary).
     C,
 }
 
 impl AcAxis {
+    /// All five axes in order X, Y, Z, A, C (the order of [`AcAxes::to_array`]).
     pub const ALL: [AcAxis; 5] = [AcAxis::X, AcAxis::Y, AcAxis::Z, AcAxis::A, AcAxis::C];
 
     /// The program letter (also the machine axis name, which the topology check enforces).
@@ -140,6 +146,7 @@ impl AcAxis {
         }
     }
 
+    /// Whether the axis is A or C.
     pub fn is_rotary(self) -> bool {
         matches!(self, AcAxis::A | AcAxis::C)
     }
@@ -158,14 +165,20 @@ impl fmt::Display for AcAxis {
 /// Machine coordinates of the A-C mill: X, Y, Z (m) and A, C (rad), URDF joint values.
 #[derive(Debug, Clone, Copy, PartialEq, Default)]
 pub struct AcAxes {
+    /// X axis (m).
     pub x: f64,
+    /// Y axis (m).
     pub y: f64,
+    /// Z axis (m).
     pub z: f64,
+    /// A axis, the cradle tilt (rad).
     pub a: f64,
+    /// C axis, the rotary table (rad).
     pub c: f64,
 }
 
 impl AcAxes {
+    /// The coordinate of one axis (m or rad).
     pub fn get(&self, axis: AcAxis) -> f64 {
         self.to_array()[axis.index()]
     }
@@ -175,6 +188,7 @@ impl AcAxes {
         [self.x, self.y, self.z, self.a, self.c]
     }
 
+    /// From [x, y, z, a, c].
     pub fn from_array([x, y, z, a, c]: [f64; 5]) -> AcAxes {
         AcAxes { x, y, z, a, c }
     }
@@ -203,7 +217,9 @@ impl AcAxes {
 /// (unit, from the tip towards the spindle).
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct CutterLocation {
+    /// Tool point in workpiece coordinates (m).
     pub point: Point3<f64>,
+    /// Tool axis in workpiece coordinates: unit vector from the tip towards the spindle.
     pub axis: Vector3<f64>,
 }
 
@@ -234,13 +250,18 @@ pub enum RotarySolutions {
     /// Two solutions, `[(A, C) of branch 1, (A, C) of branch 2]`.
     Regular([(f64, f64); 2]),
     /// The tool axis is along the C axis: A is this value, C is free.
-    Singular { a: f64 },
+    Singular {
+        /// The one A (rad).
+        a: f64,
+    },
 }
 
 /// An inverse-kinematics solution.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct AcSolution {
+    /// The machine coordinates.
     pub axes: AcAxes,
+    /// The branch they belong to.
     pub branch: Branch,
     /// The solution nearest the previous one was outside the travel, so this one (possibly
     /// far from the previous one) was taken.
@@ -250,11 +271,15 @@ pub struct AcSolution {
 /// One axis outside its travel.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct TravelViolation {
+    /// The branch whose solution needs the value.
     pub branch: Branch,
+    /// The axis outside its travel.
     pub axis: AcAxis,
     /// The value the axis would need (m or rad).
     pub value: f64,
+    /// Lower end of the axis travel (m or rad).
     pub lower: f64,
+    /// Upper end of the axis travel (m or rad).
     pub upper: f64,
 }
 
@@ -280,15 +305,32 @@ impl fmt::Display for TravelViolation {
 /// Why a cutter location has no machine coordinates.
 #[derive(Debug, Clone, PartialEq, thiserror::Error)]
 pub enum AcInverseError {
+    /// The tool point or the tool axis has a NaN or infinite component.
     #[error("cutter location ({p:?}, tool axis {o:?}) has a non-finite value", p = point, o = axis)]
-    NotFinite { point: [f64; 3], axis: [f64; 3] },
+    NotFinite {
+        /// The tool point as given (m).
+        point: [f64; 3],
+        /// The tool axis as given.
+        axis: [f64; 3],
+    },
+    /// The tool axis is not a unit vector (its length is off 1 by more than
+    /// [`UNIT_TOLERANCE`]).
     #[error(
         "tool-axis vector ({:.6}, {:.6}, {:.6}) has length {length:.9}; expected a unit vector (normalise it first)",
         axis[0], axis[1], axis[2]
     )]
-    NotUnit { axis: [f64; 3], length: f64 },
+    NotUnit {
+        /// The tool axis as given.
+        axis: [f64; 3],
+        /// Its Euclidean length.
+        length: f64,
+    },
+    /// Every solution puts some axis outside its travel.
     #[error("outside the machine's travel: {}", list(violations))]
-    OutOfTravel { violations: Vec<TravelViolation> },
+    OutOfTravel {
+        /// Every violation of every solution tried.
+        violations: Vec<TravelViolation>,
+    },
 }
 
 fn list(violations: &[TravelViolation]) -> String {
@@ -303,7 +345,9 @@ fn list(violations: &[TravelViolation]) -> String {
 #[derive(Debug, Clone, PartialEq, thiserror::Error)]
 #[error("machine '{machine}' is not a table-tilting A-C mill: {problem}")]
 pub struct AcTopologyError {
+    /// Name of the machine.
     pub machine: String,
+    /// What is missing or wrong.
     pub problem: String,
 }
 

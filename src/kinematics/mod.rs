@@ -28,6 +28,7 @@ pub struct AxisMap {
     affine: Vec<Option<(f64, f64)>>,
 }
 
+/// A machine axis whose name is not a program axis letter (x, y, z, a, b, c); holds the name.
 #[derive(Debug, Clone, thiserror::Error, PartialEq)]
 #[error("machine axis '{0}' has no program coordinate (expected one of x, y, z, a, b, c)")]
 pub struct UnknownAxis(pub String);
@@ -84,6 +85,7 @@ impl AxisMap {
         !self.sources[i].0
     }
 
+    /// Number of machine axes.
     pub fn axes(&self) -> usize {
         self.sources.len()
     }

@@ -30,13 +30,26 @@ pub(super) struct Resolved {
 #[derive(Debug, Clone, PartialEq)]
 pub enum Undriven {
     /// Held at this coordinate (m or rad): named so in the drive file, or by default.
-    Locked { position: f64, named: bool },
+    Locked {
+        /// The coordinate it is held at (m or rad).
+        position: f64,
+        /// Whether the drive file names the joint (`[joints.<name>]`); false: locked by default.
+        named: bool,
+    },
     /// Free (`mode = "passive"`).
     Passive,
     /// A `<mimic>` follower held where its locked leader puts it.
-    HeldByMimic { leader: String, position: f64 },
+    HeldByMimic {
+        /// Name of the leader joint.
+        leader: String,
+        /// The coordinate the mimic puts it at (m or rad).
+        position: f64,
+    },
     /// A `<mimic>` follower fixed to its driven leader's link.
-    RidesOn { leader: String },
+    RidesOn {
+        /// Name of the leader joint.
+        leader: String,
+    },
 }
 
 #[derive(Debug, Clone, Copy, PartialEq)]

@@ -13,27 +13,37 @@ use std::sync::Arc;
 pub struct Visual {
     /// Pose of the visual frame in the link frame (the shape's centre for primitives).
     pub pose: Isometry3<f64>,
+    /// The geometry, in the visual frame.
     pub shape: Shape,
     /// RGBA colour, 0–1, from the visual's `<material>` (inline or named at robot level).
     pub color: Option<[f32; 4]>,
 }
 
+/// The geometry of a visual: a URDF primitive or a mesh (m).
 #[derive(Debug, Clone, PartialEq)]
 pub enum Shape {
+    /// A box centred on the visual frame's origin, its edges along the frame's axes.
     Box {
+        /// Half the box's size along x, y and z (m).
         half_extents: Vector3<f64>,
     },
     /// Axis along the visual frame's z, centred on its origin (URDF).
     Cylinder {
+        /// Radius (m).
         radius: f64,
+        /// Length along z (m).
         length: f64,
     },
     /// A cylinder of `length` along z with hemispherical caps (urdf-rs's `<capsule>` extension).
     Capsule {
+        /// Radius of the cylinder and its caps (m).
         radius: f64,
+        /// Length of the cylinder along z, without the caps (m).
         length: f64,
     },
+    /// A sphere centred on the visual frame's origin.
     Sphere {
+        /// Radius (m).
         radius: f64,
     },
     /// Shared: a machine is cloned per run and per recording, its meshes need not be.
@@ -45,6 +55,7 @@ pub enum Shape {
 pub struct TriangleMesh {
     /// The file it was read from.
     pub source: PathBuf,
+    /// Vertex positions (m, visual frame).
     pub vertices: Vec<[f32; 3]>,
     /// Counter-clockwise seen from outside (front faces), as STL, OBJ and COLLADA give them.
     pub triangles: Vec<[u32; 3]>,

@@ -38,34 +38,66 @@ pub struct PlantOptions {
 /// Errors building the physics model from a machine description.
 #[derive(Debug, thiserror::Error, PartialEq)]
 pub enum ModelError {
+    /// The number of initial positions differs from the machine's number of axes.
     #[error("the machine has {machine} axes but {given} initial positions were given")]
-    InitialPositions { machine: usize, given: usize },
+    InitialPositions {
+        /// Axes the machine has.
+        machine: usize,
+        /// Initial positions given.
+        given: usize,
+    },
+    /// An initial position lies outside its axis's joint limits.
     #[error("initial position {value} of axis '{axis}' is outside its travel [{lo}, {hi}]")]
     OutsideTravel {
+        /// Name of the axis.
         axis: String,
+        /// The initial position given (m, or rad on a rotary axis).
         value: f64,
+        /// Lower joint limit (m or rad).
         lo: f64,
+        /// Upper joint limit (m or rad).
         hi: f64,
     },
+    /// The physics step (s) is not a positive finite number.
     #[error("the physics step must be a positive finite number of seconds, got {0}")]
     Step(f64),
+    /// `solver_iterations` is zero.
     #[error("solver_iterations must be at least 1")]
     SolverIterations,
+    /// A link that moves has no mass (named).
     #[error("link '{0}' moves but has no mass; give it an <inertial> with a positive mass")]
     MasslessMovingLink(String),
+    /// Rapier would not add the named joint to the multibody (it would close a kinematic loop).
     #[error("Rapier refused joint '{0}' (it would close a loop)")]
     Joint(String),
+    /// A compliant transmission whose drive side has no inertia (no rotor inertia, or the
+    /// drives' dynamics left out), so its spring has nothing to push against.
     #[error("axis '{axis}': a compliant transmission needs inertia on its drive side (rotor_inertia_kg_m2 > 0, and the drives' dynamics included)")]
-    CompliantWithoutDriveInertia { axis: String },
+    CompliantWithoutDriveInertia {
+        /// Name of the axis.
+        axis: String,
+    },
+    /// A compliant transmission whose joint moves nothing with mass.
     #[error("axis '{axis}': a compliant transmission needs a moving carriage with mass")]
-    CompliantWithoutLoad { axis: String },
+    CompliantWithoutLoad {
+        /// Name of the axis.
+        axis: String,
+    },
+    /// The physics step is too long for the engine's explicit step to integrate a compliant
+    /// transmission's two-mass mode faithfully (ω·h above 0.5).
     #[error("axis '{axis}': the transmission's mode at {frequency_hz:.1} Hz (stiffness {stiffness:e}, damping {damping:e}) needs a physics step of at most {max_step:.3e} s to be integrated faithfully; the step is {step:.3e} s (lower [timing] physics_step_ms)")]
     StepTooLongForMode {
+        /// Name of the axis.
         axis: String,
+        /// Undamped frequency of the two-mass mode (Hz).
         frequency_hz: f64,
+        /// Transmission stiffness (N/m, or N·m/rad on a rotary axis).
         stiffness: f64,
+        /// Transmission damping (N·s/m, or N·m·s/rad on a rotary axis).
         damping: f64,
+        /// Longest physics step that integrates the mode (s).
         max_step: f64,
+        /// The physics step asked for (s).
         step: f64,
     },
 }
@@ -221,6 +253,9 @@ const RUNNER_RADIUS: f64 = 0.005;
 const RAIL_HALF: [f64; 2] = [0.02, 0.0025];
 
 impl Plant {
+    /// Builds the Rapier world for `machine`: one body per rigid group of links, joined into a
+    /// multibody at the initial joint positions, with the drives' armature and damping, guide
+    /// contacts and compliant transmissions.
     pub fn new(machine: &Machine, options: &PlantOptions) -> Result<Plant, ModelError> {
         if !(options.step.is_finite() && options.step > 0.0) {
             return Err(ModelError::Step(options.step));
@@ -652,6 +687,7 @@ impl Plant {
         self.steps
     }
 
+    /// Number of machine axes (drives).
     pub fn axis_count(&self) -> usize {
         self.axes.len()
     }

@@ -21,28 +21,43 @@ pub enum Planner {
     /// Seed digest §1.4/§1.6: constant path speed, velocity steps at move ends.
     ConstantVelocity,
     /// Seed digest §1.5: trapezoidal speed along each straight move, stopping at every point.
-    Trapezoid { acceleration: f64 },
+    Trapezoid {
+        /// Acceleration along the move (m/s²).
+        acceleration: f64,
+    },
     /// Jerk-limited, time-optimal look-ahead planner with these limits per machine axis.
-    JerkLimited { limits: Vec<AxisLimits> },
+    JerkLimited {
+        /// One entry per machine axis, in axis order.
+        limits: Vec<AxisLimits>,
+    },
 }
 
 /// Corner behaviour: as programmed (G61/G64 P), or forced for the whole program.
 #[derive(Debug, Clone, Copy, PartialEq, Default)]
 pub enum BlendChoice {
+    /// Each move's own G61/G64 setting.
     #[default]
     Program,
+    /// Stop exactly at every programmed point.
     ExactStop,
+    /// Blend every corner.
     Continuous {
+        /// Largest allowed deviation from the programmed corner (m at the tool tip); `None`:
+        /// rounded as far as the adjacent segments allow.
         tolerance: Option<f64>,
     },
 }
 
+/// How to plan a program: the planner, the servo period and the corner behaviour.
 #[derive(Debug, Clone, PartialEq)]
 pub struct PlanSettings {
+    /// Which planner, with its parameters.
     pub planner: Planner,
+    /// Servo period (s): the setpoints' sample period.
     pub period: f64,
     /// Path speed of rapid moves for the seed interpolators (m/s).
     pub rapid_speed: f64,
+    /// Corner behaviour (the jerk-limited planner's; the seed interpolators ignore it).
     pub blend: BlendChoice,
     /// Machine axis names (for reports and errors).
     pub axis_names: Vec<String>,

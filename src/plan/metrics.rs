@@ -9,8 +9,11 @@ use super::setpoints::{SetpointSample, SetpointStream, Setpoints};
 /// Largest |velocity|, |acceleration| and |jerk| of one axis (SI units per s, s², s³).
 #[derive(Debug, Clone, Copy, PartialEq, Default)]
 pub struct AxisExtremes {
+    /// Largest |velocity| (m/s, or rad/s on a rotary axis).
     pub velocity: f64,
+    /// Largest |acceleration| (m/s², or rad/s² on a rotary axis).
     pub acceleration: f64,
+    /// Largest |jerk| (m/s³, or rad/s³ on a rotary axis).
     pub jerk: f64,
 }
 
@@ -41,6 +44,7 @@ pub struct FiniteDifferences {
 }
 
 impl FiniteDifferences {
+    /// Nothing seen yet, for `axes` axes sampled at `period` (s).
     pub fn new(axes: usize, period: f64) -> FiniteDifferences {
         FiniteDifferences {
             period,

@@ -11,7 +11,9 @@ use std::fmt;
 /// Whether an axis translates (m) or rotates (rad).
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub enum AxisKind {
+    /// Translates; coordinates in m.
     Linear,
+    /// Rotates; coordinates in rad.
     Rotary,
 }
 
@@ -28,8 +30,11 @@ impl AxisKind {
 /// Per-axis kinematic limits in SI (m or rad per s, s², s³), all strictly positive.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct AxisLimits {
+    /// Largest speed (m/s, or rad/s on a rotary axis).
     pub velocity: f64,
+    /// Largest acceleration (m/s², or rad/s² on a rotary axis).
     pub acceleration: f64,
+    /// Largest jerk (m/s³, or rad/s³ on a rotary axis).
     pub jerk: f64,
 }
 
@@ -50,7 +55,9 @@ impl AxisLimits {
 pub struct AxisSpec {
     /// Name as written in reports and CSV headers (`x`, `y`, `z`, `a`, `c`).
     pub name: String,
+    /// Whether it translates or rotates.
     pub kind: AxisKind,
+    /// Its velocity, acceleration and jerk limits.
     pub limits: AxisLimits,
 }
 
@@ -58,21 +65,30 @@ pub struct AxisSpec {
 #[derive(Debug, Clone, PartialEq)]
 pub enum Geometry {
     /// Straight line in all axes to `end`.
-    Line { end: Vec<f64> },
+    Line {
+        /// End point, one coordinate per axis (m, or rad on a rotary axis).
+        end: Vec<f64>,
+    },
     /// Circular arc in the plane of axes `plane = [i, j]` about `center` (coordinates on those
     /// two axes), counter-clockwise from +i towards +j unless `clockwise`, with `turns` extra
     /// full turns; every other axis moves linearly with the angle (helix). If the start and end
     /// radii differ (rounding in the program), the radius changes linearly with the angle.
     Arc {
+        /// Indices of the two (linear) axes spanning the arc's plane, in order i, j.
         plane: [usize; 2],
+        /// Centre on the axes `plane` names (m).
         center: [f64; 2],
+        /// Turns from +j towards +i instead.
         clockwise: bool,
+        /// Extra full turns beyond the first.
         turns: u32,
+        /// End point, one coordinate per axis (m, or rad on a rotary axis).
         end: Vec<f64>,
     },
 }
 
 impl Geometry {
+    /// End point of the segment, one coordinate per axis (m, or rad on a rotary axis).
     pub fn end(&self) -> &[f64] {
         match self {
             Geometry::Line { end } | Geometry::Arc { end, .. } => end,
@@ -89,12 +105,16 @@ pub enum Blend {
     /// Pass the corner without stopping, staying within `tolerance` of the programmed path
     /// (measured as [`AxisPath::tool_lever_arms`] says). `None`: no tolerance given, the
     /// corner is rounded as far as the adjacent segments allow.
-    Continuous { tolerance: Option<f64> },
+    Continuous {
+        /// Largest allowed deviation from the programmed corner (m at the tool tip).
+        tolerance: Option<f64>,
+    },
 }
 
 /// One segment of the path.
 #[derive(Debug, Clone, PartialEq)]
 pub struct PathSegment {
+    /// Its shape and end point.
     pub geometry: Geometry,
     /// Programmed path speed (SI, in the `feed_metric`); `None` = as fast as the axes allow.
     pub feed: Option<f64>,
@@ -113,8 +133,11 @@ pub struct PathSegment {
 /// A path on the machine axes: where it starts and its segments.
 #[derive(Debug, Clone, PartialEq)]
 pub struct AxisPath {
+    /// The machine axes, in the order of every coordinate vector of the path.
     pub axes: Vec<AxisSpec>,
+    /// Start point, one coordinate per axis (m, or rad on a rotary axis).
     pub start: Vec<f64>,
+    /// The segments in order, each starting where the previous one ends.
     pub segments: Vec<PathSegment>,
     /// Per axis, the distance (m) of the tool tip from each rotary axis, so that corner
     /// tolerances are measured at the tool tip: a deviation δ (rad) on rotary axis i moves the
@@ -128,29 +151,46 @@ pub struct AxisPath {
 #[derive(Debug, Clone, PartialEq)]
 pub enum PathError {
     /// An axis limit is not finite and strictly positive.
-    InvalidLimits { axis: usize },
+    InvalidLimits {
+        /// Index of the axis in [`AxisPath::axes`].
+        axis: usize,
+    },
     /// A position, weight or feed has the wrong number of entries.
     AxisCountMismatch {
+        /// Index of the segment; `None` for the path as a whole (start, lever arms).
         segment: Option<usize>,
+        /// Number of axes.
         expected: usize,
+        /// Number of entries given.
         found: usize,
     },
     /// A coordinate, feed, weight or tolerance is not finite (or negative where it must not be).
     InvalidValue {
+        /// Index of the segment; `None` for the path as a whole (start, lever arms).
         segment: Option<usize>,
+        /// Which value, as the message names it (`"feed"`, `"end position"`, …).
         what: &'static str,
     },
     /// The arc's plane names an axis that does not exist, the same axis twice, or a rotary axis.
-    InvalidArcPlane { segment: usize },
+    InvalidArcPlane {
+        /// Index of the segment.
+        segment: usize,
+    },
     /// The arc starts or ends at its centre, or its start and end radii differ by more than
     /// [`ARC_RADIUS_MISMATCH`] relative.
     InvalidArcRadius {
+        /// Index of the segment.
         segment: usize,
+        /// Distance of the arc's start from its centre (m).
         start_radius: f64,
+        /// Distance of the arc's end from its centre (m).
         end_radius: f64,
     },
     /// Internal: the look-ahead left a segment too short for its speed change (a planner bug).
-    Infeasible { segment: usize },
+    Infeasible {
+        /// Index of the segment.
+        segment: usize,
+    },
 }
 
 /// Largest relative difference between an arc's start and end radii that is accepted as

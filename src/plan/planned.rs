@@ -51,10 +51,12 @@ impl PlannedProgram {
         &self.axes
     }
 
+    /// The program as planned.
     pub fn program(&self) -> &Program {
         &self.program
     }
 
+    /// The settings it was planned with.
     pub fn settings(&self) -> &PlanSettings {
         &self.settings
     }
@@ -64,6 +66,7 @@ impl PlannedProgram {
         self.samples
     }
 
+    /// Whether there are no setpoint samples.
     pub fn is_empty(&self) -> bool {
         self.samples == 0
     }

@@ -23,12 +23,16 @@
 /// Kinematic limits of a one-dimensional motion (all strictly positive).
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct Limits {
+    /// `V`: largest speed (coordinate units per s).
     pub velocity: f64,
+    /// `A`: largest acceleration magnitude (coordinate units per s²).
     pub acceleration: f64,
+    /// `J`: largest jerk magnitude (coordinate units per s³).
     pub jerk: f64,
 }
 
 impl Limits {
+    /// Limits `V`, `A`, `J`, unchecked (see [`Limits::is_valid`]).
     pub fn new(velocity: f64, acceleration: f64, jerk: f64) -> Self {
         Limits {
             velocity,
@@ -197,8 +201,11 @@ pub(super) fn largest_at_most(
 /// Position, velocity and acceleration of a profile at one instant.
 #[derive(Debug, Clone, Copy, PartialEq, Default)]
 pub struct State {
+    /// Distance from the profile's start (signed).
     pub position: f64,
+    /// Velocity (per s).
     pub velocity: f64,
+    /// Acceleration (per s²).
     pub acceleration: f64,
 }
 
@@ -239,12 +246,17 @@ pub enum Regime {
 pub struct Recipe {
     /// +1 or −1: the direction of a single-axis move.
     pub sign: f64,
+    /// Distance to cover (≥ 0, unsigned).
     pub length: f64,
+    /// Speed at the start (≥ 0; the velocity is `sign` times it).
     pub v_start: f64,
+    /// Peak speed, held during the cruise (≥ 0).
     pub peak: f64,
+    /// Speed at the end (≥ 0).
     pub v_end: f64,
     /// Cruise duration at the peak (s).
     pub cruise: f64,
+    /// The limits the profile was planned under (its acceleration and jerk shape the phases).
     pub limits: Limits,
 }
 

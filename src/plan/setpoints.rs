@@ -54,14 +54,18 @@ pub struct Setpoints {
     pub period: f64,
     /// Number of machine axes per sample.
     pub axes: usize,
+    /// Positions, row-major (m, or rad on a rotary axis).
     pub position: Vec<f64>,
+    /// Velocities, row-major (m/s, or rad/s on a rotary axis).
     pub velocity: Vec<f64>,
+    /// Accelerations, row-major (m/s², or rad/s² on a rotary axis).
     pub acceleration: Vec<f64>,
     /// Index of the program move each sample belongs to (for contour metrics and reports).
     pub segment: Vec<u32>,
 }
 
 impl Setpoints {
+    /// No samples yet, at period `period` (s) on `axes` machine axes.
     pub fn new(period: f64, axes: usize) -> Self {
         Setpoints {
             period,
@@ -75,6 +79,7 @@ impl Setpoints {
         self.segment.len()
     }
 
+    /// Whether there are no samples.
     pub fn is_empty(&self) -> bool {
         self.segment.is_empty()
     }
@@ -88,14 +93,17 @@ impl Setpoints {
         self.segment.push(segment);
     }
 
+    /// Position of sample `k`, one entry per axis (m, or rad on a rotary axis).
     pub fn position(&self, k: usize) -> &[f64] {
         &self.position[k * self.axes..(k + 1) * self.axes]
     }
 
+    /// Velocity of sample `k`, one entry per axis (m/s, or rad/s on a rotary axis).
     pub fn velocity(&self, k: usize) -> &[f64] {
         &self.velocity[k * self.axes..(k + 1) * self.axes]
     }
 
+    /// Acceleration of sample `k`, one entry per axis (m/s², or rad/s² on a rotary axis).
     pub fn acceleration(&self, k: usize) -> &[f64] {
         &self.acceleration[k * self.axes..(k + 1) * self.axes]
     }
@@ -134,8 +142,11 @@ impl Setpoints {
 /// One setpoint sample per machine axis (SI), as the co-simulation loop reads it.
 #[derive(Debug, Clone, PartialEq, Default)]
 pub struct SetpointSample {
+    /// Position per axis (m, or rad on a rotary axis).
     pub position: Vec<f64>,
+    /// Velocity per axis (m/s, or rad/s on a rotary axis).
     pub velocity: Vec<f64>,
+    /// Acceleration per axis (m/s², or rad/s² on a rotary axis).
     pub acceleration: Vec<f64>,
     /// Index of the program move the sample belongs to.
     pub segment: u32,
@@ -164,6 +175,7 @@ pub trait SetpointStream {
     fn period(&self) -> f64;
     /// Number of samples the stream yields in all.
     fn len(&self) -> usize;
+    /// Whether the stream yields no samples at all.
     fn is_empty(&self) -> bool {
         self.len() == 0
     }
@@ -295,6 +307,7 @@ pub struct FirstSamples<S> {
 }
 
 impl<S: SetpointStream> FirstSamples<S> {
+    /// `stream` cut to at most `limit` samples.
     pub fn new(stream: S, limit: usize) -> Self {
         let len = stream.len().min(limit);
         FirstSamples {

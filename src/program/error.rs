@@ -39,6 +39,8 @@ pub struct ProgramError {
 }
 
 impl ProgramError {
+    /// An error in `file` at `span` (`None`: the file as a whole), with no "found" part and
+    /// no hint yet.
     pub fn new(file: impl Into<PathBuf>, span: Option<Span>, problem: impl Into<String>) -> Self {
         ProgramError {
             file: file.into(),
@@ -49,15 +51,18 @@ impl ProgramError {
         }
     }
 
+    /// The same error, pointing at `found`.
     pub fn found(mut self, found: Found) -> Self {
         self.found = found;
         self
     }
 
+    /// The same error, pointing at the source bytes `text` (escaped with [`display_text`]).
     pub fn found_text(self, text: &[u8]) -> Self {
         self.found(Found::Text(display_text(text)))
     }
 
+    /// The same error, with a hint on how to fix it.
     pub fn hint(mut self, hint: impl Into<String>) -> Self {
         self.hint = Some(hint.into());
         self
@@ -94,6 +99,7 @@ pub struct ProgramErrors {
 }
 
 impl ProgramErrors {
+    /// Just `error`, none suppressed.
     pub fn single(error: ProgramError) -> Self {
         ProgramErrors {
             errors: vec![error],

@@ -8,17 +8,25 @@ use std::f64::consts::TAU;
 /// One piece of the programmed path (m).
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub enum Segment {
+    /// Straight line from `start` to `end`.
     Line {
+        /// Start point (m).
         start: Point3<f64>,
+        /// End point (m).
         end: Point3<f64>,
     },
     /// Arc about `center` in the plane with unit normal `normal`, from `start` sweeping
     /// `sweep` rad (signed, right-handed about `normal`), rising `rise` along `normal` (helix).
     Arc {
+        /// Centre (m), in the plane of `start`.
         center: Point3<f64>,
+        /// Unit normal of the arc's plane.
         normal: Vector3<f64>,
+        /// Start point (m).
         start: Point3<f64>,
+        /// Angle swept (rad), signed right-handed about `normal`.
         sweep: f64,
+        /// Travel along `normal` from start to end (m); 0 for a plane arc.
         rise: f64,
     },
 }
@@ -88,12 +96,15 @@ impl Segment {
 /// The programmed path of a program: one segment per move with motion (dwells have none).
 #[derive(Debug, Clone, PartialEq, Default)]
 pub struct PathGeometry {
+    /// The segments in program order.
     pub segments: Vec<Segment>,
     /// For each program move, the index of its segment (dwells point at the previous one).
     pub segment_of_move: Vec<usize>,
 }
 
 impl PathGeometry {
+    /// The path of `program`'s linear axes, from its start through every move (a dwell before
+    /// any motion gives a zero-length line).
     pub fn of(program: &Program) -> Self {
         let mut segments = Vec::new();
         let mut segment_of_move = Vec::with_capacity(program.moves.len());

@@ -50,8 +50,11 @@ pub use self::types::{
 /// The languages cncsim reads.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub enum ProgramFormat {
+    /// G-code (RS274/NGC as LinuxCNC reads it).
     Gcode,
+    /// HP-GL/1 plot files.
     Hpgl,
+    /// APT cutter-location data.
     Apt,
 }
 
@@ -183,7 +186,9 @@ impl ProgramFormat {
 /// A program read from a file, with the extra figures of its language.
 #[derive(Debug, Clone, PartialEq)]
 pub struct ReadOutcome {
+    /// The language the file was read as.
     pub format: ProgramFormat,
+    /// The decoded program.
     pub program: Program,
     /// Pen-up travel before and after optimisation (HPGL with `optimise_pen_up` only).
     pub pen_up: Option<PenUpTravel>,

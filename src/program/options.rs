@@ -7,8 +7,10 @@ use super::types::{FeedRule, Position};
 /// Length units a G-code program starts in (before any G20/G21).
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
 pub enum LengthUnit {
+    /// Millimetres (G21).
     #[default]
     Millimetre,
+    /// Inches (G20).
     Inch,
 }
 
@@ -38,6 +40,7 @@ impl LengthUnit {
         }
     }
 
+    /// The unit's symbol for messages: `mm` or `in`.
     pub fn symbol(self) -> &'static str {
         match self {
             LengthUnit::Millimetre => "mm",
@@ -57,10 +60,16 @@ impl LengthUnit {
 /// All lengths in the program's own units.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct ArcTolerance {
+    /// Allowed |r1 − r2| of a centre-format arc in a millimetre program (mm).
     pub spiral_mm: f64,
+    /// Allowed |r1 − r2| of a centre-format arc in an inch program (in).
     pub spiral_inch: f64,
+    /// Allowed |r1 − r2| / max(r1, r2) of a centre-format arc (a ratio).
     pub spiral_relative: f64,
+    /// Allowed excess of half the chord over |R| of a radius-format arc in a millimetre
+    /// program (mm).
     pub radius_mm: f64,
+    /// Allowed excess of half the chord over |R| of a radius-format arc in an inch program (in).
     pub radius_inch: f64,
 }
 
@@ -79,6 +88,7 @@ impl Default for ArcTolerance {
 }
 
 impl ArcTolerance {
+    /// The absolute spiral tolerance for a program in `unit` (in that unit).
     pub fn spiral(&self, unit: LengthUnit) -> f64 {
         match unit {
             LengthUnit::Millimetre => self.spiral_mm,
@@ -86,6 +96,7 @@ impl ArcTolerance {
         }
     }
 
+    /// The radius-format tolerance for a program in `unit` (in that unit).
     pub fn radius(&self, unit: LengthUnit) -> f64 {
         match unit {
             LengthUnit::Millimetre => self.radius_mm,
@@ -112,12 +123,14 @@ pub struct GcodeOptions {
     pub initial_units: LengthUnit,
     /// The block-delete switch: when on, blocks starting with `/` are skipped.
     pub block_delete: bool,
+    /// How far an arc's geometry may be off before it is an error.
     pub arc_tolerance: ArcTolerance,
     /// The machine's own length units (LinuxCNC `LINEAR_UNITS`): the units of the numbered
     /// parameters that hold offsets (#5161…, #5211…, #5221…, #5401…), as a program reads them.
     pub user_units: LengthUnit,
     /// Machine positions G28 and G30 go to (LinuxCNC #5161–#5166 and #5181–#5186).
     pub g28_home: Position,
+    /// Machine position G30 goes to (LinuxCNC #5181–#5186).
     pub g30_home: Position,
     /// The tool table: T words must name a tool in it (or 0 for none).
     pub tools: Vec<ToolSpec>,
@@ -163,6 +176,7 @@ pub struct HpglOptions {
     pub optimise_pen_up: bool,
     /// P1 and P2 (plotter units) after IN / a bare IP: the HP 7475's A-size defaults.
     pub default_p1: [f64; 2],
+    /// P2 (plotter units) after IN / a bare IP; see `default_p1`.
     pub default_p2: [f64; 2],
     /// The page (hard-clip limits, plotter units) until a PS: the HP 7475's A size. RO
     /// turns the plot about it and IR places P1 and P2 in it.
@@ -242,8 +256,11 @@ impl Default for AptOptions {
 pub struct ReadOptions {
     /// How feeds are shared out over rotary axes; recorded in every move.
     pub feed_rule: FeedRule,
+    /// Settings of the G-code reader.
     pub gcode: GcodeOptions,
+    /// Settings of the HPGL reader.
     pub hpgl: HpglOptions,
+    /// Settings of the APT CL reader.
     pub apt: AptOptions,
     /// At most this many errors are kept per file (the rest are counted).
     pub max_errors: usize,

@@ -10,9 +10,11 @@ use std::path::Path;
 pub struct CircleSpec {
     /// Centre (m).
     pub center: [f64; 2],
+    /// Radius (m).
     pub radius: f64,
     /// Angle of the start point from +X (rad).
     pub start_angle: f64,
+    /// Turns clockwise seen from +Z (as G2) rather than counter-clockwise (G3).
     pub clockwise: bool,
     /// Height of the tool (m).
     pub z: f64,
@@ -24,7 +26,9 @@ pub struct CircleSpec {
 /// each point.
 #[derive(Debug, Clone, PartialEq)]
 pub struct PolylineSpec {
+    /// The points in order, X Y Z (m); the first is the start.
     pub points: Vec<[f64; 3]>,
+    /// Path speed (m/s).
     pub speed: f64,
 }
 
@@ -45,6 +49,7 @@ fn base_move(motion: Motion, end: [f64; 3], speed: f64) -> Move {
     }
 }
 
+/// The circle as a one-move program (end = start, a full circle), labelled `source`.
 pub fn circle(spec: &CircleSpec, source: &Path) -> Program {
     let (s, c) = spec.start_angle.rem_euclid(TAU).sin_cos();
     let start = [
@@ -71,6 +76,8 @@ pub fn circle(spec: &CircleSpec, source: &Path) -> Program {
     }
 }
 
+/// The polyline as a program of straight moves from its first point (the origin when it has
+/// none), labelled `source`.
 pub fn polyline(spec: &PolylineSpec, source: &Path) -> Program {
     let start = spec.points.first().copied().unwrap_or_default();
     Program {

@@ -111,9 +111,13 @@ pub fn is_rapid(mv: &Move) -> bool {
 /// Totals over a program.
 #[derive(Debug, Clone, Copy, PartialEq, Default)]
 pub struct ProgramSummary {
+    /// All moves, dwells included.
     pub moves: usize,
+    /// Moves that cut (feed moves with the tool down or unspecified).
     pub cut_moves: usize,
+    /// Rapid and pen-up moves ([`is_rapid`]).
     pub rapid_moves: usize,
+    /// Dwells.
     pub dwells: usize,
     /// Linear path length (m) of cutting (pen-down) moves.
     pub cut_length: f64,
@@ -125,6 +129,7 @@ pub struct ProgramSummary {
     pub bounds: ([f64; 3], [f64; 3]),
 }
 
+/// Counts, lengths, feed time and bounds of `program`.
 pub fn summarize(program: &Program) -> ProgramSummary {
     let mut summary = ProgramSummary {
         bounds: (program.start.linear, program.start.linear),
@@ -164,6 +169,7 @@ pub struct PenUpTravel {
     pub after: f64,
     /// Pen lifts in the file's order and after chaining.
     pub lifts_before: usize,
+    /// Pen lifts after reordering and chaining.
     pub lifts_after: usize,
 }
 

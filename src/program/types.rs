@@ -9,8 +9,11 @@ use std::path::PathBuf;
 /// Where a piece of program text came from: 1-based line and column, 0-based byte offset.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
 pub struct Span {
+    /// Line number, counted from 1.
     pub line: u32,
+    /// Column on the line, counted from 1.
     pub column: u32,
+    /// Offset from the start of the text in bytes, counted from 0.
     pub byte_offset: u32,
 }
 
@@ -18,15 +21,20 @@ pub struct Span {
 /// A, B, C (rad). Axes a program never mentions stay at the position they had.
 #[derive(Debug, Clone, Copy, PartialEq, Default)]
 pub struct Position {
+    /// X, Y, Z (m).
     pub linear: [f64; 3],
+    /// A, B, C (rad).
     pub rotary: [f64; 3],
 }
 
 /// The working plane of an arc (G17/G18/G19).
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub enum Plane {
+    /// The XY plane (G17), normal axis Z.
     XY,
+    /// The ZX plane (G18), normal axis Y.
     ZX,
+    /// The YZ plane (G19), normal axis X.
     YZ,
 }
 
@@ -64,7 +72,9 @@ pub enum Blend {
     /// point; `None` = no tolerance given (G64 without P). `naive_cam`: LinuxCNC's naive-CAM
     /// collinearity tolerance (m, G64 Q), `None` when the program gives no Q.
     Continuous {
+        /// Largest allowed deviation from the programmed point (m, G64 P); `None` when not given.
         tolerance: Option<f64>,
+        /// Naive-CAM collinearity tolerance (m, G64 Q); `None` when not given.
         naive_cam: Option<f64>,
     },
 }
@@ -80,24 +90,36 @@ pub enum Motion {
     /// (XY: X then Y; ZX: Z then X; YZ: Y then Z) counter-clockwise is positive about the
     /// normal axis. `center`'s coordinate along the normal axis is the arc's start value.
     Arc {
+        /// Centre of the arc (m, absolute); along the normal axis, the arc's start value.
         center: [f64; 3],
+        /// The plane the arc turns in.
         plane: Plane,
+        /// Clockwise (G2) rather than counter-clockwise (G3), seen in `plane`'s axis order.
         clockwise: bool,
+        /// Extra full turns beyond the first (G2/G3 P − 1).
         turns: u32,
     },
     /// Dwell in place (G4).
-    Dwell { seconds: f64 },
+    Dwell {
+        /// How long to dwell (s).
+        seconds: f64,
+    },
 }
 
 /// Spindle / tool state that the program switches.
 #[derive(Debug, Clone, Copy, PartialEq, Default)]
 pub enum Spindle {
+    /// Spindle stopped (M5).
     #[default]
     Off,
+    /// Turning clockwise (M3).
     Clockwise {
+        /// Spindle speed (revolutions per minute, as programmed).
         rpm: f64,
     },
+    /// Turning counter-clockwise (M4).
     CounterClockwise {
+        /// Spindle speed (revolutions per minute, as programmed).
         rpm: f64,
     },
 }
@@ -105,15 +127,21 @@ pub enum Spindle {
 /// One move of a program.
 #[derive(Debug, Clone, PartialEq)]
 pub struct Move {
+    /// Its geometry: line, arc or dwell.
     pub motion: Motion,
+    /// Position at the end of the move (m, rad); a dwell's is where it stands.
     pub end: Position,
     /// Tool-axis unit vector in workpiece coordinates (APT CL data); `None` = not programmed.
     pub tool_axis: Option<[f64; 3]>,
+    /// How fast the move is to be made.
     pub feed: Feed,
+    /// How `feed` is shared out when the move has rotary components.
     pub feed_rule: FeedRule,
+    /// Corner behaviour at the end of the move.
     pub blend: Blend,
     /// Tool engaged (pen down in HPGL); `None` where the program does not say.
     pub tool_down: Option<bool>,
+    /// Spindle state during the move.
     pub spindle: Spindle,
     /// Where in the source this move was programmed.
     pub span: Span,
@@ -122,7 +150,9 @@ pub struct Move {
 /// A diagnostic that did not stop decoding (e.g. a normalised tool vector).
 #[derive(Debug, Clone, PartialEq)]
 pub struct Warning {
+    /// Where in the source it arose.
     pub span: Span,
+    /// What happened, as shown to the user.
     pub message: String,
 }
 
@@ -135,8 +165,11 @@ pub struct ProgramTool {
     pub name: Option<String>,
     /// The kind as the record names it (`MILL`, `DRILL`, …).
     pub kind: String,
+    /// Cutting diameter (m).
     pub diameter: f64,
+    /// Corner radius of the cutting edge (m); 0 for a flat end mill.
     pub corner_radius: f64,
+    /// Tool length (m).
     pub length: f64,
     /// Taper angle of the flank (rad).
     pub taper_angle: f64,
@@ -153,7 +186,9 @@ pub struct Program {
     pub source: PathBuf,
     /// Position the program assumes before its first move (m, rad).
     pub start: Position,
+    /// The moves, in program order.
     pub moves: Vec<Move>,
+    /// Diagnostics that did not stop decoding.
     pub warnings: Vec<Warning>,
     /// The tools the program describes, in the order described (APT `TLDATA`).
     pub tools: Vec<ProgramTool>,

@@ -36,6 +36,7 @@ const VIBRATION_MIN_HARMONIC: f64 = 10.0;
 /// One direction's trace over the 360° of data.
 #[derive(Debug, Clone, PartialEq, Default)]
 pub struct BallbarPass {
+    /// Whether the pass runs clockwise (G2).
     pub clockwise: bool,
     /// Run time of each sample (s).
     pub time: Vec<f64>,
@@ -46,6 +47,7 @@ pub struct BallbarPass {
 /// What a ballbar analysis needs: the nominal circle and both traces.
 #[derive(Debug, Clone, PartialEq)]
 pub struct BallbarInput {
+    /// The scenario's name.
     pub scenario: String,
     /// Program letters of the plane's axes, in its order (e.g. ["x", "y"], ["z", "x"]).
     pub axes: [String; 2],
@@ -53,13 +55,17 @@ pub struct BallbarInput {
     pub plane: String,
     /// Programmed centre in the plane's axes (m) and its full program coordinates (m).
     pub centre: [f64; 2],
+    /// Programmed centre in full program coordinates (m).
     pub centre_3d: [f64; 3],
+    /// Nominal radius (m).
     pub radius: f64,
     /// Path speed (m/s).
     pub feed: f64,
     /// Servo period of the trace (s).
     pub period: f64,
+    /// The counter-clockwise pass.
     pub ccw: BallbarPass,
+    /// The clockwise pass.
     pub cw: BallbarPass,
     /// Stick-slip stalls of each plane axis over the test (from the run's metrics).
     pub stalls: BTreeMap<String, usize>,
@@ -78,13 +84,16 @@ pub struct DirectionFigures {
     /// F: largest and smallest radial deviation from the nominal circle about the programmed
     /// centre (µm; F_max outward positive, F_min inward negative).
     pub radial_deviation_max_um: f64,
+    /// F_min: the smallest radial deviation (µm, inward negative).
     pub radial_deviation_min_um: f64,
     /// Least-squares circle: centre offset from the programmed centre (µm, plane axes) and
     /// radius (mm).
     pub least_squares_centre_offset_um: [f64; 2],
+    /// Radius of the least-squares circle (mm).
     pub least_squares_radius_mm: f64,
     /// Minimum-zone centre offset from the programmed centre (µm, plane axes).
     pub min_zone_centre_offset_um: [f64; 2],
+    /// Number of traced samples the figures are computed from.
     pub samples: usize,
 }
 
@@ -131,6 +140,7 @@ impl ServoMismatch {
 /// The strongest periodic component of the radial deviation above the shape harmonics.
 #[derive(Debug, Clone, PartialEq, Serialize)]
 pub struct Vibration {
+    /// Frequency of that component (Hz).
     pub frequency_hz: f64,
     /// Amplitude of that component (µm).
     pub amplitude_um: f64,
@@ -139,13 +149,21 @@ pub struct Vibration {
 /// One test: a feed and a radius, both directions, the figures and the diagnosis.
 #[derive(Debug, Clone, PartialEq, Serialize)]
 pub struct BallbarRun {
+    /// The scenario's name.
     pub scenario: String,
+    /// Plane of the test as given (xy, yz, zx).
     pub plane: String,
+    /// Programmed feed (mm/min).
     pub feed_mm_min: f64,
+    /// Nominal radius (mm).
     pub radius_mm: f64,
+    /// Programmed centre in full program coordinates (mm).
     pub centre_mm: [f64; 3],
+    /// Whether the run reached its end.
     pub completed: bool,
+    /// ISO 230-4 figures of the clockwise pass.
     pub cw: DirectionFigures,
+    /// ISO 230-4 figures of the counter-clockwise pass.
     pub ccw: DirectionFigures,
     /// H: largest radial difference between the two directions at the same angle, both about
     /// the least-squares centre of the two together (µm).
@@ -156,13 +174,17 @@ pub struct BallbarRun {
     /// Largest RMS residual of the step fits per axis (µm): where it is not small against
     /// the backlash, the trace shows no clean lost-motion step (hunting, stick-slip).
     pub backlash_fit_residual_um: BTreeMap<String, f64>,
+    /// The spikes found after the axes' reversals, both directions.
     pub reversal_spikes: Vec<ReversalSpike>,
+    /// The ellipse of unequal axis lags.
     pub servo_mismatch: ServoMismatch,
     /// Stick-slip stalls per plane axis over the test.
     pub stick_slip_stalls: BTreeMap<String, usize>,
+    /// The strongest vibration above the shape harmonics, where one is resolved.
     pub vibration: Option<Vibration>,
     /// Polar plot: magnification of the deviations and the scale of one ring (µm).
     pub magnification: f64,
+    /// Polar plot: the deviation one ring stands for (µm).
     pub scale_um_per_division: f64,
     /// Files written for this run (polar plot, trace, the run's own outputs).
     pub files: Vec<PathBuf>,
@@ -175,6 +197,7 @@ pub struct BallbarRun {
     /// The traced points in the plane's axes (mm) and their times (s), per direction.
     #[serde(skip)]
     pub points: [Vec<[f64; 2]>; 2],
+    /// Run time of each traced point (s), per direction (ccw, cw).
     #[serde(skip)]
     pub times: [Vec<f64>; 2],
 }
@@ -270,7 +293,9 @@ impl BallbarRun {
 /// Runs of one `cncsim ballbar` invocation.
 #[derive(Debug, Clone, PartialEq, Serialize, Default)]
 pub struct BallbarReport {
+    /// The scenario's name.
     pub scenario: String,
+    /// One test per feed and radius, in the order run.
     pub runs: Vec<BallbarRun>,
 }
 
@@ -1127,6 +1152,7 @@ fn trim(v: f64) -> String {
 }
 
 impl BallbarReport {
+    /// The report for the terminal: every run's block.
     pub fn text(&self) -> String {
         self.runs
             .iter()
@@ -1135,6 +1161,7 @@ impl BallbarReport {
             .join("\n")
     }
 
+    /// The report as pretty-printed JSON, with a final newline.
     pub fn json(&self) -> String {
         serde_json::to_string_pretty(self).expect("plain values") + "\n"
     }

@@ -26,6 +26,8 @@ fn error_unit(l: &AxisLabel) -> &'static str {
     super::recording::error_unit(l)
 }
 
+/// The layout of a run's recording: the machine and tool paths on the left, the summary and
+/// event log below them, the overview and per-axis plots in tabs on the right.
 pub fn run_blueprint(setup: &RecordingSetup<'_>) -> Blueprint {
     let analytic = setup.lanes.len() > 1;
     let workpiece = &setup.machine.links[setup.machine.workpiece_link].name;

@@ -16,8 +16,11 @@ pub const PROMINENCE_DB: f64 = 3.0;
 /// One curve as arrays over frequency (Hz, dB, degrees).
 #[derive(Debug, Clone, PartialEq, Serialize, Default)]
 pub struct Curve {
+    /// Frequencies of the points (Hz), rising.
     pub frequencies_hz: Vec<f64>,
+    /// Magnitude at each frequency (dB).
     pub magnitude_db: Vec<f64>,
+    /// Phase at each frequency (degrees), unwrapped.
     pub phase_deg: Vec<f64>,
 }
 
@@ -57,12 +60,18 @@ impl Curve {
 /// closed loop, gain and phase margins of the open loop with their crossovers.
 #[derive(Debug, Clone, PartialEq, Serialize, Default)]
 pub struct Figures {
+    /// Resonances: peaks of the feature response that stand out by [`PROMINENCE_DB`] (Hz,
+    /// lowest first).
     pub resonances_hz: Vec<f64>,
+    /// Antiresonances: dips of the feature response that stand out alike (Hz, lowest first).
     pub antiresonances_hz: Vec<f64>,
+    /// −3 dB bandwidth of the closed loop (Hz).
     pub bandwidth_hz: Option<f64>,
+    /// Gain margin of the open loop (dB), read at the phase crossover.
     pub gain_margin_db: Option<f64>,
     /// Where the phase crosses −180° (Hz).
     pub phase_crossover_hz: Option<f64>,
+    /// Phase margin of the open loop (degrees), read at the gain crossover.
     pub phase_margin_deg: Option<f64>,
     /// Where |L| = 1 (Hz).
     pub gain_crossover_hz: Option<f64>,
@@ -154,7 +163,9 @@ impl Figures {
 /// A `cncsim bode` result.
 #[derive(Debug, Clone, PartialEq, Serialize)]
 pub struct BodeRun {
+    /// The scenario's name.
     pub scenario: String,
+    /// Name of the axis measured.
     pub axis: String,
     /// "plant", "velocity" or "position".
     #[serde(rename = "loop")]
@@ -165,28 +176,43 @@ pub struct BodeRun {
     pub response: String,
     /// Unit of the magnitude, e.g. "dB re 1 mm/V".
     pub magnitude_unit: String,
+    /// Servo period of the loop (s).
     pub servo_period_s: f64,
     /// Excitation: where it enters, its amplitude and unit.
     pub excitation: String,
+    /// Amplitude of the excitation, in `amplitude_unit`.
     pub amplitude: f64,
+    /// Unit of `amplitude`: the command unit at the controller output, mm or deg (per
+    /// second on the velocity command) on a setpoint.
     pub amplitude_unit: String,
     /// Measured points.
     pub frequencies_hz: Vec<f64>,
+    /// Measured magnitude at each frequency (dB, see `magnitude_unit`).
     pub magnitude_db: Vec<f64>,
+    /// Measured phase at each frequency (degrees).
     pub phase_deg: Vec<f64>,
+    /// Coherence of each measured point (0 to 1): the share of the response the excitation
+    /// explains.
     pub coherence: Vec<f64>,
     /// The open loop at the plant input (measured by injection at the controller output).
     pub open_loop: Curve,
     /// The figures of the measurement.
     pub resonances_hz: Vec<f64>,
+    /// Antiresonances measured (Hz).
     pub antiresonances_hz: Vec<f64>,
+    /// −3 dB bandwidth of the closed loop measured (Hz).
     pub bandwidth_hz: Option<f64>,
+    /// Gain margin measured (dB).
     pub gain_margin_db: Option<f64>,
+    /// Where the measured open loop's phase crosses −180° (Hz).
     pub phase_crossover_hz: Option<f64>,
+    /// Phase margin measured (degrees).
     pub phase_margin_deg: Option<f64>,
+    /// Where the measured open loop's |L| = 1 (Hz).
     pub gain_crossover_hz: Option<f64>,
     /// The linearised model on a dense grid: main response and open loop.
     pub model: Curve,
+    /// The model's open loop on the same grid.
     pub model_open_loop: Curve,
     /// The model's figures on that grid.
     pub model_figures: Figures,
@@ -194,8 +220,11 @@ pub struct BodeRun {
     pub model_at_points: Curve,
     /// Largest |command| in any measured block, and the command limit.
     pub peak_command: f64,
+    /// The command limit: the lower of the controller's output limit and the actuator's own.
     pub command_limit: f64,
+    /// Simulated time of all the measurements, lead-ins included (s).
     pub simulated_time_s: f64,
+    /// Wall-clock time of the measurement (s).
     pub wall_time_s: f64,
     /// Notes on what the measurement could not do (saturation, low coherence, nonlinear
     /// mechanics the model leaves out).

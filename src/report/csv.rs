@@ -7,6 +7,8 @@ use crate::sim::TickRecord;
 use std::io::{BufWriter, Write};
 use std::path::{Path, PathBuf};
 
+/// Writes a run's CSV one physics tick at a time; a write error is kept and reported by
+/// [`CsvWriter::finish`].
 pub struct CsvWriter {
     path: PathBuf,
     out: BufWriter<std::fs::File>,

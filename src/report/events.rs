@@ -12,9 +12,11 @@ pub const MAX_EVENTS_PER_KIND: usize = 200;
 /// An entry for the log.
 #[derive(Debug, Clone, PartialEq)]
 pub struct Event {
+    /// When it happened: the tick's program time (s).
     pub time: f64,
     /// Rerun's text-log level: "INFO", "WARN", "ERROR", "DEBUG".
     pub level: &'static str,
+    /// The log line.
     pub text: String,
 }
 
@@ -44,6 +46,8 @@ pub struct EventDetector {
 }
 
 impl EventDetector {
+    /// A detector for axes `axis_names` with their backlash (joint units; 0: none, no
+    /// crossings looked for) and the source line of each program move.
     pub fn new(axis_names: &[String], backlash: &[f64], move_lines: Vec<u32>) -> EventDetector {
         EventDetector {
             axis_names: axis_names.to_vec(),

@@ -36,14 +36,20 @@ pub use thin::{Thinned, ThinnedPath};
 /// Report errors: only I/O and the recorder can fail here.
 #[derive(Debug, thiserror::Error)]
 pub enum ReportError {
+    /// A file or folder could not be written.
     #[error("cannot write {path}: {source}")]
     Io {
+        /// The file or folder.
         path: std::path::PathBuf,
+        /// What the operating system reported.
         source: std::io::Error,
     },
+    /// The Rerun recording could not be written.
     #[error("cannot write the Rerun recording {path}: {message}")]
     Recording {
+        /// The recording's file.
         path: std::path::PathBuf,
+        /// What the recorder reported.
         message: String,
     },
 }
@@ -51,7 +57,9 @@ pub enum ReportError {
 /// How a machine axis is shown: linear axes in mm (errors in µm), rotary ones in degrees.
 #[derive(Debug, Clone, PartialEq)]
 pub struct AxisLabel {
+    /// The axis's program letter (e.g. `x`, `a`).
     pub name: String,
+    /// Whether the axis is rotary (shown in degrees, else in mm).
     pub rotary: bool,
 }
 
@@ -65,6 +73,7 @@ impl AxisLabel {
         }
     }
 
+    /// The display unit: "mm" or "deg".
     pub fn unit(&self) -> &'static str {
         if self.rotary {
             "deg"

@@ -9,6 +9,7 @@ use nalgebra::{Point3, Vector3};
 /// What the report needs to judge a tool point against the program.
 #[derive(Debug, Clone, PartialEq)]
 pub struct PathTracker {
+    /// The programmed path, one segment per move with motion.
     pub geometry: PathGeometry,
     /// The program frame: the tool point and velocity come relative to its carrier link.
     pub frame: ProgramFrame,
@@ -19,11 +20,16 @@ pub struct PathTracker {
 /// The derived figures of one tick (SI).
 #[derive(Debug, Clone, Copy, PartialEq, Default)]
 pub struct PathSample {
+    /// Distance of the tool point from the programmed path (m); NaN where no path point is
+    /// near.
     pub contour_error: f64,
+    /// Path speed of the setpoints: the norm of the X, Y, Z axes' setpoint velocities (m/s).
     pub commanded_speed: f64,
+    /// Speed of the tool point in the program frame (m/s).
     pub actual_speed: f64,
     /// The tool point in the program frame, and the programmed path's point nearest to it.
     pub tool: [f64; 3],
+    /// The programmed path's point nearest the tool (program frame, m), if one was found.
     pub nearest: Option<[f64; 3]>,
 }
 

@@ -14,8 +14,11 @@ pub const PLOT_SIZE: (u32, u32) = (1280, 720);
 
 /// One curve: a label, sample times (s) and contour error (m) at those times.
 pub struct ContourSeries<'a> {
+    /// The legend entry (the variant's name).
     pub label: &'a str,
+    /// Sample times (s).
     pub time: &'a [f64],
+    /// Contour error at each time (m).
     pub contour_error: &'a [f64],
 }
 
@@ -142,7 +145,9 @@ where
 /// One bar group's values per series: (low, value, high); low/high draw a whisker where they
 /// differ from the value (e.g. the spread over a grid).
 pub struct BarSeries {
+    /// The legend entry.
     pub label: String,
+    /// Per group, in the groups' order: (low, value, high); `None` draws no bar.
     pub values: Vec<Option<(f64, f64, f64)>>,
 }
 

@@ -47,9 +47,13 @@ const MACHINE_ALPHA: f32 = 0.3;
 
 /// What a recording shows besides the ticks: plain data the caller prepares.
 pub struct RecordingSetup<'a> {
+    /// The recording's name (the scenario's).
     pub name: &'a str,
+    /// The machine, for its links, visuals and workpiece frame.
     pub machine: &'a Machine,
+    /// How each machine axis is named and shown, in the machine's axis order.
     pub labels: &'a [AxisLabel],
+    /// Whether the drives are DC motors: then the armature voltage is recorded too.
     pub dc_motor: bool,
     /// Record every k-th tick.
     pub decimation: usize,

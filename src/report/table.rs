@@ -2,6 +2,8 @@
 
 use super::Metrics;
 
+/// The run's metrics as a plain-text table: per-axis following error, torque and voltage, then
+/// contour and path-speed error, physics against the analytic model, and the run's timing.
 pub fn metrics_table(m: &Metrics) -> String {
     let mut s = String::new();
     let status = match &m.stopped {

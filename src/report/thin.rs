@@ -2,6 +2,8 @@
 //! the stride doubling (and every other kept item dropped) whenever the buffer fills. A run of
 //! any length leaves at most `capacity` items, still covering it from start to end.
 
+/// An evenly spread subset of the items pushed, at most `capacity` of them (see the module
+/// documentation).
 #[derive(Debug, Clone, PartialEq)]
 pub struct Thinned<T> {
     items: Vec<T>,
@@ -21,6 +23,8 @@ impl<T> Thinned<T> {
         }
     }
 
+    /// Offers the next item of the sequence: kept if it falls on the stride, which doubles
+    /// (dropping every other kept item) when the buffer is full.
     pub fn push(&mut self, item: T) {
         if self.seen.is_multiple_of(self.stride) {
             if self.items.len() == self.capacity {
@@ -40,10 +44,12 @@ impl<T> Thinned<T> {
         self.seen += 1;
     }
 
+    /// The items kept, in the order they were pushed.
     pub fn items(&self) -> &[T] {
         &self.items
     }
 
+    /// The items kept, in the order they were pushed.
     pub fn into_items(self) -> Vec<T> {
         self.items
     }
@@ -71,11 +77,13 @@ impl ThinnedPath {
         }
     }
 
+    /// Appends the next point of the polyline.
     pub fn push(&mut self, point: [f64; 3]) {
         self.points.push(point);
         self.last = Some(point);
     }
 
+    /// The points kept, in order, ending with the last point pushed.
     pub fn into_points(self) -> Vec<[f64; 3]> {
         let mut points = self.points.into_items();
         points.extend(self.last.filter(|l| points.last() != Some(l)));

@@ -16,9 +16,13 @@ const VARIANT_COLOURS: [[u8; 3]; 2] = [[40, 110, 230], [230, 50, 50]];
 /// One compared figure.
 #[derive(Debug, Clone, PartialEq, Serialize)]
 pub struct AbRow {
+    /// What is compared, e.g. `max contour error` or `x: peak torque`.
     pub metric: String,
+    /// Unit of `a` and `b` as shown (µm, mdeg, N·m, ms, s).
     pub unit: &'static str,
+    /// Variant A's value, in `unit`.
     pub a: f64,
+    /// Variant B's value, in `unit`.
     pub b: f64,
     /// b − a.
     pub difference: f64,
@@ -26,10 +30,15 @@ pub struct AbRow {
     pub ratio: f64,
 }
 
+/// An A/B comparison: the two variants' names and their figures side by side.
 #[derive(Debug, Clone, Serialize)]
 pub struct AbReport {
+    /// Name of scenario A.
     pub a: String,
+    /// Name of scenario B.
     pub b: String,
+    /// The compared figures: contour errors, each axis's following error and torques, the
+    /// ballbar figures when both ran the test, simulated and wall time.
     pub rows: Vec<AbRow>,
 }
 
@@ -204,9 +213,11 @@ impl AbReport {
 /// `cncsim ab`: the comparison and both runs, with the folder they were written to.
 #[derive(Debug, Clone)]
 pub struct AbOutput {
+    /// The comparison.
     pub report: AbReport,
     /// Variant A and B: scenario file and run.
     pub runs: [(PathBuf, RunOutput); 2],
+    /// The folder the runs and the comparison are written to.
     pub out: PathBuf,
 }
 

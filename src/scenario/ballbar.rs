@@ -32,6 +32,7 @@ pub struct BallbarOptions {
     pub radii: Vec<f64>,
     /// Feeds (path speed, m/s).
     pub feeds: Vec<f64>,
+    /// The plane of the circle.
     pub plane: Plane,
     /// Centre in program coordinates (m, G54); `None`: chosen (see [`ballbar_centre`]).
     pub centre: Option<[f64; 3]>,
@@ -43,9 +44,12 @@ pub struct BallbarOptions {
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default, clap::ValueEnum, serde::Deserialize)]
 #[serde(rename_all = "lowercase")]
 pub enum BallbarPlane {
+    /// The XY plane (G17).
     #[default]
     Xy,
+    /// The YZ plane (G19).
     Yz,
+    /// The ZX plane (G18).
     Zx,
 }
 
@@ -81,9 +85,11 @@ pub fn default_plane_centre_overshoot(s: &Scenario) -> (Plane, Option<[f64; 3]>,
 /// One test as a scenario's program (`[program] ballbar = { … }`), SI.
 #[derive(Debug, Clone, PartialEq)]
 pub struct BallbarSpec {
+    /// Radius of the circle (m).
     pub radius: f64,
     /// Path speed (m/s).
     pub feed: f64,
+    /// The plane of the circle.
     pub plane: Plane,
     /// Centre in program coordinates (m); `None`: chosen by [`ballbar_centre`].
     pub centre: Option<[f64; 3]>,
@@ -517,6 +523,7 @@ pub fn run_ballbar(
 /// `cncsim ballbar`: the test's runs, as the command reports them.
 #[derive(Debug, Clone)]
 pub struct BallbarOutput {
+    /// The analysed runs, one per radius and feed.
     pub report: BallbarReport,
     /// The scenario file.
     pub path: std::path::PathBuf,

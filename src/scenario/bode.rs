@@ -27,11 +27,14 @@ use std::time::Instant;
 /// What to measure.
 #[derive(Debug, Clone, PartialEq)]
 pub struct BodeOptions {
+    /// Name of the axis to measure, as the machine names it.
     pub axis: String,
+    /// Which loop: the plant inside the closed loop, the velocity loop or the position loop.
     pub lp: Loop,
     /// Lowest and highest frequency (Hz); `None`: the defaults ([`DEFAULT_FROM_HZ`], and
     /// 0.4 of the servo rate).
     pub from: Option<f64>,
+    /// Highest frequency (Hz); `None`: [`DEFAULT_TO_SHARE`] of the servo rate.
     pub to: Option<f64>,
     /// Frequencies per decade of the sweep.
     pub per_decade: usize,
@@ -88,8 +91,11 @@ impl From<FileError> for BodeError {
 /// The axis's linear plant and controller, from the drive data and the scenario.
 #[derive(Debug, Clone)]
 pub struct AxisLinearModel {
+    /// The axis's continuous linear plant.
     pub plant: AxisPlant,
+    /// `plant` sampled with the zero-order hold at the servo period.
     pub sampled: SampledPlant,
+    /// The scenario's PID or cascade law for this axis, as the linear law it runs.
     pub controller: LinearController,
     /// The controller's output limit and the actuator's own (command units).
     pub command_limit: f64,
@@ -700,6 +706,7 @@ fn principal_near(angle: f64, centre: f64) -> f64 {
 
 /// A `cncsim bode` result with where its files go.
 pub struct BodeOutput {
+    /// The measurement, the model laid over it and what was found in them.
     pub run: BodeRun,
     /// The output folder: bode.png, bode.csv, bode.json, bode.rrd.
     pub out: std::path::PathBuf,

@@ -9,6 +9,7 @@ use std::path::{Path, PathBuf};
 /// One bound that a run did not meet.
 #[derive(Debug, Clone, PartialEq)]
 pub struct Breach {
+    /// The bound not met (metric, limits and where the file declares it).
     pub expectation: Expectation,
     /// The metric's value; `None` if the run did not produce it.
     pub value: Option<f64>,
@@ -17,11 +18,14 @@ pub struct Breach {
 /// The outcome of checking one scenario.
 #[derive(Debug, Clone, PartialEq)]
 pub struct Verdict {
+    /// Number of bounds checked.
     pub checked: usize,
+    /// The bounds the run did not meet.
     pub breaches: Vec<Breach>,
 }
 
 impl Verdict {
+    /// Whether every bound was met.
     pub fn passed(&self) -> bool {
         self.breaches.is_empty()
     }
@@ -74,8 +78,11 @@ impl fmt::Display for Breach {
 /// `cncsim check`: how many scenarios met their bounds.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
 pub struct CheckReport {
+    /// Scenarios that ran to the end within all their bounds.
     pub passed: usize,
+    /// Scenarios that breached a bound, stopped early, or could not be read or run.
     pub failed: usize,
+    /// Planning scenarios without bounds, not run.
     pub skipped: usize,
     /// A scenario could not be read or run (bad input).
     pub bad_input: bool,

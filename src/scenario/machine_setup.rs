@@ -17,39 +17,53 @@ use std::path::{Path, PathBuf};
 /// One program axis as the machine has it.
 #[derive(Debug, Clone, PartialEq)]
 pub struct AxisRow {
+    /// The program letter (lowercase, e.g. `x`, `a`).
     pub letter: String,
+    /// The URDF joint the letter drives.
     pub joint: String,
+    /// Whether the joint is revolute (units rad, else m).
     pub rotary: bool,
     /// Whether the joint moves the tool (else the workpiece).
     pub moves_tool: bool,
     /// The letter's positive direction (linear) or axis (rotary) in the program frame's
     /// carrier link, sign applied.
     pub direction: [f64; 3],
+    /// The drive file's `sign`: +1, or −1 where the letter runs against the joint.
     pub sign: i8,
     /// Joint units (m or rad).
     pub home: f64,
+    /// Travel limits of the joint (m or rad); `None`: endless.
     pub travel: Option<[f64; 2]>,
 }
 
 /// What `cncsim machine check` found.
 #[derive(Debug, Clone)]
 pub struct MachineReport {
+    /// The URDF read.
     pub urdf: PathBuf,
+    /// The drive file read with it.
     pub drives: PathBuf,
+    /// The machine's name.
     pub name: String,
     /// The carrier link of the program frame, the tool and workpiece links.
     pub carrier: String,
+    /// The tool link.
     pub tool: String,
+    /// The workpiece link.
     pub workpiece: String,
+    /// The program axes, in the order X, Y, Z, A, B, C.
     pub axes: Vec<AxisRow>,
     /// Joints no axis drives: (name, what happens to it).
     pub undriven: Vec<(String, String)>,
     /// Total mass each axis moves is not simple to give on a tree; the links' masses instead.
     pub links: Vec<(String, f64)>,
+    /// Links whose mass was computed from their geometry.
     pub masses_from_geometry: Vec<String>,
     /// The meshes drawn in the recording: link, file and size.
     pub meshes: Vec<String>,
+    /// Whether X, Y, Z form a right-handed frame (ISO 841); else parts come out mirrored.
     pub right_handed: bool,
+    /// What loads but may not be meant: the machine's and the program frame's warnings.
     pub warnings: Vec<FileError>,
 }
 
@@ -259,6 +273,7 @@ impl MachineReport {
         out
     }
 
+    /// The report as JSON (`--json`), lengths in joint units (m or rad).
     pub fn json(&self) -> serde_json::Value {
         serde_json::json!({
             "machine": self.name,
@@ -592,8 +607,11 @@ impl crate::command::Report for MachineReport {
 /// terminal).
 #[derive(Debug, Clone)]
 pub struct DriveFileDraft {
+    /// The URDF the draft is for.
     pub urdf: PathBuf,
+    /// The drafted drive file (TOML).
     pub text: String,
+    /// Where it is written; `-`: the terminal.
     pub out: PathBuf,
 }
 

@@ -19,6 +19,7 @@ const TOOL_PATH_POINTS: usize = 50_000;
 /// What planning a scenario produced.
 #[derive(Debug, Clone)]
 pub struct PlanReport {
+    /// The planner used (the scenario's, or the one asked for).
     pub profile: ProfileName,
     /// The planned program: its setpoints are streamed again to write them (no sample is kept,
     /// so a plan of any duration fits in memory).
@@ -36,6 +37,9 @@ pub struct PlanReport {
     pub tool_path: Vec<[f64; 3]>,
 }
 
+/// Plans `s`'s program on its machine with `profile` (`None`: the scenario's planner profile)
+/// and measures the setpoints: per-axis and tool-tip extremes, per-move durations, the tool
+/// path.
 pub fn plan_scenario(s: &Scenario, profile: Option<ProfileName>) -> Result<PlanReport, RunError> {
     let machine = Machine::load(&s.machine)?;
     let axis_map = axis_map_for(s, &machine)?;
@@ -207,6 +211,7 @@ impl PlanReport {
 /// `cncsim plan`: the plan's report, and the files asked for.
 #[derive(Debug, Clone)]
 pub struct PlanOutput {
+    /// What planning the scenario produced.
     pub report: PlanReport,
     /// The scenario's name (the recording's title).
     pub name: String,

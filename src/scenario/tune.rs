@@ -28,6 +28,7 @@ use std::time::Instant;
 /// What to tune and how (SI units: the step in m or rad).
 #[derive(Debug, Clone, PartialEq)]
 pub struct TuneOptions {
+    /// Name of the axis to tune (as the machine names it, e.g. `x`).
     pub axis: String,
     /// Setpoint step (m or rad, > 0).
     pub step: f64,
@@ -37,10 +38,13 @@ pub struct TuneOptions {
     pub trial_time: f64,
     /// First gain tried; default the scenario's own Kp for the axis.
     pub start_gain: Option<f64>,
+    /// Most simulations for the whole tune, retries with a longer trial time included.
     pub max_simulations: usize,
 }
 
 impl TuneOptions {
+    /// Tuning `axis` by a step of `step` (m or rad), the rest at defaults: tolerance 0.5 %, 1 s
+    /// per trial, the scenario's Kp to start from, at most 60 simulations.
     pub fn new(axis: &str, step: f64) -> Self {
         TuneOptions {
             axis: axis.to_string(),
@@ -60,6 +64,7 @@ const MIN_BOUNDARY_EXTREMA: usize = 8;
 /// The longest trial accepted: a tune is meant to take seconds, not to run a long program.
 const MAX_TRIAL_TIME: f64 = 60.0;
 
+/// Why `tune` found no gains.
 #[derive(Debug, thiserror::Error)]
 pub enum TuneError {
     /// Bad input: the scenario, the machine or the options.
@@ -68,8 +73,11 @@ pub enum TuneError {
     /// The search ran and could not find the boundary.
     #[error("{path}: axis '{axis}': {source}")]
     Search {
+        /// The scenario file.
         path: PathBuf,
+        /// Name of the axis tuned.
         axis: String,
+        /// What stopped the search.
         source: SearchError,
     },
 }
@@ -83,46 +91,63 @@ impl From<FileError> for TuneError {
 /// The ultimate cycle of the linear model of the axis (no friction, no backlash, no limits).
 #[derive(Debug, Clone, PartialEq, Serialize)]
 pub struct LinearPrediction {
+    /// The linear model: effective mass, damping, transmission ratio and actuator.
     pub axis: LinearAxis,
     /// Of the sampled loop (ZOH at the servo period): what the search should find.
     pub sampled: UltimateCycle,
     /// Continuous-time (T → 0), DC-motor actuator only.
     pub continuous_gain: Option<f64>,
+    /// Continuous-time ultimate period (s), DC-motor actuator only.
     pub continuous_period: Option<f64>,
 }
 
 /// Everything `tune` found, for the terminal and for `--json`.
 #[derive(Debug, Clone, PartialEq, Serialize)]
 pub struct TuneReport {
+    /// The scenario's name.
     pub scenario: String,
+    /// Name of the axis tuned.
     pub axis: String,
+    /// Whether the axis is rotary (step and errors in rad, else m).
     pub rotary: bool,
     /// "physics" or "analytic".
     pub plant: &'static str,
+    /// The actuator model of the trials: "dc-motor" or "ideal-torque".
     pub actuator: &'static str,
     /// The tuned drive's amplifier mode ("voltage" or "current"; dc-motor actuator only).
     pub amplifier_mode: Option<&'static str>,
     /// Whether the tuned axis had guide friction and backlash in the trials (`tune --linear`
     /// removes both).
     pub friction: bool,
+    /// Whether the tuned axis had backlash in the trials.
     pub backlash: bool,
     /// Unit of the controller output: "V" (amplifier input) or "N·m".
     pub output_unit: &'static str,
+    /// Servo period of the loop (s).
     pub servo_period_s: f64,
+    /// Physics step (s): the servo period over the scenario's substeps.
     pub physics_step_s: f64,
+    /// Simulated time per trial of the final search (s), after any doubling.
     pub trial_time_s: f64,
+    /// The search's settings (step, start gain, saturation, hysteresis, budget).
     pub settings: SearchSettings,
     /// The scenario's output limit for the axis (kept during the search); `None` = none.
     pub output_limit: Option<f64>,
     /// The actuator's own limit in output units (supply / K_a, or peak torque).
     pub actuator_limit: f64,
+    /// The boundary found: K_cr, P_cr and the trials of the final search.
     pub ultimate: Ultimate,
+    /// The Ziegler–Nichols gains from K_cr and P_cr.
     pub gains: ZieglerNichols,
     /// `axes.<axis> = { kp = …, ki = …, kd = …, output_limit = … }`
     pub toml: String,
+    /// The linear model's prediction, where the analytic model has one for the axis.
     pub linear: Option<LinearPrediction>,
+    /// Simulations run, retries with a longer trial time included.
     pub simulations: usize,
+    /// Simulated time of all of them (s).
     pub simulated_time_s: f64,
+    /// Wall-clock time of the tune (s).
     pub wall_time_s: f64,
 }
 
@@ -633,6 +658,7 @@ impl TuneReport {
         t
     }
 
+    /// The report as JSON (`--json`).
     pub fn to_json(&self) -> serde_json::Value {
         serde_json::to_value(self).expect("plain numbers and strings")
     }
@@ -671,16 +697,24 @@ mod tests {
 /// and a check on the simulated plant (a velocity step through the velocity loop alone).
 #[derive(Debug, Clone, PartialEq, Serialize)]
 pub struct CascadeTuneReport {
+    /// The scenario's name.
     pub scenario: String,
+    /// Name of the axis designed.
     pub axis: String,
+    /// Whether the axis is rotary (gains per rad, else per m).
     pub rotary: bool,
+    /// Plant of the check: "physics" or "analytic".
     pub plant: &'static str,
+    /// Servo period of the loop (s).
     pub servo_period_s: f64,
+    /// The scenario's velocity-feedback filter (Hz; 0 = none).
     pub velocity_filter_hz: f64,
+    /// The design, from the axis's linear model at the program's first point.
     pub design: CascadeDesign,
     /// Velocity step response of the simulated axis under the designed velocity loop: rise
     /// time 10–90 % (s) and overshoot (fraction of the step).
     pub step_rise_time_s: Option<f64>,
+    /// Overshoot of that response (fraction of the step); `None` when it never reached 90 %.
     pub step_overshoot: Option<f64>,
     /// `cascade.<axis> = { … }`
     pub toml: String,

@@ -85,26 +85,60 @@ pub struct AxisModelOptions {
     pub ideal_actuator: bool,
     /// The transmission's stiffness and damping at the joint; `None`: rigid.
     pub compliance: Option<Compliance>,
+    /// Which position the servo loop is closed on: the drive side or the carriage.
     pub feedback: Feedback,
 }
 
 /// Why an axis model could not be built.
 #[derive(Debug, Clone, PartialEq, thiserror::Error)]
 pub enum AxisModelError {
+    /// A parameter that must be finite and ≥ 0 is not (gravity along the axis: not finite).
     #[error("{name} = {value}: expected a finite value ≥ 0")]
-    Negative { name: &'static str, value: f64 },
+    Negative {
+        /// The parameter's name.
+        name: &'static str,
+        /// The value given.
+        value: f64,
+    },
+    /// A parameter that must be finite and > 0 is not.
     #[error("{name} = {value}: expected a finite value > 0")]
-    NotPositive { name: &'static str, value: f64 },
+    NotPositive {
+        /// The parameter's name.
+        name: &'static str,
+        /// The value given.
+        value: f64,
+    },
+    /// The friction's breakaway level is below its kinetic level (or not finite).
     #[error("friction.breakaway = {breakaway}: expected a finite value ≥ the kinetic {kinetic}")]
-    Breakaway { breakaway: f64, kinetic: f64 },
+    Breakaway {
+        /// Breakaway (static) friction force (N or N·m).
+        breakaway: f64,
+        /// Kinetic (Coulomb) friction force (N or N·m).
+        kinetic: f64,
+    },
+    /// Backlash or a compliant transmission on an axis whose carriage has no mass.
     #[error("backlash needs a carriage with mass (moved mass is 0)")]
     MasslessCarriage,
+    /// Gravity pulls the carriage away from its guide, so there is no normal load.
     #[error("axis '{axis}': gravity pulls the carriage off its guide (check guide.normal)")]
-    LiftsOff { axis: String },
+    LiftsOff {
+        /// Name of the axis.
+        axis: String,
+    },
+    /// A revolute axis, or one below a revolute joint: its load and gravity would depend on
+    /// the pose.
     #[error("axis '{axis}': the reference model takes prismatic axes on prismatic chains only (load and gravity would depend on the pose)")]
-    PoseDependent { axis: String },
+    PoseDependent {
+        /// Name of the axis.
+        axis: String,
+    },
+    /// The machine has a passive (undriven, unlocked) joint, which the reference model
+    /// cannot represent.
     #[error("joint '{joint}' is passive: the reference model has one model per driven axis and no free joints (lock it in the drive file, or run without [analytic])")]
-    PassiveJoint { joint: String },
+    PassiveJoint {
+        /// Name of the passive joint.
+        joint: String,
+    },
 }
 
 /// What the actuator does over one hold interval.
@@ -444,6 +478,7 @@ impl AxisModel {
         self.state.carriage_position
     }
 
+    /// Carriage (joint) velocity (m/s, or rad/s on a rotary axis).
     pub fn velocity(&self) -> f64 {
         self.state.carriage_velocity
     }
@@ -453,6 +488,7 @@ impl AxisModel {
         self.state.drive_position
     }
 
+    /// Drive-side velocity: motor speed over the ratio (m/s, or rad/s on a rotary axis).
     pub fn drive_velocity(&self) -> f64 {
         self.state.drive_velocity
     }
@@ -949,6 +985,7 @@ impl AnalyticPlant {
         }
     }
 
+    /// The axis models, in the machine's axis order.
     pub fn models(&self) -> &[AxisModel] {
         &self.models
     }

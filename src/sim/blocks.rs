@@ -33,6 +33,7 @@ impl Encoder {
 pub struct FollowingErrorTrip {
     /// Limit per axis (joint units).
     pub limit: Vec<f64>,
+    /// Axis names, for the stop's message.
     pub axis_names: Vec<String>,
 }
 

@@ -6,6 +6,7 @@ use super::{Hold, Plant, Sensors};
 use crate::control::Actuator;
 use crate::model;
 
+/// The Rapier machine with its drives' actuator models, stepped by the servo loop.
 pub struct PhysicsPlant {
     plant: model::Plant,
     actuators: Vec<Actuator>,

@@ -10,6 +10,7 @@
 pub struct Sensors {
     /// Carriage (load-side) position: what the tool does.
     pub position: Vec<f64>,
+    /// Carriage (load-side) velocity (m/s or rad/s).
     pub velocity: Vec<f64>,
     /// Drive-side position (motor angle over the ratio); equals `position` without backlash.
     pub drive_position: Vec<f64>,
@@ -20,10 +21,12 @@ pub struct Sensors {
     pub current: Vec<f64>,
     /// Tool point and its velocity in the machine base frame (m, m/s).
     pub tool_point: [f64; 3],
+    /// Velocity of the tool point in the machine base frame (m/s).
     pub tool_velocity: [f64; 3],
 }
 
 impl Sensors {
+    /// Zeroed sensors for `axes` axes.
     pub fn new(axes: usize) -> Sensors {
         let z = || vec![0.0; axes];
         Sensors {
@@ -48,6 +51,7 @@ pub struct Hold {
 }
 
 impl Hold {
+    /// A zeroed hold record for `axes` axes.
     pub fn new(axes: usize) -> Hold {
         Hold {
             mean_torque: vec![0.0; axes],

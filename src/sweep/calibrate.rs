@@ -65,12 +65,17 @@ const FAILED: f64 = 1e9;
 /// A free parameter.
 #[derive(Debug, Clone, PartialEq, Serialize)]
 pub struct Parameter {
+    /// The key the parameter sets: `drives.<key>`, `links.<link>.mass` or a scenario key.
     pub key: String,
+    /// Lower bound of the search, in the key's own unit.
     pub min: f64,
+    /// Upper bound of the search, in the key's own unit.
     pub max: f64,
+    /// Searched on a log scale (`scale = "log"`; then `min` > 0).
     pub log: bool,
     /// Quantum of the value (e.g. a servo period in whole milliseconds); `None`: continuous.
     pub step: Option<f64>,
+    /// Where the search starts; `None`: the middle of the range (geometric on a log scale).
     pub start: Option<f64>,
     /// Further keys set to the same value.
     pub also: Vec<String>,
@@ -81,27 +86,41 @@ pub struct Parameter {
 /// A measured trace: times and the measured columns, in the order of the target's `columns`.
 #[derive(Debug, Clone, PartialEq)]
 pub struct MeasuredTrace {
+    /// Sample times (s), rising.
     pub t_s: Vec<f64>,
+    /// Each measured column's samples, one per time, in the units of the file.
     pub columns: Vec<Vec<f64>>,
 }
 
 /// What a run must reproduce.
 #[derive(Debug, Clone, PartialEq)]
 pub enum Target {
+    /// A figure of the run's `metrics.json` against its measured value; the cost term is
+    /// ((run − measured)/(tolerance·measured))².
     Metric {
+        /// The scenario the run simulates.
         scenario: PathBuf,
+        /// The `metrics.json` key, dotted (e.g. `axes.x.max_following_error_mm`).
         metric: String,
+        /// The measured value, in the metric's unit (not zero).
         measured: f64,
         /// Relative tolerance.
         tolerance: f64,
     },
+    /// A measured trace the run's `trace.csv` must follow; the cost term is
+    /// (RMS difference / `tolerance_mm`)².
     Trace {
+        /// The scenario the run simulates (with its `trace.csv` written).
         scenario: PathBuf,
+        /// The measured CSV file.
         trace: PathBuf,
         /// (run trace.csv column, measured column).
         columns: Vec<(String, String)>,
+        /// The measured trace as read.
         measured: MeasuredTrace,
+        /// The RMS difference that costs 1 (mm).
         tolerance_mm: f64,
+        /// Time shifts between run and measurement searched within ± this (s, 0 to 60).
         max_shift_s: f64,
     },
 }
@@ -113,6 +132,7 @@ impl Target {
         }
     }
 
+    /// The target's name in reports: its metric key, or `RMS to <file> (mm)` for a trace.
     pub fn name(&self) -> String {
         match self {
             Target::Metric { metric, .. } => metric.clone(),
@@ -129,14 +149,23 @@ impl Target {
 /// A validated calibration spec.
 #[derive(Debug, Clone, PartialEq)]
 pub struct Calibration {
+    /// The calibration's name: the spec's `name`, or else the file's stem.
     pub name: String,
+    /// The spec file.
     pub path: PathBuf,
+    /// The free parameters, ordered by key.
     pub parameters: Vec<Parameter>,
+    /// What the runs must reproduce; the cost is the sum of their terms.
     pub targets: Vec<Target>,
+    /// Seed of CMA-ES (`optimizer.seed`, default 0).
     pub seed: u64,
+    /// Candidates per generation, λ (default 4 + ⌊3 ln n⌋ for n parameters).
     pub population: usize,
+    /// Most candidates CMA-ES evaluates (default 100); each runs every target scenario.
     pub max_evaluations: usize,
+    /// Initial CMA-ES step, as a fraction of each parameter's range (default 0.3).
     pub sigma: f64,
+    /// Further scenarios run with the best values afterwards (`[predict] scenarios`).
     pub predict: Vec<PathBuf>,
 }
 
@@ -207,11 +236,14 @@ struct PredictSpec {
 }
 
 impl Calibration {
+    /// Reads and validates the calibration spec at `path` (see [`Calibration::parse`]).
     pub fn load(path: &Path) -> Result<Calibration, FileError> {
         let text = read_text(path, "calibration spec")?;
         Self::parse(path, &text)
     }
 
+    /// Validates spec `text` read from `path`: paths relative to its directory and required to
+    /// exist, every parameter key one a run can apply, measured traces read. Errors name the place.
     pub fn parse(path: &Path, text: &str) -> Result<Calibration, FileError> {
         let spec: SpecFile = toml::from_str(text).map_err(|e| toml_error(path, text, &e))?;
         let at = |span: std::ops::Range<usize>, m: String| {
@@ -645,12 +677,16 @@ pub struct Evaluation {
     /// In evaluation order; within a generation by parameter values, so every run numbers
     /// the candidates alike however its threads interleave.
     pub index: usize,
+    /// Generation of the candidate: 0 the start point, then CMA-ES's, then one per polish move.
     pub generation: usize,
     /// Parameter values (in the order of the spec).
     pub values: Vec<f64>,
     /// Each target's value in the run (NaN when the run failed).
     pub results: Vec<f64>,
+    /// Sum of the targets' squared misses in their tolerances (plus a wall growing outside the
+    /// parameter box); 1e9 for each target without a value.
     pub cost: f64,
+    /// Why the candidate has no cost of its own, when it has none.
     #[serde(serialize_with = "failure_text")]
     pub failure: Option<Failure>,
 }
@@ -705,6 +741,7 @@ fn failure_text<S: serde::Serializer>(failure: &Option<Failure>, s: S) -> Result
 pub struct Sensitivity {
     /// (value, cost) below and above the best (None at a bound or when the run failed).
     pub below: Option<(f64, f64)>,
+    /// (value, cost) above the best (None at a bound or when the run failed).
     pub above: Option<(f64, f64)>,
     /// Half-width of Δcost ≤ 1 from the parabola through the three points, when it opens
     /// upwards: the one-sigma uncertainty with the tolerances as standard deviations.
@@ -738,17 +775,25 @@ const MAX_POLISH_ROUNDS: usize = 8;
 /// The running state of a calibration, for a progress display.
 #[derive(Debug, Default)]
 pub struct CalibrationProgress {
+    /// Candidates evaluated so far.
     pub evaluations: AtomicUsize,
+    /// Lowest cost so far (`None` before the first candidate).
     pub best: Mutex<Option<f64>>,
 }
 
 /// Everything a calibration found.
 #[derive(Debug, Clone, Serialize)]
 pub struct CalibrationResult {
+    /// The calibration's name.
     pub name: String,
+    /// The free parameters, as in the spec.
     pub parameters: Vec<Parameter>,
+    /// Each target's name ([`Target::name`]), in the order of the spec.
     pub targets: Vec<String>,
+    /// Every candidate evaluated, numbered by `index`: the start point, the CMA-ES
+    /// generations, then the polish.
     pub evaluations: Vec<Evaluation>,
+    /// The candidate of lowest cost among those whose runs succeeded (`None`: none did).
     pub best: Option<Evaluation>,
     /// Per parameter: the range of values among the candidates within a cost of 1 of the best
     /// (with the tolerances as standard deviations, the one-sigma range of a χ² fit, as far as
@@ -758,9 +803,11 @@ pub struct CalibrationResult {
     pub sensitivity: Vec<Sensitivity>,
     /// Moves of the compass search after CMA-ES (each to a better neighbour).
     pub polish_rounds: usize,
+    /// Whether the calibration was interrupted (the best is the best so far).
     pub interrupted: bool,
     /// Why CMA-ES stopped (e.g. MaxFunctionEvaluations, TolFun).
     pub stop_reason: String,
+    /// Wall-clock time of the whole calibration (s).
     pub wall_time_s: f64,
 }
 
@@ -1471,14 +1518,17 @@ pub fn write_back(cal: &Calibration, values: &[f64]) -> Result<Vec<PathBuf>, Fil
 /// written back.
 #[derive(Debug, Clone)]
 pub struct CalibrationOutput {
+    /// What the search found.
     pub result: CalibrationResult,
     /// The report (`report.md`): the search, and the predictions where they ran.
     pub report: String,
+    /// The output directory.
     pub out: PathBuf,
     /// Files the best values were written into (`--write`).
     pub updated: Vec<PathBuf>,
     /// Why the best values could not be written back.
     pub not_written: Option<String>,
+    /// Whether the calibration was interrupted.
     pub interrupted: bool,
 }
 

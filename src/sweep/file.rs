@@ -34,15 +34,20 @@ pub const MAX_RUNS: usize = 1_000_000;
 /// A sampled parameter's distribution.
 #[derive(Debug, Clone, PartialEq)]
 pub enum Distribution {
+    /// Uniform between the bounds (lo, hi).
     Uniform(f64, f64),
+    /// Uniform in the logarithm between the bounds (lo, hi; lo > 0).
     LogUniform(f64, f64),
+    /// One of the listed values, each equally likely.
     Choice(Vec<toml::Value>),
 }
 
 /// One change of a run: a scenario override or a machine override.
 #[derive(Debug, Clone)]
 pub enum Change {
+    /// A scenario key (the `ab` override syntax).
     Scenario(Override),
+    /// A key of the machine: `drives.<key>` or `links.<link>.mass`.
     Machine(MachineOverride),
 }
 
@@ -56,6 +61,7 @@ impl Change {
         }
     }
 
+    /// The change as written, `KEY=VALUE`.
     pub fn text(&self) -> &str {
         match self {
             Change::Scenario(o) => &o.text,
@@ -67,23 +73,36 @@ impl Change {
 /// A validated sweep: plain data, paths resolved.
 #[derive(Debug, Clone)]
 pub struct Sweep {
+    /// The sweep's name: its `name`, or else the file's stem.
     pub name: String,
+    /// The sweep file.
     pub path: PathBuf,
+    /// The scenario files, each folder listed replaced by its `*.toml` files (sorted).
     pub scenarios: Vec<PathBuf>,
+    /// The variant that ratios and wins are reckoned against, if one is named.
     pub baseline: Option<String>,
     /// Variant names and their changes, in the file's order.
     pub variants: Vec<(String, Vec<Change>)>,
     /// Swept keys and their values (TOML value text), in the file's order.
     pub grid: Vec<(String, Vec<String>)>,
+    /// The seeded samples (`[random]`), if any.
     pub random: Option<RandomSpec>,
+    /// The metrics the summary and the plots show (`report.metrics`; keys of `metrics.json`,
+    /// default `max_contour_error_mm`).
     pub metrics: Vec<String>,
+    /// Whether each run writes the recording and CSV its `[recording]` asks for
+    /// (`report.recordings`; off: metrics only).
     pub recordings: bool,
 }
 
+/// The `[random]` table: seeded samples of some keys, for every variant and grid point.
 #[derive(Debug, Clone, PartialEq)]
 pub struct RandomSpec {
+    /// Samples drawn (≥ 1).
     pub samples: usize,
+    /// Seed of the ChaCha8 stream the samples are drawn from (default 0).
     pub seed: u64,
+    /// Each sampled key with its distribution, in the file's order.
     pub parameters: Vec<(String, Distribution)>,
 }
 
@@ -92,7 +111,9 @@ pub struct RandomSpec {
 pub struct RunSpec {
     /// Position in the sweep (rows are ordered by it, whatever order runs finish in).
     pub index: usize,
+    /// Index into [`Sweep::scenarios`].
     pub scenario: usize,
+    /// Index into [`Sweep::variants`].
     pub variant: usize,
     /// Index of the grid/sample point (0 without grid or samples).
     pub point: usize,
@@ -101,11 +122,14 @@ pub struct RunSpec {
 }
 
 impl Sweep {
+    /// Reads and validates the sweep file at `path` (see [`Sweep::parse`]).
     pub fn load(path: &Path) -> Result<Sweep, FileError> {
         let text = read_text(path, "sweep")?;
         Self::parse(path, &text)
     }
 
+    /// Validates sweep `text` read from `path`: paths relative to its directory and required to
+    /// exist, every override parsed, at most [`MAX_RUNS`] runs. Errors name the place.
     pub fn parse(path: &Path, text: &str) -> Result<Sweep, FileError> {
         let doc: toml::Table = toml::from_str(text).map_err(|e| toml_error(path, text, &e))?;
         // The order of the variants and grid keys is the file's: toml_edit keeps it.

@@ -29,6 +29,7 @@ use std::path::{Path, PathBuf};
 /// sets a URDF link's mass and scales its inertia alike (the same body, heavier).
 #[derive(Debug, Clone)]
 pub struct MachineOverride {
+    /// The override as written, e.g. `links.carriage.mass=12`.
     pub text: String,
     kind: MachineChange,
 }
@@ -40,6 +41,8 @@ enum MachineChange {
 }
 
 impl MachineOverride {
+    /// Reads `drives.<key>=<value>` or `links.<link>.mass=<kg>` (a positive number); the error
+    /// says which form was expected.
     pub fn parse(text: &str) -> Result<MachineOverride, String> {
         let kind = if let Some(rest) = text.strip_prefix("drives.") {
             MachineChange::Drives(Override::parse(rest).map_err(|e| format!("drives.{e}"))?)

@@ -14,15 +14,23 @@ use std::path::{Path, PathBuf};
 /// One run's row.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 pub struct Row {
+    /// Position of the run in the sweep.
     pub index: usize,
+    /// The scenario file's stem.
     pub scenario: String,
+    /// The variant's name.
     pub variant: String,
+    /// Index of the grid/sample point (0 without grid or samples).
     pub point: usize,
     /// The grid/sample values of the run (key, value as written).
     pub values: Vec<(String, String)>,
+    /// Whether the run started and reached its end.
     pub completed: bool,
+    /// Why the run stopped early, if it did.
     pub stopped: Option<String>,
+    /// Why the run could not start, if it could not.
     pub error: Option<String>,
+    /// Wall-clock time of the run (s).
     pub wall_time_s: f64,
     /// Every numeric figure of the run's `metrics.json`, by dotted key.
     pub metrics: BTreeMap<String, f64>,
@@ -31,7 +39,9 @@ pub struct Row {
 /// Everything `results.json` holds.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 pub struct SweepResults {
+    /// The sweep's name.
     pub name: String,
+    /// The variant ratios and wins are reckoned against, if any.
     pub baseline: Option<String>,
     /// The metrics the summary and the plots show.
     pub report_metrics: Vec<String>,
@@ -41,7 +51,9 @@ pub struct SweepResults {
     pub keys: Vec<String>,
     /// Runs in the whole sweep; the shards that are here.
     pub total_runs: usize,
+    /// The shards whose rows are here, as (K, N); empty when the sweep ran whole.
     pub shards: Vec<(usize, usize)>,
+    /// One row per run that has a result, in the sweep's order.
     pub rows: Vec<Row>,
 }
 
@@ -470,12 +482,17 @@ pub fn merge(dirs: &[PathBuf]) -> Result<SweepResults, FileError> {
 /// `cncsim sweep`: the results table of the runs done, and how the sweep ended.
 #[derive(Debug, Clone)]
 pub struct SweepOutput {
+    /// The results of the runs done.
     pub results: SweepResults,
+    /// The output folder.
     pub out: PathBuf,
     /// Runs asked for (this shard's), runs done, plans made for them.
     pub jobs: usize,
+    /// Runs done.
     pub done: usize,
+    /// Distinct plans made for them.
     pub plans: usize,
+    /// Whether the sweep was interrupted.
     pub interrupted: bool,
     /// A run could not start or stopped early.
     pub any_failed: bool,
@@ -512,9 +529,11 @@ impl crate::command::Report for SweepOutput {
 /// `cncsim merge`: the shards' results as one table.
 #[derive(Debug, Clone)]
 pub struct MergeOutput {
+    /// The merged results.
     pub results: SweepResults,
     /// How many folders were merged.
     pub folders: usize,
+    /// The folder the merged files go to.
     pub out: PathBuf,
 }
 

@@ -18,9 +18,13 @@ use std::time::Instant;
 /// One run: a scenario file with its changes, its outputs in `out_dir`.
 #[derive(Debug, Clone)]
 pub struct Job {
+    /// Position of the run in its sweep (or calibration); the result carries it back.
     pub index: usize,
+    /// The scenario file.
     pub scenario: PathBuf,
+    /// The overrides applied to the scenario and its machine.
     pub changes: Vec<Change>,
+    /// The folder the run writes its outputs into.
     pub out_dir: PathBuf,
     /// Write the run's Rerun recording and CSV as its `[recording]` asks; off: metrics only.
     pub recordings: bool,
@@ -31,6 +35,7 @@ pub struct Job {
 /// How a job ended.
 #[derive(Debug, Clone, PartialEq)]
 pub struct JobResult {
+    /// The job's `index`.
     pub index: usize,
     /// The run's `metrics.json` (`None` when the run could not start).
     pub metrics: Option<serde_json::Value>,
@@ -38,15 +43,20 @@ pub struct JobResult {
     pub error: Option<String>,
     /// Why it stopped early (divergence, following-error fault, interruption).
     pub stopped: Option<Stop>,
+    /// Wall-clock time of the job (s).
     pub wall_time_s: f64,
 }
 
 /// What the runner has done so far, for a progress display.
 #[derive(Debug, Default)]
 pub struct Progress {
+    /// Jobs in all (set by the caller; the runner does not touch it).
     pub total: usize,
+    /// Jobs finished, failed ones included.
     pub done: AtomicUsize,
+    /// Jobs running now.
     pub running: AtomicUsize,
+    /// Jobs that could not start or stopped early.
     pub failed: AtomicUsize,
 }
 

@@ -11,7 +11,6 @@
 //! backward-difference velocity estimate, T/2), the current's L/R, the velocity filter and the
 //! PI zero. The position loop is P with Kpp = ω_v/4 (its bandwidth a quarter of the velocity
 //! loop's, so the two do not fight), with full velocity and acceleration feed-forward.
-
 //!
 //! A compliant drive train (a [`TwoMass`]) or command filters make the open loop's shape more
 //! than a phase budget: the resonance lifts the gain where the phase has long passed −180°.
@@ -36,8 +35,11 @@ pub const GAIN_MARGIN_DB: f64 = 6.0;
 /// damper, at the joint.
 #[derive(Debug, Clone, Copy, PartialEq, Serialize)]
 pub struct TwoMass {
+    /// Inertia of the drive side at the joint (kg or kg·m²).
     pub drive_mass: f64,
+    /// Stiffness of the spring at the joint (N/m or N·m/rad).
     pub stiffness: f64,
+    /// Damping in parallel with the spring, at the joint (N·s/m or N·m·s/rad).
     pub damping: f64,
 }
 
@@ -70,6 +72,7 @@ pub struct LoopShape {
 pub struct CascadeDesign {
     /// Velocity-loop crossover (Hz) and the phase margin there (degrees).
     pub velocity_bandwidth_hz: f64,
+    /// Phase margin at the velocity-loop crossover (degrees).
     pub phase_margin_deg: f64,
     /// Position-loop bandwidth (Hz): Kpp/2π.
     pub position_bandwidth_hz: f64,
@@ -78,11 +81,17 @@ pub struct CascadeDesign {
     pub gain_margin_db: f64,
     /// The drive train's resonance and antiresonance (Hz), when it is compliant.
     pub resonance_hz: Option<f64>,
+    /// The drive train's antiresonance seen from the motor (Hz), when it is compliant.
     pub antiresonance_hz: Option<f64>,
     /// Velocity-loop plant: joint force per command unit, mass, effective damping.
     pub force_per_command: f64,
+    /// Inertia of the velocity loop's plant at the joint (kg or kg·m²).
     pub mass: f64,
+    /// Effective viscous damping c' of that plant (N·s/m or N·m·s/rad; back-EMF included in
+    /// voltage mode).
     pub damping: f64,
+    /// The gains as the cascade controller takes them: PI velocity loop, P position loop, full
+    /// feed-forward, no limits, the shape's command filters.
     #[serde(skip)]
     pub axis: CascadeAxis,
 }

@@ -26,10 +26,15 @@ use serde::Serialize;
 pub enum LinearActuator {
     /// Output in volts at the amplifier input.
     DcMotor {
+        /// Amplifier gain K_a (V per volt of controller output).
         amplifier_gain: f64,
+        /// Torque constant K_m (N·m/A).
         torque_constant: f64,
+        /// Back-EMF constant K_b the loop sees (V·s/rad; 0 for a current-mode amplifier).
         back_emf_constant: f64,
+        /// Armature resistance R (Ω).
         resistance: f64,
+        /// Armature inductance L (H).
         inductance: f64,
     },
     /// Output is the motor torque (N·m).
@@ -45,13 +50,16 @@ pub struct LinearAxis {
     pub damping: f64,
     /// Motor radians per joint unit.
     pub ratio: f64,
+    /// How the controller output drives the axis.
     pub actuator: LinearActuator,
 }
 
 /// Ultimate gain (controller output per joint unit of error) and period (s).
 #[derive(Debug, Clone, Copy, PartialEq, Serialize)]
 pub struct UltimateCycle {
+    /// Ultimate gain K_cr (controller output per joint unit of error).
     pub gain: f64,
+    /// Ultimate period P_cr (s).
     pub period: f64,
 }
 

@@ -28,11 +28,15 @@ use serde::Serialize;
 /// u = Kp·e + Ki·∫e + Kd·ė.
 #[derive(Debug, Clone, Copy, PartialEq, Serialize)]
 pub struct ZieglerNichols {
+    /// Proportional gain Kp = 0.6·K_cr (output per m, or per rad on a rotary axis).
     pub kp: f64,
     /// Integral time T_i (s) and derivative time T_d (s).
     pub ti: f64,
+    /// Derivative time T_d (s).
     pub td: f64,
+    /// Integral gain Ki = Kp/T_i (output per m·s, or per rad·s).
     pub ki: f64,
+    /// Derivative gain Kd = Kp·T_d (output per m/s, or per rad/s).
     pub kd: f64,
 }
 

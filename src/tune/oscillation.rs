@@ -39,6 +39,7 @@ impl Verdict {
 /// What [`analyse`] found.
 #[derive(Debug, Clone, PartialEq, Serialize)]
 pub struct Oscillation {
+    /// How the oscillation behaves over the window.
     pub verdict: Verdict,
     /// Number of extrema found.
     pub extrema: usize,
@@ -47,6 +48,8 @@ pub struct Oscillation {
     pub ratio: Option<f64>,
     /// Same, over the first and the second half of the swings (`None` below `MIN_SWINGS`).
     pub early_ratio: Option<f64>,
+    /// Growth of the swing per period over the second half of the swings (`None` below
+    /// [`MIN_SWINGS`]).
     pub late_ratio: Option<f64>,
     /// Mean period from the spacing of the extrema (s); `None` with fewer than three extrema.
     pub period: Option<f64>,

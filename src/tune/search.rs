@@ -35,6 +35,8 @@ pub struct SearchSettings {
     pub servo_period: f64,
     /// Size of the setpoint step (joint units, > 0).
     pub step: f64,
+    /// First P gain tried (command units per joint unit), lowered if its first command would
+    /// exceed half of `saturation`.
     pub start_gain: f64,
     /// Factor between bracketing gains (> 1).
     pub growth: f64,
@@ -45,6 +47,7 @@ pub struct SearchSettings {
     pub saturation: f64,
     /// Smallest turn of the error that counts as a peak (joint units).
     pub hysteresis: f64,
+    /// Most simulations the search may run before it gives up.
     pub max_simulations: usize,
 }
 
@@ -52,9 +55,13 @@ pub struct SearchSettings {
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize)]
 #[serde(rename_all = "kebab-case")]
 pub enum Outcome {
+    /// No oscillation left to judge: the error came to rest ([`Verdict::Settled`]).
     Settled,
+    /// The swings shrink (ratio per period < 1).
     Decaying,
+    /// The swings grow (ratio per period ≥ 1).
     Growing,
+    /// The swings converge to a constant size set by a nonlinearity ([`Verdict::LimitCycle`]).
     LimitCycle,
     /// Grew into the actuator's saturation.
     Saturated,
@@ -63,6 +70,8 @@ pub enum Outcome {
 }
 
 impl Outcome {
+    /// Whether the run counts as oscillating, i.e. its gain is at or above the boundary:
+    /// every outcome but settled and decaying.
     pub fn oscillates(self) -> bool {
         !matches!(self, Outcome::Settled | Outcome::Decaying)
     }
@@ -71,13 +80,17 @@ impl Outcome {
 /// One simulation of the search.
 #[derive(Debug, Clone, PartialEq, Serialize)]
 pub struct Trial {
+    /// The P gain of the run (command units per joint unit).
     pub gain: f64,
+    /// How the run was judged.
     pub outcome: Outcome,
+    /// The error's oscillation, over the samples before the command first saturated.
     pub oscillation: Oscillation,
     /// Largest |command| over the run.
     pub max_command: f64,
     /// Time of the first saturated command (s), if any.
     pub saturated_at: Option<f64>,
+    /// Why the run ended early, if it did.
     pub stopped: Option<String>,
 }
 
@@ -91,6 +104,7 @@ pub struct Ultimate {
     pub period: f64,
     /// Highest gain that did not oscillate and lowest that did.
     pub lower: Trial,
+    /// The run at the lowest gain that oscillated.
     pub upper: Trial,
     /// Whether a run at the boundary (or any run) ended in a limit cycle: an amplitude set by
     /// a nonlinearity, so K_cr is not the linear ultimate gain.
@@ -99,31 +113,60 @@ pub struct Ultimate {
     pub trials: Vec<Trial>,
 }
 
+/// Why the search ended without a boundary.
 #[derive(Debug, Clone, PartialEq, thiserror::Error)]
 pub enum SearchError {
+    /// The simulation at `gain` failed.
     #[error("simulation at K = {gain:.6e} failed: {message}")]
-    Simulation { gain: f64, message: String },
+    Simulation {
+        /// The gain simulated (command units per joint unit).
+        gain: f64,
+        /// The simulator's error.
+        message: String,
+    },
+    /// No gain oscillated up to the highest the step allows (a first command of half the
+    /// actuator's range).
     #[error("no sustained oscillation up to K = {up_to:.6e} (decay ratio per period there: {ratio}); {why}")]
     NoOscillation {
+        /// Highest gain tried (command units per joint unit).
         up_to: f64,
+        /// Its decay ratio per period, as text (`none, <outcome>` when not measured).
         ratio: String,
+        /// Why no higher gain was tried.
         why: String,
     },
+    /// The loop oscillates even far below the start gain: P control cannot hold the axis.
     #[error("the loop oscillates even at K = {down_to:.6e}, {factor:.0e} times below the start gain; the axis cannot be held by P control (check the drive data)")]
-    AlwaysOscillating { down_to: f64, factor: f64 },
+    AlwaysOscillating {
+        /// Lowest gain tried (command units per joint unit).
+        down_to: f64,
+        /// How far below the start gain the search went down (a factor).
+        factor: f64,
+    },
+    /// The very first command saturated: the step is too large for the gain.
     #[error("the command saturates at the first sample at K = {gain:.6e} (|u| = {command:.4e} ≥ {saturation:.4e}): the step is too large for this gain; reduce the step")]
     KickSaturates {
+        /// The gain simulated (command units per joint unit).
         gain: f64,
+        /// Magnitude of the first command (command units).
         command: f64,
+        /// The saturation level it reached (command units).
         saturation: f64,
     },
+    /// The boundary was bracketed but neither run at its bounds showed a period.
     #[error("no oscillation period could be measured at the boundary K = {lower:.6e} .. {upper:.6e} (outcomes {lower_outcome:?}, {upper_outcome:?}); a longer run may show one")]
     NoPeriod {
+        /// Highest gain that did not oscillate.
         lower: f64,
+        /// Lowest gain that did.
         upper: f64,
+        /// How the run at `lower` was judged.
         lower_outcome: Outcome,
+        /// How the run at `upper` was judged.
         upper_outcome: Outcome,
     },
+    /// `max_simulations` were used up before the bracket narrowed to the tolerance; holds
+    /// the number run.
     #[error("stopped after {0} simulations without narrowing the boundary to the tolerance")]
     TooManySimulations(usize),
 }

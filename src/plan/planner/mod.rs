@@ -111,10 +111,12 @@ struct Span {
 /// Timing of one segment in a plan.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct SegmentTiming {
+    /// Index of the program move the segment comes from.
     pub source_index: u32,
     /// When the motion is at the segment's start (s): its programmed start point, or the
     /// middle of the blend into it.
     pub start_time: f64,
+    /// Time from passing its start to passing its end (s).
     pub duration: f64,
     /// Path limits of the segment on its own (its line or arc limits).
     pub limits: Limits,
@@ -614,7 +616,9 @@ pub struct ChainGeometry {
 /// feed metric (e.g. 1 on X, Y, Z and 0 on the rotary axes of a move with linear motion).
 #[derive(Debug, Clone, PartialEq)]
 pub struct PointFeed {
+    /// The programmed path speed (SI, in the feed metric: m/s for linear motion).
     pub speed: f64,
+    /// `W`: the feed metric's weight per machine axis.
     pub weights: Vec<f64>,
 }
 

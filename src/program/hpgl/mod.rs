@@ -41,6 +41,7 @@ use super::types::{Program, Span, Warning};
 /// A decoded HPGL program with its pen-up travel figures.
 #[derive(Debug, Clone, PartialEq)]
 pub struct HpglOutput {
+    /// The decoded program: the plot on X and Y in metres, pen up and down as Z heights.
     pub program: Program,
     /// Pen-up travel as drawn and (if `optimise_pen_up`) after reordering; without
     /// optimisation both figures are the file's.

@@ -28,6 +28,8 @@ enum ActuatorModel {
 /// The `[actuator]` section.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct ActuatorSettings {
+    /// The actuator model of every drive (`model`): DC motor behind its amplifier, or ideal
+    /// torque.
     pub kind: ActuatorKind,
     /// Amplifier mode of every drive, overriding the drive file; `None` = the drive's.
     pub amplifier_mode: Option<AmplifierMode>,
@@ -73,6 +75,7 @@ pub struct FeedbackSettings {
     pub encoder_counts_per_rev: BTreeMap<String, (u32, Option<LineColumn>)>,
     /// Following-error fault limits: m for linear axes, rad for rotary axes.
     pub following_error_limit_linear: f64,
+    /// Following-error fault limit of rotary axes (rad), from `following_error_limit_deg`.
     pub following_error_limit_rotary: f64,
 }
 
@@ -167,8 +170,11 @@ struct RawTransmission {
 /// family its keys used, checked against the axis kind when the machine is known.
 #[derive(Debug, Clone, PartialEq)]
 pub struct TransmissionEntry {
+    /// Stiffness and damping (N/m and N·s/m, or N·m/rad and N·m·s/rad on a rotary axis).
     pub compliance: Compliance,
+    /// Whether the keys were the rotary ones (`stiffness_nm_per_rad`, `damping_nm_s_per_rad`).
     pub rotary_units: bool,
+    /// Where the entry starts in the scenario file, for messages.
     pub at: Option<LineColumn>,
 }
 
@@ -248,8 +254,11 @@ pub(super) struct RawCompensation {
 /// (`None` when none was given), checked against the axis kind when the machine is known.
 #[derive(Debug, Clone, PartialEq)]
 pub struct CompensationEntry {
+    /// The compensation (joint units: m or rad).
     pub compensation: AxisCompensation,
+    /// Whether the backlash keys were the rotary ones (`_deg`); `None` when none was given.
     pub rotary_units: Option<bool>,
+    /// Where the entry starts in the scenario file, for messages.
     pub at: Option<LineColumn>,
 }
 

@@ -12,8 +12,11 @@ use toml::Spanned;
 pub struct Expectation {
     /// Dotted path into `metrics.json`, e.g. `axes.x.max_following_error_mm`.
     pub metric: String,
+    /// Lowest value allowed, in the metric's own unit; `None`: no lower bound.
     pub min: Option<f64>,
+    /// Highest value allowed, in the metric's own unit; `None`: no upper bound.
     pub max: Option<f64>,
+    /// Where the bound's `[expect]` entry starts in the scenario file, for messages.
     pub at: Option<LineColumn>,
 }
 
@@ -53,8 +56,11 @@ pub(super) struct RawAb {
 /// Variants declared in a scenario's `[ab]` table: the overrides of A and of B, as written.
 #[derive(Debug, Clone, PartialEq)]
 pub struct DeclaredVariants {
+    /// Overrides of variant A, each `KEY=VALUE`.
     pub a: Vec<String>,
+    /// Overrides of variant B, each `KEY=VALUE`.
     pub b: Vec<String>,
+    /// Where the `[ab]` table starts in the scenario file, for messages.
     pub at: Option<LineColumn>,
 }
 

@@ -37,10 +37,15 @@ pub(super) struct AxisTable<'a> {
 /// One measurement a scenario asks for (frequencies in Hz; `None`: `cncsim bode`'s default).
 #[derive(Debug, Clone, PartialEq)]
 pub struct FrequencyResponse {
+    /// Name of the axis measured (the table's key).
     pub axis: String,
+    /// Which loop (`loop`; default: the plant).
     pub lp: Loop,
+    /// Lowest frequency of the sweep (Hz).
     pub from_hz: Option<f64>,
+    /// Highest frequency of the sweep (Hz).
     pub to_hz: Option<f64>,
+    /// Frequencies per decade (default 12).
     pub per_decade: usize,
     /// Where the table is.
     pub at: Option<LineColumn>,

@@ -18,7 +18,9 @@ pub const SUSPECT_SPEED_MM_S: f64 = 5e3;
 pub const ACCELERATION_MM_S2: (f64, f64) = (1e-3, 1e7);
 /// Jerk-limited planner limits per axis, mm or deg per s, s², s³.
 pub const LIMIT_VELOCITY: (f64, f64) = (1e-3, 1e5);
+/// Jerk-limited planner acceleration limit per axis (mm/s², or deg/s² on a rotary axis).
 pub const LIMIT_ACCELERATION: (f64, f64) = (1e-3, 1e8);
+/// Jerk-limited planner jerk limit per axis (mm/s³, or deg/s³ on a rotary axis).
 pub const LIMIT_JERK: (f64, f64) = (1e-3, 1e11);
 /// Corner tolerance (mm).
 pub const TOLERANCE_MM: (f64, f64) = (1e-6, 100.0);
@@ -26,14 +28,18 @@ pub const TOLERANCE_MM: (f64, f64) = (1e-6, 100.0);
 pub const COORDINATE_MM: f64 = 1e5;
 /// Following-error fault limits.
 pub const FOLLOWING_ERROR_LIMIT_MM: (f64, f64) = (1e-6, 1e3);
+/// Following-error fault limit of rotary axes (deg).
 pub const FOLLOWING_ERROR_LIMIT_DEG: (f64, f64) = (1e-6, 360.0);
 /// PID gains (≥ 0) and output limits.
 pub const MAX_GAIN: f64 = 1e12;
 /// Inverse dynamics: closed-loop natural frequency (Hz), damping ratio, model mass scale,
 /// task-space least-squares damping.
 pub const NATURAL_FREQUENCY_HZ: (f64, f64) = (1e-3, 1e4);
+/// Inverse dynamics: closed-loop damping ratio (dimensionless).
 pub const DAMPING_RATIO: (f64, f64) = (1e-3, 100.0);
+/// Inverse dynamics: scale on the controller model's link masses and inertias.
 pub const MODEL_MASS_SCALE: (f64, f64) = (1e-3, 100.0);
+/// Task-space controller: least-squares damping λ of the Jacobian's inverse.
 pub const TASK_DAMPING: (f64, f64) = (1e-9, 10.0);
 /// Recording decimation (record every k-th tick).
 pub const MAX_DECIMATION: i64 = 1_000_000;
@@ -45,4 +51,5 @@ pub const MAX_FEED_FORWARD_SHARE: f64 = 2.0;
 pub const VELOCITY_FILTER_HZ: (f64, f64) = (0.0, 1e6);
 /// Compensated backlash.
 pub const MAX_BACKLASH_MM: f64 = 100.0;
+/// Compensated backlash of rotary axes (deg).
 pub const MAX_BACKLASH_DEG: f64 = 90.0;

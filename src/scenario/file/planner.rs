@@ -85,11 +85,14 @@ struct RawLimits {
 /// it gives (limits stay in program units: the axis kinds come from the machine).
 #[derive(Debug, Clone, PartialEq)]
 pub struct PlannerSettings {
+    /// Which planner turns the program into setpoints.
     pub profile: ProfileName,
     /// Trapezoid path acceleration (m/s²).
     pub acceleration: Option<f64>,
     /// Jerk-limited planner, per axis: [velocity, acceleration, jerk] in mm or deg units.
     pub limits: BTreeMap<String, ([f64; 3], Option<LineColumn>)>,
+    /// Corner behaviour: as programmed (G61/G64), exact stop, or continuous (`blend`, with
+    /// `tolerance_mm`).
     pub blend: BlendChoice,
     /// LinuxCNC's G64 Q (m): runs of straight moves within it of one line are joined.
     pub naive_cam_tolerance: Option<f64>,

@@ -99,14 +99,18 @@ struct RawPolyline {
 /// Where the program comes from.
 #[derive(Debug, Clone, PartialEq)]
 pub enum ProgramSource {
+    /// The built-in circle (`[program] circle = { … }`).
     Circle(CircleSpec),
+    /// The built-in polyline (`[program] polyline = { … }`).
     Polyline(PolylineSpec),
     /// The ISO 230-4 circular test (`cncsim ballbar`'s program): its figures join the metrics
     /// under `ballbar`.
     Ballbar(crate::scenario::BallbarSpec),
     /// The reader settings are boxed: with the G-code tool table they outweigh the others.
     File {
+        /// The program file, resolved against the scenario file's folder.
         path: PathBuf,
+        /// How to read it (G-code, HPGL or APT settings, tool table, feed rule).
         options: Box<ReadOptions>,
     },
 }
@@ -124,6 +128,7 @@ pub struct Approach {
 /// The `[program]` section, SI units.
 #[derive(Debug, Clone, PartialEq)]
 pub struct ProgramSettings {
+    /// Where the program comes from.
     pub source: ProgramSource,
     /// Start of the untraced approach to the first point (m), where one is asked for.
     pub approach_from: Option<[f64; 3]>,
