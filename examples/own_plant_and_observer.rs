@@ -61,14 +61,14 @@ impl Plant for IdentifiedAxes {
     fn hold(&mut self, command: &[f64], out: &mut Hold) {
         let (t, tau) = (self.period, self.tau);
         let decay = (-t / tau).exp();
-        for i in 0..self.position.len() {
+        for (i, &u) in command.iter().enumerate() {
             // Exact over the period with u held: v → K·u with time constant τ.
-            let target = self.gain[i] * command[i];
+            let target = self.gain[i] * u;
             let v0 = self.velocity[i];
             self.position[i] += target * t + (v0 - target) * tau * (1.0 - decay);
             self.velocity[i] = target + (v0 - target) * decay;
             out.mean_torque[i] = 0.0;
-            out.voltage[i] = command[i];
+            out.voltage[i] = u;
         }
         self.periods += 1;
     }
@@ -102,11 +102,19 @@ impl Observer for LargestFollowingError {
     }
 }
 
+/// The largest following error per axis (m or rad) of one scenario, three ways.
+struct Compared {
+    /// The physics lane's, from the run's metrics (`metrics.json`).
+    from_metrics: Vec<f64>,
+    /// The physics lane's, as the observer saw it.
+    physics: Vec<f64>,
+    /// The identified plant's, as the observer saw it.
+    own: Vec<f64>,
+}
+
 /// Runs `path` with the scenario's plants, then with [`IdentifiedAxes`] (K from each drive's
-/// steady speed per command, τ = 20 ms), each watched by a [`LargestFollowingError`]; returns
-/// (metrics' largest following error of the physics lane, the observer's of the physics lane,
-/// the observer's of the identified plant), per axis, in m or rad.
-fn compare(path: &Path) -> Result<(Vec<f64>, Vec<f64>, Vec<f64>), Box<dyn std::error::Error>> {
+/// steady speed per command, τ = 20 ms), each watched by a [`LargestFollowingError`].
+fn compare(path: &Path) -> Result<Compared, Box<dyn std::error::Error>> {
     let scenario = Scenario::load(path)?;
     let assembly = Assembly::new(&scenario)?;
     let mut physics_watch = LargestFollowingError::default();
@@ -137,7 +145,8 @@ fn compare(path: &Path) -> Result<(Vec<f64>, Vec<f64>, Vec<f64>), Box<dyn std::e
             let k = d.ratio();
             let damping_current =
                 d.viscous_damping_nm_s_per_rad * k / d.motor.torque_constant_nm_per_a;
-            d.amplifier_gain / (d.effective_back_emf() * k + d.motor.resistance_ohm * damping_current)
+            d.amplifier_gain
+                / (d.effective_back_emf() * k + d.motor.resistance_ohm * damping_current)
         })
         .collect();
     let make = |_lane: LaneKind, start: &[f64]| -> Box<dyn Plant> {
@@ -153,11 +162,11 @@ fn compare(path: &Path) -> Result<(Vec<f64>, Vec<f64>, Vec<f64>), Box<dyn std::e
     };
     let mut own_watch = LargestFollowingError::default();
     assembly.run(RunOptions::new().plant(&make).observer(&mut own_watch))?;
-    Ok((
+    Ok(Compared {
         from_metrics,
-        physics_watch.per_lane[0].clone(),
-        own_watch.per_lane[0].clone(),
-    ))
+        physics: physics_watch.per_lane[0].clone(),
+        own: own_watch.per_lane[0].clone(),
+    })
 }
 
 #[cfg_attr(test, allow(dead_code))] // built as a test too: its check is below
@@ -168,11 +177,14 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         .unwrap_or_else(|| {
             PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("scenarios/xyz_circle_5mms.toml")
         });
-    let (metrics, physics, own) = compare(&path)?;
+    let c = compare(&path)?;
     println!("largest following error per axis (µm or µrad):");
-    println!("  physics, from metrics.json   {:?}", micro(&metrics));
-    println!("  physics, seen by the observer {:?}", micro(&physics));
-    println!("  identified first-order axes   {:?}", micro(&own));
+    println!(
+        "  physics, from metrics.json    {:?}",
+        micro(&c.from_metrics)
+    );
+    println!("  physics, seen by the observer {:?}", micro(&c.physics));
+    println!("  identified first-order axes   {:?}", micro(&c.own));
     Ok(())
 }
 
@@ -190,13 +202,23 @@ mod tests {
     #[test]
     fn the_observer_sees_the_metrics_ticks_and_the_own_plant_runs() {
         let path = Path::new(env!("CARGO_MANIFEST_DIR")).join("scenarios/xyz_circle_5mms.toml");
-        let (metrics, physics, own) = compare(&path).unwrap();
+        let Compared {
+            from_metrics: metrics,
+            physics,
+            own,
+        } = compare(&path).unwrap();
         assert_eq!(metrics.len(), physics.len());
         for (m, p) in metrics.iter().zip(&physics) {
-            assert!((m - p).abs() <= 1e-12 * m.abs().max(1e-9), "{metrics:?} vs {physics:?}");
+            assert!(
+                (m - p).abs() <= 1e-12 * m.abs().max(1e-9),
+                "{metrics:?} vs {physics:?}"
+            );
         }
         assert!(own.iter().all(|e| e.is_finite()), "{own:?}");
-        assert!(own.iter().any(|&e| e > 0.0) && own.iter().all(|&e| e < 1e-2), "{own:?}");
+        assert!(
+            own.iter().any(|&e| e > 0.0) && own.iter().all(|&e| e < 1e-2),
+            "{own:?}"
+        );
         assert_ne!(own, physics, "the own plant ran in the physics' place");
     }
 }

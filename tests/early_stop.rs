@@ -102,11 +102,7 @@ fn an_interruption_keeps_everything() {
             .unwrap()
             .run(RunOptions::write_to(out.path()).progress(&mut progress))
             .unwrap();
-        assert!(run
-            .stop()
-            .unwrap()
-            .to_string()
-            .starts_with("interrupted"));
+        assert!(run.stop().unwrap().to_string().starts_with("interrupted"));
         assert_kept(
             out.path(),
             run.metrics.servo_ticks,

@@ -426,11 +426,20 @@ fn live_ezdxf_agrees() {
 /// program, MS-Windows, and examples from HP's manuals; GPL, so not committed: `.ci/run`
 /// unpacks the package and points `CNCSIM_HP2XX_TESTS` at them).
 const CORPUS_REFUSED: &[(&str, &str)] = &[
-    ("bz.hp", "`PD:`, a colon where `;` belongs (hp2xx passes over the typo)"),
+    (
+        "bz.hp",
+        "`PD:`, a colon where `;` belongs (hp2xx passes over the typo)",
+    ),
     ("dv.hpg", "`DV1`, labels stacked vertically"),
-    ("fwedges.plt", "`RA` with four parameters (HP-GL's RA takes two)"),
+    (
+        "fwedges.plt",
+        "`RA` with four parameters (HP-GL's RA takes two)",
+    ),
     ("pages.hp", "drawing after `PG`, a second page"),
-    ("spectrum.plt", "a text line `X0=0;…` between the PCL blocks"),
+    (
+        "spectrum.plt",
+        "a text line `X0=0;…` between the PCL blocks",
+    ),
 ];
 
 /// Files of that set cncsim draws differently from hp2xx, and why.
@@ -461,7 +470,11 @@ fn hp2xx_test_plots_decode_and_agree_with_the_oracles() {
         result.compared
     );
     let names = |list: &[(&str, &str)]| list.iter().map(|(n, _)| n.to_string()).collect::<Vec<_>>();
-    assert_eq!(result.refused, names(CORPUS_REFUSED), "refused, against the list");
+    assert_eq!(
+        result.refused,
+        names(CORPUS_REFUSED),
+        "refused, against the list"
+    );
     assert_eq!(
         result.different,
         names(CORPUS_DIFFERENT),

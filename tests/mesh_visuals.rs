@@ -148,7 +148,10 @@ fn package_meshes_are_found_through_the_package_path_option() {
     let urdf = std::fs::read_to_string(models.join("xyz_table.urdf")).unwrap();
     let added = "    <visual><geometry><mesh filename=\"package://tetra_parts/meshes/part.stl\" scale=\"0.001 0.001 0.001\"/></geometry></visual>\n  </link>\n\n  <!-- X carriage";
     let urdf = urdf.replacen("  </link>\n\n  <!-- X carriage", added, 1);
-    assert!(urdf.contains("tetra_parts"), "the base link's end was not found");
+    assert!(
+        urdf.contains("tetra_parts"),
+        "the base link's end was not found"
+    );
     let path = machine_dir.join("xyz_table.urdf");
     std::fs::write(&path, urdf).unwrap();
     std::fs::copy(
@@ -199,4 +202,3 @@ fn package_meshes_are_found_through_the_package_path_option() {
         stderr(&o)
     );
 }
-

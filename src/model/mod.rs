@@ -1134,13 +1134,13 @@ fn transmission_spring(
     } else {
         0.0
     };
-    if !(drive_mass > 0.0) {
+    if drive_mass.is_nan() || drive_mass <= 0.0 {
         return Err(ModelError::CompliantWithoutDriveInertia {
             axis: axis.name.clone(),
         });
     }
     let load = moved_inertia(machine, axis.joint);
-    if !(load > 0.0) {
+    if load.is_nan() || load <= 0.0 {
         return Err(ModelError::CompliantWithoutLoad {
             axis: axis.name.clone(),
         });

@@ -896,7 +896,7 @@ fn vibration(input: &BallbarInput) -> Option<Vibration> {
 
 /// A "nice" ceiling: 1, 2 or 5 × 10ⁿ.
 fn nice_ceiling(x: f64) -> f64 {
-    if !(x > 0.0) {
+    if x.is_nan() || x <= 0.0 {
         return 1e-6;
     }
     let p = 10f64.powf(x.log10().floor());
@@ -1457,7 +1457,7 @@ fn draw_polar(pixels: &mut [u8], run: &BallbarRun) -> DrawResult<()> {
             (10, y),
             (FAMILY, size).into_font().color(&BLACK),
         ))?;
-        y += size as i32 + 12;
+        y += size + 12;
     }
     let _ = w;
     root.present()?;

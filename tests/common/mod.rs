@@ -433,7 +433,9 @@ pub fn raster_gcode(lines: usize) -> String {
 
 /// Runs the `cncsim` binary with `args` from the repository's root.
 pub fn cncsim(args: &[&str]) -> std::process::Output {
-    // `option_env!`: examples include this module too, and only tests have the binary.
+    // `option_env!`: examples include this module too (never calling this), and only tests
+    // have the binary.
+    #[allow(clippy::option_env_unwrap)]
     let binary = option_env!("CARGO_BIN_EXE_cncsim").expect("run from an integration test");
     std::process::Command::new(binary)
         .args(args)
