@@ -67,14 +67,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         .machine
         .axes
         .iter()
-        .map(|a| {
-            let d = &a.drive;
-            let k = d.ratio();
-            let damping_current =
-                d.viscous_damping_nm_s_per_rad * k / d.motor.torque_constant_nm_per_a;
-            (d.effective_back_emf() * k + d.motor.resistance_ohm * damping_current)
-                / d.amplifier_gain
-        })
+        .map(|a| a.drive.steady_volts_per_velocity())
         .collect();
     let mine = PdWithFeedForward {
         kp: vec![5000.0; n],

@@ -7,7 +7,8 @@
 //! - A plant is any type that implements [`Plant`]: it samples its sensors at the start of
 //!   every servo period and holds the command over the period. Here each axis is what a step
 //!   test on a real drive identifies, a first-order velocity response to the command (gain K
-//!   in m/s per command unit, time constant τ), integrated exactly over the period. The tool
+//!   in m/s per volt at the amplifier input, for a DC-motor scenario; time constant τ),
+//!   integrated exactly over the period. The tool
 //!   point comes from the machine's own forward kinematics.
 //! - An observer is any type that implements [`Observer`]: it sees each lane's ticks
 //!   ([`TickRecord`]: setpoint, sensors, command) and early stops. Here it keeps each lane's
@@ -26,7 +27,7 @@ use std::path::{Path, PathBuf};
 /// Each axis a first-order velocity response to its command: τ·v̇ = K·u − v, ẋ = v.
 struct IdentifiedAxes {
     machine: Machine,
-    /// Steady velocity per command unit (m/s or rad/s per V or N·m), per axis.
+    /// Steady velocity per volt at the amplifier input (m/s or rad/s per V), per axis.
     gain: Vec<f64>,
     /// Time constant of the velocity response (s).
     tau: f64,
@@ -135,19 +136,12 @@ fn compare(path: &Path) -> Result<Compared, Box<dyn std::error::Error>> {
 
     let machine = assembly.machine.clone();
     let period = scenario.timing.servo_period;
-    // Steady speed per command: what the drive's damping and back-EMF let through (the
-    // own-controller example's feed-forward, inverted), or per N·m for the ideal actuator.
+    // Steady speed per volt at the amplifier: what the drive's damping and back-EMF let
+    // through (the scenario's actuator is a DC motor).
     let gain: Vec<f64> = machine
         .axes
         .iter()
-        .map(|a| {
-            let d = &a.drive;
-            let k = d.ratio();
-            let damping_current =
-                d.viscous_damping_nm_s_per_rad * k / d.motor.torque_constant_nm_per_a;
-            d.amplifier_gain
-                / (d.effective_back_emf() * k + d.motor.resistance_ohm * damping_current)
-        })
+        .map(|a| 1.0 / a.drive.steady_volts_per_velocity())
         .collect();
     let make = |_lane: LaneKind, start: &[f64]| -> Box<dyn Plant> {
         Box::new(IdentifiedAxes {

@@ -427,6 +427,18 @@ impl Drive {
         self.motor_side_inertia() * self.ratio().powi(2)
     }
 
+    /// Amplifier input (V) that holds a steady joint velocity of one unit (1 m/s, or 1 rad/s)
+    /// against the motor's viscous damping and, in voltage mode, its back-EMF:
+    /// (K_b'·k + R·C·k/K_m)/K_a, with K_b' zero in current mode. Friction and the load's own
+    /// damping are not in it.
+    pub fn steady_volts_per_velocity(&self) -> f64 {
+        let k = self.ratio();
+        let damping_current =
+            self.viscous_damping_nm_s_per_rad * k / self.motor.torque_constant_nm_per_a;
+        (self.effective_back_emf() * k + self.motor.resistance_ohm * damping_current)
+            / self.amplifier_gain
+    }
+
     /// Motor-side viscous damping seen at the joint (N·s/m or N·m·s/rad): C·k².
     pub fn reflected_damping(&self) -> f64 {
         self.viscous_damping_nm_s_per_rad * self.ratio().powi(2)
