@@ -43,7 +43,9 @@
 //! as u = R(ω)·r − B_fb(z)·x_fb − B_m(z)·x_motor, the loop broken at the plant input is
 //! L = B_fb·P_fb + B_m·P_m, and the closed loop from the setpoint is x_fb/r = P_fb·R/(1 + L).
 
-use crate::machine::{AmplifierMode, Drive, Feedback};
+use crate::control::ActuatorKind;
+use crate::machine::{Drive, Feedback};
+use crate::tune::LinearActuator;
 use nalgebra::{Complex, DMatrix, DVector};
 use serde::Serialize;
 use std::f64::consts::TAU;
@@ -73,27 +75,6 @@ impl Transmission {
     }
 }
 
-/// How the command drives the axis.
-#[derive(Debug, Clone, Copy, PartialEq, Serialize)]
-#[serde(tag = "kind", rename_all = "kebab-case")]
-pub enum Motor {
-    /// Command in V at the amplifier input.
-    DcMotor {
-        /// K_a, amplifier output per command (V/V).
-        amplifier_gain: f64,
-        /// K_m (N·m/A).
-        torque_constant: f64,
-        /// The back-EMF the current loop sees: K_b in voltage mode, 0 in current mode.
-        back_emf_constant: f64,
-        /// Armature resistance R (Ω).
-        resistance: f64,
-        /// Armature inductance L (H).
-        inductance: f64,
-    },
-    /// Command is the motor torque (N·m).
-    IdealTorque,
-}
-
 /// One axis's linear plant at the joint (see the module documentation).
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct AxisPlant {
@@ -110,22 +91,21 @@ pub struct AxisPlant {
     /// Between drive side and carriage: rigid, or a spring and damper.
     pub transmission: Transmission,
     /// The actuator the command drives: DC motor behind its amplifier, or ideal torque.
-    pub motor: Motor,
+    pub actuator: LinearActuator,
     /// Where the position loop's feedback is measured.
     pub feedback: Feedback,
 }
 
 impl AxisPlant {
     /// The plant of `drive` moving `moved_mass` with the joint's damping, driven through the
-    /// DC-motor actuator (`ideal_torque` false) or the ideal torque actuator.
+    /// `actuator`.
     pub fn from_drive(
         drive: &Drive,
         moved_mass: f64,
         joint_damping: f64,
         transmission: Transmission,
-        ideal_torque: bool,
+        actuator: ActuatorKind,
     ) -> AxisPlant {
-        let m = &drive.motor;
         AxisPlant {
             drive_mass: drive.reflected_inertia(),
             drive_damping: drive.reflected_damping(),
@@ -133,20 +113,7 @@ impl AxisPlant {
             carriage_damping: joint_damping,
             ratio: drive.ratio(),
             transmission,
-            motor: if ideal_torque {
-                Motor::IdealTorque
-            } else {
-                Motor::DcMotor {
-                    amplifier_gain: drive.amplifier_gain,
-                    torque_constant: m.torque_constant_nm_per_a,
-                    back_emf_constant: match drive.amplifier_mode {
-                        AmplifierMode::Voltage => m.back_emf_v_s_per_rad,
-                        AmplifierMode::Current => 0.0,
-                    },
-                    resistance: m.resistance_ohm,
-                    inductance: m.inductance_h,
-                }
-            },
+            actuator: LinearActuator::of_drive(drive, actuator),
             feedback: drive.feedback,
         }
     }
@@ -154,14 +121,14 @@ impl AxisPlant {
     /// Command per unit of drive force at standstill (V per N, or N·m per N): what a
     /// feed-forward of force F must command, R/(K_m·K_a·k) or 1/k.
     pub fn command_per_force(&self) -> f64 {
-        match self.motor {
-            Motor::DcMotor {
+        match self.actuator {
+            LinearActuator::DcMotor {
                 amplifier_gain,
                 torque_constant,
                 resistance,
                 ..
             } => resistance / (torque_constant * amplifier_gain * self.ratio),
-            Motor::IdealTorque => 1.0 / self.ratio,
+            LinearActuator::IdealTorque => 1.0 / self.ratio,
         }
     }
 
@@ -175,7 +142,7 @@ impl AxisPlant {
     fn state_space(&self) -> (DMatrix<f64>, DVector<f64>, DMatrix<f64>) {
         let rigid = self.transmission.is_rigid();
         let mech = if rigid { 2 } else { 4 };
-        let electric = matches!(self.motor, Motor::DcMotor { .. });
+        let electric = matches!(self.actuator, LinearActuator::DcMotor { .. });
         let n = mech + usize::from(electric);
         let mut a = DMatrix::zeros(n, n);
         let mut b = DVector::zeros(n);
@@ -203,9 +170,9 @@ impl AxisPlant {
             a[(3, 2)] = -kt / mc;
             a[(3, 3)] = -(cc + ct) / mc;
         }
-        match self.motor {
-            Motor::IdealTorque => b[1] = k / m_drive,
-            Motor::DcMotor {
+        match self.actuator {
+            LinearActuator::IdealTorque => b[1] = k / m_drive,
+            LinearActuator::DcMotor {
                 amplifier_gain,
                 torque_constant,
                 back_emf_constant,
@@ -485,7 +452,7 @@ mod tests {
                 stiffness: kt,
                 damping: ct,
             },
-            motor: Motor::IdealTorque,
+            actuator: LinearActuator::IdealTorque,
             feedback: Feedback::Motor,
         }
     }

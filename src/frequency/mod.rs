@@ -11,7 +11,6 @@ pub use estimate::{
     bandwidth, extrema, h1, log_grid, margins, phasor, segments, Crossover, Segment, SweepTiming,
 };
 pub use linear::{
-    AxisPlant, LinearController, Loop, LoopResponse, Motor, PlantResponse, SampledPlant,
-    Transmission, C64,
+    AxisPlant, LinearController, Loop, LoopResponse, PlantResponse, SampledPlant, Transmission, C64,
 };
 pub use measure::{estimates, run_sweep, Estimate, Excitation, Injected, Injection, Samples};

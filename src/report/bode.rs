@@ -196,20 +196,9 @@ pub struct BodeRun {
     pub coherence: Vec<f64>,
     /// The open loop at the plant input (measured by injection at the controller output).
     pub open_loop: Curve,
-    /// The figures of the measurement.
-    pub resonances_hz: Vec<f64>,
-    /// Antiresonances measured (Hz).
-    pub antiresonances_hz: Vec<f64>,
-    /// −3 dB bandwidth of the closed loop measured (Hz).
-    pub bandwidth_hz: Option<f64>,
-    /// Gain margin measured (dB).
-    pub gain_margin_db: Option<f64>,
-    /// Where the measured open loop's phase crosses −180° (Hz).
-    pub phase_crossover_hz: Option<f64>,
-    /// Phase margin measured (degrees).
-    pub phase_margin_deg: Option<f64>,
-    /// Where the measured open loop's |L| = 1 (Hz).
-    pub gain_crossover_hz: Option<f64>,
+    /// The figures of the measurement (at the top level of the JSON, beside the curves).
+    #[serde(flatten)]
+    pub figures: Figures,
     /// The linearised model on a dense grid: main response and open loop.
     pub model: Curve,
     /// The model's open loop on the same grid.
@@ -248,19 +237,6 @@ fn list(v: &[f64]) -> String {
 }
 
 impl BodeRun {
-    /// The measured figures.
-    pub fn figures(&self) -> Figures {
-        Figures {
-            resonances_hz: self.resonances_hz.clone(),
-            antiresonances_hz: self.antiresonances_hz.clone(),
-            bandwidth_hz: self.bandwidth_hz,
-            gain_margin_db: self.gain_margin_db,
-            phase_crossover_hz: self.phase_crossover_hz,
-            phase_margin_deg: self.phase_margin_deg,
-            gain_crossover_hz: self.gain_crossover_hz,
-        }
-    }
-
     /// The terminal report: the figures measured beside the model's, then the response at
     /// about three frequencies per decade.
     pub fn text(&self) -> String {
@@ -290,17 +266,17 @@ impl BodeRun {
         let row = |name: &str, a: String, b: String| format!("  {name:<13} {a:<28} {b}\n");
         out += &row(
             "resonance",
-            list(&self.resonances_hz),
+            list(&self.figures.resonances_hz),
             list(&m.resonances_hz),
         );
         out += &row(
             "antiresonance",
-            list(&self.antiresonances_hz),
+            list(&self.figures.antiresonances_hz),
             list(&m.antiresonances_hz),
         );
         out += &row(
             "bandwidth",
-            opt(self.bandwidth_hz, 1, "Hz (−3 dB)"),
+            opt(self.figures.bandwidth_hz, 1, "Hz (−3 dB)"),
             opt(m.bandwidth_hz, 1, "Hz"),
         );
         let at = |v: Option<f64>, f: Option<f64>, unit: &str| match (v, f) {
@@ -309,12 +285,20 @@ impl BodeRun {
         };
         out += &row(
             "gain margin",
-            at(self.gain_margin_db, self.phase_crossover_hz, "dB"),
+            at(
+                self.figures.gain_margin_db,
+                self.figures.phase_crossover_hz,
+                "dB",
+            ),
             at(m.gain_margin_db, m.phase_crossover_hz, "dB"),
         );
         out += &row(
             "phase margin",
-            at(self.phase_margin_deg, self.gain_crossover_hz, "°"),
+            at(
+                self.figures.phase_margin_deg,
+                self.figures.gain_crossover_hz,
+                "°",
+            ),
             at(m.phase_margin_deg, m.gain_crossover_hz, "°"),
         );
         out += "  f (Hz)   gain (dB)  phase (°)  coherence   model gain  model phase   open loop |L| (dB), ∠L (°)\n";
@@ -637,10 +621,10 @@ impl BodeRun {
             grey.stroke_width(1),
         ))?;
         let vertical = |f: f64| [(f, -1e6), (f, 1e6)];
-        for &f in &self.resonances_hz {
+        for &f in &self.figures.resonances_hz {
             mag_chart.draw_series(LineSeries::new(vertical(f), BLACK.mix(0.5).stroke_width(1)))?;
         }
-        for &f in &self.antiresonances_hz {
+        for &f in &self.figures.antiresonances_hz {
             mag_chart.draw_series(LineSeries::new(vertical(f), grey.mix(0.8).stroke_width(1)))?;
         }
         mag_chart
@@ -655,29 +639,29 @@ impl BodeRun {
         let lines = [
             format!(
                 "resonance {}   (model {})",
-                list(&self.resonances_hz),
+                list(&self.figures.resonances_hz),
                 list(&m.resonances_hz)
             ),
             format!(
                 "antiresonance {}   (model {})",
-                list(&self.antiresonances_hz),
+                list(&self.figures.antiresonances_hz),
                 list(&m.antiresonances_hz)
             ),
             format!(
                 "bandwidth −3 dB {}   (model {})",
-                opt(self.bandwidth_hz, 1, "Hz"),
+                opt(self.figures.bandwidth_hz, 1, "Hz"),
                 opt(m.bandwidth_hz, 1, "Hz")
             ),
             format!(
                 "gain margin {} at {}   (model {})",
-                opt(self.gain_margin_db, 1, "dB"),
-                opt(self.phase_crossover_hz, 1, "Hz"),
+                opt(self.figures.gain_margin_db, 1, "dB"),
+                opt(self.figures.phase_crossover_hz, 1, "Hz"),
                 opt(m.gain_margin_db, 1, "dB")
             ),
             format!(
                 "phase margin {} at {}   (model {})",
-                opt(self.phase_margin_deg, 1, "°"),
-                opt(self.gain_crossover_hz, 1, "Hz"),
+                opt(self.figures.phase_margin_deg, 1, "°"),
+                opt(self.figures.gain_crossover_hz, 1, "Hz"),
                 opt(m.phase_margin_deg, 1, "°")
             ),
             "dots: measured (hollow: coherence < 0.8); lines: linear model".to_string(),

@@ -132,7 +132,7 @@ pub fn axis_linear_model(assembly: &Assembly, axis: usize) -> Result<AxisLinearM
             stiffness: c.stiffness,
             damping: c.damping,
         });
-    let plant = AxisPlant::from_drive(drive, moved, joint_damping, transmission, ideal);
+    let plant = AxisPlant::from_drive(drive, moved, joint_damping, transmission, assembly.actuator);
     let name = &machine.axes[axis].name;
     let c = s.controller.as_ref().expect("assembled with a controller");
     let period = s.timing.servo_period;
@@ -679,13 +679,7 @@ pub fn bode_on(
         phase_deg: measured_curve.phase_deg,
         coherence,
         open_loop: open_curve,
-        resonances_hz: figures.resonances_hz,
-        antiresonances_hz: figures.antiresonances_hz,
-        bandwidth_hz: figures.bandwidth_hz,
-        gain_margin_db: figures.gain_margin_db,
-        phase_crossover_hz: figures.phase_crossover_hz,
-        phase_margin_deg: figures.phase_margin_deg,
-        gain_crossover_hz: figures.gain_crossover_hz,
+        figures,
         model: model_curve,
         model_open_loop: model_open_curve,
         model_figures,

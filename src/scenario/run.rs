@@ -240,7 +240,7 @@ impl Assembly {
                 options.per_decade = f.per_decade;
                 match super::bode::bode_on(self, &options, progress) {
                     Ok(run) => {
-                        figures.insert(f.axis.clone(), run.figures().metrics_json());
+                        figures.insert(f.axis.clone(), run.figures.metrics_json());
                         if let Some(dir) = &out_dir {
                             let out = dir.join(format!(
                                 "frequency_response_{}_{}",

@@ -417,16 +417,7 @@ fn linear_model(machine: &Machine, axis: usize, actuator: ActuatorKind) -> Optio
         mass: m.effective_mass(),
         damping: m.effective_damping(),
         ratio: m.ratio(),
-        actuator: match actuator {
-            ActuatorKind::IdealTorque => LinearActuator::IdealTorque,
-            ActuatorKind::DcMotor => LinearActuator::DcMotor {
-                amplifier_gain: drive.amplifier_gain,
-                torque_constant: drive.motor.torque_constant_nm_per_a,
-                back_emf_constant: drive.effective_back_emf(),
-                resistance: drive.motor.resistance_ohm,
-                inductance: drive.motor.inductance_h,
-            },
-        },
+        actuator: LinearActuator::of_drive(drive, actuator),
     })
 }
 
@@ -899,16 +890,7 @@ fn linear_axis_at(
         mass: mass[(axis, axis)],
         damping: drive.reflected_damping() + machine.joints[a.joint].damping,
         ratio: drive.ratio(),
-        actuator: match actuator {
-            ActuatorKind::IdealTorque => LinearActuator::IdealTorque,
-            ActuatorKind::DcMotor => LinearActuator::DcMotor {
-                amplifier_gain: drive.amplifier_gain,
-                torque_constant: drive.motor.torque_constant_nm_per_a,
-                back_emf_constant: drive.effective_back_emf(),
-                resistance: drive.motor.resistance_ohm,
-                inductance: drive.motor.inductance_h,
-            },
-        },
+        actuator: LinearActuator::of_drive(drive, actuator),
     })
 }
 

@@ -17,6 +17,8 @@
 //! spectral radius crosses 1 (found by bisection); the angle θ of the critical eigenvalue gives
 //! the period 2πT/θ.
 
+use crate::control::ActuatorKind;
+use crate::machine::Drive;
 use nalgebra::{DMatrix, DVector};
 use serde::Serialize;
 
@@ -39,6 +41,23 @@ pub enum LinearActuator {
     },
     /// Output is the motor torque (N·m).
     IdealTorque,
+}
+
+impl LinearActuator {
+    /// The actuator `kind` of `drive`: for the DC motor its amplifier and motor constants, with
+    /// the back-EMF the amplifier mode lets the loop see.
+    pub fn of_drive(drive: &Drive, kind: ActuatorKind) -> LinearActuator {
+        match kind {
+            ActuatorKind::IdealTorque => LinearActuator::IdealTorque,
+            ActuatorKind::DcMotor => LinearActuator::DcMotor {
+                amplifier_gain: drive.amplifier_gain,
+                torque_constant: drive.motor.torque_constant_nm_per_a,
+                back_emf_constant: drive.effective_back_emf(),
+                resistance: drive.motor.resistance_ohm,
+                inductance: drive.motor.inductance_h,
+            },
+        }
+    }
 }
 
 /// A linear axis at the joint side (see the module documentation).
