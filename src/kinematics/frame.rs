@@ -17,6 +17,10 @@ use nalgebra::{Matrix3, Point3, Vector3};
 /// of CAD-exported frames, below any real machine's squareness error worth simulating.
 pub const ORTHOGONALITY_TOLERANCE: f64 = 1e-3;
 
+/// How far the tool's travel per unit of a linear axis may be from 1 (a `<mimic>` follower on
+/// the tool's or the part's chain adds its own travel): round-off of CAD frames, nothing more.
+const RATIO_TOLERANCE: f64 = 1e-6;
+
 /// The program frame of a machine: where program coordinates are, in the carrier link's frame.
 #[derive(Debug, Clone, PartialEq)]
 pub struct ProgramFrame {
@@ -45,6 +49,7 @@ impl ProgramFrame {
         let tool_chain = on_chain(machine.tool_link);
         let carrier_chain = on_chain(carrier);
         let carrier_rotation = poses[carrier].rotation;
+        let couplings = machine.couplings();
         let urdf = &machine.urdf_path;
         let mut found: [Option<(usize, Vector3<f64>)>; 3] = [None; 3];
         for (i, axis) in machine.axes.iter().enumerate() {
@@ -64,34 +69,71 @@ impl ProgramFrame {
                     ),
                 ));
             }
-            let world = (poses[joint.parent] * joint.origin).rotation * joint.axis;
-            let side = match (
-                tool_chain.contains(&axis.joint),
-                carrier_chain.contains(&axis.joint),
-            ) {
-                (true, false) => 1.0,
-                (false, true) => -1.0,
-                (moves_tool, _) => {
-                    let what = if moves_tool {
-                        "moves the tool and the workpiece together"
-                    } else {
-                        "moves neither the tool nor the workpiece"
-                    };
+            // Where one unit of the axis moves the tool relative to the part (world frame):
+            // its own joint, and the <mimic> followers coupled to it that sit on either chain.
+            let mut motion = Vector3::zeros();
+            let mut moves_both = false;
+            let followers = couplings
+                .iter()
+                .filter(|c| c.leader == axis.joint)
+                .map(|c| (c.follower, c.multiplier));
+            for (j, multiplier) in std::iter::once((axis.joint, 1.0)).chain(followers) {
+                let moved = &machine.joints[j];
+                let side = match (tool_chain.contains(&j), carrier_chain.contains(&j)) {
+                    (true, false) => 1.0,
+                    (false, true) => -1.0,
+                    (both, _) => {
+                        moves_both |= both;
+                        continue;
+                    }
+                };
+                if moved.kind != JointKind::Prismatic {
                     return Err(FileError::new(
                         urdf,
-                        place,
+                        moved.place,
                         format!(
-                            "axis {} (joint '{}') {what} (tool link '{}', workpiece link '{}'): it cannot move the tool on the part",
+                            "joint '{}' follows axis {} (joint '{}') through its <mimic> and turns the {}: cncsim's linear axes move the tool on the part along straight lines",
+                            moved.name,
                             axis.name.to_uppercase(),
                             joint.name,
-                            machine.links[machine.tool_link].name,
-                            machine.links[machine.workpiece_link].name
+                            if side > 0.0 { "tool" } else { "workpiece" }
                         ),
                     ));
                 }
-            };
-            let direction =
-                carrier_rotation.inverse() * world * (side * f64::from(axis.drive.sign));
+                let world = (poses[moved.parent] * moved.origin).rotation * moved.axis;
+                motion += world * (side * multiplier);
+            }
+            if motion.norm() < 1e-9 {
+                let what = if moves_both {
+                    "moves the tool and the workpiece together"
+                } else {
+                    "moves neither the tool nor the workpiece"
+                };
+                return Err(FileError::new(
+                    urdf,
+                    place,
+                    format!(
+                        "axis {} (joint '{}') {what} (tool link '{}', workpiece link '{}'): it cannot move the tool on the part",
+                        axis.name.to_uppercase(),
+                        joint.name,
+                        machine.links[machine.tool_link].name,
+                        machine.links[machine.workpiece_link].name
+                    ),
+                ));
+            }
+            if (motion.norm() - 1.0).abs() > RATIO_TOLERANCE {
+                return Err(FileError::new(
+                    urdf,
+                    place,
+                    format!(
+                        "axis {} (joint '{}') moves the tool {:.6} mm on the part per mm of its joint, its <mimic> followers included: program coordinates are joint coordinates, so cncsim needs 1",
+                        axis.name.to_uppercase(),
+                        joint.name,
+                        motion.norm()
+                    ),
+                ));
+            }
+            let direction = carrier_rotation.inverse() * motion * f64::from(axis.drive.sign);
             found[letter] = Some((i, direction.normalize()));
         }
         let letters = ["X", "Y", "Z"];

@@ -150,12 +150,9 @@ impl AxisMap {
 }
 
 /// World pose of every link for joint coordinates `q` (one per machine axis, in axis order):
-/// the forward kinematics of the URDF tree.
+/// the forward kinematics of the URDF tree, `<mimic>` followers where their leaders put them.
 pub fn link_poses(machine: &Machine, q: &[f64]) -> Vec<nalgebra::Isometry3<f64>> {
-    let mut joint_value = vec![0.0; machine.joints.len()];
-    for (axis, &v) in machine.axes.iter().zip(q) {
-        joint_value[axis.joint] = v;
-    }
+    let joint_value = machine.joint_coordinates(q);
     let mut poses = vec![nalgebra::Isometry3::identity(); machine.links.len()];
     for (j, joint) in machine.joints.iter().enumerate() {
         poses[joint.child] = poses[joint.parent] * joint.origin * joint.motion(joint_value[j]);

@@ -2,14 +2,17 @@
 //! what the URDF says (`<mimic>`), and the default for the rest (locked, with one warning).
 //!
 //! A locked joint becomes a fixed one at its held position, so every later stage sees a
-//! plain fixed joint. A `<mimic>` follower of a driven axis moves with its leader's link when
-//! that motion is the same rigid motion (same parent, same axis line, multiplier 1, as the
-//! second rail of a gantry): it is then fixed to the leader's link at the mimic offset,
-//! which is exact. A follower of a locked joint is locked where the mimic puts it. Other
-//! couplings are refused by name rather than simulated wrongly.
+//! plain fixed joint. A `<mimic>` follower (q = multiplier × leader + offset; a chain of them
+//! composed down to the first leader) of a driven or passive joint whose motion is the same
+//! rigid motion as its leader's (same parent, same axis line, multiplier ±1 with the axis
+//! turned to match: the second rail of a gantry) is fixed to the leader's link at the mimic
+//! offset, which is exact and costs nothing. Any other follower keeps its own joint, coupled
+//! to its leader's ([`Undriven::Coupled`]): the physics holds the coupling as an equality
+//! constraint, the kinematics and the reference model substitute it. A follower of a locked
+//! joint is locked where the mimic puts it.
 
 use super::drives::{list, JointMode, JointSetting};
-use super::{Joint, JointKind, KinematicTree};
+use super::{Joint, JointKind, KinematicTree, Mimic};
 use crate::diagnostics::{FileError, LineColumn};
 use nalgebra::Vector3;
 use std::path::Path;
@@ -40,15 +43,25 @@ pub enum Undriven {
     Passive,
     /// A `<mimic>` follower held where its locked leader puts it.
     HeldByMimic {
-        /// Name of the leader joint.
+        /// Name of the leader joint (the first of a chain of mimics).
         leader: String,
         /// The coordinate the mimic puts it at (m or rad).
         position: f64,
     },
-    /// A `<mimic>` follower fixed to its driven leader's link.
+    /// A `<mimic>` follower fixed to its leader's link (it moves rigidly with it).
     RidesOn {
-        /// Name of the leader joint.
+        /// Name of the leader joint (the first of a chain of mimics).
         leader: String,
+    },
+    /// A `<mimic>` follower on its own joint, coupled to its leader's coordinate:
+    /// q = multiplier × q_leader + offset.
+    Coupled {
+        /// Name of the leader joint (the first of a chain of mimics).
+        leader: String,
+        /// Factor on the leader's coordinate.
+        multiplier: f64,
+        /// Added to the scaled coordinate (m or rad).
+        offset: f64,
     },
 }
 
@@ -58,8 +71,12 @@ enum Role {
     Passive,
     /// Held at this coordinate.
     Locked(f64),
-    /// Fixed to its leader's link (joint index of the leader).
-    RidesOn(usize),
+    /// A follower held at this coordinate by its locked first leader (joint index).
+    HeldByMimic(usize, f64),
+    /// Fixed to its leader's link (joint index of the leader, and the composed offset).
+    RidesOn(usize, f64),
+    /// Its own joint, coupled to a driven or passive leader (joint index, multiplier, offset).
+    Coupled(usize, f64, f64),
 }
 
 /// `driven`: the joints the drive file's axes name, with their places in the drive file;
@@ -149,51 +166,30 @@ pub(super) fn resolve(
     }
     // Followers last: their leaders' roles are known.
     for (j, joint) in joints.iter().enumerate() {
-        let Some(m) = &joint.mimic else { continue };
-        if joint.kind == JointKind::Fixed {
+        if joint.mimic.is_none() || joint.kind == JointKind::Fixed {
             continue;
         }
         let fail =
             |m: String| FileError::new(&urdf, joint.place, format!("joint '{}': {m}", joint.name));
-        let l = index(&m.joint).expect("the URDF reader checked the mimic's leader");
+        let (l, multiplier, offset) = first_leader(joints, j).map_err(fail)?;
         let leader = &joints[l];
         roles[j] = Some(match roles[l] {
-            None if leader.kind == JointKind::Fixed => {
-                return Err(fail(format!(
-                    "its <mimic> follows '{}', a fixed joint",
-                    leader.name
-                )))
-            }
-            None | Some(Role::RidesOn(_)) => {
-                return Err(fail(format!(
-                    "its <mimic> follows '{}', which itself follows another joint: chains of mimic joints are not supported; let it follow the first joint of the chain",
-                    leader.name
-                )))
-            }
             Some(Role::Locked(q)) => {
-                let held = m.multiplier * q + m.offset;
+                let held = multiplier * q + offset;
                 check_in_travel(joint, held).map_err(|e| {
                     fail(format!(
-                        "its <mimic> holds it at {} × {q:?} + {} = {held:?} (its leader '{}' is locked): {e}",
-                        m.multiplier, m.offset, leader.name
+                        "its <mimic> holds it at {multiplier} × {q:?} + {offset} = {held:?} (its leader '{}' is locked): {e}",
+                        leader.name
                     ))
                 })?;
-                Role::Locked(held)
+                Role::HeldByMimic(l, held)
             }
-            Some(Role::Passive) => {
-                return Err(fail(format!(
-                    "its <mimic> follows the passive joint '{}': a follower of a free joint is not supported; lock '{}' or drive it",
-                    leader.name, leader.name
-                )))
+            Some(Role::Driven | Role::Passive) if rigid_follower(joint, leader, multiplier) => {
+                Role::RidesOn(l, offset)
             }
-            Some(Role::Driven) => {
-                rigid_follower(joint, leader, m.multiplier).map_err(|why| {
-                    fail(format!(
-                        "its <mimic> (multiplier {}) couples it to the driven joint '{}', and {why}: cncsim couples a follower that moves rigidly with its leader's link (same parent link, same axis line, multiplier 1). Drive it as an axis of its own, or lock it in the drive file with [joints.{}] mode = \"locked\"",
-                        m.multiplier, leader.name, joint.name
-                    ))
-                })?;
-                Role::RidesOn(l)
+            Some(Role::Driven | Role::Passive) => Role::Coupled(l, multiplier, offset),
+            Some(Role::RidesOn(..) | Role::Coupled(..) | Role::HeldByMimic(..)) | None => {
+                unreachable!("a first leader is a moving joint without a mimic, so it has a role")
             }
         });
     }
@@ -228,15 +224,9 @@ pub(super) fn resolve(
         .iter()
         .zip(&roles)
         .filter_map(|(joint, role)| {
-            let leader = || {
-                joint
-                    .mimic
-                    .as_ref()
-                    .map_or_else(String::new, |m| m.joint.clone())
-            };
             let what = match *role {
-                Some(Role::Locked(position)) if joint.mimic.is_some() => Undriven::HeldByMimic {
-                    leader: leader(),
+                Some(Role::HeldByMimic(l, position)) => Undriven::HeldByMimic {
+                    leader: joints[l].name.clone(),
                     position,
                 },
                 Some(Role::Locked(position)) => Undriven::Locked {
@@ -244,7 +234,14 @@ pub(super) fn resolve(
                     named: settings.iter().any(|(n, ..)| *n == joint.name),
                 },
                 Some(Role::Passive) => Undriven::Passive,
-                Some(Role::RidesOn(_)) => Undriven::RidesOn { leader: leader() },
+                Some(Role::RidesOn(l, _)) => Undriven::RidesOn {
+                    leader: joints[l].name.clone(),
+                },
+                Some(Role::Coupled(l, multiplier, offset)) => Undriven::Coupled {
+                    leader: joints[l].name.clone(),
+                    multiplier,
+                    offset,
+                },
                 Some(Role::Driven) | None => return None,
             };
             Some((joint.name.clone(), what))
@@ -255,18 +252,25 @@ pub(super) fn resolve(
     let originals = tree.joints.clone();
     for (joint, role) in tree.joints.iter_mut().zip(&roles) {
         match *role {
-            Some(Role::Locked(q)) => {
+            Some(Role::Locked(q) | Role::HeldByMimic(_, q)) => {
                 joint.origin *= joint.motion(q);
                 make_fixed(joint);
             }
-            Some(Role::RidesOn(l)) => {
+            Some(Role::RidesOn(l, offset)) => {
                 let leader = &originals[l];
-                let offset = joint.mimic.as_ref().map_or(0.0, |m| m.offset);
                 // The follower's pose in its leader's child frame: constant, because both move
                 // along (or about) the same line by the same amount.
                 joint.origin = leader.origin.inverse() * joint.origin * joint.motion(offset);
                 joint.parent = leader.child;
                 make_fixed(joint);
+            }
+            Some(Role::Coupled(l, multiplier, offset)) => {
+                // Coupled to the first leader of its chain, by the composed coefficients.
+                joint.mimic = Some(Mimic {
+                    joint: originals[l].name.clone(),
+                    multiplier,
+                    offset,
+                });
             }
             Some(Role::Passive | Role::Driven) | None => {}
         }
@@ -309,36 +313,51 @@ fn check_in_travel(joint: &Joint, q: f64) -> Result<(), String> {
     }
 }
 
-/// Whether `follower` moves exactly as `leader`'s child link does: then it can ride on it.
-fn rigid_follower(follower: &Joint, leader: &Joint, multiplier: f64) -> Result<(), String> {
-    if follower.kind != leader.kind {
-        return Err(format!(
-            "the two are of different kinds ({:?} and {:?})",
-            follower.kind, leader.kind
-        ));
-    }
-    if multiplier != 1.0 {
-        return Err("the multiplier is not 1".into());
-    }
-    if follower.parent != leader.parent {
-        return Err("the two hang on different parent links".into());
-    }
-    let direction = |j: &Joint| j.origin.rotation * j.axis;
-    let (a, b) = (direction(follower), direction(leader));
-    if (a - b).norm() > RIGID_MIMIC_TOLERANCE {
-        return Err(format!(
-            "their axes point different ways in the parent frame ({:?} and {:?})",
-            a.as_slice(),
-            b.as_slice()
-        ));
-    }
-    if follower.kind == JointKind::Revolute {
-        let apart = follower.origin.translation.vector - leader.origin.translation.vector;
-        if apart.cross(&b).norm() > RIGID_MIMIC_TOLERANCE {
-            return Err("their axes are parallel but not on one line".into());
+/// The first leader of `follower`'s chain of mimics (a joint without one) and the composed
+/// multiplier and offset: q = multiplier × q_leader + offset.
+fn first_leader(joints: &[Joint], follower: usize) -> Result<(usize, f64, f64), String> {
+    let (mut multiplier, mut offset) = (1.0, 0.0);
+    let mut at = follower;
+    // A chain longer than the joints has a loop in it.
+    for _ in 0..=joints.len() {
+        let Some(m) = &joints[at].mimic else {
+            return Ok((at, multiplier, offset));
+        };
+        let l = joints
+            .iter()
+            .position(|j| j.name == m.joint)
+            .expect("the URDF reader checked the mimic's leader");
+        if joints[l].kind == JointKind::Fixed {
+            return Err(format!("its <mimic> follows '{}', a fixed joint", m.joint));
         }
+        // q_at = m·q_l + o, and q_follower = multiplier·q_at + offset.
+        offset += multiplier * m.offset;
+        multiplier *= m.multiplier;
+        at = l;
     }
-    Ok(())
+    Err(format!(
+        "its <mimic> chain (through '{}') comes back to itself",
+        joints[follower]
+            .mimic
+            .as_ref()
+            .map_or("", |m| m.joint.as_str())
+    ))
+}
+
+/// Whether `follower` moves exactly as `leader`'s child link does (same kind, same parent,
+/// same axis line, and the multiplier ±1 with the axis turned to match): then it can ride on
+/// its leader's link.
+fn rigid_follower(follower: &Joint, leader: &Joint, multiplier: f64) -> bool {
+    if follower.kind != leader.kind || multiplier.abs() != 1.0 || follower.parent != leader.parent {
+        return false;
+    }
+    let direction = |j: &Joint| j.origin.rotation * j.axis.normalize();
+    let (a, b) = (direction(follower) * multiplier, direction(leader));
+    if (a - b).norm() > RIGID_MIMIC_TOLERANCE {
+        return false;
+    }
+    let apart = follower.origin.translation.vector - leader.origin.translation.vector;
+    follower.kind != JointKind::Revolute || apart.cross(&b).norm() <= RIGID_MIMIC_TOLERANCE
 }
 
 fn place_text(place: Option<LineColumn>) -> String {

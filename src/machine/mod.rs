@@ -142,6 +142,19 @@ pub struct Mimic {
     pub offset: f64,
 }
 
+/// A `<mimic>` follower on its own joint: q_follower = multiplier × q_leader + offset.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Coupling {
+    /// Index of the follower joint.
+    pub follower: usize,
+    /// Index of the leader joint (a driven or passive joint, never itself a follower).
+    pub leader: usize,
+    /// Factor on the leader's coordinate.
+    pub multiplier: f64,
+    /// Added to the scaled coordinate (m or rad).
+    pub offset: f64,
+}
+
 /// A driven machine axis: a non-fixed joint with its drive.
 #[derive(Debug, Clone, PartialEq)]
 pub struct Axis {
@@ -251,6 +264,54 @@ impl Machine {
             .filter(|(_, what)| *what == Undriven::Passive)
             .filter_map(|(name, _)| self.joints.iter().position(|j| &j.name == name))
             .collect()
+    }
+
+    /// The `<mimic>` followers on joints of their own ([`Undriven::Coupled`]), in the URDF's
+    /// order: each follows the first leader of its chain, a driven or passive joint.
+    pub fn couplings(&self) -> Vec<Coupling> {
+        let index = |name: &str| self.joints.iter().position(|j| j.name == name);
+        self.undriven
+            .iter()
+            .filter_map(|(name, what)| match what {
+                Undriven::Coupled {
+                    leader,
+                    multiplier,
+                    offset,
+                } => Some(Coupling {
+                    follower: index(name)?,
+                    leader: index(leader)?,
+                    multiplier: *multiplier,
+                    offset: *offset,
+                }),
+                _ => None,
+            })
+            .collect()
+    }
+
+    /// The first `<mimic>` follower on a joint of its own whose leader is an axis with backlash
+    /// or a compliant transmission, as (follower joint, axis): the leader's coordinate (the
+    /// carriage's) is then the sum of two bodies' motions, which neither the physics' equality
+    /// constraint nor the reference model follows.
+    pub fn follower_of_split_drive(&self) -> Option<(String, String)> {
+        self.couplings().into_iter().find_map(|c| {
+            let axis = self.axes.iter().find(|a| a.joint == c.leader)?;
+            (axis.drive.backlash > 0.0 || axis.drive.compliance().is_some())
+                .then(|| (self.joints[c.follower].name.clone(), axis.name.clone()))
+        })
+    }
+
+    /// Every joint's coordinate (m or rad, in `joints` order) for the axes at `q` (axis order):
+    /// the axes' joints at their coordinate, `<mimic>` followers where their leader puts them,
+    /// every other joint (fixed, passive) at zero.
+    pub fn joint_coordinates(&self, q: &[f64]) -> Vec<f64> {
+        let mut value = vec![0.0; self.joints.len()];
+        for (axis, &v) in self.axes.iter().zip(q) {
+            value[axis.joint] = v;
+        }
+        for c in self.couplings() {
+            value[c.follower] = c.multiplier * value[c.leader] + c.offset;
+        }
+        value
     }
 
     /// Index of the axis with program letter `name`, if the machine has it.

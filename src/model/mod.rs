@@ -83,6 +83,17 @@ pub enum ModelError {
         /// Name of the axis.
         axis: String,
     },
+    /// A `<mimic>` follower on a joint of its own coupled to an axis whose drive train is split
+    /// in two bodies (backlash or a compliant transmission): its leader's coordinate (the
+    /// carriage's) is then the sum of two DOFs, which an equality constraint between two DOFs
+    /// cannot follow.
+    #[error("joint '{follower}' follows axis '{axis}' through its <mimic>, and the axis has backlash or a compliant transmission: a follower on a joint of its own needs a rigid drive train on its leader (remove the backlash and the transmission stiffness of '{axis}', or let the follower ride on its leader's link: same parent, same axis line, multiplier ±1)")]
+    FollowerOfSplitDrive {
+        /// Name of the follower joint.
+        follower: String,
+        /// Name of the axis it follows.
+        axis: String,
+    },
     /// The physics step is too long for the engine's explicit step to integrate a compliant
     /// transmission's two-mass mode faithfully (ω·h above 0.5).
     #[error("axis '{axis}': the transmission's mode at {frequency_hz:.1} Hz (stiffness {stiffness:e}, damping {damping:e}) needs a physics step of at most {max_step:.3e} s to be integrated faithfully; the step is {step:.3e} s (lower [timing] physics_step_ms)")]
@@ -167,6 +178,13 @@ struct ChainDof {
     local_axis: Vector3<f64>,
     kind: JointKind,
     dof: usize,
+}
+
+/// A `<mimic>` follower on its own DOF: the coupling to its leader and where it starts.
+struct FollowerDof {
+    coupling: MultibodyDofCoupling,
+    /// Initial coordinate (m or rad): multiplier × the leader's initial coordinate + offset.
+    start: f64,
 }
 
 /// Where a machine axis lives in the multibody.
@@ -282,6 +300,10 @@ impl Plant {
         if options.solver_iterations == 0 {
             return Err(ModelError::SolverIterations);
         }
+        if let Some((follower, axis)) = machine.follower_of_split_drive() {
+            return Err(ModelError::FollowerOfSplitDrive { follower, axis });
+        }
+        let couplings = machine.couplings();
         let mut world = PhysicsWorld::new();
         let parameters = &mut world.integration_parameters;
         parameters.num_solver_iterations = options.solver_iterations;
@@ -592,21 +614,62 @@ impl Plant {
             compliant,
             steps: 0,
         };
+        // The joints no axis drives that move: passive ones and <mimic> followers, each on
+        // its own DOF with the URDF's damping.
         let passive_dofs = machine
             .passive_joints()
             .into_iter()
+            .chain(couplings.iter().map(|c| c.follower))
             .filter_map(|j| {
                 let handle = child_joint[j]?;
                 Some((link_of(&plant.world, handle), machine.joints[j].damping))
             })
             .collect();
-        plant.configure_dofs(machine, options, tool_dofs, carrier_dofs, passive_dofs);
+        let followers = couplings
+            .iter()
+            .map(|c| {
+                let link = |j: usize| {
+                    link_of(
+                        &plant.world,
+                        child_joint[j].expect("followers and leaders move"),
+                    )
+                };
+                let leader_start = machine
+                    .axes
+                    .iter()
+                    .zip(&options.initial_positions)
+                    .find_map(|(a, &q)| (a.joint == c.leader).then_some(q))
+                    .unwrap_or(0.0);
+                FollowerDof {
+                    coupling: MultibodyDofCoupling {
+                        link1: link(c.leader),
+                        dof1: 0,
+                        axis1: coordinate(machine.joints[c.leader].kind),
+                        link2: link(c.follower),
+                        dof2: 0,
+                        axis2: coordinate(machine.joints[c.follower].kind),
+                        coeff: c.multiplier,
+                        offset: c.offset,
+                    },
+                    start: c.multiplier * leader_start + c.offset,
+                }
+            })
+            .collect();
+        plant.configure_dofs(
+            machine,
+            options,
+            tool_dofs,
+            carrier_dofs,
+            passive_dofs,
+            followers,
+        );
         Ok(plant)
     }
 
     /// Armature, damping and initial coordinates of the driven DOFs, and the final DOF indices.
     /// `tool_dofs` and `carrier_dofs` carry (multibody link, DOF offset within the link's
-    /// joint); `passive_dofs` (multibody link, URDF damping) are the free joints no axis drives.
+    /// joint); `passive_dofs` (multibody link, URDF damping) are the joints no axis drives that
+    /// move (passive ones and `<mimic>` followers); `followers` couple the latter to leaders.
     fn configure_dofs(
         &mut self,
         machine: &Machine,
@@ -614,6 +677,7 @@ impl Plant {
         tool_dofs: Vec<(ChainDof, (usize, usize))>,
         carrier_dofs: Vec<(ChainDof, (usize, usize))>,
         passive_dofs: Vec<(usize, f64)>,
+        followers: Vec<FollowerDof>,
     ) {
         let Some(handle) = self.multibody else { return };
         let PhysicsWorld {
@@ -661,6 +725,16 @@ impl Plant {
         for (link, damping) in passive_dofs {
             let dof = mb.link(link).expect("passive joint link").assembly_id();
             mb.damping_mut()[dof] = damping;
+        }
+        for follower in followers {
+            // Rapier holds q_follower = coeff·q_leader + offset as a bilateral velocity
+            // constraint with position correction (both DOFs in this one multibody).
+            let dof = mb
+                .link(follower.coupling.link2)
+                .expect("follower link")
+                .assembly_id();
+            displacement[dof] = follower.start;
+            mb.add_dof_coupling(follower.coupling);
         }
         let resolve = |dofs: Vec<(ChainDof, (usize, usize))>| -> Vec<ChainDof> {
             dofs.into_iter()

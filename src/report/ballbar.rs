@@ -737,35 +737,20 @@ fn spikes(input: &BallbarInput, polars: &[(bool, Vec<(f64, f64)>); 2]) -> Vec<Re
     out
 }
 
-/// Least squares of `rows` (regressors) against `y`, by normal equations (small systems).
+/// Least squares of `rows` (regressors) against `y` (nalgebra's SVD); `None` when the
+/// regressors do not determine the fit (rank-deficient).
 fn regress(rows: &[Vec<f64>], y: &[f64]) -> Option<Vec<f64>> {
     let k = rows.first()?.len();
-    let mut a = vec![vec![0.0; k + 1]; k];
-    for (row, &yi) in rows.iter().zip(y) {
-        for i in 0..k {
-            for j in 0..k {
-                a[i][j] += row[i] * row[j];
-            }
-            a[i][k] += row[i] * yi;
-        }
+    let x = nalgebra::DMatrix::from_fn(rows.len(), k, |i, j| rows[i][j]);
+    let svd = x.svd(true, true);
+    let largest = svd.singular_values.max();
+    if svd.rank(largest * 1e-12) < k {
+        return None;
     }
-    // Gaussian elimination with partial pivoting.
-    for col in 0..k {
-        let pivot = (col..k).max_by(|&i, &j| a[i][col].abs().total_cmp(&a[j][col].abs()))?;
-        if a[pivot][col].abs() < 1e-300 {
-            return None;
-        }
-        a.swap(col, pivot);
-        for r in 0..k {
-            if r != col {
-                let f = a[r][col] / a[col][col];
-                for c in col..=k {
-                    a[r][c] -= f * a[col][c];
-                }
-            }
-        }
-    }
-    Some((0..k).map(|i| a[i][k] / a[i][i]).collect())
+    let fit = svd
+        .solve(&nalgebra::DVector::from_column_slice(y), largest * 1e-12)
+        .ok()?;
+    Some(fit.iter().copied().collect())
 }
 
 /// The sin 2θ coefficient of a direction's radial deviation (with offset, centre and cos 2θ

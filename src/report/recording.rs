@@ -120,6 +120,43 @@ struct Series {
     quantity: Quantity,
 }
 
+/// The program axes as Rerun view directions of the workpiece link's frame (X right, Y
+/// forward, Z up), when each lies along one of its axes and they are right-handed (Rerun draws
+/// only right-handed spaces); otherwise none, and the view keeps the frame's own axes.
+fn program_view_coordinates(machine: &Machine) -> Option<rerun::ViewCoordinates> {
+    use rerun::datatypes::ViewDir;
+    let (frame, _) = crate::kinematics::ProgramFrame::new(machine).ok()?;
+    let home: Vec<f64> = machine.axes.iter().map(|a| a.drive.home).collect();
+    let poses = crate::kinematics::link_poses(machine, &home);
+    let to_workpiece = (poses[machine.workpiece_link].rotation.inverse()
+        * poses[frame.carrier].rotation)
+        .to_rotation_matrix();
+    let program = to_workpiece.matrix() * frame.directions;
+    if program.determinant() < 0.0 {
+        return None;
+    }
+    let directions = [
+        [ViewDir::Right, ViewDir::Left],
+        [ViewDir::Forward, ViewDir::Back],
+        [ViewDir::Up, ViewDir::Down],
+    ];
+    // For each axis of the workpiece frame: the program axis along it, and its sense.
+    let mut view = [ViewDir::Up; 3];
+    for (i, dir) in view.iter_mut().enumerate() {
+        let row = program.row(i);
+        let (j, value) = (0..3)
+            .map(|j| (j, row[j]))
+            .max_by(|a, b| a.1.abs().total_cmp(&b.1.abs()))?;
+        if (value.abs() - 1.0).abs() > 1e-6 {
+            return None;
+        }
+        *dir = directions[j][usize::from(value < 0.0)];
+    }
+    Some(rerun::ViewCoordinates::new(
+        rerun::components::ViewCoordinates::new(view[0], view[1], view[2]),
+    ))
+}
+
 /// One magnified-path sample: nearest programmed point, actual tool point (program frame, m),
 /// contour error (m).
 type Deviation = ([f64; 3], [f64; 3], f64);
@@ -340,6 +377,11 @@ impl RrdWriter {
             }
         }
         let paths = format!("{}/paths", self.workpiece_entity());
+        if let Some(view) = program_view_coordinates(&self.machine) {
+            // The "tool path on the workpiece" view looks at the part in its own link's frame:
+            // its up is program +Z there, not the frame's own z (a CAD frame may be turned).
+            rec.log_static(self.workpiece_entity(), &view)?;
+        }
         rec.log_static(
             format!("{paths}/tool"),
             &rerun::Points3D::update_fields()

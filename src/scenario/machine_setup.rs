@@ -129,6 +129,13 @@ pub fn check_machine(urdf: &Path) -> Result<MachineReport, FileError> {
                 Undriven::RidesOn { leader } => {
                     format!("follows '{leader}' (<mimic>), riding on its link")
                 }
+                Undriven::Coupled {
+                    leader,
+                    multiplier,
+                    offset,
+                } => format!(
+                    "coupled to '{leader}' (<mimic>): q = {multiplier} × q({leader}) + {offset}"
+                ),
             };
             (name.clone(), text)
         })
@@ -375,10 +382,31 @@ impl Guess {
             words.iter().position(|w| name.contains(w))
         };
         // The tool: a link named like one, deepest first; else the leaf with the longest
-        // moving chain.
+        // moving chain. Leaves that tie (the fingers of a gripper) hang on one hand: the tool
+        // is the deepest link all their chains share, if a joint moves that link (the legs of
+        // a walking robot share only its body, which nothing moves: one leg stands for it).
         let leaves: Vec<usize> = (0..tree.links.len())
             .filter(|&l| tree.joints.iter().all(|j| j.parent != l))
             .collect();
+        let deepest_leaves = || {
+            let longest = leaves.iter().map(|&l| moving(&chain(l))).max()?;
+            let tied: Vec<usize> = (leaves.iter().copied())
+                .filter(|&l| moving(&chain(l)) == longest)
+                .collect();
+            let below = |leaf: usize, link: usize| {
+                leaf == link || chain(leaf).iter().any(|&j| tree.joints[j].parent == link)
+            };
+            // Up the first one's chain to the first link every tied leaf hangs below.
+            let mut hand = tied[0];
+            while !tied.iter().all(|&t| below(t, hand)) {
+                hand = tree.joints[probe.parent_joint(hand)?].parent;
+            }
+            Some(if moving(&chain(hand)) > 0 {
+                hand
+            } else {
+                *tied.last()?
+            })
+        };
         let tool = (0..tree.links.len())
             .filter(|&l| named(&TOOL_WORDS, l).is_some())
             .max_by_key(|&l| {
@@ -387,7 +415,7 @@ impl Guess {
                     usize::MAX - named(&TOOL_WORDS, l).unwrap_or(0),
                 )
             })
-            .or_else(|| leaves.iter().copied().max_by_key(|&l| moving(&chain(l))))
+            .or_else(deepest_leaves)
             .unwrap_or(tree.root);
         let tool_chain = chain(tool);
         let workpiece = (0..tree.links.len())

@@ -66,6 +66,7 @@
 //! controller are the very ones the physics runs with.
 
 use super::{Hold, Plant, Sensors};
+use crate::kinematics::ORTHOGONALITY_TOLERANCE;
 use crate::machine::{
     AmplifierMode, Compliance, Drive, Feedback, JointKind, Machine, StribeckCurve,
 };
@@ -129,6 +130,23 @@ pub enum AxisModelError {
     /// the pose.
     #[error("axis '{axis}': the reference model takes prismatic axes on prismatic chains only (load and gravity would depend on the pose)")]
     PoseDependent {
+        /// Name of the axis.
+        axis: String,
+    },
+    /// Two axes move one body along directions not at right angles (through a `<mimic>`
+    /// follower): their dynamics are coupled, which one model per axis cannot represent.
+    #[error("axes '{}' and '{}' share {inertia:.6} kg of moving mass (a body moves with both along directions not at right angles, as a <mimic> follower of one can): the reference model has one uncoupled model per axis (run without [analytic])", axes[0], axes[1])]
+    CoupledAxes {
+        /// The two axes.
+        axes: [String; 2],
+        /// Their off-diagonal mass (kg).
+        inertia: f64,
+    },
+    /// A `<mimic>` follower of an axis with backlash or a compliant transmission.
+    #[error("joint '{follower}' follows axis '{axis}' through its <mimic>, and the axis has backlash or a compliant transmission: the reference model couples followers to rigid drive trains only")]
+    FollowerOfSplitDrive {
+        /// Name of the follower joint.
+        follower: String,
         /// Name of the axis.
         axis: String,
     },
@@ -400,7 +418,12 @@ impl AxisModel {
                 joint: machine.joints[j].name.clone(),
             });
         }
-        machine
+        let couplings = machine.couplings();
+        if let Some((follower, axis)) = machine.follower_of_split_drive() {
+            return Err(AxisModelError::FollowerOfSplitDrive { follower, axis });
+        }
+        let mut velocity_per_axis = Vec::with_capacity(machine.axes.len());
+        let models = machine
             .axes
             .iter()
             .map(|axis| {
@@ -408,35 +431,48 @@ impl AxisModel {
                     axis: axis.name.clone(),
                 };
                 let joint = &machine.joints[axis.joint];
-                if joint.kind != JointKind::Prismatic {
-                    return Err(pose_dependent());
-                }
                 // Orientation of the joint frame in the base at q = 0, constant as long as no
                 // joint above it rotates.
-                let mut rotation = joint.origin.rotation;
-                let mut link = joint.parent;
-                while let Some(j) = machine.parent_joint(link) {
-                    let above = &machine.joints[j];
-                    if above.kind == JointKind::Revolute {
-                        return Err(pose_dependent());
+                let rotation = fixed_orientation(machine, axis.joint).ok_or_else(pose_dependent)?;
+                // The links this axis moves and how fast, per unit of its velocity: its own
+                // subtree along its axis, plus the subtrees of its <mimic> followers along
+                // theirs, scaled by their multipliers.
+                let mut velocity = vec![Vector3::zeros(); machine.links.len()];
+                let mut follower_damping = 0.0;
+                let mut follower_friction = 0.0;
+                let moved_along = |j: usize, scale: f64, velocity: &mut [Vector3<f64>]| {
+                    let moved = &machine.joints[j];
+                    let along = fixed_orientation(machine, j)
+                        .filter(|_| moved.kind == JointKind::Prismatic)
+                        .map(|r| r * moved.axis * scale)?;
+                    for l in subtree(machine, moved.child) {
+                        velocity[l] += along;
                     }
-                    rotation = above.origin.rotation * rotation;
-                    link = above.parent;
+                    Some(())
+                };
+                moved_along(axis.joint, 1.0, &mut velocity).ok_or_else(pose_dependent)?;
+                for c in couplings.iter().filter(|c| c.leader == axis.joint) {
+                    moved_along(c.follower, c.multiplier, &mut velocity)
+                        .ok_or_else(pose_dependent)?;
+                    let follower = &machine.joints[c.follower];
+                    follower_damping += c.multiplier.powi(2) * follower.damping;
+                    follower_friction += c.multiplier.abs() * follower.friction;
                 }
-                let along = gravity_component(&rotation, &joint.axis, gravity);
-                let mut moved = vec![false; machine.links.len()];
-                moved[joint.child] = true;
-                // Joints are ordered parents first, so one pass collects the subtree.
-                for j in &machine.joints {
-                    if moved[j.parent] {
-                        moved[j.child] = true;
-                    }
-                }
-                let mass: f64 = (machine.links.iter().zip(&moved))
-                    .filter(|(_, &m)| m)
-                    .map(|(l, _)| l.mass)
+                let g = Vector3::from(gravity);
+                let (inertia, weight) =
+                    machine
+                        .links
+                        .iter()
+                        .zip(&velocity)
+                        .fold((0.0, 0.0), |(m, w), (link, u)| {
+                            (m + link.mass * u.norm_squared(), w + link.mass * g.dot(u))
+                        });
+                velocity_per_axis.push((velocity, inertia));
+                // The carriage's own load on its guide: the links it carries.
+                let mass: f64 = subtree(machine, joint.child)
+                    .map(|l| machine.links[l].mass)
                     .sum();
-                let friction = match &axis.drive.guide {
+                let mut friction = match &axis.drive.guide {
                     None => StribeckCurve::default(),
                     Some(guide) => {
                         let normal = Vector3::from(guide.normal).normalize();
@@ -449,6 +485,9 @@ impl AxisModel {
                         guide.coefficient().scaled(load)
                     }
                 };
+                // A follower's own Coulomb friction, reflected through its multiplier.
+                friction.kinetic += follower_friction;
+                friction.breakaway += follower_friction;
                 let options = AxisModelOptions {
                     friction,
                     backlash: axis.drive.backlash,
@@ -456,9 +495,36 @@ impl AxisModel {
                     compliance: axis.drive.compliance(),
                     feedback: axis.drive.feedback,
                 };
-                AxisModel::from_drive(&axis.drive, mass, along, joint.damping, options)
+                let along = if inertia > 0.0 { weight / inertia } else { 0.0 };
+                AxisModel::from_drive(
+                    &axis.drive,
+                    inertia,
+                    along,
+                    joint.damping + follower_damping,
+                    options,
+                )
             })
-            .collect()
+            .collect::<Result<Vec<_>, _>>()?;
+        // One model per axis holds only if no body moves with two axes at once along
+        // directions that are not at right angles (a follower of X moving along Y would
+        // couple X and Y through its mass). The off-diagonal mass, relative to the diagonal
+        // ones, is a cosine in the mass metric: held to the tolerance the program axes have.
+        for a in 0..models.len() {
+            for b in a + 1..models.len() {
+                let ((u, mass_a), (v, mass_b)) = (&velocity_per_axis[a], &velocity_per_axis[b]);
+                let cross: f64 = (machine.links.iter())
+                    .zip(u.iter().zip(v))
+                    .map(|(link, (u, v))| link.mass * u.dot(v))
+                    .sum();
+                if cross.abs() > ORTHOGONALITY_TOLERANCE * (mass_a * mass_b).sqrt() {
+                    return Err(AxisModelError::CoupledAxes {
+                        axes: [machine.axes[a].name.clone(), machine.axes[b].name.clone()],
+                        inertia: cross,
+                    });
+                }
+            }
+        }
+        Ok(models)
     }
 
     /// Puts the axis at rest at `position` (drive and carriage, gap centred, no current).
@@ -913,6 +979,35 @@ impl AxisModel {
         }
         y
     }
+}
+
+/// Orientation in the base of joint `j`'s frame at zero, if no joint above it turns (then it
+/// is the same in every pose).
+fn fixed_orientation(machine: &Machine, j: usize) -> Option<UnitQuaternion<f64>> {
+    let joint = &machine.joints[j];
+    let mut rotation = joint.origin.rotation;
+    let mut link = joint.parent;
+    while let Some(above) = machine.parent_joint(link) {
+        let above = &machine.joints[above];
+        if above.kind == JointKind::Revolute {
+            return None;
+        }
+        rotation = above.origin.rotation * rotation;
+        link = above.parent;
+    }
+    Some(rotation)
+}
+
+/// `link` and every link below it (joints are ordered parents first).
+fn subtree(machine: &Machine, link: usize) -> impl Iterator<Item = usize> + '_ {
+    let mut moved = vec![false; machine.links.len()];
+    moved[link] = true;
+    for j in &machine.joints {
+        if moved[j.parent] {
+            moved[j.child] = true;
+        }
+    }
+    (0..machine.links.len()).filter(move |&l| moved[l])
 }
 
 fn gravity_component(

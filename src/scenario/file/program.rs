@@ -265,11 +265,14 @@ impl TryFrom<InFile<'_, &RawProgram>> for ProgramSettings {
             let centre_ok = v
                 .center_mm
                 .is_none_or(|c| c.iter().all(|x| x.is_finite() && x.abs() <= c_mm));
-            if !(v.radius_mm > 0.0 && v.radius_mm <= c_mm)
-                || !(v.feed_mm_min >= lo * 60.0 && v.feed_mm_min <= hi * 60.0)
-                || !(v.overshoot_deg > 0.0 && v.overshoot_deg <= 180.0)
-                || !centre_ok
-            {
+            let in_range = v.radius_mm > 0.0
+                && v.radius_mm <= c_mm
+                && v.feed_mm_min >= lo * 60.0
+                && v.feed_mm_min <= hi * 60.0
+                && v.overshoot_deg > 0.0
+                && v.overshoot_deg <= 180.0
+                && centre_ok;
+            if !in_range {
                 return Err(file.error(
                     b.span(),
                     format!("ballbar: expected 0 < radius_mm ≤ {c_mm:?}, feed_mm_min within [{}, {}], 0 < overshoot_deg ≤ 180 and center_mm within ±{c_mm:?} mm, found radius_mm = {:?}, feed_mm_min = {:?}, overshoot_deg = {:?}, center_mm = {:?}", lo * 60.0, hi * 60.0, v.radius_mm, v.feed_mm_min, v.overshoot_deg, v.center_mm),
