@@ -426,16 +426,7 @@ fn live_ezdxf_agrees() {
 /// program, MS-Windows, and examples from HP's manuals; GPL, so not committed: `.ci/run`
 /// unpacks the package and points `CNCSIM_HP2XX_TESTS` at them).
 const CORPUS_REFUSED: &[(&str, &str)] = &[
-    (
-        "bz.hp",
-        "`PD:`, a colon where `;` belongs (hp2xx passes over the typo)",
-    ),
     ("dv.hpg", "`DV1`, labels stacked vertically"),
-    (
-        "fwedges.plt",
-        "`RA` with four parameters (HP-GL's RA takes two)",
-    ),
-    ("pages.hp", "drawing after `PG`, a second page"),
     (
         "spectrum.plt",
         "a text line `X0=0;…` between the PCL blocks",
@@ -443,10 +434,16 @@ const CORPUS_REFUSED: &[(&str, &str)] = &[
 ];
 
 /// Files of that set cncsim draws differently from hp2xx, and why.
-const CORPUS_DIFFERENT: &[(&str, &str)] = &[(
-    "iw.hp",
-    "a box beyond the page (PS 11840, 8100) that a plotter clips at its hard-clip limits; cncsim does not model the limits",
-)];
+const CORPUS_DIFFERENT: &[(&str, &str)] = &[
+    (
+        "fwedges.plt",
+        "hatched fills: cncsim outlines every fill and lays its hatch lines half a spacing off the anchor, hp2xx draws no outline and starts its lines elsewhere (16 plotter units apart at most)",
+    ),
+    (
+        "iw.hp",
+        "a box beyond the page (PS 11840, 8100) that a plotter clips at its hard-clip limits; cncsim does not model the limits",
+    ),
+];
 
 /// hp2xx's test plot files (`CNCSIM_HP2XX_TESTS=DIR`) against the oracles, as
 /// [`corpus_against_oracles`] compares them. Every file decodes or is refused as

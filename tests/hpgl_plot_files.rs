@@ -79,7 +79,6 @@ fn commands_that_do_not_draw_warn_once_per_kind_and_strict_refuses_them() {
             "CO (comment) is not a pen move and was skipped (once in the file)",
             "NP (number of pens) is not a pen move and was skipped (2 times in the file)",
             "EC (enable cutter) is not a pen move and was skipped (2 times in the file)",
-            "PG (advance page) is not a pen move and was skipped (once in the file)",
         ]
     );
     assert_eq!(drawn(&program).len(), 1);
@@ -121,9 +120,33 @@ fn pcl_and_pjl_around_an_hpgl2_plot() {
 
 #[test]
 fn drawing_after_a_page_advance_or_outside_the_window_is_refused() {
+    // Pages are drawn one over another, as hp2xx draws them, with one warning; `page`
+    // chooses one (counted as hp2xx -P counts them); --strict refuses a second page.
+    let pages = b"IN;PU0,0;PD10,0;PG;PU0,5;PD20,5;PG;PU;PG;";
+    let program = hpgl(pages);
+    assert_eq!(drawn(&program).len(), 2);
+    let messages: Vec<&str> = program
+        .warnings
+        .iter()
+        .map(|w| w.message.as_str())
+        .collect();
     assert_eq!(
-        first_error(b"IN;PU0,0;PD10,0;PG;PD20,0;", &ReadOptions::default()),
-        "bad.plt:1:20: expected one page; this draws after the page advance (PG) at line 1 column 17, found 'PD20,0'; hint: plot each page to its own file"
+        messages,
+        ["the file draws on 2 pages (1, 2; the first page advance, PG, is here): they are drawn one over another, as hp2xx draws them; page = N in [program] (inspect --page N) plots one"]
+    );
+    let mut second = ReadOptions::default();
+    second.hpgl.page = Some(2);
+    let program = parse_hpgl(pages, "t.plt", &second).unwrap();
+    assert_eq!(drawn(&program), vec![[[0.0, 5.0], [20.0, 5.0]]]);
+    assert!(program.warnings.is_empty(), "{:?}", program.warnings);
+    second.hpgl.page = Some(3);
+    assert_eq!(
+        first_error(pages, &second),
+        "bad.plt:1:42: expected page 3 to draw something; the file draws on pages 1, 2, found end of file; hint: choose one of those (page = N in [program], inspect --page N)"
+    );
+    assert_eq!(
+        first_error(b"IN;PU0,0;PD10,0;PG;PD20,0;", &strict()),
+        "bad.plt:1:17: expected a command that draws; PG (advance page) is not a pen move (refused with --strict), found 'PG;'"
     );
     assert!(parse_hpgl(
         b"IN;IW0,0,100,100;PU10,10;PD90,90;",
@@ -531,4 +554,30 @@ fn labels_are_drawn_through_the_stroke_font() {
             assert!((1000.0..=1120.0 + 1e-9).contains(&p[1]), "{p:?}");
         }
     }
+}
+
+#[test]
+fn hatch_lines_are_laid_from_the_anchor_corner() {
+    // Horizontal hatching 100 units apart in a 1000-unit square: halfway between multiples of
+    // the spacing from the anchor corner, (0, 0) by default, (0, 30) after AC0,30; DF restores.
+    let levels = |text: &[u8]| {
+        let mut ys: Vec<f64> = drawn(&hpgl(text))
+            .into_iter()
+            // Hatch lines, not the square's own top and bottom edges.
+            .filter(|[a, b]| (a[1] - b[1]).abs() < 1e-6 && a[1] > 1e-6 && a[1] < 1000.0 - 1e-6)
+            .map(|[a, _]| (a[1] * 1e6).round() / 1e6)
+            .collect();
+        ys.sort_by(f64::total_cmp);
+        ys.dedup();
+        ys
+    };
+    let square = b"PU0,0;RA1000,1000;PU;";
+    let plain = levels(&[b"IN;FT3,100,0;".as_slice(), square].concat());
+    assert_eq!(plain.first(), Some(&50.0));
+    assert_eq!(plain.len(), 10);
+    let anchored = levels(&[b"IN;FT3,100,0;AC0,30;".as_slice(), square].concat());
+    assert_eq!(anchored.first(), Some(&80.0), "{anchored:?}");
+    assert_eq!(anchored.len(), 10);
+    let reset = levels(&[b"IN;FT3,100,0;AC0,30;DF;FT3,100,0;".as_slice(), square].concat());
+    assert_eq!(reset, plain);
 }

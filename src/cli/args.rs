@@ -181,6 +181,10 @@ pub enum Command {
         /// HPGL: draw fills (RA RR WG FP) as outlines only, without hatch lines.
         #[arg(long)]
         no_hatch: bool,
+        /// HPGL: plot only page N (from 1; pages are counted at each PG, FR, AF, AH, as
+        /// hp2xx -P counts them). Default: every page, one over another, as hp2xx draws them.
+        #[arg(long, value_name = "N", value_parser = clap::value_parser!(u32).range(1..))]
+        page: Option<u32>,
         /// List every move, however long the program.
         #[arg(long)]
         all: bool,

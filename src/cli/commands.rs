@@ -116,6 +116,7 @@ pub fn dispatch(command: Option<Command>, interrupted: &AtomicBool) -> Result<Sh
             optimise_pen_up,
             strict,
             no_hatch,
+            page,
             all,
             tool_table,
         }) => {
@@ -139,6 +140,7 @@ pub fn dispatch(command: Option<Command>, interrupted: &AtomicBool) -> Result<Sh
             options.hpgl.strict = strict;
             options.apt.strict = strict;
             options.hpgl.hatch_fills = !no_hatch;
+            options.hpgl.page = page;
             let listing = InspectOptions {
                 list_limit: if all {
                     usize::MAX

@@ -190,6 +190,9 @@ pub struct HpglOptions {
     /// At most this many fill hatch lines per file: a bound on the work and memory a file
     /// can ask for (each line is four moves).
     pub max_fill_lines: usize,
+    /// Plot only this page (from 1, counted at each PG, FR, AF, AH, as hp2xx's `-P n:n`
+    /// counts them); `None` plots every page, one over another, as hp2xx does.
+    pub page: Option<u32>,
 }
 
 impl Default for HpglOptions {
@@ -207,6 +210,7 @@ impl Default for HpglOptions {
             strict: false,
             hatch_fills: true,
             max_fill_lines: 250_000,
+            page: None,
         }
     }
 }

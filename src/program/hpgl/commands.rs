@@ -286,6 +286,7 @@ impl Reader<'_> {
                 plotter.scaling = None;
                 plotter.chord_mode = defaults.chord_mode;
                 plotter.fill = defaults.fill;
+                plotter.fill_anchor = defaults.fill_anchor;
                 plotter.label = defaults.label;
                 plotter.tick = defaults.tick;
                 plotter.window = None;
@@ -574,18 +575,33 @@ impl Reader<'_> {
                 }
             }
             "EA" | "ER" | "RA" | "RR" => {
-                let &[x, y] = values.as_slice() else {
+                // One corner; more pairs (`RA0,0,4000,4000`) are not HP-GL, but hp2xx draws
+                // a rectangle for each from the same pen position, and so does cncsim (with a
+                // warning; refused with --strict).
+                let pairs = values.len() / 2;
+                if values.len() % 2 != 0 || pairs == 0 || (pairs > 1 && self.options.strict) {
                     return count("2");
-                };
-                let here = self.plotter.to_user(self.plotter.position);
-                let corner = if name.ends_with('A') {
-                    [x, y]
-                } else {
-                    [here[0] + x, here[1] + y]
-                };
-                let corners = [[corner[0], here[1]], corner, [here[0], corner[1]], here];
-                let polygon = self.user_polygon(&corners);
-                self.shape(name.starts_with('E'), polygon, span)?;
+                }
+                if pairs > 1 {
+                    self.skip(
+                        &format!("{name} pairs"),
+                        start,
+                        self.scan.at,
+                        &format!("{name} takes one corner (2 parameters), not {}", values.len()),
+                        "each pair was drawn as a rectangle from the same pen position, as hp2xx reads them",
+                    );
+                }
+                for corner in values.chunks_exact(2) {
+                    let here = self.plotter.to_user(self.plotter.position);
+                    let corner = if name.ends_with('A') {
+                        [corner[0], corner[1]]
+                    } else {
+                        [here[0] + corner[0], here[1] + corner[1]]
+                    };
+                    let corners = [[corner[0], here[1]], corner, [here[0], corner[1]], here];
+                    let polygon = self.user_polygon(&corners);
+                    self.shape(name.starts_with('E'), polygon, span)?;
+                }
             }
             "EW" | "WG" => {
                 let (radius, start_deg, sweep, chord) = match *values.as_slice() {
@@ -594,6 +610,13 @@ impl Reader<'_> {
                     _ => return count("3 or 4"),
                 };
                 self.wedge(name == "EW", radius, start_deg, sweep, chord, span)?;
+            }
+            "AC" => {
+                self.plotter.fill_anchor = match *values.as_slice() {
+                    [] => [0.0, 0.0],
+                    [x, y] => self.plotter.to_plotter([x, y]),
+                    _ => return count("0 or 2"),
+                };
             }
             "FT" => {
                 let defaults = FillStyle::default();
@@ -826,12 +849,18 @@ impl Reader<'_> {
             .hint("plot text as vectors")),
             _ => {
                 if let Some(what) = description(name) {
-                    if matches!(name, "PG" | "FR" | "AF" | "AH") {
-                        self.pen_up(span);
-                        self.page_advance = Some((span, name.to_string()));
-                    }
                     let what = format!("{name} ({what}) is not a pen move");
-                    self.skip(name, start, self.scan.at, &what, "was skipped");
+                    if matches!(name, "PG" | "FR" | "AF" | "AH") {
+                        // Counted as pages: a warning at the end of the file says what
+                        // became of them when drawing goes on after one.
+                        self.pen_up(span);
+                        self.pages.advance(span, name);
+                        if self.options.strict {
+                            self.skip(name, start, self.scan.at, &what, "was skipped");
+                        }
+                    } else {
+                        self.skip(name, start, self.scan.at, &what, "was skipped");
+                    }
                 } else if self.unknown_skipped(name, start) {
                 } else {
                     return Err(Problem::new(format!(

@@ -125,13 +125,12 @@ pub(super) enum Rule {
 }
 
 /// Hatch lines at `angle_deg` spaced `spacing` apart (halfway between multiples of the
-/// spacing from the origin, so that none runs along an edge on the grid) inside
-/// `polygon`, as segments in drawing order: alternate lines reversed when `bidirectional`.
-/// Fails with the number of lines it would take when that exceeds `budget`.
+/// spacing from `anchor`, the fill's anchor corner AC, so that none runs along an edge on
+/// the grid) inside `polygon`, as segments in drawing order: alternate lines reversed when
+/// `bidirectional`. Fails with the number of lines it would take when that exceeds `budget`.
 pub(super) fn hatch(
     polygon: &Polygon,
-    angle_deg: f64,
-    spacing: f64,
+    (angle_deg, spacing, anchor): (f64, f64, [f64; 2]),
     rule: Rule,
     bidirectional: bool,
     budget: usize,
@@ -155,8 +154,9 @@ pub(super) fn hatch(
     if rings.is_empty() || high <= low {
         return Ok(Vec::new());
     }
-    let first = (low / spacing - 0.5).ceil();
-    let last = (high / spacing - 0.5).floor();
+    let base = project(anchor, across);
+    let first = ((low - base) / spacing - 0.5).ceil();
+    let last = ((high - base) / spacing - 0.5).floor();
     let lines = (last - first + 1.0).max(0.0);
     if lines > budget as f64 {
         return Err(lines);
@@ -164,7 +164,7 @@ pub(super) fn hatch(
     let mut segments = Vec::new();
     let mut crossings: Vec<(f64, i32)> = Vec::new();
     for k in 0..lines as u64 {
-        let level = (first + k as f64 + 0.5) * spacing;
+        let level = base + (first + k as f64 + 0.5) * spacing;
         crossings.clear();
         for ring in &rings {
             for index in 0..ring.len() {
@@ -245,18 +245,18 @@ mod tests {
         let polygon = Polygon {
             paths: vec![square(0.0, 10.0), square(3.0, 7.0)],
         };
-        let even_odd = hatch(&polygon, 0.0, 1.0, Rule::EvenOdd, false, 100).unwrap();
+        let even_odd = hatch(&polygon, (0.0, 1.0, [0.0, 0.0]), Rule::EvenOdd, false, 100).unwrap();
         // Lines y = 0.5 … 9.5.
         assert_eq!(even_odd.len(), 10 + 4);
         let through_hole = even_odd.iter().filter(|s| s[0][1] == 5.5).count();
         assert_eq!(through_hole, 2);
         assert_eq!(even_odd.iter().filter(|s| s[0][1] == 1.5).count(), 1);
         // Same direction: the inner square runs the same way, so non-zero fills the hole.
-        let non_zero = hatch(&polygon, 0.0, 1.0, Rule::NonZero, false, 100).unwrap();
+        let non_zero = hatch(&polygon, (0.0, 1.0, [0.0, 0.0]), Rule::NonZero, false, 100).unwrap();
         assert_eq!(non_zero.iter().filter(|s| s[0][1] == 5.5).count(), 1);
-        assert!(hatch(&polygon, 0.0, 1.0, Rule::EvenOdd, false, 3).is_err());
+        assert!(hatch(&polygon, (0.0, 1.0, [0.0, 0.0]), Rule::EvenOdd, false, 3).is_err());
         // Bidirectional: every other line is drawn right to left.
-        let both = hatch(&polygon, 0.0, 1.0, Rule::EvenOdd, true, 100).unwrap();
+        let both = hatch(&polygon, (0.0, 1.0, [0.0, 0.0]), Rule::EvenOdd, true, 100).unwrap();
         assert!(both.iter().any(|s| s[0][0] > s[1][0]));
     }
 
@@ -275,7 +275,7 @@ mod tests {
                 }],
             }],
         };
-        let lines = hatch(&polygon, 45.0, 0.5, Rule::EvenOdd, true, 1000).unwrap();
+        let lines = hatch(&polygon, (45.0, 0.5, [0.0, 0.0]), Rule::EvenOdd, true, 1000).unwrap();
         // Lines ±9.75 from the centre would touch the circle, but its chords (at most
         // FLATNESS inside it) pass within 9.66 at 45°.
         assert_eq!(lines.len(), 38);

@@ -38,6 +38,43 @@ use super::report::PenUpTravel;
 use super::source::LineIndex;
 use super::types::{Program, Span, Warning};
 
+/// The pages of a plot: the one being drawn (1 until the first page advance), where the
+/// pages were first advanced, and the pages something is drawn on.
+#[derive(Debug)]
+struct Pages {
+    /// Number of the page being drawn, from 1.
+    number: u32,
+    /// The first page advance (PG, FR, AF, AH) and where it is.
+    first_advance: Option<(Span, String)>,
+    /// The pages pen-down moves draw on, in order.
+    drawn: Vec<u32>,
+}
+
+impl Default for Pages {
+    fn default() -> Self {
+        Pages {
+            number: 1,
+            first_advance: None,
+            drawn: Vec::new(),
+        }
+    }
+}
+
+impl Pages {
+    fn advance(&mut self, span: Span, command: &str) {
+        self.number = self.number.saturating_add(1);
+        self.first_advance
+            .get_or_insert_with(|| (span, command.to_string()));
+    }
+
+    /// Notes a pen-down move on the current page.
+    fn mark_drawn(&mut self) {
+        if self.drawn.last() != Some(&self.number) {
+            self.drawn.push(self.number);
+        }
+    }
+}
+
 /// A decoded HPGL program with its pen-up travel figures.
 #[derive(Debug, Clone, PartialEq)]
 pub struct HpglOutput {
@@ -81,7 +118,7 @@ pub fn parse_hpgl_detailed(
         polygon: Polygon::default(),
         label_buffer: Vec::new(),
         carriage: [0.0, 0.0],
-        page_advance: None,
+        pages: Pages::default(),
         fill_budget: options.hpgl.max_fill_lines,
     };
     reader.run();
@@ -172,8 +209,8 @@ struct Reader<'a> {
     label_buffer: Vec<u8>,
     /// Where a carriage return in a label goes (the last pen move's end).
     carriage: [f64; 2],
-    /// Where the page was advanced (PG, FR): drawing after it would land on another page.
-    page_advance: Option<(Span, String)>,
+    /// The page being drawn and where the pages were advanced.
+    pages: Pages,
     /// Hatch lines still allowed in this file.
     fill_budget: usize,
 }
@@ -236,6 +273,7 @@ impl<'a> Reader<'a> {
                 },
             }
         }
+        self.warn_pages();
         // End of file: a stroke still being drawn stays down.
         let at = self.scan.text.len();
         if let Some(mut stroke) = self.stroke.take() {
@@ -247,6 +285,51 @@ impl<'a> Reader<'a> {
 
     fn span(&self, at: usize) -> Span {
         self.lines.span(at)
+    }
+
+    /// Whether the current page is plotted: every page, or the one `page` chooses.
+    fn page_plotted(&self) -> bool {
+        self.options.page.is_none_or(|p| p == self.pages.number)
+    }
+
+    /// At the end of the file: one warning when several pages are drawn one over another,
+    /// an error when the page chosen draws nothing.
+    fn warn_pages(&mut self) {
+        let list = |pages: &[u32]| {
+            pages
+                .iter()
+                .map(u32::to_string)
+                .collect::<Vec<_>>()
+                .join(", ")
+        };
+        let drawn = self.pages.drawn.clone();
+        match (self.options.page, &self.pages.first_advance) {
+            (Some(page), _) if !drawn.contains(&page) => {
+                let end = self.scan.text.len();
+                self.error(
+                    end,
+                    end,
+                    format!(
+                        "expected page {page} to draw something; the file draws on page{} {}",
+                        if drawn.len() == 1 { "" } else { "s" },
+                        list(&drawn)
+                    ),
+                    Some("choose one of those (page = N in [program], inspect --page N)"),
+                );
+            }
+            (None, Some((span, command))) if drawn.len() > 1 && !self.options.strict => {
+                let (span, command) = (*span, command.clone());
+                self.warn(
+                    span,
+                    format!(
+                        "the file draws on {} pages ({}; the first page advance, {command}, is here): they are drawn one over another, as hp2xx draws them; page = N in [program] (inspect --page N) plots one",
+                        drawn.len(),
+                        list(&drawn)
+                    ),
+                );
+            }
+            _ => {}
+        }
     }
 
     fn error(&mut self, start: usize, end: usize, problem: impl Into<String>, hint: Option<&str>) {

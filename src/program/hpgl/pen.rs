@@ -32,9 +32,9 @@ impl Reader<'_> {
     }
 
     pub(super) fn pen_down(&mut self, span: Span) {
-        // A dot outside the input window is clipped away.
+        // A dot outside the input window is clipped away, one on a page not plotted too.
         let outside = self.window_clips() && !self.inside_window(self.plotter.position);
-        if self.stroke.is_none() && !self.polygon_mode && !outside {
+        if self.stroke.is_none() && !self.polygon_mode && !outside && self.page_plotted() {
             self.stroke = Some(Stroke {
                 start: self.metres(self.plotter.position),
                 steps: Vec::new(),
@@ -127,15 +127,15 @@ impl Reader<'_> {
         }
     }
 
-    /// Whether a pen-down piece from the pen to `to` may be drawn: not on a later page, not
-    /// outside the input window (with `strict`, which does not clip).
+    /// Whether a pen-down piece from the pen to `to` may be drawn: not on a later page with
+    /// `strict`, not outside the input window (with `strict`, which does not clip).
     fn drawable(&self, to: [f64; 2], piece: Piece) -> Result<(), Problem> {
-        if let Some((span, command)) = &self.page_advance {
+        if let (true, Some((span, command))) = (self.options.strict, &self.pages.first_advance) {
             return Err(Problem::new(format!(
                 "expected one page; this draws after the page advance ({command}) at line {} column {}",
                 span.line, span.column
             ))
-            .hint("plot each page to its own file"));
+            .hint("plot each page to its own file, or choose one (page = N in [program], inspect --page N)"));
         }
         if let Some((low, high)) = self.plotter.window {
             let from = self.plotter.position;
@@ -195,10 +195,16 @@ impl Reader<'_> {
         piece: Piece,
         span: Span,
     ) -> Result<(), Problem> {
+        if self.plotter.pen_down && !self.polygon_mode {
+            self.pages.mark_drawn();
+        }
         if self.polygon_mode {
             self.record(to, piece);
+        } else if !self.page_plotted() {
+            // A page not plotted: the pen moves, nothing is drawn or travelled (hp2xx -P).
+            self.lift_for_window(span);
         } else if self.plotter.pen_down {
-            if self.window_clips() && self.page_advance.is_none() {
+            if self.window_clips() {
                 let inside = self.drawable(to, piece).is_ok();
                 if !inside || self.stroke.is_none() && !self.inside_window(self.plotter.position) {
                     return self.clipped(to, piece, span);
@@ -438,7 +444,8 @@ impl Reader<'_> {
                         "expected a positive fill line spacing, not {spacing} plotter units"
                     )));
                 }
-                let lines = fill::hatch(polygon, angle, spacing, rule, style.kind != 2, self.fill_budget)
+                let anchor = self.plotter.fill_anchor;
+                let lines = fill::hatch(polygon, (angle, spacing, anchor), rule, style.kind != 2, self.fill_budget)
                     .map_err(|lines| {
                         Problem::new(format!(
                             "expected at most {} fill lines in a plot; this fill needs {lines:.0} more",

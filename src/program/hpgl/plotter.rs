@@ -76,6 +76,8 @@ pub(super) struct Plotter {
     pub(super) page: Option<[f64; 2]>,
     pub(super) chord_mode: ChordMode,
     pub(super) fill: FillStyle,
+    /// The fill anchor corner (AC), plotter units: hatch lines are laid from it.
+    pub(super) fill_anchor: [f64; 2],
     pub(super) label: LabelStyle,
     /// `TL`: tick lengths (positive, negative) in percent of P2 − P1.
     pub(super) tick: [f64; 2],
@@ -101,6 +103,7 @@ impl Plotter {
             page: None,
             chord_mode: ChordMode::Angle,
             fill: FillStyle::default(),
+            fill_anchor: [0.0, 0.0],
             label: LabelStyle::default(),
             tick: [0.5, 0.5],
             window: None,

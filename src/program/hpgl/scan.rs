@@ -214,6 +214,13 @@ impl<'a> Scanner<'a> {
                 {
                     return Ok(parameters)
                 }
+                // Stray punctuation (`PD:`) ends the parameters; the reader passes over it
+                // between commands with a warning, as plotters and hp2xx do.
+                Some(b)
+                    if self.lenient && !after_comma && b.is_ascii_punctuation() && b != b'"' =>
+                {
+                    return Ok(parameters)
+                }
                 _ => {
                     let what = if after_comma {
                         "a number after ','"

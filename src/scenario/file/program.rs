@@ -31,6 +31,8 @@ pub(super) struct RawProgram {
     lenient: bool,
     #[serde(default)]
     optimise_pen_up: bool,
+    /// HPGL: plot only this page (from 1); default every page, one over another.
+    page: Option<Spanned<i64>>,
     /// Where the machine is before the program: it reaches the program's first point by an
     /// untraced straight move from here (mm), as a real machine comes from home.
     approach_from_mm: Option<Spanned<[f64; 3]>>,
@@ -203,6 +205,15 @@ impl TryFrom<InFile<'_, &RawProgram>> for ProgramSettings {
             }
             options.hpgl.lenient = p.lenient;
             options.hpgl.optimise_pen_up = p.optimise_pen_up;
+            if let Some(page) = &p.page {
+                let n = *page.get_ref();
+                options.hpgl.page = Some(u32::try_from(n).ok().filter(|&n| n >= 1).ok_or_else(|| {
+                    file.error(
+                        page.span(),
+                        format!("page: expected a page number from 1 (pages are counted at each PG, FR, AF, AH), found {n}"),
+                    )
+                })?);
+            }
             if let Some(table) = &p.tool_table {
                 let table_path = file.resolve(table.get_ref());
                 let text = std::fs::read_to_string(&table_path).map_err(|error| {
