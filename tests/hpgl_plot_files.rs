@@ -20,6 +20,15 @@ fn first_error(text: &[u8], options: &ReadOptions) -> String {
     }
 }
 
+/// The program's warnings, as text.
+fn warnings(program: &Program) -> Vec<&str> {
+    program
+        .warnings
+        .iter()
+        .map(|w| w.message.as_str())
+        .collect()
+}
+
 /// Pen-down segments in plotter units (arcs as their end points).
 fn drawn(program: &Program) -> Vec<[[f64; 2]; 2]> {
     let mut segments = Vec::new();
@@ -68,11 +77,7 @@ fn commands_that_do_not_draw_warn_once_per_kind_and_strict_refuses_them() {
     let text =
         b"IN;PS1000,1000;CO\"made by hand\";PW0.35;PT0.3;NP8;PU0,0;PD100,0;PU;EC;PG1;EC1;NP4;";
     let program = hpgl(text);
-    let messages: Vec<&str> = program
-        .warnings
-        .iter()
-        .map(|w| w.message.as_str())
-        .collect();
+    let messages = warnings(&program);
     assert_eq!(
         messages,
         [
@@ -125,11 +130,7 @@ fn drawing_after_a_page_advance_or_outside_the_window_is_refused() {
     let pages = b"IN;PU0,0;PD10,0;PG;PU0,5;PD20,5;PG;PU;PG;";
     let program = hpgl(pages);
     assert_eq!(drawn(&program).len(), 2);
-    let messages: Vec<&str> = program
-        .warnings
-        .iter()
-        .map(|w| w.message.as_str())
-        .collect();
+    let messages = warnings(&program);
     assert_eq!(
         messages,
         ["the file draws on 2 pages (1, 2; the first page advance, PG, is here): they are drawn one over another, as hp2xx draws them; page = N in [program] (inspect --page N) plots one"]
@@ -289,11 +290,7 @@ fn iw_clips_lines_and_arcs_at_the_window() {
 fn unknown_mnemonics_are_passed_over_unless_they_draw() {
     let program = hpgl(b"IN;SP1;ZZ1,2;QQ\"x\";PU0,0;ZZ;PD100,0;PU;");
     assert_eq!(drawn(&program).len(), 1);
-    let messages: Vec<&str> = program
-        .warnings
-        .iter()
-        .map(|w| w.message.as_str())
-        .collect();
+    let messages = warnings(&program);
     assert_eq!(
         messages,
         [
@@ -322,11 +319,7 @@ fn comments_quoted_and_unquoted_control_characters_pt0_and_raster_fills() {
     let text = b"\x03\x1a IN;CO\"quoted; with a semicolon\";CO unquoted note;\nSP1;PT0;PU0,0;PD100,0;PU;\x04";
     let program = hpgl(text);
     assert_eq!(drawn(&program).len(), 1);
-    let messages: Vec<&str> = program
-        .warnings
-        .iter()
-        .map(|w| w.message.as_str())
-        .collect();
+    let messages = warnings(&program);
     assert_eq!(
         messages,
         [

@@ -645,20 +645,13 @@ impl<'a> AptReader<'a> {
                         hint: None,
                     });
                 }
-                let origin = Vector3::new(
-                    self.units.to_metres(values[3]),
-                    self.units.to_metres(values[7]),
-                    self.units.to_metres(values[11]),
+                self.set_frame(
+                    "CSYS",
+                    rotation,
+                    [values[3], values[7], values[11]],
+                    span,
+                    "the points and tool axes that follow are carried into this set-up's frame (x' = A·x + d",
                 );
-                let identity = rotation == Matrix3::identity() && origin == Vector3::zeros();
-                self.frame = (!identity).then_some((rotation, origin));
-                if !identity {
-                    self.warn_once(
-                        "CSYS",
-                        span,
-                        "CSYS: the points and tool axes that follow are carried into this set-up's frame (x' = A·x + d; later CSYS records without a warning)".into(),
-                    );
-                }
             }
             "MSYS" => {
                 let values = numbers(&[9])?;
@@ -680,20 +673,13 @@ impl<'a> AptReader<'a> {
                 let (x, y) = (x / x_length, y / y_length);
                 let z = x.cross(&y);
                 let rotation = Matrix3::from_columns(&[x, y, z]);
-                let origin = Vector3::new(
-                    self.units.to_metres(values[0]),
-                    self.units.to_metres(values[1]),
-                    self.units.to_metres(values[2]),
+                self.set_frame(
+                    "MSYS",
+                    rotation,
+                    [values[0], values[1], values[2]],
+                    span,
+                    "the coordinates that follow are in this machine coordinate system; they are transformed into the frame MSYS is given in (x' = R·x + origin",
                 );
-                let identity = rotation == Matrix3::identity() && origin == Vector3::zeros();
-                self.frame = (!identity).then_some((rotation, origin));
-                if !identity {
-                    self.warn_once(
-                        "MSYS",
-                        span,
-                        "MSYS: the coordinates that follow are in this machine coordinate system; they are transformed into the frame MSYS is given in (later MSYS records without a warning)".into(),
-                    );
-                }
             }
             "TLAXIS" => {
                 let values = numbers(&[3])?;
@@ -959,6 +945,28 @@ impl<'a> AptReader<'a> {
             }
         }
         Ok(())
+    }
+
+    /// MSYS, CSYS: the frame (`origin` in the file's units) applied to every point, centre and
+    /// axis that follows; said once per kind of record when it is not the identity.
+    fn set_frame(
+        &mut self,
+        record: &str,
+        rotation: Matrix3<f64>,
+        origin: [f64; 3],
+        span: Span,
+        what: &str,
+    ) {
+        let origin = Vector3::from(origin.map(|v| self.units.to_metres(v)));
+        let identity = rotation == Matrix3::identity() && origin == Vector3::zeros();
+        self.frame = (!identity).then_some((rotation, origin));
+        if !identity {
+            self.warn_once(
+                record,
+                span,
+                format!("{record}: {what}; later {record} records without a warning)"),
+            );
+        }
     }
 
     /// One warning per `kind` of record.
