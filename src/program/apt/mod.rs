@@ -1609,7 +1609,7 @@ impl<'a> AptReader<'a> {
                 let from_centre = Vector3::from(self.position.linear) - centre;
                 let along = axis.normalize() * from_centre.dot(&axis.normalize());
                 let radius = (from_centre - along).norm();
-                if axis.norm() > 1e-12 && !(radius > 0.0) {
+                if axis.norm() > 1e-12 && (radius.is_nan() || radius <= 0.0) {
                     return Err(RecordError {
                         start: first.start,
                         end: record_end,

@@ -579,7 +579,7 @@ impl Reader<'_> {
                 // a rectangle for each from the same pen position, and so does cncsim (with a
                 // warning; refused with --strict).
                 let pairs = values.len() / 2;
-                if values.len() % 2 != 0 || pairs == 0 || (pairs > 1 && self.options.strict) {
+                if !values.len().is_multiple_of(2) || pairs == 0 || (pairs > 1 && self.options.strict) {
                     return count("2");
                 }
                 if pairs > 1 {
