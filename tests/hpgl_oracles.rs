@@ -425,13 +425,10 @@ fn live_ezdxf_agrees() {
 /// the Debian package `hp2xx`'s `hp-tests` (GNU hp2xx 3.4.4: plots written by AutoCAD, a GKS
 /// program, MS-Windows, and examples from HP's manuals; GPL, so not committed: `.ci/run`
 /// unpacks the package and points `CNCSIM_HP2XX_TESTS` at them).
-const CORPUS_REFUSED: &[(&str, &str)] = &[
-    ("dv.hpg", "`DV1`, labels stacked vertically"),
-    (
-        "spectrum.plt",
-        "a text line `X0=0;…` between the PCL blocks",
-    ),
-];
+const CORPUS_REFUSED: &[(&str, &str)] = &[(
+    "spectrum.plt",
+    "a text line `X0=0;…` between the PCL blocks",
+)];
 
 /// Files of that set cncsim draws differently from hp2xx, and why.
 const CORPUS_DIFFERENT: &[(&str, &str)] = &[

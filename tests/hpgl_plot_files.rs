@@ -574,3 +574,35 @@ fn hatch_lines_are_laid_from_the_anchor_corner() {
     let reset = levels(&[b"IN;FT3,100,0;AC0,30;DF;FT3,100,0;".as_slice(), square].concat());
     assert_eq!(reset, plain);
 }
+
+#[test]
+fn dv_stacks_label_characters_along_the_text_path() {
+    // SI 0.2 × 0.4 cm: a character cell 1.5 × 80 = 120 units wide, a line 2 × 160 = 320 high.
+    // After the label the pen stands where the next character would go; a line drawn from
+    // there shows where that is.
+    let pen_after = |setup: &str| {
+        let text = format!("IN;SI0.2,0.4;{setup}PA1000,1000;LBAB\x03PD5000,5000;PU;");
+        let program = hpgl(text.as_bytes());
+        drawn(&program).last().unwrap()[0]
+    };
+    let close = |a: [f64; 2], b: [f64; 2]| (a[0] - b[0]).abs() < 1e-6 && (a[1] - b[1]).abs() < 1e-6;
+    assert!(close(pen_after(""), [1240.0, 1000.0]));
+    // DV1: each character below the one before, a line apart; DV2 to the left; DV3 up.
+    assert!(
+        close(pen_after("DV1;"), [1000.0, 360.0]),
+        "{:?}",
+        pen_after("DV1;")
+    );
+    assert!(close(pen_after("DV2;"), [760.0, 1000.0]));
+    assert!(close(pen_after("DV3;"), [1000.0, 1640.0]));
+    // A line feed goes 90° clockwise of the path (DV1: a column to the left), anticlockwise
+    // with DV1,1; the carriage return goes back to the top of the column.
+    let lf = |setup: &str| {
+        let text = format!("IN;SI0.2,0.4;{setup}PA1000,1000;LBA\r\nB\x03PD5000,5000;PU;");
+        drawn(&hpgl(text.as_bytes())).last().unwrap()[0]
+    };
+    assert!(close(lf("DV1;"), [880.0, 680.0]), "{:?}", lf("DV1;"));
+    assert!(close(lf("DV1,1;"), [1120.0, 680.0]), "{:?}", lf("DV1,1;"));
+    // DF goes back to the right.
+    assert!(close(pen_after("DV1;DF;SI0.2,0.4;"), [1240.0, 1000.0]));
+}

@@ -579,7 +579,10 @@ impl Reader<'_> {
                 // a rectangle for each from the same pen position, and so does cncsim (with a
                 // warning; refused with --strict).
                 let pairs = values.len() / 2;
-                if !values.len().is_multiple_of(2) || pairs == 0 || (pairs > 1 && self.options.strict) {
+                if !values.len().is_multiple_of(2)
+                    || pairs == 0
+                    || (pairs > 1 && self.options.strict)
+                {
                     return count("2");
                 }
                 if pairs > 1 {
@@ -835,14 +838,17 @@ impl Reader<'_> {
                 }
                 _ => return count("0 or 1"),
             },
-            "DV" => match values.as_slice() {
-                [] | [0.0] | [0.0, _] => {}
-                _ => {
-                    return Err(Problem::new(
-                        "expected DV0: vertical labels (DV1) are not supported",
-                    ))
-                }
-            },
+            "DV" => {
+                // Clamped integers, as HP-GL/2 defines them.
+                let (path, line) = match *values.as_slice() {
+                    [] => (0.0, 0.0),
+                    [path] => (path, 0.0),
+                    [path, line] => (path, line),
+                    _ => return count("0 to 2"),
+                };
+                self.plotter.label.path = path.trunc().clamp(0.0, 3.0) as u8;
+                self.plotter.label.reverse_line_feed = line.trunc().clamp(0.0, 1.0) == 1.0;
+            }
             "UC" => return Err(Problem::new(
                 "expected a command cncsim draws; user-defined characters (UC) are not supported",
             )

@@ -39,6 +39,11 @@ pub(super) struct LabelStyle {
     pub(super) origin: u32,
     /// `DT`: the label terminator.
     pub(super) terminator: u8,
+    /// `DV`: the text path, each character placed 0, 90, 180 or 270° clockwise of the label
+    /// direction from the one before (0: right, 1: down, 2: left, 3: up).
+    pub(super) path: u8,
+    /// `DV`'s second parameter: line feeds go 90° anticlockwise of the path, not clockwise.
+    pub(super) reverse_line_feed: bool,
 }
 
 impl Default for LabelStyle {
@@ -56,6 +61,8 @@ impl Default for LabelStyle {
             extra: [0.0, 0.0],
             origin: 1,
             terminator: super::scan::ETX,
+            path: 0,
+            reverse_line_feed: false,
         }
     }
 }
@@ -92,13 +99,25 @@ impl LabelStyle {
         let along = [angle.cos(), angle.sin()];
         let cell = 1.5 * width * (1.0 + self.extra[0]);
         let line = 2.0 * height * (1.0 + self.extra[1]);
+        // The text path turns the advance clockwise from the label direction by 90° per step;
+        // the characters stay upright along it. A vertical path stacks characters a line
+        // apart and puts its lines a character cell apart.
+        let clockwise =
+            |v: [f64; 2], quarter_turns: u8| (0..quarter_turns % 4).fold(v, |v, _| [v[1], -v[0]]);
+        let path = clockwise(along, self.path);
+        let (step, line_step) = if self.path % 2 == 1 {
+            (line, cell)
+        } else {
+            (cell, line)
+        };
+        let feed = clockwise(path, if self.reverse_line_feed { 3 } else { 1 });
         Geometry {
             width,
             height,
             along,
             slant: self.slant,
-            advance: [cell * along[0], cell * along[1]],
-            line_feed: [line * along[1], -line * along[0]],
+            advance: [step * path[0], step * path[1]],
+            line_feed: [line_step * feed[0], line_step * feed[1]],
         }
     }
 }
