@@ -926,3 +926,50 @@ fn third_party_gantries_run_as_published_and_their_figures_are_the_tool_on_the_p
         "contour error {contour_mm} mm on a 100 mm circle"
     );
 }
+
+#[test]
+fn the_controllers_model_in_axis_coordinates_carries_the_followers() {
+    use cncsim::dynamics::AxisDynamics;
+    // The gantry with a 3 kg counterweight at μ = −0.5 on Z: in the axes' coordinates Z moves
+    // m_z + μ²·m_w plus its drive's armature J·k², and holds m_z + μ·m_w against gravity.
+    let (urdf, drives) = gantry_text();
+    let (m_z, m_w, mu) = (2.0, 3.0, -0.5);
+    let machine = Machine::parse(
+        &fixture("cad_gantry.urdf"),
+        &with_counterweight(m_w, mu)(urdf),
+        &drives,
+    )
+    .unwrap();
+    let g = 9.81;
+    let mut model = AxisDynamics::of_machine(&machine, Vector3::new(0.0, 0.0, -g)).unwrap();
+    assert_eq!(model.dof(), 3);
+    let mut ws = model.workspace();
+    let z = machine.axis_index("z").unwrap();
+    let armature = machine.axes[z].drive.reflected_inertia();
+    let (q, qd) = ([0.0; 3], [0.0; 3]);
+    let mut qdd = [0.0; 3];
+    qdd[z] = 1.5;
+    let mut tau = [0.0; 3];
+    model.inverse_dynamics(&mut ws, &q, &qd, &qdd, &mut tau);
+    let expected = (m_z + mu * mu * m_w + armature) * qdd[z] + g * (m_z + mu * m_w);
+    assert!(
+        (tau[z] - expected).abs() < 1e-9 * expected.abs(),
+        "{} N against {expected} N",
+        tau[z]
+    );
+    let mut mass = nalgebra::DMatrix::zeros(3, 3);
+    model.mass_matrix(&mut ws, &q, &mut mass);
+    assert!((mass[(z, z)] - (m_z + mu * mu * m_w + armature)).abs() < 1e-9);
+    // A passive joint has no coordinate among the axes: refused by name, not a panic.
+    let (urdf, drives) = gantry_text();
+    let free = Machine::parse(
+        &fixture("cad_gantry.urdf"),
+        &urdf,
+        &drives.replace("mode = \"locked\"", "mode = \"passive\""),
+    )
+    .unwrap();
+    let e = AxisDynamics::of_machine(&free, Vector3::new(0.0, 0.0, -g))
+        .unwrap_err()
+        .to_string();
+    assert!(e.contains("joint 'clamp_joint': it is passive"), "{e}");
+}

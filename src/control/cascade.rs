@@ -22,7 +22,7 @@
 
 use super::filters::{Biquad, TorqueFilters};
 use super::{command_for_torque, ActuatorKind, Controller, ControllerInput};
-use crate::dynamics::{DynamicsModel, DynamicsWorkspace};
+use crate::dynamics::{AxisDynamics, DynamicsWorkspace};
 use crate::machine::Drive;
 use nalgebra::{DMatrix, DVector};
 
@@ -77,7 +77,7 @@ pub struct Cascade {
     filters: Vec<FilterChain>,
     /// Low-pass coefficient of the velocity estimate (1 = no filter).
     smoothing: f64,
-    model: DynamicsModel,
+    model: AxisDynamics,
     workspace: DynamicsWorkspace,
     mass: DMatrix<f64>,
     torque: DVector<f64>,
@@ -92,7 +92,7 @@ impl Cascade {
     pub fn new(
         axes: Vec<CascadeAxis>,
         velocity_filter_hz: f64,
-        model: DynamicsModel,
+        model: AxisDynamics,
         drives: &[Drive],
         actuator: ActuatorKind,
         period: f64,

@@ -13,13 +13,13 @@
 //! `task_space.rs`); the conversion to torque and to the actuator is the same.
 
 use super::{command_for_torque, ActuatorKind, Controller, ControllerInput, TaskSpace};
-use crate::dynamics::{DynamicsModel, DynamicsWorkspace};
+use crate::dynamics::{AxisDynamics, DynamicsWorkspace};
 use crate::machine::Drive;
 
 /// The inverse-dynamics (computed-torque) controller of every axis, in joint space or, with a
 /// [`TaskSpace`], at the tool tip (see the module documentation).
 pub struct ComputedTorque {
-    model: DynamicsModel,
+    model: AxisDynamics,
     workspace: DynamicsWorkspace,
     kp: f64,
     kd: f64,
@@ -39,7 +39,7 @@ impl ComputedTorque {
     /// `model` in the machine's axis order (its armature and damping should be the drives');
     /// closed-loop natural frequency `omega_n` (rad/s) and damping ratio `zeta` on every axis.
     pub fn new(
-        model: DynamicsModel,
+        model: AxisDynamics,
         drives: &[Drive],
         actuator: ActuatorKind,
         period: f64,

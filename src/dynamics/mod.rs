@@ -7,6 +7,8 @@
 //!
 //! - [`DynamicsModel`] (`model.rs`): built once from a [`crate::machine::KinematicTree`];
 //!   fixed joints are merged away, one body per moving joint.
+//! - [`AxisDynamics`] (`axes.rs`): the same model in the machine's axis coordinates, as the
+//!   controllers use it (`<mimic>` followers substituted).
 //! - `rnea.rs`: inverse dynamics, `C q̇`, `g` — recursive Newton–Euler, O(n).
 //! - `crba.rs`: `M(q)` — composite-rigid-body algorithm.
 //! - `forward.rs`: forward dynamics — CRBA + RNEA + a tree-sparse Cholesky (`M = LᵀL`).
@@ -25,6 +27,7 @@
 //! allocate. Wrong slice lengths are programming errors and panic; user input goes through
 //! [`DynamicsReport::evaluate`], which validates and returns errors instead.
 
+mod axes;
 mod crba;
 mod error;
 mod forward;
@@ -36,6 +39,7 @@ pub mod spatial;
 #[cfg(test)]
 mod tests;
 
+pub use axes::AxisDynamics;
 pub use error::DynamicsError;
 pub use model::{Body, DynamicsModel, DynamicsWorkspace, JointMotion};
 pub use report::DynamicsReport;

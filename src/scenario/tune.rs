@@ -780,8 +780,7 @@ pub fn tune_cascade(
     let hold = assembly.controller();
     let drives: Vec<_> = machine.axes.iter().map(|a| a.drive.clone()).collect();
     let model =
-        crate::dynamics::DynamicsModel::from_machine(machine, nalgebra::Vector3::from(GRAVITY))
-            .and_then(|m| m.with_drive_armature(machine))
+        crate::dynamics::AxisDynamics::of_machine(machine, nalgebra::Vector3::from(GRAVITY))
             .map_err(|e| bad(format!("the machine's rigid-body model: {e}")))?;
     let cascade = crate::control::Cascade::new(
         vec![loop_axis; n],
@@ -876,9 +875,8 @@ fn linear_axis_at(
     q: &[f64],
     actuator: ActuatorKind,
 ) -> Result<LinearAxis, String> {
-    let model =
-        crate::dynamics::DynamicsModel::from_machine(machine, nalgebra::Vector3::from(GRAVITY))
-            .and_then(|m| m.with_drive_armature(machine))
+    let mut model =
+        crate::dynamics::AxisDynamics::of_machine(machine, nalgebra::Vector3::from(GRAVITY))
             .map_err(|e| format!("the machine's rigid-body model: {e}"))?;
     let n = model.dof();
     let mut ws = model.workspace();

@@ -9,7 +9,7 @@ use crate::control::{
     Pid, PidBank, PidForm, PidSettings, TaskSpace,
 };
 use crate::diagnostics::FileError;
-use crate::dynamics::DynamicsModel;
+use crate::dynamics::AxisDynamics;
 use crate::fmi::{AxesSpec, FmuController, FmuModel};
 use crate::kinematics::AcTableKinematics;
 use crate::machine::{Drive, Machine};
@@ -26,11 +26,11 @@ enum Law {
     Cascade {
         axes: Vec<CascadeAxis>,
         velocity_filter_hz: f64,
-        model: DynamicsModel,
+        model: AxisDynamics,
     },
     ComputedTorque {
         settings: InverseDynamicsSettings,
-        model: DynamicsModel,
+        model: AxisDynamics,
         /// Task space: the tool-tip kinematics of the A-C table (boxed: the other laws are
         /// much smaller).
         task: Option<Box<AcTableKinematics>>,
@@ -250,7 +250,7 @@ fn dynamics_model(
     s: &Scenario,
     machine: &Machine,
     mass_scale: f64,
-) -> Result<DynamicsModel, FileError> {
+) -> Result<AxisDynamics, FileError> {
     let mut model_machine = machine.clone();
     for axis in &machine.axes {
         model_machine.joints[axis.joint].damping += axis.drive.reflected_damping();
@@ -259,13 +259,11 @@ fn dynamics_model(
         link.mass *= mass_scale;
         link.inertia *= mass_scale;
     }
-    DynamicsModel::from_machine(&model_machine, nalgebra::Vector3::from(GRAVITY))
-        .and_then(|m| m.with_drive_armature(&model_machine))
-        .map_err(|e| {
-            FileError::new(
-                &s.machine,
-                None,
-                format!("the controller's model of the machine: {e}"),
-            )
-        })
+    AxisDynamics::of_machine(&model_machine, nalgebra::Vector3::from(GRAVITY)).map_err(|e| {
+        FileError::new(
+            &s.machine,
+            None,
+            format!("the controller's model of the machine: {e}"),
+        )
+    })
 }
