@@ -26,7 +26,7 @@ pub struct AbRow {
     pub b: f64,
     /// b − a.
     pub difference: f64,
-    /// b / a (NaN when a is zero).
+    /// b / a (NaN when a is zero, or both are below what the table shows).
     pub ratio: f64,
 }
 
@@ -112,6 +112,9 @@ pub fn run_ab(
     })
 }
 
+/// The smallest value the table prints (six decimals of its unit).
+const TABLE_RESOLUTION: f64 = 5e-7;
+
 fn compare(a: &Scenario, ra: &RunOutput, b: &Scenario, rb: &RunOutput) -> AbReport {
     let mut rows = Vec::new();
     let mut row = |metric: String, unit: &'static str, x: f64, y: f64| {
@@ -121,7 +124,13 @@ fn compare(a: &Scenario, ra: &RunOutput, b: &Scenario, rb: &RunOutput) -> AbRepo
             a: x,
             b: y,
             difference: y - x,
-            ratio: if x != 0.0 { y / x } else { f64::NAN },
+            // Two values below what the table shows (round-off, such as a balanced axis's
+            // torque) have no meaningful ratio.
+            ratio: if x != 0.0 && x.abs().max(y.abs()) >= TABLE_RESOLUTION {
+                y / x
+            } else {
+                f64::NAN
+            },
         });
     };
     let (ma, mb) = (&ra.metrics, &rb.metrics);
@@ -201,9 +210,14 @@ impl AbReport {
             self.a, self.b
         );
         for r in &self.rows {
+            let ratio = if r.ratio.is_nan() {
+                "—".to_string()
+            } else {
+                format!("{:.4}", r.ratio)
+            };
             s.push_str(&format!(
-                "| {} | {} | {:.6} | {:.6} | {:+.6} | {:.4} |\n",
-                r.metric, r.unit, r.a, r.b, r.difference, r.ratio
+                "| {} | {} | {:.6} | {:.6} | {:+.6} | {ratio} |\n",
+                r.metric, r.unit, r.a, r.b, r.difference
             ));
         }
         s
