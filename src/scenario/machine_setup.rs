@@ -664,8 +664,15 @@ impl crate::command::Report for DriveFileDraft {
         if self.to_terminal() {
             self.text.clone()
         } else {
+            let sidecar = DrivesFile::path_for(&self.urdf);
+            let place = if self.out == sidecar {
+                String::new()
+            } else {
+                // cncsim reads a machine's drive file beside its URDF, by name.
+                format!(", put it at {} (where cncsim reads it)", sidecar.display())
+            };
             format!(
-                "fill in the values marked ASSUMED in {}, then `cncsim machine check {}`\n",
+                "fill in the values marked ASSUMED in {}{place}, then `cncsim machine check {}`\n",
                 self.out.display(),
                 self.urdf.display()
             )
