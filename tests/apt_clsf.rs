@@ -878,3 +878,43 @@ fn creo_files_decode_and_reach_every_goto() {
         assert!(hole.windows(2).all(|w| w[1][2] < w[0][2]));
     }
 }
+
+#[test]
+fn a_goto_list_without_feed_runs_at_the_feed_given_or_is_refused() {
+    // Tool paths published as bare GOTO lists (a study's 5-axis path, blank-separated): no
+    // FEDRAT anywhere. Refused by default; with a feed given they run at it, said once.
+    let text = "GOTO/-10.0 5.0 0.0 0.0 0.0 1.0\nGOTO/-10.0 15.0 0.0 0.0 0.0 1.0\nFEDRAT/600\nGOTO/0.0 15.0 0.0\n";
+    assert!(first_error(text, &ReadOptions::default())
+        .contains("expected a FEDRAT (or RAPID) before the first GOTO"));
+    let mut options = ReadOptions::default();
+    options.apt.default_feed = Some(0.020);
+    let program = parse_apt(text, "t.cls", &options).unwrap();
+    let feeds: Vec<f64> = program
+        .moves
+        .iter()
+        .map(|m| match m.feed {
+            cncsim::program::Feed::PathSpeed(v) => v * 1e3,
+            _ => f64::NAN,
+        })
+        .collect();
+    assert_eq!(feeds, [20.0, 20.0, 10.0]);
+    assert_eq!(
+        program
+            .warnings
+            .iter()
+            .filter(|w| w.message.contains("no FEDRAT before this GOTO"))
+            .count(),
+        1
+    );
+    // A feed for CL data given with a plot file is refused: HPGL programs its own speed.
+    let dir = tempfile::tempdir().unwrap();
+    let plot = dir.path().join("p.plt");
+    std::fs::write(&plot, "IN;PU0,0;PD100,0;").unwrap();
+    let e = cncsim::program::read_program(&plot, &options)
+        .unwrap_err()
+        .to_string();
+    assert!(
+        e.contains("this file is HPGL, which programs its own feed"),
+        "{e}"
+    );
+}

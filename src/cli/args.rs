@@ -185,6 +185,10 @@ pub enum Command {
         /// hp2xx -P counts them). Default: every page, one over another, as hp2xx draws them.
         #[arg(long, value_name = "N", value_parser = clap::value_parser!(u32).range(1..))]
         page: Option<u32>,
+        /// APT CL data: the feed (mm/s) of moves before any FEDRAT, for a file that programs
+        /// none (a list of GOTO records).
+        #[arg(long, value_name = "MM_S")]
+        feed: Option<f64>,
         /// List every move, however long the program.
         #[arg(long)]
         all: bool,

@@ -117,6 +117,7 @@ pub fn dispatch(command: Option<Command>, interrupted: &AtomicBool) -> Result<Sh
             strict,
             no_hatch,
             page,
+            feed,
             all,
             tool_table,
         }) => {
@@ -141,6 +142,18 @@ pub fn dispatch(command: Option<Command>, interrupted: &AtomicBool) -> Result<Sh
             options.apt.strict = strict;
             options.hpgl.hatch_fills = !no_hatch;
             options.hpgl.page = page;
+            if let Some(feed) = feed {
+                let (lo, hi) = cncsim::scenario::limits::SPEED_MM_S;
+                if !(lo..=hi).contains(&feed) {
+                    return Err(ProgramErrors::single(ProgramError::new(
+                        &program,
+                        None,
+                        format!("--feed {feed}: expected a feed from {lo} to {hi} mm/s"),
+                    ))
+                    .into());
+                }
+                options.apt.default_feed = Some(feed * 1e-3);
+            }
             let listing = InspectOptions {
                 list_limit: if all {
                     usize::MAX

@@ -237,6 +237,17 @@ pub fn read_program_detailed(
             "use .ngc .nc .gcode .tap (G-code), .plt .hpgl .hpg .hgl .hp .prn (HPGL) or .apt .cl .cls .clsf (APT CL data)",
         )));
     };
+    if options.apt.default_feed.is_some() && format != ProgramFormat::Apt {
+        return Err(ProgramErrors::single(ProgramError::new(
+            path,
+            None,
+            format!("expected CL data with the feed given for moves before any FEDRAT ([program] feed_mm_s, inspect --feed); this file is {}, which programs its own feed", match format {
+                ProgramFormat::Gcode => "G-code",
+                ProgramFormat::Hpgl => "HPGL",
+                ProgramFormat::Apt => "CL data",
+            }),
+        )));
+    }
     match format {
         ProgramFormat::Gcode => {
             // Streamed line by line: memory follows the moves kept, not the file size.

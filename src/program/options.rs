@@ -240,6 +240,9 @@ pub struct AptOptions {
     pub max_chords: usize,
     /// Refuse records that do not move the tool instead of skipping them with a warning.
     pub strict: bool,
+    /// Feed (m/s) of the moves before the first FEDRAT, for CL data that programs none (a
+    /// list of GOTO records); `None` refuses such a move.
+    pub default_feed: Option<f64>,
 }
 
 impl Default for AptOptions {
@@ -251,6 +254,7 @@ impl Default for AptOptions {
             chord_tolerance: 1e-6,
             max_chords: 1_000_000,
             strict: false,
+            default_feed: None,
         }
     }
 }

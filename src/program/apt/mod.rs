@@ -535,9 +535,17 @@ impl<'a> AptReader<'a> {
                 let feed = if self.rapid_next || major == "FROM" {
                     Feed::Rapid
                 } else {
-                    match self.feed {
-                        Some(speed) => Feed::PathSpeed(speed),
-                        None => {
+                    match (self.feed, self.options.apt.default_feed) {
+                        (Some(speed), _) => Feed::PathSpeed(speed),
+                        (None, Some(speed)) => {
+                            self.warn_once(
+                                "default feed",
+                                span,
+                                format!("no FEDRAT before this {major}: the moves run at the feed given for CL data without one, {:.3} mm/s, until a FEDRAT", speed * 1e3),
+                            );
+                            Feed::PathSpeed(speed)
+                        }
+                        (None, None) => {
                             return Err(RecordError {
                                 start: first.start,
                                 end: record_end,
@@ -545,7 +553,7 @@ impl<'a> AptReader<'a> {
                                     "expected a FEDRAT (or RAPID) before the first {major}"
                                 ),
                                 found: None,
-                                hint: Some("add e.g. FEDRAT/100 before the motion records"),
+                                hint: Some("add e.g. FEDRAT/100 before the motion records, or give the feed (feed_mm_s in [program], inspect --feed)"),
                             });
                         }
                     }

@@ -169,12 +169,6 @@ impl TryFrom<InFile<'_, &RawProgram>> for ProgramSettings {
         };
         let c_mm = limits::COORDINATE_MM;
         let source = if let Some(f) = &p.file {
-            if let Some(feed) = &p.feed_mm_s {
-                return Err(file.error(
-                    feed.span(),
-                    "feed_mm_s applies to built-in paths; a program file programs its own feed",
-                ));
-            }
             let path = file.resolve(f.get_ref());
             if !path.is_file() {
                 return Err(file.error(
@@ -205,6 +199,11 @@ impl TryFrom<InFile<'_, &RawProgram>> for ProgramSettings {
             }
             options.hpgl.lenient = p.lenient;
             options.hpgl.optimise_pen_up = p.optimise_pen_up;
+            // With a file, feed_mm_s is the feed of CL data that programs no FEDRAT (the
+            // reader refuses it for G-code and HPGL, which program their own).
+            if p.feed_mm_s.is_some() {
+                options.apt.default_feed = Some(feed()?);
+            }
             if let Some(page) = &p.page {
                 let n = *page.get_ref();
                 options.hpgl.page = Some(u32::try_from(n).ok().filter(|&n| n >= 1).ok_or_else(|| {
