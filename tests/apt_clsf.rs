@@ -799,6 +799,10 @@ fn creo_comments_go_on_over_continued_lines_and_camworks_names_the_arc_direction
         (last_feed - -3.5).abs() < 1e-9,
         "the hole ends {last_feed} mm"
     );
+    // A comment decorated with `$$` at both ends does not continue: the GOTO after it stands.
+    let decorated =
+        apt("FEDRAT/100\n$$ ---------- $$\nGOTO/1,2,3\n$$ note $\n  continued\nGOTO/4,5,6\n");
+    assert_eq!(decorated.moves.len(), 2);
     // CAMWorks: the direction as a word after the radius; CLOCKWISE turns the other way.
     let arc = |word: &str| {
         let text = format!(

@@ -955,7 +955,7 @@ fn bad_inputs_give_exact_messages() {
         (Hpgl, "LBCAF\u{e9}\x03;", "bad.plt:1:6: expected label characters the stroke font has (ASCII 32–126), found '\u{e9}'; hint: the Hershey stroke font draws ASCII only"),
         (Apt, "GOTO/1,2", "bad.apt:1:1: expected 3 or 6 numbers after GOTO/, not 2, found 'GOTO/1,2'"),
         (Apt, "FEDRAT/100\nGOTO/1,2,x", "bad.apt:2:10: expected a number in GOTO, found 'x'"),
-        (Apt, "GOTO/1,2,3", "bad.apt:1:1: expected a FEDRAT (or RAPID) before the first GOTO, found 'GOTO/1,2,3'; hint: add e.g. FEDRAT/100 before the motion records"),
+        (Apt, "GOTO/1,2,3", "bad.apt:1:1: expected a FEDRAT (or RAPID) before the first GOTO, found 'GOTO/1,2,3'; hint: add e.g. FEDRAT/100 before the motion records, or give the feed (feed_mm_s in [program], inspect --feed)"),
         (Apt, "FEDRAT/100\nGOTO/1,2,3,0,0,0", "bad.apt:2:12: expected a non-zero tool-axis vector, found '0,0,0'; hint: the tool-axis vector (i,j,k) must point along the tool"),
         (Apt, "UNITS/FURLONGS", "bad.apt:1:7: expected MM or INCHES after UNITS/, found 'FURLONGS'"),
         (Apt, "FEDRAT/100,IPR", "bad.apt:1:12: expected a feed per minute; feed per revolution is not supported, found 'IPR'; hint: post the feed per minute"),

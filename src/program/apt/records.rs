@@ -22,12 +22,15 @@ pub(super) fn records(text: &[u8]) -> Vec<Record> {
             .iter()
             .position(|&b| b == b'\n')
             .map_or(text.len(), |i| line_start + i);
+        // A lone `$` ends the line (not `$$`, which closes a decorated comment).
         let ends_in_dollar = |end: usize| {
             let mut last = end;
             while last > line_start && text[last - 1].is_ascii_whitespace() {
                 last -= 1;
             }
-            last > line_start && text[last - 1] == b'$'
+            last > line_start
+                && text[last - 1] == b'$'
+                && !(last > line_start + 1 && text[last - 2] == b'$')
         };
         if comment_goes_on {
             comment_goes_on = ends_in_dollar(line_end);
