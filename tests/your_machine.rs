@@ -248,6 +248,17 @@ fn with_counterweight(mass: f64, multiplier: f64) -> impl Fn(String) -> String {
     }
 }
 
+/// The bundled gantry with its counterweight made `mass` kg at `multiplier`.
+fn counterweighted_gantry(mass: f64, multiplier: f64) -> Machine {
+    let (urdf, drives) = gantry_text();
+    Machine::parse(
+        &fixture("cad_gantry.urdf"),
+        &with_counterweight(mass, multiplier)(urdf),
+        &drives,
+    )
+    .unwrap()
+}
+
 #[test]
 fn a_mimic_follower_on_its_own_joint_is_coupled_exactly_as_an_atwood_machine() {
     use cncsim::machine::Undriven;
@@ -255,14 +266,8 @@ fn a_mimic_follower_on_its_own_joint_is_coupled_exactly_as_an_atwood_machine() {
     // The carriage (2 kg) and a 3 kg counterweight moving half as fast the other way: with no
     // drive force and no armature the pair falls as an Atwood machine does,
     // a = -g·(m_z + μ·m_w)/(m_z + μ²·m_w) along Z (μ = -0.5: -g·0.5/2.75).
-    let (urdf, drives) = gantry_text();
     let (m_z, m_w, mu) = (2.0, 3.0, -0.5);
-    let machine = Machine::parse(
-        &fixture("cad_gantry.urdf"),
-        &with_counterweight(m_w, mu)(urdf),
-        &drives,
-    )
-    .unwrap();
+    let machine = counterweighted_gantry(m_w, mu);
     let coupled = machine
         .undriven
         .iter()
@@ -932,14 +937,8 @@ fn the_controllers_model_in_axis_coordinates_carries_the_followers() {
     use cncsim::dynamics::AxisDynamics;
     // The gantry with a 3 kg counterweight at μ = −0.5 on Z: in the axes' coordinates Z moves
     // m_z + μ²·m_w plus its drive's armature J·k², and holds m_z + μ·m_w against gravity.
-    let (urdf, drives) = gantry_text();
     let (m_z, m_w, mu) = (2.0, 3.0, -0.5);
-    let machine = Machine::parse(
-        &fixture("cad_gantry.urdf"),
-        &with_counterweight(m_w, mu)(urdf),
-        &drives,
-    )
-    .unwrap();
+    let machine = counterweighted_gantry(m_w, mu);
     let g = 9.81;
     let mut model = AxisDynamics::of_machine(&machine, Vector3::new(0.0, 0.0, -g)).unwrap();
     assert_eq!(model.dof(), 3);
