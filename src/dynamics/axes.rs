@@ -8,7 +8,7 @@
 //! axis to follow: a model in axis coordinates cannot hold it, and is refused by name.
 
 use super::{DynamicsError, DynamicsModel, DynamicsWorkspace};
-use crate::machine::{Machine, Undriven};
+use crate::machine::Machine;
 use nalgebra::{DMatrix, Vector3};
 
 /// How a tree coordinate follows the axes: q_tree = multiplier · q_axis + offset.
@@ -40,13 +40,9 @@ impl AxisDynamics {
     /// The model of `machine` (its links and joints as they are, drive armature added) in
     /// the coordinates of its axes. Refuses a machine with a passive joint.
     pub fn of_machine(machine: &Machine, gravity: Vector3<f64>) -> Result<Self, DynamicsError> {
-        if let Some((name, _)) = machine
-            .undriven
-            .iter()
-            .find(|(_, what)| *what == Undriven::Passive)
-        {
+        if let Some(&j) = machine.passive_joints().first() {
             return Err(DynamicsError::BadJoint {
-                joint: name.clone(),
+                joint: machine.joints[j].name.clone(),
                 problem: "it is passive (moves freely): a model in the axes' coordinates has no coordinate for it; lock it or drive it".into(),
             });
         }

@@ -324,6 +324,19 @@ impl Machine {
         self.links.iter().position(|l| l.name == name)
     }
 
+    /// Whether each link is `link` or below it (joints are ordered parents first, so one
+    /// pass finds the subtree).
+    pub fn subtree(&self, link: usize) -> Vec<bool> {
+        let mut below = vec![false; self.links.len()];
+        below[link] = true;
+        for joint in &self.joints {
+            if below[joint.parent] {
+                below[joint.child] = true;
+            }
+        }
+        below
+    }
+
     /// Joint index whose child is `link`, if any (none for the root).
     pub fn parent_joint(&self, link: usize) -> Option<usize> {
         self.joints.iter().position(|j| j.child == link)

@@ -1246,14 +1246,7 @@ fn transmission_spring(
 pub fn moved_inertia(machine: &Machine, j: usize) -> f64 {
     let joint = &machine.joints[j];
     let home = home_poses(machine);
-    let mut moved = vec![false; machine.links.len()];
-    moved[joint.child] = true;
-    // Joints are ordered parents first, so one pass collects the subtree.
-    for other in &machine.joints {
-        if moved[other.parent] {
-            moved[other.child] = true;
-        }
-    }
+    let moved = machine.subtree(joint.child);
     let frame = home[joint.parent] * joint.origin;
     let axis = (frame.rotation * joint.axis).normalize();
     let pivot = Point3::from(frame.translation.vector);

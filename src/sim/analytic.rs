@@ -445,8 +445,10 @@ impl AxisModel {
                     let along = fixed_orientation(machine, j)
                         .filter(|_| moved.kind == JointKind::Prismatic)
                         .map(|r| r * moved.axis * scale)?;
-                    for l in subtree(machine, moved.child) {
-                        velocity[l] += along;
+                    for (v, below) in velocity.iter_mut().zip(machine.subtree(moved.child)) {
+                        if below {
+                            *v += along;
+                        }
                     }
                     Some(())
                 };
@@ -469,8 +471,10 @@ impl AxisModel {
                         });
                 velocity_per_axis.push((velocity, inertia));
                 // The carriage's own load on its guide: the links it carries.
-                let mass: f64 = subtree(machine, joint.child)
-                    .map(|l| machine.links[l].mass)
+                let mass: f64 = (machine.links.iter())
+                    .zip(machine.subtree(joint.child))
+                    .filter(|(_, below)| *below)
+                    .map(|(l, _)| l.mass)
                     .sum();
                 let mut friction = match &axis.drive.guide {
                     None => StribeckCurve::default(),
@@ -996,18 +1000,6 @@ fn fixed_orientation(machine: &Machine, j: usize) -> Option<UnitQuaternion<f64>>
         link = above.parent;
     }
     Some(rotation)
-}
-
-/// `link` and every link below it (joints are ordered parents first).
-fn subtree(machine: &Machine, link: usize) -> impl Iterator<Item = usize> + '_ {
-    let mut moved = vec![false; machine.links.len()];
-    moved[link] = true;
-    for j in &machine.joints {
-        if moved[j.parent] {
-            moved[j.child] = true;
-        }
-    }
-    (0..machine.links.len()).filter(move |&l| moved[l])
 }
 
 fn gravity_component(
