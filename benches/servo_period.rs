@@ -95,6 +95,7 @@ fn benches(c: &mut Criterion) {
                     limit: vec![1.0; 3],
                     axis_names: vec!["x".into(), "y".into(), "z".into()],
                 },
+                spindle: Default::default(),
             };
             b.iter_batched(
                 || {

@@ -9,6 +9,7 @@
 
 pub mod command;
 pub mod control;
+pub mod cutting;
 pub(crate) mod convert;
 pub mod diagnostics;
 pub mod dynamics;

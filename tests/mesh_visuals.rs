@@ -91,6 +91,8 @@ fn a_machine_with_mesh_and_primitive_visuals_is_recorded_with_each_shape() {
         lanes: &[cncsim::sim::LaneKind::Physics],
         programmed_path: vec![[0.0; 3], [0.01, 0.0, 0.0]],
         variant: None,
+        stock_frame: None,
+        duration: 0.0,
     };
     let rrd = dir.path().join("run.rrd");
     RrdWriter::create(&rrd, &setup)

@@ -6,8 +6,10 @@
 
 pub mod ac_table;
 mod frame;
+mod part;
 
 pub use frame::{carrier_link, chain_joints, ProgramFrame, ORTHOGONALITY_TOLERANCE};
+pub use part::PartPlacement;
 
 pub use ac_table::{
     AcAxes, AcAxis, AcInverseError, AcSolution, AcTableKinematics, AcTopologyError, Branch,

@@ -35,7 +35,7 @@ enum Format {
 
 /// Reads the mesh at `path` (the format from its extension), scaled by `scale` (the URDF's,
 /// applied in the mesh's frame). The error says what is wrong with the file.
-pub(super) fn read_mesh(path: &Path, scale: [f64; 3]) -> Result<TriangleMesh, String> {
+pub fn read_mesh(path: &Path, scale: [f64; 3]) -> Result<TriangleMesh, String> {
     let extension = path
         .extension()
         .map(|e| e.to_string_lossy().to_ascii_lowercase())

@@ -19,7 +19,7 @@ pub use drives::{
     COMPLIANCE_RANGES, DENSITY_RANGE_KG_M3,
 };
 pub use joints::Undriven;
-pub use mesh::{MAX_MESH_FILE_BYTES, MAX_MESH_TRIANGLES};
+pub use mesh::{read_mesh, MAX_MESH_FILE_BYTES, MAX_MESH_TRIANGLES};
 pub use mesh_path::{package_search_roots, ROS_PACKAGE_PATH};
 pub use urdf::{
     load_urdf, load_urdf_with_package_paths, MAX_LINK_MASS_KG, MAX_MACHINE_SIZE_M,

@@ -240,6 +240,12 @@ pub struct Plant {
     /// The carrier link, where it moves (`None`: it rides on the fixed base, whose frame is
     /// the world's).
     carrier: Option<usize>,
+    /// The link carrying the workpiece (the stock a cut removes rides on it), and the DOFs
+    /// that move it.
+    part_link: usize,
+    part_dofs: Vec<ChainDof>,
+    /// The cutting process's load, held until changed: on the tool, and reversed on the part.
+    cutting: Option<CuttingLoad>,
     guides: Vec<Option<GuidePair>>,
     multibody: Option<MultibodyJointHandle>,
     tool_link: usize,
@@ -582,6 +588,7 @@ impl Plant {
         let carrier = crate::kinematics::carrier_link(machine);
         let tool_dofs = chain_dofs(machine.tool_link);
         let carrier_dofs = chain_dofs(carrier);
+        let part_dofs = chain_dofs(machine.workpiece_link);
 
         let mut forced_bodies: Vec<RigidBodyHandle> = axes
             .iter()
@@ -606,6 +613,9 @@ impl Plant {
             // The base's frame is the world's; any other carrier (a fixture fixed to the base
             // at an offset, a moving bed) has its own pose.
             carrier: (carrier != machine.root).then_some(carrier),
+            part_link: machine.workpiece_link,
+            part_dofs: Vec::new(),
+            cutting: None,
             guides,
             multibody,
             tool_link: machine.tool_link,
@@ -658,8 +668,7 @@ impl Plant {
         plant.configure_dofs(
             machine,
             options,
-            tool_dofs,
-            carrier_dofs,
+            [tool_dofs, carrier_dofs, part_dofs],
             passive_dofs,
             followers,
         );
@@ -667,15 +676,14 @@ impl Plant {
     }
 
     /// Armature, damping and initial coordinates of the driven DOFs, and the final DOF indices.
-    /// `tool_dofs` and `carrier_dofs` carry (multibody link, DOF offset within the link's
-    /// joint); `passive_dofs` (multibody link, URDF damping) are the joints no axis drives that
+    /// The chains to the tool, the carrier and the part carry (multibody link, DOF offset
+    /// within the link's joint); `passive_dofs` (multibody link, URDF damping) are the joints no axis drives that
     /// move (passive ones and `<mimic>` followers); `followers` couple the latter to leaders.
     fn configure_dofs(
         &mut self,
         machine: &Machine,
         options: &PlantOptions,
-        tool_dofs: Vec<(ChainDof, (usize, usize))>,
-        carrier_dofs: Vec<(ChainDof, (usize, usize))>,
+        [tool_dofs, carrier_dofs, part_dofs]: [Vec<(ChainDof, (usize, usize))>; 3],
         passive_dofs: Vec<(usize, f64)>,
         followers: Vec<FollowerDof>,
     ) {
@@ -746,6 +754,7 @@ impl Plant {
         };
         self.tool_dofs = resolve(tool_dofs);
         self.carrier_dofs = resolve(carrier_dofs);
+        self.part_dofs = resolve(part_dofs);
         mb.apply_displacements(&displacement);
         mb.forward_kinematics(bodies, false);
         mb.update_rigid_bodies(bodies, true);
@@ -821,6 +830,7 @@ impl Plant {
         if self.compliant {
             self.apply_transmission_springs();
         }
+        self.apply_cutting_load();
     }
 
     /// Pushes drive side and carriage of each compliant axis apart by the spring's force at
@@ -862,7 +872,7 @@ impl Plant {
 
     /// Advances the physics by one step.
     pub fn step(&mut self) {
-        if self.compliant {
+        if self.compliant || self.cutting.is_some() {
             self.apply_forces();
         }
         self.update_guide_friction();
@@ -1038,35 +1048,117 @@ impl Plant {
         let Some(mb) = self.multibody() else {
             return Vector3::zeros();
         };
-        let v = mb.generalized_velocity();
         let tool = self.tool_in_world();
-        let along = |dofs: &[ChainDof]| {
-            let mut velocity = Vector3::zeros();
-            for d in dofs {
-                let frame = from_pose(self.world.bodies[d.body].position());
-                let axis = frame.rotation * d.local_axis;
-                velocity += match d.kind {
-                    JointKind::Prismatic => axis * v[d.dof],
-                    JointKind::Revolute => {
-                        axis.cross(&(tool - Point3::from(frame.translation.vector))) * v[d.dof]
-                    }
-                    JointKind::Fixed => Vector3::zeros(),
-                };
-            }
-            velocity
-        };
-        let velocity = along(&self.tool_dofs);
+        let velocity = self.point_velocity(mb, &self.tool_dofs, &tool);
         match self.carrier {
             None => velocity,
             Some(link) => {
                 // Less the velocity of the carrier's material point under the tool.
-                let relative = velocity - along(&self.carrier_dofs);
+                let relative = velocity - self.point_velocity(mb, &self.carrier_dofs, &tool);
                 self.link_pose(link)
                     .rotation
                     .inverse_transform_vector(&relative)
             }
         }
     }
+
+    /// Velocity (world frame) of the world point `point` carried by the last link of the chain
+    /// `dofs`, from the joints' generalised velocities (a Jacobian product).
+    fn point_velocity(&self, mb: &Multibody, dofs: &[ChainDof], point: &Point3<f64>) -> Vector3<f64> {
+        let v = mb.generalized_velocity();
+        let mut velocity = Vector3::zeros();
+        for d in dofs {
+            let frame = from_pose(self.world.bodies[d.body].position());
+            let axis = frame.rotation * d.local_axis;
+            velocity += match d.kind {
+                JointKind::Prismatic => axis * v[d.dof],
+                JointKind::Revolute => {
+                    axis.cross(&(point - Point3::from(frame.translation.vector))) * v[d.dof]
+                }
+                JointKind::Fixed => Vector3::zeros(),
+            };
+        }
+        velocity
+    }
+
+    /// The tool on the part, in the frame of the link carrying the workpiece: the tool point,
+    /// the tool's axis (`axis` given in the tool link's frame) and the tool point's velocity
+    /// relative to the part's material point under it (m, unit vector, m/s).
+    pub fn tool_on_part(&self, axis: &Vector3<f64>) -> ToolOnPart {
+        let part = self.link_pose(self.part_link);
+        let tool = self.tool_in_world();
+        let world_axis = self.link_pose(self.tool_link).rotation * axis;
+        let velocity = self.multibody().map_or(Vector3::zeros(), |mb| {
+            self.point_velocity(mb, &self.tool_dofs, &tool)
+                - self.point_velocity(mb, &self.part_dofs, &tool)
+        });
+        ToolOnPart {
+            point: part.inverse_transform_point(&tool),
+            axis: part.rotation.inverse_transform_vector(&world_axis),
+            velocity: part.rotation.inverse_transform_vector(&velocity),
+        }
+    }
+
+    /// Sets the cutting process's load (in the part link's frame), held until changed;
+    /// `None` takes it off. It is applied every physics step.
+    pub fn set_cutting_load(&mut self, load: Option<CuttingLoad>) {
+        if load.is_some() && self.cutting.is_none() {
+            // From now on the tool's and the part's bodies are pushed, so their forces are
+            // reset every step (a run that never cuts leaves them untouched).
+            let bodies = [self.tool_link, self.part_link].map(|link| self.link_bodies[link]);
+            for body in bodies {
+                if self.world.bodies[body].is_dynamic() && !self.forced_bodies.contains(&body) {
+                    self.forced_bodies.push(body);
+                }
+            }
+        }
+        self.cutting = load;
+    }
+
+    /// Applies the held cutting load: the force on the tool's body at its point, the reverse
+    /// and the torque the part takes on the part's body.
+    fn apply_cutting_load(&mut self) {
+        let Some(load) = self.cutting else { return };
+        let part = self.link_pose(self.part_link);
+        let force = to_vec(&(part.rotation * load.on_tool));
+        let at = to_vec(&(part * load.at).coords);
+        let torque = to_vec(&(part.rotation * load.torque_on_part));
+        let tool_body = self.link_bodies[self.tool_link];
+        let part_body = self.link_bodies[self.part_link];
+        if self.world.bodies[tool_body].is_dynamic() {
+            self.world.bodies[tool_body].add_force_at_point(force, at, false);
+        }
+        if self.world.bodies[part_body].is_dynamic() {
+            let rb = &mut self.world.bodies[part_body];
+            rb.add_force_at_point(-force, at, false);
+            rb.add_torque(torque, false);
+        }
+    }
+}
+
+/// The tool on the part, in the frame of the link carrying the workpiece.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct ToolOnPart {
+    /// The tool point (m).
+    pub point: Point3<f64>,
+    /// Unit vector along the tool's axis, from the tip toward the spindle.
+    pub axis: Vector3<f64>,
+    /// Velocity of the tool point relative to the part's material point under it (m/s).
+    pub velocity: Vector3<f64>,
+}
+
+/// What the cutting process loads the machine with, in the frame of the link carrying the
+/// workpiece.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct CuttingLoad {
+    /// Force of the part on the tool (N).
+    pub on_tool: Vector3<f64>,
+    /// Where it acts (m).
+    pub at: Point3<f64>,
+    /// Torque the part takes besides the reversed force at `at` (N·m): the moment of the
+    /// tangential forces about the tool's axis, which on the tool side the spindle motor
+    /// takes.
+    pub torque_on_part: Vector3<f64>,
 }
 
 /// Inserts the guide (on the parent link) and the runners (under the carriage) of a guided

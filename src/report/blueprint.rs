@@ -38,7 +38,7 @@ pub fn run_blueprint(setup: &RecordingSetup<'_>) -> Blueprint {
         Horizontal::new([
             Spatial3DView::new("tool path on the workpiece")
                 .with_origin(format!("world/machine/{workpiece}"))
-                .with_contents(["$origin/paths/**"])
+                .with_contents(["$origin/paths/**", "$origin/stock/**"])
                 .into(),
             Spatial3DView::new("path error, magnified")
                 .with_origin("magnified")
@@ -100,6 +100,9 @@ pub fn run_blueprint(setup: &RecordingSetup<'_>) -> Blueprint {
         }
         tabs.push(Vertical::new(plots).with_name(format!("axis {a}")).into());
     }
+    if setup.stock_frame.is_some() {
+        tabs.insert(1, cutting_tab());
+    }
     let root =
         Horizontal::new([left.into(), Tabs::new(tabs).into()]).with_column_shares([2.0, 3.0]);
     Blueprint::new(root)
@@ -107,11 +110,41 @@ pub fn run_blueprint(setup: &RecordingSetup<'_>) -> Blueprint {
         .with_auto_layout(false)
 }
 
-/// The A/B layout: `variants` are (entity prefix without the slash, display name).
+/// The tab of a run that cuts: the part as cut and its error magnified, the force of the tool
+/// on the part, the spindle's power and the flutes engaged.
+fn cutting_tab() -> ContainerLike {
+    let part = Horizontal::new([
+        Spatial3DView::new("part as cut: error against the nominal part")
+            .with_contents(["part/machined"])
+            .into(),
+        Spatial3DView::new("part error, magnified")
+            .with_contents(["part/magnified"])
+            .into(),
+    ]);
+    let plots = Vertical::new([
+        series(
+            "cutting force on the part (N)".into(),
+            vec!["cutting/force/**".into()],
+        ),
+        series("spindle power (W)".into(), vec!["cutting/power/**".into()]),
+        series(
+            "flutes engaged".into(),
+            vec!["cutting/engaged_flutes/**".into()],
+        ),
+    ]);
+    Vertical::new([part.into(), plots.into()])
+        .with_row_shares([3.0, 4.0])
+        .with_name("cutting")
+        .into()
+}
+
+/// The A/B layout: `variants` are (entity prefix without the slash, display name); where
+/// they cut, each variant's part as cut beside the other's, and their cutting forces.
 pub fn ab_blueprint(
     labels: &[AxisLabel],
     workpiece_link: &str,
     variants: &[(&str, &str)],
+    cutting: bool,
 ) -> Blueprint {
     let paths = variants
         .iter()
@@ -141,15 +174,32 @@ pub fn ab_blueprint(
             over(&format!("axes/{a}/torque/physics")),
         ));
     }
+    if cutting {
+        plots.push(series(
+            "cutting force on the part (N)".into(),
+            over("cutting/force/**"),
+        ));
+    }
     let names: Vec<String> = variants.iter().map(|(p, n)| format!("{p}: {n}")).collect();
-    let left = Vertical::new([
-        Spatial3DView::new(format!("tool paths: {}", names.join(" vs ")))
-            .with_contents(paths)
+    let mut left = vec![Spatial3DView::new(format!("tool paths: {}", names.join(" vs ")))
+        .with_contents(paths)
+        .into()];
+    if cutting {
+        left.push(
+            Horizontal::new(variants.iter().map(|(p, n)| {
+                Spatial3DView::new(format!("{p}: {n}, part as cut"))
+                    .with_contents([format!("{p}/part/machined")])
+                    .into()
+            }))
             .into(),
+        );
+    }
+    left.push(
         TextDocumentView::new("A/B summary")
             .with_contents(["ab_summary"])
             .into(),
-    ]);
+    );
+    let left = Vertical::new(left);
     let root =
         Horizontal::new([left.into(), Grid::new(plots).into()]).with_column_shares([2.0, 3.0]);
     Blueprint::new(root)

@@ -13,14 +13,20 @@ pub struct CsvWriter {
     path: PathBuf,
     out: BufWriter<std::fs::File>,
     labels: Vec<AxisLabel>,
+    /// Whether the cutting process's columns are written.
+    cutting: bool,
     /// The first error, reported when the file is finished (the loop does not stop for it).
     error: Option<std::io::Error>,
     row: String,
 }
 
 impl CsvWriter {
-    /// Creates the file and writes its header.
-    pub fn create(path: &Path, labels: &[AxisLabel]) -> Result<CsvWriter, ReportError> {
+    /// Creates the file and writes its header; `cutting` adds the cutting process's columns.
+    pub fn create(
+        path: &Path,
+        labels: &[AxisLabel],
+        cutting: bool,
+    ) -> Result<CsvWriter, ReportError> {
         let io = |source| ReportError::Io {
             path: path.to_path_buf(),
             source,
@@ -54,11 +60,24 @@ impl CsvWriter {
             ]
             .map(String::from),
         );
+        if cutting {
+            header.extend(
+                [
+                    "cutting_force_x_n",
+                    "cutting_force_y_n",
+                    "cutting_force_z_n",
+                    "spindle_power_w",
+                    "engaged_flutes",
+                ]
+                .map(String::from),
+            );
+        }
         writeln!(out, "{}", header.join(",")).map_err(io)?;
         Ok(CsvWriter {
             path: path.to_path_buf(),
             out,
             labels: labels.to_vec(),
+            cutting,
             error: None,
             row: String::new(),
         })
@@ -99,6 +118,14 @@ impl CsvWriter {
             path.commanded_speed * 1e3,
             path.actual_speed * 1e3
         );
+        if self.cutting {
+            let c = &r.hold.cut;
+            let _ = write!(
+                row,
+                ",{:.6},{:.6},{:.6},{:.6},{}",
+                c.force[0], c.force[1], c.force[2], c.spindle_power, c.engaged_flutes
+            );
+        }
         if let Err(e) = writeln!(self.out, "{row}") {
             self.error = Some(e);
         }

@@ -140,6 +140,43 @@ pub struct Metrics {
     pub servo_ticks: usize,
     /// Each axis's figures, by axis name.
     pub axes: BTreeMap<String, AxisMetrics>,
+    /// The cutting process's figures, where the run cuts.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub cutting: Option<CuttingMetrics>,
+    /// The part as cut against the nominal part, where the run cuts (set after the run).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub part: Option<PartMetrics>,
+}
+
+/// The cutting process's figures over the run (the physics lane's).
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Default)]
+pub struct CuttingMetrics {
+    /// Largest |force| of the tool on the part within any physics step (N).
+    pub max_force_n: f64,
+    /// Largest spindle power, mean over a servo period (W).
+    pub max_spindle_power_w: f64,
+    /// Largest spindle torque, mean over a servo period (N·m).
+    pub max_spindle_torque_nm: f64,
+    /// Program time during which the tool engaged the stock (s).
+    pub engaged_time_s: f64,
+}
+
+/// The part as cut, compared with the nominal part (the same stock cut by the programmed
+/// path without dynamics).
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Default)]
+pub struct PartMetrics {
+    /// Largest normal distance of the machined from the nominal surface (mm).
+    pub max_surface_error_mm: f64,
+    /// RMS of that distance over the machined surface (mm).
+    pub rms_surface_error_mm: f64,
+    /// Largest material left standing (undercut), ≥ 0 (mm).
+    pub max_undercut_mm: f64,
+    /// Largest material cut away that should stand (overcut), ≥ 0 (mm).
+    pub max_overcut_mm: f64,
+    /// Volume the tool removed (mm³).
+    pub removed_volume_mm3: f64,
+    /// Volume the programmed path removes (mm³).
+    pub nominal_removed_volume_mm3: f64,
 }
 
 impl Metrics {
@@ -298,9 +335,17 @@ pub struct MetricsAccumulator {
     /// Lane 0's positions at tick `primary_tick`, for the comparison with lane 1.
     primary: Vec<f64>,
     primary_tick: Option<usize>,
+    /// The cutting figures so far, where the run cuts.
+    cutting: Option<CuttingMetrics>,
 }
 
 impl MetricsAccumulator {
+    /// Accumulates the cutting figures too (a run that cuts).
+    pub fn with_cutting(mut self) -> MetricsAccumulator {
+        self.cutting = Some(CuttingMetrics::default());
+        self
+    }
+
     /// `peak_velocity`: the largest |commanded velocity| of each axis over the program (for
     /// the stick-slip count); `compare_analytic`: whether a second lane will be compared.
     pub fn new(
@@ -335,6 +380,7 @@ impl MetricsAccumulator {
             longest_catch_up: 0.0,
             primary: vec![0.0; labels.len()],
             primary_tick: None,
+            cutting: None,
         }
     }
 
@@ -381,6 +427,15 @@ impl MetricsAccumulator {
             a.peak_voltage = nan_max(a.peak_voltage, r.hold.voltage[i].abs());
             if a.stalls.observe(sp.velocity[i], s.velocity[i]) && i < 64 {
                 stalled |= 1 << i;
+            }
+        }
+        if let Some(c) = &mut self.cutting {
+            let cut = &r.hold.cut;
+            c.max_force_n = nan_max(c.max_force_n, cut.peak_force);
+            c.max_spindle_power_w = nan_max(c.max_spindle_power_w, cut.spindle_power);
+            c.max_spindle_torque_nm = nan_max(c.max_spindle_torque_nm, cut.spindle_torque);
+            if cut.engaged_flutes > 0 {
+                c.engaged_time_s += self.period;
             }
         }
         self.max_contour = nan_max(self.max_contour, path.contour_error);
@@ -489,6 +544,8 @@ impl MetricsAccumulator {
             physics_steps: outcome.lanes.first().map_or(0, |l| l.steps),
             servo_ticks: n,
             axes,
+            cutting: self.cutting,
+            part: None,
         }
     }
 }

@@ -23,7 +23,9 @@ pub use blueprint::{ab_blueprint, run_blueprint};
 pub use bode::{BodeRun, Curve, Figures, MIN_COHERENCE, PROMINENCE_DB};
 pub use csv::CsvWriter;
 pub use events::{Event, EventDetector, MAX_EVENTS_PER_KIND};
-pub use metrics::{AxisMetrics, Metrics, MetricsAccumulator, StallCounter};
+pub use metrics::{
+    AxisMetrics, CuttingMetrics, Metrics, MetricsAccumulator, PartMetrics, StallCounter,
+};
 pub use path::{PathSample, PathTracker};
 pub use plot::{
     write_bar_plot, write_contour_error_plot, write_line_plot, BarSeries, ContourSeries, PLOT_SIZE,

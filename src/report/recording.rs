@@ -17,6 +17,12 @@
 //! - `path/contour_error/{physics,analytic}` (µm), `path/speed/{commanded,physics,analytic}`
 //!   (mm/s)
 //! - `events` (text log), `summary` (text document)
+//! - where the run cuts: `world/machine/<workpiece link>/stock` (the stock as cut, a mesh
+//!   every few seconds of program time, in the stock's frame), `part/machined` (the finished
+//!   part's surface points coloured by their error against the nominal part),
+//!   `part/magnified` (the same points moved along their normal by k × the error),
+//!   `cutting/force/{x,y,z}/{physics,analytic}` (N, the tool on the part, stock frame),
+//!   `cutting/power/{physics,analytic}` (W), `cutting/engaged_flutes/{physics,analytic}`
 
 use super::path::PathSample;
 use super::thin::Thinned;
@@ -63,7 +69,16 @@ pub struct RecordingSetup<'a> {
     pub programmed_path: Vec<[f64; 3]>,
     /// In an A/B recording: the variant's name (legends start with it) and its colour.
     pub variant: Option<(String, [u8; 3])>,
+    /// Where the run cuts: the stock's frame in the workpiece link's frame.
+    pub stock_frame: Option<Isometry3<f64>>,
+    /// The program's duration (s): the stock is drawn some 40 times over it.
+    pub duration: f64,
 }
+
+/// Snapshots of the stock as cut over a run (each a mesh: a few MB in the file).
+const STOCK_SNAPSHOTS: f64 = 40.0;
+/// Most triangles a snapshot of the stock is drawn with.
+const STOCK_TRIANGLES: usize = 200_000;
 
 /// Columns of one lane's recorded rows, sent every [`CHUNK_ROWS`] rows.
 #[derive(Default)]
@@ -103,6 +118,10 @@ enum Quantity {
     PhysicsMinusAnalytic(usize),
     Torque(usize),
     Voltage(usize),
+    /// The cut's force on the part along a stock axis (N).
+    CutForce(usize),
+    SpindlePower,
+    EngagedFlutes,
     ContourError,
     CommandedSpeed,
     PathSpeed,
@@ -182,6 +201,11 @@ pub struct RrdWriter {
     /// Last tool point drawn, so consecutive path pieces join.
     last_tool: Option<[f32; 3]>,
     magnified: Thinned<Deviation>,
+    /// Where the run cuts: the stock's frame on the workpiece link; when the stock was last
+    /// drawn, and every how long it is (s).
+    stock_frame: Option<Isometry3<f64>>,
+    stock_drawn: Option<f64>,
+    stock_every: f64,
     /// The first error; the loop does not stop for it, `finish` reports it.
     error: Option<String>,
 }
@@ -232,6 +256,9 @@ impl RrdWriter {
             path_pieces: 0,
             last_tool: None,
             magnified: Thinned::new(MAGNIFIED_POINTS),
+            stock_frame: setup.stock_frame,
+            stock_drawn: None,
+            stock_every: setup.duration / STOCK_SNAPSHOTS,
             error: None,
         };
         w.columns = (0..w.lanes.len())
@@ -323,6 +350,28 @@ impl RrdWriter {
                 );
             }
         }
+        if self.stock_frame.is_some() {
+            for (k, a) in ["x", "y", "z"].iter().enumerate() {
+                add(
+                    format!("cutting/force/{a}/{kind}"),
+                    format!("F{a}, {kind} (N)"),
+                    colour,
+                    Quantity::CutForce(k),
+                );
+            }
+            add(
+                format!("cutting/power/{kind}"),
+                format!("spindle power, {kind} (W)"),
+                colour,
+                Quantity::SpindlePower,
+            );
+            add(
+                format!("cutting/engaged_flutes/{kind}"),
+                format!("flutes engaged, {kind}"),
+                colour,
+                Quantity::EngagedFlutes,
+            );
+        }
         add(
             format!("path/contour_error/{kind}"),
             format!("contour error, {kind} (µm)"),
@@ -375,6 +424,12 @@ impl RrdWriter {
             if li == self.machine.root {
                 rec.log_static(entity.as_str(), &rerun::Transform3D::IDENTITY)?;
             }
+        }
+        if let Some(frame) = &self.stock_frame {
+            rec.log_static(
+                format!("{}/stock", self.workpiece_entity()),
+                &transform(frame),
+            )?;
         }
         let paths = format!("{}/paths", self.workpiece_entity());
         if let Some(view) = program_view_coordinates(&self.machine) {
@@ -432,6 +487,13 @@ impl RrdWriter {
             if let Some(q) = path.nearest {
                 self.magnified.push((q, path.tool, path.contour_error));
             }
+            if let Some(stock) = r.stock {
+                if self.stock_drawn.is_none_or(|t| r.time - t >= self.stock_every) {
+                    self.stock_drawn = Some(r.time);
+                    let drawn = self.log_stock(r.time, stock);
+                    self.keep(drawn);
+                }
+            }
         }
         if !r.k.is_multiple_of(self.decimation) || self.error.is_some() {
             return;
@@ -452,6 +514,9 @@ impl RrdWriter {
             Quantity::PhysicsMinusAnalytic(_) => f64::NAN,
             Quantity::Torque(i) => r.hold.mean_torque[i],
             Quantity::Voltage(i) => r.hold.voltage[i],
+            Quantity::CutForce(k) => r.hold.cut.force[k],
+            Quantity::SpindlePower => r.hold.cut.spindle_power,
+            Quantity::EngagedFlutes => f64::from(r.hold.cut.engaged_flutes),
             Quantity::ContourError => path.contour_error * 1e6,
             Quantity::CommandedSpeed => path.commanded_speed * 1e3,
             Quantity::PathSpeed => path.actual_speed * 1e3,
@@ -584,6 +649,65 @@ impl RrdWriter {
         Ok(())
     }
 
+    /// The stock as cut at program time `time`, in its frame on the workpiece.
+    fn log_stock(&mut self, time: f64, stock: &crate::cutting::Stock) -> rerun::RecordingStreamResult<()> {
+        let triangles = stock.surface_coarse(STOCK_TRIANGLES);
+        self.rec.set_duration_secs("sim_time", time);
+        let logged = self.rec.log(
+            format!("{}/stock", self.workpiece_entity()),
+            &stock_mesh(&triangles, [170, 175, 185]),
+        );
+        self.rec.disable_timeline("sim_time");
+        logged
+    }
+
+    /// The finished part: its surface as cut, and its surface points coloured by their error
+    /// against the nominal part (blue: overcut, grey: on size, red: material left), once as
+    /// they are and once moved along their normal by a round magnification of the error.
+    /// Returns a sentence for the summary.
+    pub fn log_part(
+        &mut self,
+        time: f64,
+        stock: &crate::cutting::Stock,
+        comparison: &crate::cutting::SurfaceComparison,
+    ) -> String {
+        let logged = self.log_stock(time, stock);
+        self.keep(logged);
+        let points = &comparison.points;
+        let worst = comparison.max_error;
+        let (lo, hi) = stock.bounds();
+        let k = magnification((hi - lo).norm(), worst);
+        let colour = |e: f64| signed_heat(if worst > 0.0 { e / worst } else { 0.0 });
+        let frame = self.stock_frame.unwrap_or_else(Isometry3::identity);
+        let place = |p: &Point3<f64>| {
+            let q = frame * p;
+            [q.x as f32, q.y as f32, q.z as f32]
+        };
+        let radius = rerun::Radius::new_scene_units((0.6 * stock.resolution()) as f32);
+        let at = self.rec.log_static(
+            self.entity("part/machined"),
+            &rerun::Points3D::new(points.iter().map(|p| place(&p.position)))
+                .with_colors(points.iter().map(|p| colour(p.error)))
+                .with_radii([radius]),
+        );
+        self.keep(at);
+        let at = self.rec.log_static(
+            self.entity("part/magnified"),
+            &rerun::Points3D::new(
+                points
+                    .iter()
+                    .map(|p| place(&(p.position - p.normal * (k * p.error)))),
+            )
+            .with_colors(points.iter().map(|p| colour(p.error)))
+            .with_radii([radius]),
+        );
+        self.keep(at);
+        format!(
+            "*The part as cut*: its surface points coloured by their normal distance from the nominal part's surface, blue where the tool cut too deep, red where it left material (±{:.3} µm at full colour); the magnified view moves each point {k} × that distance along its normal.",
+            worst * 1e6
+        )
+    }
+
     /// Sends what is buffered, the magnified path and the summary, and closes the stream.
     pub fn finish(mut self, summary_markdown: &str) -> Result<PathBuf, ReportError> {
         for lane in 0..self.columns.len() {
@@ -691,6 +815,34 @@ pub fn magnification(path_size: f64, largest_deviation: f64) -> f64 {
         1.0
     };
     round * decade
+}
+
+/// A mesh of a triangle soup in `colour`, in metres.
+fn stock_mesh(triangles: &[[Point3<f64>; 3]], colour: [u8; 3]) -> rerun::Mesh3D {
+    let vertices: Vec<[f32; 3]> = triangles
+        .iter()
+        .flatten()
+        .map(|p| [p.x as f32, p.y as f32, p.z as f32])
+        .collect();
+    let indices: Vec<rerun::TriangleIndices> = (0..triangles.len() as u32)
+        .map(|t| rerun::TriangleIndices::from([3 * t, 3 * t + 1, 3 * t + 2]))
+        .collect();
+    rerun::Mesh3D::new(vertices)
+        .with_triangle_indices(indices)
+        .with_albedo_factor(rerun::Rgba32::from_rgb(colour[0], colour[1], colour[2]))
+}
+
+/// Blue (−1) through grey (0) to red (+1).
+fn signed_heat(x: f64) -> rerun::Color {
+    let x = x.clamp(-1.0, 1.0);
+    let grey = 200.0;
+    let (r, g, b) = if x < 0.0 {
+        let t = -x;
+        (grey * (1.0 - t), grey * (1.0 - t) + 60.0 * t, grey + (255.0 - grey) * t)
+    } else {
+        (grey + (255.0 - grey) * x, grey * (1.0 - x), grey * (1.0 - x))
+    };
+    rerun::Color::from_rgb(r as u8, g as u8, b as u8)
 }
 
 /// Blue (0) through yellow to red (1).

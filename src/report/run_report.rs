@@ -37,6 +37,8 @@ pub struct ReportSetup {
     pub backlash: Vec<f64>,
     /// Source line of each program move.
     pub move_lines: Vec<u32>,
+    /// Whether the run cuts a stock (its forces and power are then reported).
+    pub cutting: bool,
 }
 
 /// The largest contour error per bin of the run's duration: a fixed-size curve for plots.
@@ -105,10 +107,15 @@ impl RunReport {
             &setup.peak_velocity,
             setup.lanes.len() > 1,
         );
+        let metrics = if setup.cutting {
+            metrics.with_cutting()
+        } else {
+            metrics
+        };
         let names: Vec<String> = setup.labels.iter().map(|l| l.name.clone()).collect();
         let events = EventDetector::new(&names, &setup.backlash, setup.move_lines.clone());
         let csv = csv
-            .map(|p| CsvWriter::create(p, &setup.labels))
+            .map(|p| CsvWriter::create(p, &setup.labels, setup.cutting))
             .transpose()?;
         let rrd = rrd
             .map(|(p, recording)| RrdWriter::create(p, &recording))
@@ -137,6 +144,19 @@ impl RunReport {
     /// The metrics of the run so far.
     pub fn metrics(&self, outcome: &Outcome) -> Metrics {
         self.metrics.finish(&self.setup.name, outcome)
+    }
+
+    /// Draws the finished part in the recording (where one is written): the stock as cut and
+    /// its error against the nominal part. Returns a sentence for the summary.
+    pub fn log_part(
+        &mut self,
+        time: f64,
+        stock: &crate::cutting::Stock,
+        comparison: &crate::cutting::SurfaceComparison,
+    ) -> Option<String> {
+        self.rrd
+            .as_mut()
+            .map(|rrd| rrd.log_part(time, stock, comparison))
     }
 
     /// The contour-error envelope of the run so far.

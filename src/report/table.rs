@@ -56,6 +56,23 @@ pub fn metrics_table(m: &Metrics) -> String {
             comparison.join(", ")
         ));
     }
+    if let Some(c) = &m.cutting {
+        s.push_str(&format!(
+            "  cutting: max force {:.1} N, max spindle power {:.1} W, max spindle torque {:.3} N·m, engaged {:.3} s\n",
+            c.max_force_n, c.max_spindle_power_w, c.max_spindle_torque_nm, c.engaged_time_s
+        ));
+    }
+    if let Some(p) = &m.part {
+        s.push_str(&format!(
+            "  part as cut vs nominal: surface error max {:.3} µm, rms {:.3} µm (undercut {:.3} µm, overcut {:.3} µm); removed {:.1} mm³ (nominal {:.1} mm³)\n",
+            p.max_surface_error_mm * 1e3,
+            p.rms_surface_error_mm * 1e3,
+            p.max_undercut_mm * 1e3,
+            p.max_overcut_mm * 1e3,
+            p.removed_volume_mm3,
+            p.nominal_removed_volume_mm3
+        ));
+    }
     s.push_str(&format!(
         "  simulated {:.3} s in {:.3} s wall ({:.1}× real time), {} servo ticks, {} physics steps\n",
         m.sim_time_s, m.wall_time_s, m.real_time_factor, m.servo_ticks, m.physics_steps

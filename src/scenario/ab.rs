@@ -73,7 +73,13 @@ pub fn run_ab(
         .save(&path)
         .map_err(|e| fail(&e))?;
     let workpiece = &aa.machine.links[aa.machine.workpiece_link].name;
-    ab_blueprint(&aa.labels, workpiece, &[("a", &a.name), ("b", &b.name)])
+    let cutting = aa.cut.is_some() && ab.cut.is_some();
+    ab_blueprint(
+        &aa.labels,
+        workpiece,
+        &[("a", &a.name), ("b", &b.name)],
+        cutting,
+    )
         .send(&rec, rerun::blueprint::BlueprintActivation::default())
         .map_err(|e| fail(&e))?;
     let mut outputs = Vec::new();
@@ -93,6 +99,10 @@ pub fn run_ab(
                 .observer(&mut shared)
                 .progress(&mut *progress),
         )?;
+        if let Some(part) = &run.part {
+            let end = run.outcome.ticks as f64 * s.timing.servo_period;
+            shared.log_part(end, &part.machined, &part.comparison);
+        }
         shared.finish(&run.outcome, &[], "")?;
         outputs.push(run);
     }
@@ -185,6 +195,48 @@ fn compare(a: &Scenario, ra: &RunOutput, b: &Scenario, rb: &RunOutput) -> AbRepo
                 xb.rms_torque_nm,
             );
         }
+    }
+    // What reaches the part, when both cut.
+    if let (Some(x), Some(y)) = (&ma.part, &mb.part) {
+        row(
+            "part: max surface error".into(),
+            "µm",
+            x.max_surface_error_mm * 1e3,
+            y.max_surface_error_mm * 1e3,
+        );
+        row(
+            "part: rms surface error".into(),
+            "µm",
+            x.rms_surface_error_mm * 1e3,
+            y.rms_surface_error_mm * 1e3,
+        );
+        row(
+            "part: max undercut".into(),
+            "µm",
+            x.max_undercut_mm * 1e3,
+            y.max_undercut_mm * 1e3,
+        );
+        row(
+            "part: max overcut".into(),
+            "µm",
+            x.max_overcut_mm * 1e3,
+            y.max_overcut_mm * 1e3,
+        );
+        row(
+            "part: removed volume".into(),
+            "mm³",
+            x.removed_volume_mm3,
+            y.removed_volume_mm3,
+        );
+    }
+    if let (Some(x), Some(y)) = (&ma.cutting, &mb.cutting) {
+        row("cutting: max force".into(), "N", x.max_force_n, y.max_force_n);
+        row(
+            "cutting: max spindle power".into(),
+            "W",
+            x.max_spindle_power_w,
+            y.max_spindle_power_w,
+        );
     }
     // The ISO 230-4 figures, when both ran the ballbar test.
     if let (Some(x), Some(y)) = (&ra.ballbar, &rb.ballbar) {

@@ -105,6 +105,8 @@ pub struct RunOutput {
     /// The ISO 230-4 figures, when the program is the ballbar test (also in the metrics
     /// under `ballbar`).
     pub ballbar: Option<crate::report::BallbarRun>,
+    /// The part as cut, where the scenario cuts (also in the metrics under `part`).
+    pub part: Option<PartAsCut>,
 }
 
 impl RunOutput {
@@ -209,7 +211,18 @@ impl Assembly {
             observers.extend(extra.iter_mut().map(|o| &mut **o as &mut dyn Observer));
             self.simulate(&mut lanes_run, &mut Observers(observers), progress)
         };
-        let metrics = report.metrics(&outcome);
+        let mut metrics = report.metrics(&outcome);
+        let mut warnings = warnings_of(self);
+        let part = match &self.cut {
+            Some(setup) => lanes_run[0].plant.take_cut().map(|cut| {
+                warnings.extend(cut_warnings(self, &cut));
+                part_as_cut(self, setup, cut, outcome.ticks)
+            }),
+            None => None,
+        };
+        if let Some(p) = &part {
+            metrics.part = Some(p.metrics);
+        }
         let mut metrics_json = metrics.to_json();
         let ballbar = match ballbar_spec {
             Some(spec) => {
@@ -281,7 +294,22 @@ impl Assembly {
             .iter()
             .map(|b| (end, "ERROR", format!("bound breached: {b}")))
             .collect();
-        let summary = summary_markdown(self, &metrics, &verdict);
+        let mut summary = summary_markdown(self, &metrics, &verdict);
+        if let Some(p) = &part {
+            if let Some(dir) = &out_dir {
+                let stl = dir.join("part.stl");
+                crate::cutting::write_binary_stl(&stl, &p.machined.surface(), true).map_err(
+                    |source| ReportError::Io {
+                        path: stl.clone(),
+                        source,
+                    },
+                )?;
+                files.push(stl);
+            }
+            if let Some(note) = report.log_part(end, &p.machined, &p.comparison) {
+                summary += &format!("\n{note}\n");
+            }
+        }
         files.extend(report.finish(&outcome, &notes, &summary)?);
         if let Some(b) = &ballbar {
             files.extend(b.files.iter().cloned());
@@ -302,9 +330,105 @@ impl Assembly {
             contour_envelope,
             verdict,
             files,
-            warnings: warnings_of(self),
+            warnings,
             ballbar,
+            part,
         })
+    }
+}
+
+/// What a cut did that deserves a word: a program that never touches the stock, a plunge
+/// with a tool that does not cut at its centre.
+fn cut_warnings(assembly: &Assembly, cut: &crate::cutting::Cut) -> Vec<FileError> {
+    let program = &assembly.program().source;
+    let mut warnings = Vec::new();
+    if cut.totals().engaged_steps == 0 {
+        warnings.push(FileError::new(
+            program,
+            None,
+            "the tool never touched the stock ([cutting.stock]): the run cut air; check the stock's box against the program's coordinates (work_offset_mm)",
+        ));
+    }
+    if let Some(p) = cut.plunged_at() {
+        warnings.push(FileError::new(
+            program,
+            None,
+            format!(
+                "the {} tool plunges into the stock at [{:.3}, {:.3}, {:.3}] mm (stock frame): an end mill that does not cut at its centre cannot drill; its bottom is not modelled (ramp in, or use a ball end mill)",
+                match cut.tool().shape {
+                    crate::cutting::ToolShape::Bull { .. } => "bull-nose",
+                    _ => "flat",
+                },
+                p.x * 1e3,
+                p.y * 1e3,
+                p.z * 1e3
+            ),
+        ));
+    }
+    warnings
+}
+
+/// The part a run cut, its nominal part and how they differ.
+#[derive(Debug, Clone)]
+pub struct PartAsCut {
+    /// The stock as the physics cut it.
+    pub machined: crate::cutting::Stock,
+    /// The same stock cut by the programmed path, without dynamics, for as long as the run
+    /// went.
+    pub nominal: crate::cutting::Stock,
+    /// The machined surface against the nominal one.
+    pub comparison: crate::cutting::SurfaceComparison,
+    /// Its figures, as `metrics.json` has them under `part`.
+    pub metrics: crate::report::PartMetrics,
+}
+
+/// The part as the physics lane cut it (`cut`, after `ticks` program ticks), compared with the
+/// nominal part: the starting stock cut by the programmed tool path over the same ticks, as
+/// the setpoints put the tool through the machine's forward kinematics, without dynamics.
+fn part_as_cut(
+    assembly: &Assembly,
+    setup: &super::assemble::CutSetup,
+    cut: crate::cutting::Cut,
+    ticks: usize,
+) -> PartAsCut {
+    let mut nominal = setup.cut();
+    let mut stream = assembly.setpoints();
+    let mut sample = crate::plan::SetpointSample::zeros(stream.axes());
+    let mut k = 0;
+    while k < ticks && stream.next_sample(&mut sample) {
+        let (tip, axis) = setup.placement.tool_at(&assembly.machine, &sample.position);
+        nominal.sweep_to(&crate::cutting::cut::pose(tip, axis));
+        k += 1;
+    }
+    nominal.finish();
+    let nominal = nominal.into_stock();
+    let machined = cut.into_stock();
+    // Both stocks come from the same starting stock: the lattices match.
+    let comparison = crate::cutting::compare(&machined, &nominal, &setup.stock)
+        .expect("the machined and nominal stocks share the starting stock's lattice");
+    let original = setup.stock.volume();
+    let mm3 = 1e9;
+    let signed = |sign: f64| {
+        comparison
+            .points
+            .iter()
+            .map(|p| sign * p.error)
+            .fold(0.0, f64::max)
+            * 1e3
+    };
+    let metrics = crate::report::PartMetrics {
+        max_surface_error_mm: comparison.max_error * 1e3,
+        rms_surface_error_mm: comparison.rms_error * 1e3,
+        max_undercut_mm: signed(1.0),
+        max_overcut_mm: signed(-1.0),
+        removed_volume_mm3: (original - machined.volume()) * mm3,
+        nominal_removed_volume_mm3: (original - nominal.volume()) * mm3,
+    };
+    PartAsCut {
+        machined,
+        nominal,
+        comparison,
+        metrics,
     }
 }
 
@@ -333,6 +457,7 @@ pub fn report_setup(assembly: &Assembly) -> ReportSetup {
             .iter()
             .map(|m| m.span.line)
             .collect(),
+        cutting: assembly.cut.is_some(),
     }
 }
 
@@ -352,6 +477,8 @@ pub fn recording_setup<'a>(
         lanes,
         programmed_path: assembly.overview().programmed_path.clone(),
         variant: None,
+        stock_frame: assembly.cut.as_ref().map(|c| c.placement.stock_in_part),
+        duration: assembly.plan.len() as f64 * assembly.scenario.timing.servo_period,
     }
 }
 

@@ -266,6 +266,9 @@ pub struct AxisModel {
     carriage_damping: f64,
     /// Gravity force on the carriage along the joint axis (N).
     gravity_force: f64,
+    /// A load on the carriage along the joint axis besides gravity (N or N·m: the cutting
+    /// force), held over each [`AxisModel::advance`].
+    load: f64,
     friction: StribeckCurve,
     backlash: f64,
     compliance: Option<Compliance>,
@@ -388,6 +391,7 @@ impl AxisModel {
             carriage_mass: moved_mass,
             carriage_damping: joint_damping,
             gravity_force: moved_mass * gravity_along_axis,
+            load: 0.0,
             friction: options.friction,
             backlash: options.backlash,
             compliance: options.compliance,
@@ -703,7 +707,7 @@ impl AxisModel {
     /// Acceleration of the combined body (gap closed or no backlash) while sliding.
     fn combined_acceleration(&self, y: &AxisState, motor_force: f64, direction: f64) -> f64 {
         let v = y.carriage_velocity;
-        (motor_force - self.effective_damping() * v + self.gravity_force
+        (motor_force - self.effective_damping() * v + self.carriage_force()
             - self.friction.sliding(v) * direction)
             / self.effective_mass()
     }
@@ -731,9 +735,9 @@ impl AxisModel {
     /// Force on the friction-carrying body other than friction and damping, at rest.
     fn applied_force_at_rest(&self, y: &AxisState, contact: Contact, input: ActuatorInput) -> f64 {
         match contact {
-            Contact::Open => self.gravity_force,
-            Contact::Compliant { side } => self.spring_force(y, side) + self.gravity_force,
-            Contact::Rigid | Contact::Closed { .. } => self.motor(y, input).0 + self.gravity_force,
+            Contact::Open => self.carriage_force(),
+            Contact::Compliant { side } => self.spring_force(y, side) + self.carriage_force(),
+            Contact::Rigid | Contact::Closed { .. } => self.motor(y, input).0 + self.carriage_force(),
         }
     }
 
@@ -772,7 +776,7 @@ impl AxisModel {
                 rate.carriage_velocity = match mode.guide {
                     Guide::Stuck => 0.0,
                     Guide::Sliding { direction } => {
-                        (lambda + self.gravity_force
+                        (lambda + self.carriage_force()
                             - self.carriage_damping * y.carriage_velocity
                             - self.friction.sliding(y.carriage_velocity) * direction)
                             / self.carriage_mass
@@ -797,7 +801,11 @@ impl AxisModel {
             return self.rk4(y, mode, input, duration);
         }
         let w = self.linear_input(input);
-        if let Some(flow) = self.flows.get(mode, duration) {
+        // Flows are kept for the standard step under no load besides gravity; a cut's load
+        // changes every step.
+        let unloaded = self.load == 0.0;
+        let keep = keep && unloaded;
+        if let Some(flow) = self.flows.get(mode, duration).filter(|_| unloaded) {
             return flow.apply(y, w);
         }
         let flow = self
@@ -808,6 +816,17 @@ impl AxisModel {
             self.flows.insert(flow);
         }
         next
+    }
+
+    /// Gravity and the load on the carriage along the joint axis (N or N·m).
+    pub(super) fn carriage_force(&self) -> f64 {
+        self.gravity_force + self.load
+    }
+
+    /// Holds `load` on the carriage (N or N·m along the joint axis, besides gravity) until
+    /// changed: the cutting force the axis takes.
+    pub fn set_load(&mut self, load: f64) {
+        self.load = load;
     }
 
     /// Whether no guard of the current mode can fail: one rigid body, or a compliant
@@ -1022,6 +1041,9 @@ pub struct AnalyticPlant {
     tool_origin: Vector3<f64>,
     tool_directions: Vec<Vector3<f64>>,
     steps: u64,
+    /// The cut the tool makes: the cut, the tool's axis in the part's frame, and the sub-
+    /// intervals of each period over which its force is held (the physics' steps).
+    cut: Option<(super::cut::PlantCut, Vector3<f64>, usize)>,
 }
 
 impl AnalyticPlant {
@@ -1069,7 +1091,59 @@ impl AnalyticPlant {
             tool_origin: origin,
             tool_directions,
             steps: 0,
+            cut: None,
         }
+    }
+
+    /// The plant cutting `cut` with the tool's axis `tool_axis` (in the frame of the link
+    /// carrying the part, which these chains never turn), its force held over `substeps`
+    /// equal parts of each period (the physics' steps, so both lanes sample the cut alike).
+    pub fn with_cut(
+        mut self,
+        cut: super::cut::PlantCut,
+        tool_axis: Vector3<f64>,
+        substeps: usize,
+    ) -> AnalyticPlant {
+        self.cut = Some((cut, tool_axis, substeps.max(1)));
+        self
+    }
+
+    /// The tool point and its velocity relative to the part (m, m/s).
+    fn tool(&self) -> (Vector3<f64>, Vector3<f64>) {
+        let mut tool = self.tool_origin;
+        let mut velocity = Vector3::zeros();
+        for (m, d) in self.models.iter().zip(&self.tool_directions) {
+            tool += d * m.position();
+            velocity += d * m.velocity();
+        }
+        (tool, velocity)
+    }
+
+    /// One period under a cut: the force computed from this plant's own tool motion at the
+    /// start of each sub-interval and held over it, on every axis as its share (the force
+    /// along the axis's tool direction: the Jacobian's transpose).
+    fn hold_cutting(&mut self, command: &[f64], out: &mut Hold) {
+        let Some((mut cut, axis, parts)) = self.cut.take() else {
+            return;
+        };
+        let h = self.period / parts as f64;
+        let steps = (self.steps_per_period / parts).max(1);
+        out.mean_torque.iter_mut().for_each(|t| *t = 0.0);
+        for part in 0..parts {
+            let (tool, velocity) = self.tool();
+            let load = cut.step(&tool.into(), &axis, &velocity, h);
+            for (i, model) in self.models.iter_mut().enumerate() {
+                model.set_load(load.on_tool.dot(&self.tool_directions[i]));
+                let held = model.advance(command[i], h, steps);
+                out.mean_torque[i] += held.mean_torque / parts as f64;
+                if part == 0 {
+                    out.voltage[i] = held.voltage;
+                }
+            }
+            self.steps += steps as u64;
+        }
+        cut.end_period(&mut out.cut);
+        self.cut = Some((cut, axis, parts));
     }
 
     /// The axis models, in the machine's axis order.
@@ -1084,22 +1158,22 @@ impl Plant for AnalyticPlant {
     }
 
     fn sample(&mut self, out: &mut Sensors) {
-        let mut tool = self.tool_origin;
-        let mut tool_velocity = Vector3::zeros();
         for (i, m) in self.models.iter().enumerate() {
             out.position[i] = m.position();
             out.velocity[i] = m.velocity();
             out.drive_position[i] = m.drive_position();
             out.feedback_position[i] = m.feedback_position();
             out.current[i] = m.current();
-            tool += self.tool_directions[i] * m.position();
-            tool_velocity += self.tool_directions[i] * m.velocity();
         }
+        let (tool, tool_velocity) = self.tool();
         out.tool_point = tool.into();
         out.tool_velocity = tool_velocity.into();
     }
 
     fn hold(&mut self, command: &[f64], out: &mut Hold) {
+        if self.cut.is_some() {
+            return self.hold_cutting(command, out);
+        }
         for (i, model) in self.models.iter_mut().enumerate() {
             let h = model.advance(command[i], self.period, self.steps_per_period);
             out.mean_torque[i] = h.mean_torque;
@@ -1110,6 +1184,24 @@ impl Plant for AnalyticPlant {
 
     fn steps(&self) -> u64 {
         self.steps
+    }
+
+    fn set_spindle(&mut self, speed: f64) {
+        if let Some((cut, _, _)) = &mut self.cut {
+            cut.set_spindle(speed);
+        }
+    }
+
+    fn fault(&self) -> Option<String> {
+        self.cut.as_ref().and_then(|(cut, _, _)| cut.fault())
+    }
+
+    fn stock(&self) -> Option<&crate::cutting::Stock> {
+        self.cut.as_ref().map(|(cut, _, _)| cut.stock())
+    }
+
+    fn take_cut(&mut self) -> Option<crate::cutting::Cut> {
+        self.cut.take().map(|(cut, _, _)| cut.into_cut())
     }
 }
 

@@ -16,6 +16,7 @@
 
 pub mod analytic;
 mod blocks;
+pub mod cut;
 mod physics;
 mod plant;
 mod trace;
@@ -23,7 +24,7 @@ mod trace;
 pub use analytic::AnalyticPlant;
 pub use blocks::{Encoder, FollowingErrorTrip};
 pub use physics::PhysicsPlant;
-pub use plant::{Hold, Plant, Sensors};
+pub use plant::{CutRecord, Hold, Plant, Sensors};
 pub use trace::{Trace, TraceRecorder};
 
 use crate::control::{Controller, ControllerInput};
@@ -57,6 +58,29 @@ pub struct LoopSettings {
     pub encoder: Encoder,
     /// The drive's following-error limits, and the divergence check.
     pub trip: FollowingErrorTrip,
+    /// The spindle speed of each program move (none: the spindle stands).
+    pub spindle: Spindles,
+}
+
+/// The spindle speed the program commands during each of its moves, and the moves' lines.
+#[derive(Debug, Clone, PartialEq, Default)]
+pub struct Spindles {
+    /// Per program move: rad/s, > 0 turning as M3, < 0 as M4, 0 stopped.
+    pub speed: Vec<f64>,
+    /// Per program move: its line in the program file.
+    pub line: Vec<usize>,
+}
+
+impl Spindles {
+    /// The speed during move `segment` (rad/s; 0 where none is known).
+    pub fn speed_at(&self, segment: u32) -> f64 {
+        self.speed.get(segment as usize).copied().unwrap_or(0.0)
+    }
+
+    /// The program line of move `segment`, where known.
+    pub fn line_at(&self, segment: u32) -> Option<usize> {
+        self.line.get(segment as usize).copied()
+    }
 }
 
 /// What a lane simulates.
@@ -125,6 +149,16 @@ pub enum Stop {
         /// The axis's limit (joint units).
         limit: f64,
     },
+    /// The plant could not go on (e.g. its tool engaged the stock with the spindle stopped).
+    #[error("{what} at t = {time:.6} s{}", line.map_or(String::new(), |l| format!(" (program line {l})")))]
+    Plant {
+        /// Program time (s).
+        time: f64,
+        /// The program line of the move under way, where known.
+        line: Option<usize>,
+        /// The plant's reason.
+        what: String,
+    },
     /// The controller could not compute its command (e.g. a controller FMU whose step
     /// failed).
     #[error("the controller failed at t = {time:.6} s: {what}")]
@@ -143,6 +177,7 @@ impl Stop {
             Stop::Diverged { time, .. }
             | Stop::Interrupted { time }
             | Stop::FollowingError { time, .. }
+            | Stop::Plant { time, .. }
             | Stop::Controller { time, .. } => *time,
         }
     }
@@ -167,8 +202,10 @@ pub struct TickRecord<'a> {
     pub motor: &'a [f64],
     /// Controller output (V at the amplifier input, or N·m).
     pub command: &'a [f64],
-    /// What the actuators did over the period (mean torque, voltage).
+    /// What the actuators did over the period (mean torque, voltage, the cut's forces).
     pub hold: &'a Hold,
+    /// The stock as the plant has cut it so far (plants that cut).
+    pub stock: Option<&'a crate::cutting::Stock>,
 }
 
 /// Receives what the loop does, tick by tick (lanes in order within a tick).
@@ -401,7 +438,7 @@ fn tick_lanes(
                 settings
                     .encoder
                     .measure(&s.sensors, &mut s.measured, &mut s.motor);
-                observer.tick(index, &record(k, time, setpoint, s));
+                observer.tick(index, &record(k, time, setpoint, s, lane.plant.as_ref()));
             }
             observer.stopped(index, &stop);
             s.stop = Some(stop);
@@ -426,9 +463,21 @@ fn tick_lanes(
             s.stop = Some(stop);
             continue;
         }
+        lane.plant
+            .set_spindle(settings.spindle.speed_at(setpoint.segment));
         lane.plant.hold(&s.command, &mut s.hold);
         if let Some(k) = k {
-            observer.tick(index, &record(k, time, setpoint, s));
+            observer.tick(index, &record(k, time, setpoint, s, lane.plant.as_ref()));
+        }
+        if let Some(what) = lane.plant.fault() {
+            // The period that faulted is observed (its forces are evidence); the lane stops.
+            let stop = Stop::Plant {
+                time,
+                line: settings.spindle.line_at(setpoint.segment),
+                what,
+            };
+            observer.stopped(index, &stop);
+            s.stop = Some(stop);
         }
     }
     state[0].stop.is_none()
@@ -458,6 +507,7 @@ fn record<'a>(
     time: f64,
     setpoint: &'a SetpointSample,
     s: &'a LaneState,
+    plant: &'a dyn Plant,
 ) -> TickRecord<'a> {
     TickRecord {
         k,
@@ -468,5 +518,6 @@ fn record<'a>(
         motor: &s.motor,
         command: &s.command,
         hold: &s.hold,
+        stock: plant.stock(),
     }
 }

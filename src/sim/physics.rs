@@ -2,6 +2,7 @@
 //! torque, or amplifier + DC motor) at the physics rate, their torque pushes the joints
 //! through the transmission, and the engine steps `substeps` times per servo period.
 
+use super::cut::PlantCut;
 use super::{Hold, Plant, Sensors};
 use crate::control::Actuator;
 use crate::model;
@@ -13,6 +14,8 @@ pub struct PhysicsPlant {
     /// Motor radians per joint unit, per axis (torque → joint force, joint → motor speed).
     ratios: Vec<f64>,
     substeps: usize,
+    /// The cut the tool makes, with the tool's axis in the tool link's frame.
+    cut: Option<(PlantCut, nalgebra::Vector3<f64>)>,
     /// Scratch, reused every period (the loop allocates nothing).
     drive_velocity: Vec<f64>,
     force: Vec<f64>,
@@ -33,10 +36,17 @@ impl PhysicsPlant {
             actuators,
             ratios,
             substeps,
+            cut: None,
             drive_velocity: vec![0.0; n],
             force: vec![0.0; n],
             current: vec![0.0; n],
         }
+    }
+
+    /// The plant cutting `cut`, the tool's axis `tool_axis` in the tool link's frame.
+    pub fn with_cut(mut self, cut: PlantCut, tool_axis: nalgebra::Vector3<f64>) -> PhysicsPlant {
+        self.cut = Some((cut, tool_axis));
+        self
     }
 
     /// The Rapier model (for checks that look inside it, e.g. the guide contact forces).
@@ -79,8 +89,34 @@ impl Plant for PhysicsPlant {
                 self.current[i] = a.current;
             }
             self.plant.set_joint_forces(&self.force);
+            if let Some((cut, tool_axis)) = &mut self.cut {
+                let tool = self.plant.tool_on_part(tool_axis);
+                let load = cut.step(&tool.point, &tool.axis, &tool.velocity, dt);
+                self.plant.set_cutting_load(Some(load));
+            }
             self.plant.step();
         }
+        if let Some((cut, _)) = &mut self.cut {
+            cut.end_period(&mut out.cut);
+        }
+    }
+
+    fn set_spindle(&mut self, speed: f64) {
+        if let Some((cut, _)) = &mut self.cut {
+            cut.set_spindle(speed);
+        }
+    }
+
+    fn fault(&self) -> Option<String> {
+        self.cut.as_ref().and_then(|(cut, _)| cut.fault())
+    }
+
+    fn stock(&self) -> Option<&crate::cutting::Stock> {
+        self.cut.as_ref().map(|(cut, _)| cut.stock())
+    }
+
+    fn take_cut(&mut self) -> Option<crate::cutting::Cut> {
+        self.cut.take().map(|(cut, _)| cut.into_cut())
     }
 
     fn steps(&self) -> u64 {

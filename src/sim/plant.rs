@@ -48,6 +48,24 @@ pub struct Hold {
     pub mean_torque: Vec<f64>,
     /// Armature voltage (V); zero for the ideal torque actuator.
     pub voltage: Vec<f64>,
+    /// What the cutting process did over the period (zeros for a plant that does not cut).
+    pub cut: CutRecord,
+}
+
+/// What the cutting process did over one servo period.
+#[derive(Debug, Clone, Copy, PartialEq, Default)]
+pub struct CutRecord {
+    /// Force of the tool on the part, mean over the period (N), in the stock's frame (the
+    /// program frame at the program's start, carried by the part).
+    pub force: [f64; 3],
+    /// Largest |force| within the period (N).
+    pub peak_force: f64,
+    /// Spindle power, mean over the period (W).
+    pub spindle_power: f64,
+    /// Spindle torque, mean over the period (N·m).
+    pub spindle_torque: f64,
+    /// Most flutes engaged at once within the period.
+    pub engaged_flutes: u32,
 }
 
 impl Hold {
@@ -56,6 +74,7 @@ impl Hold {
         Hold {
             mean_torque: vec![0.0; axes],
             voltage: vec![0.0; axes],
+            cut: CutRecord::default(),
         }
     }
 }
@@ -71,4 +90,22 @@ pub trait Plant {
     fn hold(&mut self, command: &[f64], out: &mut Hold);
     /// Integration steps taken so far (physics steps, or steps of the analytic model).
     fn steps(&self) -> u64;
+    /// The spindle speed the program commands over the coming period (rad/s: > 0 turning as
+    /// M3, < 0 as M4, 0 stopped), set before every [`Plant::hold`]. A plant that does not cut
+    /// ignores it.
+    fn set_spindle(&mut self, _speed: f64) {}
+    /// Why the plant cannot go on after the last period (e.g. its tool engaged the stock with
+    /// the spindle stopped); `None` while it can.
+    fn fault(&self) -> Option<String> {
+        None
+    }
+    /// The stock as this plant has cut it so far (`None` for a plant that does not cut).
+    fn stock(&self) -> Option<&crate::cutting::Stock> {
+        None
+    }
+    /// The stock as this plant cut it, handed over once at the end of a run (`None` for a
+    /// plant that does not cut).
+    fn take_cut(&mut self) -> Option<crate::cutting::Cut> {
+        None
+    }
 }

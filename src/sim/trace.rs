@@ -36,6 +36,8 @@ pub struct Trace {
     pub tool_velocity: Vec<[f64; 3]>,
     /// Program move of the setpoint.
     pub segment: Vec<u32>,
+    /// What the cut did over each period (zeros for a plant that does not cut).
+    pub cut: Vec<super::CutRecord>,
 }
 
 impl Trace {
@@ -80,6 +82,7 @@ impl Trace {
         self.tool_point.push(s.tool_point);
         self.tool_velocity.push(s.tool_velocity);
         self.segment.push(r.setpoint.segment);
+        self.cut.push(r.hold.cut);
     }
 }
 

@@ -5,8 +5,10 @@
 
 mod against_machine;
 mod controller;
+mod cutting;
 
 pub use controller::ControllerRecipe;
+pub use cutting::CutSetup;
 
 use super::{AnalyticSettings, ProgramSource, Scenario};
 use crate::control::{Actuator, ActuatorKind, Controller};
@@ -92,8 +94,11 @@ pub struct Assembly {
     pub actuator: ActuatorKind,
     /// The controller, resolved on the machine (a fresh instance for every lane and run).
     pub controller: ControllerRecipe,
-    /// The servo loop's period, approach, settle time, encoder and following-error trip.
+    /// The servo loop's period, approach, settle time, encoder, following-error trip and
+    /// spindle speeds.
     pub loop_settings: LoopSettings,
+    /// The cut every lane makes, with `[cutting]`.
+    pub cut: Option<CutSetup>,
     /// What the reports need of the whole program, from one pass over its setpoints when first
     /// asked for.
     overview: OnceLock<ProgramOverview>,
@@ -141,6 +146,14 @@ impl Assembly {
         let (frame, frame_warnings) = ProgramFrame::new(&machine)?;
         machine.warnings.extend(frame_warnings);
         let approach = approach_for(s, &machine, &axis_map, plan.program())?;
+        if let Some(message) = cutting::missing_spindle(s, plan.program()) {
+            return Err(FileError::new(&s.path, None, message).into());
+        }
+        let program_start = plan
+            .first_position()
+            .map_or_else(|| vec![0.0; machine.axes.len()], <[f64]>::to_vec);
+        let cut = cutting::cut_setup(s, &machine, &frame, plan.program(), &program_start)?;
+        let spindle = cutting::spindles(s, plan.program());
         check_run_length(s, approach.len() + plan.len())?;
         let encoder = Encoder {
             resolution: machine
@@ -183,7 +196,9 @@ impl Assembly {
                 settle_time: s.timing.settle_time,
                 encoder,
                 trip,
+                spindle,
             },
+            cut,
             overview: OnceLock::new(),
         })
     }
@@ -284,6 +299,35 @@ impl Assembly {
         })
     }
 
+    /// A plant of either kind at rest at `initial`, cutting the scenario's stock where it has
+    /// `[cutting]`.
+    pub fn cutting_plant(
+        &self,
+        kind: LaneKind,
+        initial: &[f64],
+    ) -> Result<Box<dyn sim::Plant>, RunError> {
+        let Some(cut) = &self.cut else {
+            return self.plant(kind, initial);
+        };
+        Ok(match kind {
+            LaneKind::Physics => Box::new(
+                self.physics_plant(initial)?
+                    .with_cut(cut.plant_cut(), cut.placement.tool_axis),
+            ),
+            LaneKind::Analytic => {
+                // These chains never turn the tool: its axis on the part is the one at home.
+                let home: Vec<f64> = self.machine.axes.iter().map(|a| a.drive.home).collect();
+                let (_, axis) = cut.placement.tool_at(&self.machine, &home);
+                let axis = cut.placement.stock_in_part * axis;
+                Box::new(self.analytic_plant(initial)?.with_cut(
+                    cut.plant_cut(),
+                    axis,
+                    self.scenario.timing.substeps,
+                ))
+            }
+        })
+    }
+
     /// A fresh instance of the scenario's controller (with its compensation), in the machine's
     /// axis order.
     pub fn controller(&self) -> Box<dyn Controller> {
@@ -321,7 +365,7 @@ impl Assembly {
                     kind,
                     plant: match plant {
                         Some(make) => make(kind, &start),
-                        None => self.plant(kind, &start)?,
+                        None => self.cutting_plant(kind, &start)?,
                     },
                     controller: controller.map_or_else(|| self.controller(), |make| make()),
                 })

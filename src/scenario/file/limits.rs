@@ -53,3 +53,13 @@ pub const VELOCITY_FILTER_HZ: (f64, f64) = (0.0, 1e6);
 pub const MAX_BACKLASH_MM: f64 = 100.0;
 /// Compensated backlash of rotary axes (deg).
 pub const MAX_BACKLASH_DEG: f64 = 90.0;
+/// Spindle speed (rev/min): from a hand-turned spindle to the fastest HSC spindles.
+pub const SPINDLE_RPM: (f64, f64) = (1.0, 200_000.0);
+/// Stock resolution (mm): the dexel spacing.
+pub const STOCK_RESOLUTION_MM: (f64, f64) = (1e-3, 10.0);
+/// Tool diameters, flute lengths and corner radii (mm).
+pub const TOOL_DIAMETER_MM: (f64, f64) = (0.01, 500.0);
+/// Most flutes of a cutter.
+pub const MAX_FLUTES: i64 = 64;
+/// Helix angle (deg).
+pub const HELIX_DEG: (f64, f64) = (0.0, 75.0);

@@ -8,6 +8,7 @@
 mod actuation;
 mod checks;
 mod controller;
+mod cutting;
 mod frequency;
 pub mod limits;
 mod outputs;
@@ -62,6 +63,8 @@ struct RawScenario {
     compensation: BTreeMap<String, Spanned<actuation::RawCompensation>>,
     /// Run the analytic reference model beside the physics.
     analytic: Option<outputs::RawAnalytic>,
+    /// The stock, tool and material of a cut.
+    cutting: Option<cutting::RawCutting>,
     /// Frequency-response measurements per axis, whose figures `[expect]` can bound.
     #[serde(default)]
     frequency_response: BTreeMap<String, Spanned<frequency::RawFrequencyResponse>>,
@@ -106,6 +109,9 @@ pub struct Scenario {
     pub recording: RecordingSettings,
     /// The analytic reference model beside the physics; `None` = not run.
     pub analytic: Option<AnalyticSettings>,
+    /// `[cutting]`: the stock the tool removes, the tool and the material; `None` = the tool
+    /// cuts air.
+    pub cutting: Option<crate::cutting::CuttingSpec>,
     /// `[expect]`: the bounds on the run's metrics, each flattened to its dotted metric path.
     pub expect: Vec<Expectation>,
     /// `[frequency_response.<axis>]`: measurements a run makes after its program (by axis
@@ -184,6 +190,10 @@ impl Scenario {
             Some(a) => AnalyticSettings::from_raw(file.section(a))?,
             None => None,
         };
+        let cutting = match &raw.cutting {
+            Some(c) => Some(crate::cutting::CuttingSpec::try_from(file.section(c))?),
+            None => None,
+        };
         let ab = match &raw.ab {
             Some(table) => Some(DeclaredVariants::try_from(file.section(table))?),
             None => None,
@@ -222,6 +232,7 @@ impl Scenario {
             compensation,
             recording,
             analytic,
+            cutting,
             expect,
             frequency_response,
             ab,

@@ -137,7 +137,7 @@ impl AxisModel {
                         a[(row, I)] = force_per_current / m;
                         a[(row, VC)] = -self.effective_damping() / m;
                         b[(row, 0)] = force_per_input / m;
-                        b[(row, 1)] = (self.gravity_force - friction) / m;
+                        b[(row, 1)] = (self.carriage_force() - friction) / m;
                     }
                 }
             }
@@ -162,7 +162,7 @@ impl AxisModel {
                     a[(VC, XC)] = -k / mc;
                     a[(VC, VD)] = c / mc;
                     a[(VC, VC)] = -(self.carriage_damping + c) / mc;
-                    b[(VC, 1)] = (self.gravity_force - friction - preload) / mc;
+                    b[(VC, 1)] = (self.carriage_force() - friction - preload) / mc;
                 }
             }
             Contact::Open => {
@@ -173,7 +173,7 @@ impl AxisModel {
                 a[(XC, VC)] = 1.0;
                 if sliding {
                     a[(VC, VC)] = -self.carriage_damping / self.carriage_mass;
-                    b[(VC, 1)] = (self.gravity_force - friction) / self.carriage_mass;
+                    b[(VC, 1)] = (self.carriage_force() - friction) / self.carriage_mass;
                 }
             }
         }

@@ -360,6 +360,7 @@ fn loop_settings(axes: usize, encoder: Vec<Option<f64>>) -> LoopSettings {
             limit: vec![1.0; axes],
             axis_names: (0..axes).map(|i| format!("q{i}")).collect(),
         },
+        spindle: Default::default(),
     }
 }
 

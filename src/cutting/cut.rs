@@ -1,0 +1,182 @@
+//! One lane's cut: its own stock, the force model stepping with the spindle, and the removal
+//! of what the tool sweeps. The plant calls [`Cut::step`] every physics step with the tool's
+//! pose and velocity on the part; the cut answers with the force and removes material.
+
+use super::{CutProcess, ForceModel, Material, Pose, Stock, StepForces, Tool};
+use nalgebra::{Point3, Unit, Vector3};
+
+/// Where material removal waits for the tool: it sweeps the tool from the last removed pose
+/// once the tip has moved this many stock resolutions, or the axis has turned enough to move
+/// the tool's far end as much. The force model tests engagement at the tool's envelope, ahead
+/// of the motion, so material the lag leaves behind the tool (within a quarter of the
+/// resolution) is never read as engaged: the chip thickness there is negative.
+const REMOVAL_LAG_RESOLUTIONS: f64 = 0.25;
+
+/// One lane's cut.
+pub struct Cut {
+    stock: Stock,
+    process: CutProcess,
+    tool: Tool,
+    /// The pose up to which the stock has been cut.
+    removed_to: Option<Pose>,
+    /// The pose of the last step.
+    last: Option<Pose>,
+    /// Peak values over the cut so far.
+    totals: CutTotals,
+    /// Why the cut could not go on (a removal refused, e.g. a pose not finite).
+    fault: Option<String>,
+    /// Where a tool that cannot cut at its centre first plunged into the stock.
+    plunged_at: Option<Point3<f64>>,
+}
+
+/// Peak values of a cut.
+#[derive(Debug, Clone, Copy, PartialEq, Default)]
+pub struct CutTotals {
+    /// Largest |force| of any step (N).
+    pub max_force: f64,
+    /// Largest spindle power of any step (W).
+    pub max_power: f64,
+    /// Largest spindle torque of any step (N·m).
+    pub max_torque: f64,
+    /// Physics steps in which the tool engaged the stock.
+    pub engaged_steps: u64,
+    /// Volume removed so far, as the stock measures it (m³).
+    pub removed_volume: f64,
+}
+
+impl Cut {
+    /// A cut of `stock` by `tool` with the force model's coefficients.
+    pub fn new(stock: Stock, model: ForceModel, tool: Tool) -> Cut {
+        Cut {
+            stock,
+            process: CutProcess::new(model),
+            tool,
+            removed_to: None,
+            last: None,
+            totals: CutTotals::default(),
+            fault: None,
+            plunged_at: None,
+        }
+    }
+
+    /// One physics step of length `dt`: the tool at `pose` moving at `velocity` (tool relative
+    /// to part, stock frame) with the spindle at `omega` (rad/s, > 0 for M3). Returns the
+    /// step's forces (averaged over the step) and removes what the tool swept up to `pose`.
+    pub fn step(&mut self, pose: &Pose, velocity: &Vector3<f64>, omega: f64, dt: f64) -> StepForces {
+        let ahead = Pose {
+            tip: pose.tip + velocity * dt,
+            axis: pose.axis,
+        };
+        let forces = self.process.step(&self.stock as &dyn Material, pose, &ahead, omega, dt);
+        let t = &mut self.totals;
+        t.max_force = t.max_force.max(forces.peak_force);
+        t.max_power = t.max_power.max(forces.mean_power);
+        t.max_torque = t.max_torque.max(forces.mean_torque);
+        if forces.engaged_flutes > 0 {
+            t.engaged_steps += 1;
+        }
+        if forces.plunging_without_centre_cutting && self.plunged_at.is_none() {
+            self.plunged_at = Some(pose.tip);
+        }
+        self.last = Some(*pose);
+        self.remove_to(pose, false);
+        forces
+    }
+
+    /// Removes what the tool sweeps from the last removed pose to `pose`, if it has moved
+    /// far enough (or `always`).
+    fn remove_to(&mut self, pose: &Pose, always: bool) {
+        // The first pose: the tool stands where it stands (a tool started inside the stock
+        // removes its own volume).
+        let from = self.removed_to.unwrap_or(*pose);
+        let lag = REMOVAL_LAG_RESOLUTIONS * self.stock.resolution();
+        let reach = self.tool.flute_length.max(self.tool.diameter);
+        let moved = (pose.tip - from.tip).norm()
+            + reach * (pose.axis.into_inner() - from.axis.into_inner()).norm();
+        if self.removed_to.is_some() && !always && moved < lag {
+            return;
+        }
+        match self.stock.remove_swept(&self.tool, &from, pose) {
+            Ok(volume) => self.totals.removed_volume += volume,
+            Err(e) => {
+                if self.fault.is_none() {
+                    self.fault = Some(format!("the stock could not be cut: {e}"));
+                }
+            }
+        }
+        self.removed_to = Some(*pose);
+    }
+
+    /// Why the cut cannot go on, if it cannot.
+    pub fn fault(&self) -> Option<&str> {
+        self.fault.as_deref()
+    }
+
+    /// Where (stock frame, m) a tool that cannot cut at its centre first plunged into the
+    /// stock, if it did.
+    pub fn plunged_at(&self) -> Option<Point3<f64>> {
+        self.plunged_at
+    }
+
+    /// Moves the tool to `pose` without forces: removes what it sweeps (the nominal part's
+    /// cut, from the programmed path).
+    pub fn sweep_to(&mut self, pose: &Pose) {
+        self.last = Some(*pose);
+        self.remove_to(pose, false);
+    }
+
+    /// Removes what the last steps swept and not yet removed (at the end of a run).
+    pub fn finish(&mut self) {
+        if let Some(last) = self.last {
+            self.remove_to(&last, true);
+        }
+    }
+
+    /// The stock as cut so far.
+    pub fn stock(&self) -> &Stock {
+        &self.stock
+    }
+
+    /// The stock as cut (after [`Cut::finish`]).
+    pub fn into_stock(self) -> Stock {
+        self.stock
+    }
+
+    /// Peak values so far.
+    pub fn totals(&self) -> CutTotals {
+        self.totals
+    }
+
+    /// The tool.
+    pub fn tool(&self) -> &Tool {
+        &self.tool
+    }
+}
+
+/// How far outside the tool's envelope, along its normal, the stock is asked for material at a
+/// cutting edge (in stock resolutions). The material a tool meets in one step is a sliver a few
+/// micrometres thick (the feed over a step, less the removal's lag), thinner than the lattice
+/// resolves across the ray the query reads: read at the edge itself, a ray half a cell aside
+/// could answer for the sliver's other side. Half a cell out along the normal clears that
+/// (the lateral rounding moves the answer by at most res/2·sin 45° along it), and stays in
+/// material wherever the edge meets any: in front of the moving tool everything outside its
+/// envelope is outside every earlier envelope too, and behind it the chip thickness is
+/// negative, so nothing there is engaged. Where the stock's own boundary crosses the flutes
+/// (a wall left by another pass) the engagement angle shifts by about δ·cos φ/(R·sin φ):
+/// 0.01 rad for a 10 mm tool at 0.1 mm resolution and a quarter immersion.
+const ENGAGEMENT_PROBE_RESOLUTIONS: f64 = 0.5;
+
+impl Material for Stock {
+    fn contains(&self, point: &Point3<f64>, normal_hint: &Vector3<f64>) -> bool {
+        let probe = point + normal_hint * (ENGAGEMENT_PROBE_RESOLUTIONS * self.resolution());
+        Stock::contains(self, &probe, normal_hint)
+    }
+}
+
+/// A tool pose from a point and an axis (normalised; a zero axis falls back to +Z).
+pub fn pose(tip: Point3<f64>, axis: Vector3<f64>) -> Pose {
+    Pose {
+        tip,
+        axis: Unit::try_new(axis, 1e-12).unwrap_or(Vector3::z_axis()),
+    }
+}

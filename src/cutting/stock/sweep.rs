@@ -1,0 +1,519 @@
+//! The solid a tool sweeps on a straight move with a fixed axis, cut along axis-aligned rays.
+//!
+//! The tool (tip at the origin, axis `n`, heights `h` along it) is a union of simple convex
+//! pieces: a cylinder of radius `R` for `h ∈ [r, reach]` (`r` the corner radius) and, at the
+//! bottom, a ball of radius `R` centred at `h = R` (ball end) or a "puck": the disc of radius
+//! `R − r` at `h = r` grown by a ball of radius `r` (bull nose). A flat end is the cylinder
+//! alone from `h = 0`. The tool, and so its sweep, is convex, so a ray meets the sweep in one
+//! interval: the hull of the intervals where it meets the pieces' sweeps.
+//!
+//! A piece at time `t ∈ [0, 1]` of the move is displaced by `t·d`. A ray point
+//! `p + s·e` is in the piece's sweep iff some `t` puts it in the displaced piece, so the ray's
+//! interval is the range of `s` over a convex region of the `(s, t)` plane. For cylinders and
+//! balls that region is an ellipse (a convex quadratic `Q(s, t) ≤ c`) cut by strips (`t`
+//! in `[0, 1]`, height in the piece's range): its extremes in `s` are found in closed form
+//! among the polygon's vertices, the polygon edges' crossings of `Q = c`, and the ellipse's own
+//! extremes. The puck's sweep is the set within `r` of a disc swept along `d`: its distance is
+//! convex along the ray, and Newton's method from either end converges to the interval's ends
+//! monotonically.
+
+use nalgebra::{Point3, Vector3};
+
+use super::super::tool::{Tool, ToolShape};
+
+/// Tolerance for a candidate point lying in the strips' polygon (m or 1).
+const INSIDE_TOL: f64 = 1e-12;
+
+#[derive(Debug, Clone, Copy)]
+enum Piece {
+    /// Cylinder of squared radius `r2` for heights `[h0, h1]`.
+    Cylinder { r2: f64, h0: f64, h1: f64 },
+    /// Ball of squared radius `r2` centred at height `ch`.
+    Ball { ch: f64, r2: f64 },
+    /// Disc of radius `rho` at height `ch`, grown by a ball of radius `r`.
+    Puck { ch: f64, rho: f64, r: f64 },
+}
+
+/// A tool swept on a straight move with a fixed axis.
+#[derive(Debug, Clone)]
+pub(crate) struct Sweep {
+    tip: Point3<f64>,
+    d: Vector3<f64>,
+    n: Vector3<f64>,
+    pieces: [Option<Piece>; 2],
+    min: Point3<f64>,
+    max: Point3<f64>,
+}
+
+impl Sweep {
+    /// The tool, solid up to `reach` above its tip, moving its tip from `p0` to `p1` with the
+    /// unit axis `n`. The caller has checked the tool and `reach ≥ max(R, 2r)`.
+    pub(crate) fn new(
+        tool: &Tool,
+        reach: f64,
+        p0: Point3<f64>,
+        p1: Point3<f64>,
+        n: Vector3<f64>,
+    ) -> Sweep {
+        let big = tool.radius();
+        let r = tool.corner_radius();
+        let pieces = match tool.shape {
+            ToolShape::Flat => [
+                Some(Piece::Cylinder {
+                    r2: big * big,
+                    h0: 0.0,
+                    h1: reach,
+                }),
+                None,
+            ],
+            ToolShape::Ball => [
+                Some(Piece::Cylinder {
+                    r2: big * big,
+                    h0: big,
+                    h1: reach,
+                }),
+                Some(Piece::Ball {
+                    ch: big,
+                    r2: big * big,
+                }),
+            ],
+            ToolShape::Bull { .. } => [
+                Some(Piece::Cylinder {
+                    r2: big * big,
+                    h0: r,
+                    h1: reach,
+                }),
+                Some(Piece::Puck {
+                    ch: r,
+                    rho: big - r,
+                    r,
+                }),
+            ],
+        };
+        // The tool lies in the cylinder of radius R over [0, reach]; its box per axis is the
+        // axis segment's widened by R·sin(angle to that axis).
+        let mut min = Point3::from(Vector3::repeat(f64::INFINITY));
+        let mut max = Point3::from(Vector3::repeat(f64::NEG_INFINITY));
+        for a in 0..3 {
+            let ext = big * (1.0 - n[a] * n[a]).max(0.0).sqrt() + 1e-9;
+            for p in [p0, p1] {
+                for q in [p[a], p[a] + reach * n[a]] {
+                    min[a] = min[a].min(q - ext);
+                    max[a] = max[a].max(q + ext);
+                }
+            }
+        }
+        Sweep {
+            tip: p0,
+            d: p1 - p0,
+            n,
+            pieces,
+            min,
+            max,
+        }
+    }
+
+    /// Bounding box of the swept solid (m).
+    pub(crate) fn bounds(&self) -> (Point3<f64>, Point3<f64>) {
+        (self.min, self.max)
+    }
+
+    /// The sweep prepared for rays along axis `k`.
+    pub(crate) fn for_axis(&self, k: usize) -> RaySweep<'_> {
+        let e = Vector3::ith(k, 1.0);
+        let n = self.n;
+        let d = self.d;
+        let pieces = self.pieces.map(|p| {
+            p.map(|piece| match piece {
+                Piece::Cylinder { .. } => {
+                    let we = e - n * n[k];
+                    let wd = d - n * d.dot(&n);
+                    Prepared {
+                        piece,
+                        a: we.dot(&we),
+                        b: -we.dot(&wd),
+                        c: wd.dot(&wd),
+                        we,
+                        wd,
+                        hs: n[k],
+                        ht: -d.dot(&n),
+                    }
+                }
+                Piece::Ball { .. } | Piece::Puck { .. } => Prepared {
+                    piece,
+                    a: 1.0,
+                    b: -d[k],
+                    c: d.dot(&d),
+                    we: e,
+                    wd: d,
+                    hs: 0.0,
+                    ht: 0.0,
+                },
+            })
+        });
+        RaySweep {
+            sweep: self,
+            k,
+            pieces,
+        }
+    }
+}
+
+/// A piece with its ray-direction-dependent constants.
+#[derive(Debug, Clone, Copy)]
+struct Prepared {
+    piece: Piece,
+    /// Quadratic coefficients of `s²`, `2st`, `t²` (see [`Quadratic`]).
+    a: f64,
+    b: f64,
+    c: f64,
+    /// Transverse (to the axis) parts of the ray direction and the motion (cylinder), or the
+    /// direction and motion themselves (ball, puck).
+    we: Vector3<f64>,
+    wd: Vector3<f64>,
+    /// Height along the axis per unit `s` and per unit `t` (cylinder).
+    hs: f64,
+    ht: f64,
+}
+
+/// A sweep prepared for rays along one axis.
+pub(crate) struct RaySweep<'a> {
+    sweep: &'a Sweep,
+    k: usize,
+    pieces: [Option<Prepared>; 2],
+}
+
+/// `Q(s, t) = a s² + 2b st + c t² + 2d s + 2e t + f`.
+#[derive(Debug, Clone, Copy)]
+struct Quadratic {
+    a: f64,
+    b: f64,
+    c: f64,
+    d: f64,
+    e: f64,
+    f: f64,
+}
+
+impl Quadratic {
+    #[inline]
+    fn at(&self, s: f64, t: f64) -> f64 {
+        s * (self.a * s + 2.0 * (self.b * t + self.d)) + t * (self.c * t + 2.0 * self.e) + self.f
+    }
+}
+
+impl RaySweep<'_> {
+    /// Where the ray `p + s·e_k`, `s ∈ [s_lo, s_hi]`, meets the swept solid.
+    pub(crate) fn interval(&self, p: &Point3<f64>, s_lo: f64, s_hi: f64) -> Option<(f64, f64)> {
+        let sw = self.sweep;
+        let y = p - sw.tip;
+        let hy = y.dot(&sw.n);
+        let mut out: Option<(f64, f64)> = None;
+        for pp in self.pieces.iter().flatten() {
+            let got = match pp.piece {
+                Piece::Cylinder { r2, h0, h1 } => {
+                    let wo = y - sw.n * hy;
+                    let q = Quadratic {
+                        a: pp.a,
+                        b: pp.b,
+                        c: pp.c,
+                        d: wo.dot(&pp.we),
+                        e: -wo.dot(&pp.wd),
+                        f: wo.dot(&wo),
+                    };
+                    // h = hy + hs·s + ht·t within [h0, h1].
+                    let strips = [[-pp.hs, -pp.ht, hy - h0], [pp.hs, pp.ht, h1 - hy]];
+                    quadratic_extremes(&q, r2, &strips, s_lo, s_hi)
+                }
+                Piece::Ball { ch, r2 } => {
+                    let vo = y - sw.n * ch;
+                    let q = Quadratic {
+                        a: 1.0,
+                        b: pp.b,
+                        c: pp.c,
+                        d: vo[self.k],
+                        e: -vo.dot(&sw.d),
+                        f: vo.dot(&vo),
+                    };
+                    quadratic_extremes(&q, r2, &[], s_lo, s_hi)
+                }
+                Piece::Puck { ch, rho, r } => {
+                    let vo = y - sw.n * ch;
+                    puck_interval(&vo, self.k, &sw.n, &sw.d, rho, r, s_lo, s_hi)
+                }
+            };
+            if let Some((a, b)) = got {
+                out = Some(match out {
+                    Some((x, y)) => (x.min(a), y.max(b)),
+                    None => (a, b),
+                });
+            }
+        }
+        out
+    }
+}
+
+/// Range of `s` over `{Q ≤ c} ∩ {t ∈ [0, 1]} ∩ {s ∈ [s_lo, s_hi]} ∩ strips`, where each
+/// strip row `[α, β, γ]` is the half-plane `α s + β t ≤ γ`. Exact up to rounding: the extremes
+/// of a linear function over a convex region bounded by a conic and lines are at the
+/// polygon's vertices, at the polygon edges' crossings of the conic, or at the conic's own
+/// extremes.
+fn quadratic_extremes(
+    q: &Quadratic,
+    c: f64,
+    strips: &[[f64; 3]],
+    s_lo: f64,
+    s_hi: f64,
+) -> Option<(f64, f64)> {
+    // The polygon: the rectangle [s_lo, s_hi] × [0, 1] clipped by the strips.
+    let mut poly = [[0.0f64; 2]; 8];
+    poly[..4].copy_from_slice(&[[s_lo, 0.0], [s_hi, 0.0], [s_hi, 1.0], [s_lo, 1.0]]);
+    let mut len = 4;
+    for h in strips {
+        let mut next = [[0.0f64; 2]; 8];
+        let mut m = 0;
+        for i in 0..len {
+            let p = poly[i];
+            let q2 = poly[(i + 1) % len];
+            let fp = h[0] * p[0] + h[1] * p[1] - h[2];
+            let fq = h[0] * q2[0] + h[1] * q2[1] - h[2];
+            if fp <= 0.0 && m < 8 {
+                next[m] = p;
+                m += 1;
+            }
+            if (fp < 0.0 && fq > 0.0) || (fp > 0.0 && fq < 0.0) {
+                let l = fp / (fp - fq);
+                if m < 8 {
+                    next[m] = [p[0] + l * (q2[0] - p[0]), p[1] + l * (q2[1] - p[1])];
+                    m += 1;
+                }
+            }
+        }
+        poly = next;
+        len = m;
+        if len == 0 {
+            return None;
+        }
+    }
+    let mut lo = f64::INFINITY;
+    let mut hi = f64::NEG_INFINITY;
+    let mut take = |s: f64| {
+        lo = lo.min(s);
+        hi = hi.max(s);
+    };
+    let mut vals = [0.0f64; 8];
+    for i in 0..len {
+        vals[i] = q.at(poly[i][0], poly[i][1]) - c;
+        if vals[i] <= 0.0 {
+            take(poly[i][0]);
+        }
+    }
+    for i in 0..len {
+        let p = poly[i];
+        let p2 = poly[(i + 1) % len];
+        let (ds, dt) = (p2[0] - p[0], p2[1] - p[1]);
+        let a2 = q.a * ds * ds + 2.0 * q.b * ds * dt + q.c * dt * dt;
+        let a1 =
+            2.0 * ((q.a * p[0] + q.b * p[1] + q.d) * ds + (q.b * p[0] + q.c * p[1] + q.e) * dt);
+        let a0 = vals[i];
+        for l in quadratic_roots(a2, a1, a0).into_iter().flatten() {
+            if (0.0..=1.0).contains(&l) {
+                take(p[0] + l * ds);
+            }
+        }
+    }
+    // The conic's own extremes in s, where ∂Q/∂t = 0; skipped when the conic is (nearly)
+    // a strip, whose extremes over a bounded polygon lie on the polygon's boundary.
+    if q.c > 0.0 {
+        let a_red = q.a - q.b * q.b / q.c;
+        if a_red > 1e-10 * q.a {
+            let d_red = q.d - q.b * q.e / q.c;
+            let f_red = q.f - q.e * q.e / q.c - c;
+            let disc = d_red * d_red - a_red * f_red;
+            if disc >= 0.0 {
+                let root = disc.sqrt();
+                for s in [(-d_red - root) / a_red, (-d_red + root) / a_red] {
+                    let t = -(q.b * s + q.e) / q.c;
+                    let inside = s >= s_lo - INSIDE_TOL
+                        && s <= s_hi + INSIDE_TOL
+                        && (-INSIDE_TOL..=1.0 + INSIDE_TOL).contains(&t)
+                        && strips
+                            .iter()
+                            .all(|h| h[0] * s + h[1] * t <= h[2] + INSIDE_TOL);
+                    if inside {
+                        take(s.clamp(s_lo, s_hi));
+                    }
+                }
+            }
+        }
+    }
+    (lo <= hi).then_some((lo, hi))
+}
+
+/// Real roots of `a2 λ² + a1 λ + a0 = 0` (`a2 ≥ 0`), stable against cancellation.
+#[inline]
+fn quadratic_roots(a2: f64, a1: f64, a0: f64) -> [Option<f64>; 2] {
+    if a2 == 0.0 {
+        return if a1 != 0.0 {
+            [Some(-a0 / a1), None]
+        } else {
+            [None, None]
+        };
+    }
+    let disc = a1 * a1 - 4.0 * a2 * a0;
+    if disc < 0.0 {
+        return [None, None];
+    }
+    let qq = -0.5 * (a1 + a1.signum() * disc.sqrt());
+    if qq == 0.0 {
+        return [Some(0.0), None];
+    }
+    [Some(qq / a2), Some(a0 / qq)]
+}
+
+/// Where the ray `vo + s·e_k` (relative to the puck's disc centre at the move's start) meets
+/// the set within `r` of the disc (radius `rho`, normal `n`) swept along `d`.
+#[allow(clippy::too_many_arguments)]
+fn puck_interval(
+    vo: &Vector3<f64>,
+    k: usize,
+    n: &Vector3<f64>,
+    d: &Vector3<f64>,
+    rho: f64,
+    r: f64,
+    s_lo: f64,
+    s_hi: f64,
+) -> Option<(f64, f64)> {
+    // Distance to the swept disc minus r, and its derivative along the ray. Convex in s.
+    let phi = |s: f64| -> (f64, f64) {
+        let mut z0 = *vo;
+        z0[k] += s;
+        let res = swept_disc_residual(&z0, n, d, rho);
+        let dist = res.norm();
+        if dist == 0.0 {
+            (-r, 0.0)
+        } else {
+            (dist - r, res[k] / dist)
+        }
+    };
+    const MAX_ITER: usize = 100;
+    const TOL: f64 = 1e-13;
+    let (f0, _) = phi(s_lo);
+    let entry = if f0 <= 0.0 {
+        s_lo
+    } else {
+        let mut s = s_lo;
+        let mut found = None;
+        for _ in 0..MAX_ITER {
+            let (f, df) = phi(s);
+            if f <= TOL {
+                found = Some(s);
+                break;
+            }
+            if df >= 0.0 {
+                return None; // Past the distance's minimum without reaching r: a miss.
+            }
+            let step = -f / df;
+            s += step;
+            if s > s_hi {
+                return None;
+            }
+            if step < TOL {
+                found = Some(s);
+                break;
+            }
+        }
+        found?
+    };
+    let (f1, _) = phi(s_hi);
+    let exit = if f1 <= 0.0 {
+        s_hi
+    } else {
+        let mut s = s_hi;
+        let mut found = None;
+        for _ in 0..MAX_ITER {
+            let (f, df) = phi(s);
+            if f <= TOL {
+                found = Some(s);
+                break;
+            }
+            if df <= 0.0 {
+                return None;
+            }
+            let step = f / df;
+            s -= step;
+            if s < entry {
+                s = entry;
+                found = Some(s);
+                break;
+            }
+            if step < TOL {
+                found = Some(s);
+                break;
+            }
+        }
+        found?
+    };
+    (entry <= exit).then_some((entry, exit))
+}
+
+/// `z − k*` for `k*` the point of the disc (centre 0, unit normal `n`, radius `rho`) swept
+/// along `t·d`, `t ∈ [0, 1]`, nearest to `z0`.
+fn swept_disc_residual(
+    z0: &Vector3<f64>,
+    n: &Vector3<f64>,
+    d: &Vector3<f64>,
+    rho: f64,
+) -> Vector3<f64> {
+    let residual = |t: f64| {
+        let z = z0 - d * t;
+        let zh = z.dot(n);
+        let zw = z - n * zh;
+        let w = zw.norm();
+        if w <= rho { n * zh } else { z - zw * (rho / w) }
+    };
+    // The squared distance at t is convex with derivative −2·residual(t)·d, so m(t) =
+    // residual(t)·d falls with t; its root (or the end it does not cross) is the nearest t.
+    let m = |t: f64| residual(t).dot(d);
+    if d.norm_squared() == 0.0 {
+        return residual(0.0);
+    }
+    let (mut t0, mut t1) = (0.0, 1.0);
+    let (mut m0, mut m1) = (m(t0), m(t1));
+    if m0 <= 0.0 {
+        return residual(0.0);
+    }
+    if m1 >= 0.0 {
+        return residual(1.0);
+    }
+    // Illinois regula falsi on the monotone m.
+    let mut side = 0;
+    let mut t = 0.5;
+    for _ in 0..60 {
+        t = (t0 * m1 - t1 * m0) / (m1 - m0);
+        if !(t > t0 && t < t1) {
+            t = 0.5 * (t0 + t1);
+        }
+        let mt = m(t);
+        if mt > 0.0 {
+            t0 = t;
+            m0 = mt;
+            if side == 1 {
+                m1 *= 0.5;
+            }
+            side = 1;
+        } else if mt < 0.0 {
+            t1 = t;
+            m1 = mt;
+            if side == -1 {
+                m0 *= 0.5;
+            }
+            side = -1;
+        } else {
+            break;
+        }
+        if t1 - t0 < 1e-12 {
+            break;
+        }
+    }
+    residual(t)
+}
