@@ -478,3 +478,32 @@ pub fn oracle_python(import_line: &str, what: &str) -> Option<String> {
     eprintln!("skipped: {python} cannot import {what}");
     None
 }
+
+/// Whether the tests run in CI, where a missing oracle or corpus is a failure, not a skip:
+/// `CNCSIM_REQUIRE_ORACLES=1` (set by `.ci/run`) or `CI=true`.
+pub fn required_in_ci() -> bool {
+    std::env::var("CNCSIM_REQUIRE_ORACLES").is_ok_and(|v| v == "1")
+        || std::env::var("CI").is_ok_and(|v| v == "true" || v == "1")
+}
+
+/// `relative` in the shared corpus: files written by other projects (machines, part programs)
+/// that this repository does not hold, kept in `../shared/corpus/` beside the checkout. `None`
+/// (the test skips, saying in one line where they are expected) when it is missing, a failure
+/// in CI ([`required_in_ci`]).
+pub fn shared_corpus(relative: &str) -> Option<std::path::PathBuf> {
+    let root = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../shared/corpus");
+    let path = root.join(relative);
+    if path.exists() {
+        return Some(path);
+    }
+    assert!(
+        !required_in_ci(),
+        "{} is missing: the shared corpus must sit beside the checkout in CI",
+        path.display()
+    );
+    eprintln!(
+        "skipped: {relative} not found in the shared corpus (expected at {})",
+        path.display()
+    );
+    None
+}
