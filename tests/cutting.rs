@@ -275,3 +275,197 @@ fn physics_and_the_analytic_lane_agree_within_a_micrometre_while_cutting() {
     );
     assert!(cut_x > air_x, "rms torque X: cutting {cut_x}, air {air_x}");
 }
+
+/// The slot scenario's text with `edit` applied, its program `program` (G-code), written into
+/// `dir`; returns the scenario's path.
+fn slot_variant(dir: &Path, program: &str, edit: impl Fn(String) -> String) -> PathBuf {
+    let text = std::fs::read_to_string(root().join("scenarios/mill_slot.toml")).unwrap();
+    let text = text
+        .replace(
+            "../models/ac_mill.urdf",
+            &root().join("models/ac_mill.urdf").display().to_string(),
+        )
+        .replace("programs/mill_slot.ngc", "part.ngc");
+    std::fs::write(dir.join("part.ngc"), program).unwrap();
+    let path = dir.join("slot.toml");
+    std::fs::write(&path, edit(text)).unwrap();
+    path
+}
+
+const SLOT: &str = "G21 G90 G17 G94\nS12000 M3\nG0 X-50 Y0 Z5\nG1 Z-3 F600\nG1 X50 F1200\nG0 Z5\nM5\nM2\n";
+
+/// The line (1-based) of the first line of `text` containing `needle`.
+fn line_of(text: &str, needle: &str) -> usize {
+    text.lines().position(|l| l.contains(needle)).unwrap() + 1
+}
+
+#[test]
+fn bad_cutting_sections_are_refused_with_file_line_and_what_to_do() {
+    let dir = tempfile::tempdir().unwrap();
+    let cases: Vec<(&str, &str, &str, &str)> = vec![
+        // (what, replace this, with this, words of the message)
+        ("no flutes", "flutes = 3", "flutes = 0", "cutting.tool.flutes = 0: expected a whole number from 1 to 64"),
+        ("negative diameter", "diameter_mm = 10.0", "diameter_mm = -10.0", "cutting.tool.diameter_mm = -10.0 mm"),
+        ("tool wider than the stock", "diameter_mm = 10.0", "diameter_mm = 120.0", "wider than every side of the stock"),
+        ("unknown shape", "shape = \"flat\"", "shape = \"chamfer\"", "expected \"flat\", \"ball\" or \"bull\""),
+        ("bull without corner", "shape = \"flat\"", "shape = \"bull\"", "needs corner_radius_mm"),
+        ("unknown material", "name = \"al7075\"", "name = \"unobtainium\"", "expected one of \"al7075\""),
+        (
+            "negative coefficient",
+            "name = \"al7075\"",
+            "ktc_n_mm2 = -796.0\nkrc_n_mm2 = 168.0\nkac_n_mm2 = 222.0\nkte_n_mm = 27.7\nkre_n_mm = 30.8\nkae_n_mm = 1.4",
+            "K_tc",
+        ),
+        (
+            "coefficient in the wrong unit",
+            "name = \"al7075\"",
+            "ktc_n_mm2 = 796.0e6\nkrc_n_mm2 = 168.0\nkac_n_mm2 = 222.0\nkte_n_mm = 27.7\nkre_n_mm = 30.8\nkae_n_mm = 1.4",
+            "K_tc",
+        ),
+        ("five coefficients", "name = \"al7075\"", "ktc_n_mm2 = 796.0\nkrc_n_mm2 = 168.0\nkac_n_mm2 = 222.0\nkte_n_mm = 27.7\nkre_n_mm = 30.8", "found 5 of them"),
+        ("zero resolution", "resolution_mm = 0.1", "resolution_mm = 0.0", "cutting.stock.resolution_mm = 0.0 mm"),
+        ("inverted box", "[[-40.0, -30.0, -20.0], [40.0, 30.0, 0.0]]", "[[40.0, -30.0, -20.0], [-40.0, 30.0, 0.0]]", "must lie above the first"),
+        ("missing stl", "resolution_mm = 0.1", "resolution_mm = 0.1\nstl = \"none.stl\"", "cutting.stock.stl: "),
+    ];
+    for (what, from, to, words) in cases {
+        let path = slot_variant(dir.path(), SLOT, |t| {
+            assert!(t.contains(from), "{what}: the scenario has no {from:?}");
+            t.replacen(from, to, 1)
+        });
+        let text = std::fs::read_to_string(&path).unwrap();
+        let err = Scenario::load(&path).expect_err(what).to_string();
+        assert!(err.contains(words), "{what}: {err}");
+        // Located at the key (or the table) that is wrong.
+        let key = to.lines().next().unwrap().trim();
+        let at = format!("{}:", path.display());
+        assert!(err.starts_with(&at), "{what}: not located: {err}");
+        let line: usize = err[at.len()..].split(':').next().unwrap().parse().unwrap();
+        let expected = if what == "tool wider than the stock" {
+            line_of(&text, "[cutting.tool]")
+        } else if what.contains("coefficient") {
+            line_of(&text, "[cutting.material]")
+        } else {
+            line_of(&text, key)
+        };
+        assert!(
+            line == expected || line == expected + 1,
+            "{what}: line {line}, expected {expected}: {err}"
+        );
+    }
+}
+
+#[test]
+fn a_stock_past_the_machines_memory_is_refused_with_the_estimate_before_anything_is_allocated() {
+    let dir = tempfile::tempdir().unwrap();
+    let path = slot_variant(dir.path(), SLOT, |t| {
+        t.replace("resolution_mm = 0.1", "resolution_mm = 0.001")
+    });
+    let s = Scenario::load(&path).unwrap();
+    let err = match Assembly::new(&s) {
+        Err(e) => e.to_string(),
+        Ok(_) => panic!("a 1 µm lattice over 80 × 60 × 20 mm was accepted"),
+    };
+    assert!(err.contains("[cutting.stock]") && err.contains(" MB"), "{err}");
+    assert!(err.contains("raise resolution_mm"), "{err}");
+}
+
+#[test]
+fn the_spindle_stopped_in_the_stock_stops_the_run_with_time_and_line_and_keeps_what_it_computed() {
+    let dir = tempfile::tempdir().unwrap();
+    // M5 before the cut: the tool feeds into the block with the spindle standing.
+    let program = "G21 G90 G17 G94\nS12000 M3\nG0 X-50 Y0 Z5\nG1 Z-3 F600\nM5\nG1 X50 F1200\nG0 Z5\nM2\n";
+    let path = slot_variant(dir.path(), program, |t| t);
+    let out = dir.path().join("out");
+    let run = std::process::Command::new(env!("CARGO_BIN_EXE_cncsim"))
+        .args(["run", path.to_str().unwrap(), "--out", out.to_str().unwrap()])
+        .output()
+        .unwrap();
+    let stderr = String::from_utf8_lossy(&run.stderr);
+    assert_eq!(run.status.code(), Some(1), "{stderr}");
+    assert!(
+        stderr.contains("the tool engaged the stock with the spindle stopped")
+            && stderr.contains("program line 6"),
+        "{stderr}"
+    );
+    // Everything computed up to the stop is written: metrics, trace, recording, the part.
+    let metrics: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(out.join("metrics.json")).unwrap()).unwrap();
+    assert_eq!(metrics["completed"], false);
+    assert!(metrics["part"]["removed_volume_mm3"].as_f64().is_some());
+    for file in ["trace.csv", "run.rrd", "part.stl"] {
+        assert!(out.join(file).is_file(), "{file} missing");
+    }
+}
+
+#[test]
+fn a_plunge_with_a_flat_end_mill_and_a_program_that_never_cuts_are_warned_once() {
+    let dir = tempfile::tempdir().unwrap();
+    // Straight down into the block at its middle.
+    let plunge = "G21 G90 G17 G94\nS12000 M3\nG0 X0 Y0 Z5\nG1 Z-2 F300\nG0 Z5\nM5\nM2\n";
+    let path = slot_variant(dir.path(), plunge, |t| t);
+    let run = Assembly::new(&Scenario::load(&path).unwrap())
+        .unwrap()
+        .run(RunOptions::new())
+        .unwrap();
+    let warnings: Vec<String> = run.warnings.iter().map(|w| w.to_string()).collect();
+    assert_eq!(
+        warnings.iter().filter(|w| w.contains("plunges into the stock")).count(),
+        1,
+        "{warnings:?}"
+    );
+    // Above the block all the way: it runs, and says it cut air.
+    let air = "G21 G90 G17 G94\nS12000 M3\nG0 X-50 Y0 Z5\nG1 X50 F1200\nM5\nM2\n";
+    let path = slot_variant(dir.path(), air, |t| t);
+    let run = Assembly::new(&Scenario::load(&path).unwrap())
+        .unwrap()
+        .run(RunOptions::new())
+        .unwrap();
+    assert!(run.stop().is_none());
+    let warnings: Vec<String> = run.warnings.iter().map(|w| w.to_string()).collect();
+    assert_eq!(
+        warnings.iter().filter(|w| w.contains("never touched the stock")).count(),
+        1,
+        "{warnings:?}"
+    );
+    assert_eq!(run.metrics.part.unwrap().removed_volume_mm3, 0.0);
+}
+
+#[test]
+fn the_force_spectrum_peaks_at_the_tooth_passing_frequency() {
+    // 3 000 rev/min and three flutes: 150 Hz, well below the servo period's Nyquist 500 Hz.
+    // Half immersion (down milling): each tooth cuts 90° of its 120° pitch, so the force is a
+    // pulse per tooth and its fundamental the strongest line (in a full slot the teeth overlap
+    // and the second harmonic can win).
+    let dir = tempfile::tempdir().unwrap();
+    let slow = SLOT.replace("S12000", "S3000").replace("F1200", "F300");
+    let path = slot_variant(dir.path(), &slow, |t| t);
+    let mut s = Scenario::load(&path).unwrap();
+    let stock = &mut s.cutting.as_mut().unwrap().stock;
+    (stock.min.x, stock.max.x, stock.max.y) = (-10e-3, 10e-3, 0.0);
+    let run = run_traced(&s);
+    let trace = run.trace.as_ref().unwrap();
+    let fy: Vec<f64> = trace
+        .cut
+        .iter()
+        .filter(|c| c.engaged_flutes > 0)
+        .map(|c| c.force[1])
+        .collect();
+    assert!(fy.len() > 3000, "{} engaged ticks", fy.len());
+    let mean = fy.iter().sum::<f64>() / fy.len() as f64;
+    let period = s.timing.servo_period;
+    let power = |f: f64| {
+        let (mut re, mut im) = (0.0, 0.0);
+        for (k, v) in fy.iter().enumerate() {
+            let phase = 2.0 * PI * f * k as f64 * period;
+            re += (v - mean) * phase.cos();
+            im += (v - mean) * phase.sin();
+        }
+        re * re + im * im
+    };
+    // The strongest line between 5 Hz and Nyquist, on a 1 Hz grid.
+    let peak = (5..500)
+        .map(|f| (f as f64, power(f as f64)))
+        .max_by(|a, b| a.1.total_cmp(&b.1))
+        .unwrap();
+    assert!((peak.0 - 150.0).abs() <= 1.0, "spectrum peaks at {} Hz", peak.0);
+}

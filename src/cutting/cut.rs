@@ -27,7 +27,14 @@ pub struct Cut {
     fault: Option<String>,
     /// Where a tool that cannot cut at its centre first plunged into the stock.
     plunged_at: Option<Point3<f64>>,
+    /// Where the descent into material under way began (tip), if one is.
+    descent_from: Option<Point3<f64>>,
 }
+
+/// How deep into material a tool that cannot cut at its centre must descend along its axis
+/// before the descent is called a plunge (m): more than the micrometres a loaded Z axis
+/// vibrates by, less than any plunge a program means.
+const PLUNGE_DEPTH: f64 = 0.1e-3;
 
 /// Peak values of a cut.
 #[derive(Debug, Clone, Copy, PartialEq, Default)]
@@ -56,6 +63,7 @@ impl Cut {
             totals: CutTotals::default(),
             fault: None,
             plunged_at: None,
+            descent_from: None,
         }
     }
 
@@ -67,7 +75,14 @@ impl Cut {
             tip: pose.tip + velocity * dt,
             axis: pose.axis,
         };
-        let forces = self.process.step(&self.stock as &dyn Material, pose, &ahead, omega, dt);
+        let forces = if self.near_stock(pose, &ahead) {
+            self.process
+                .step(&self.stock as &dyn Material, pose, &ahead, omega, dt)
+        } else {
+            // Nowhere near the stock: nothing to cut; the spindle turns on.
+            self.process.set_angle(self.process.angle() + omega * dt);
+            StepForces::default()
+        };
         let t = &mut self.totals;
         t.max_force = t.max_force.max(forces.peak_force);
         t.max_power = t.max_power.max(forces.mean_power);
@@ -75,12 +90,34 @@ impl Cut {
         if forces.engaged_flutes > 0 {
             t.engaged_steps += 1;
         }
-        if forces.plunging_without_centre_cutting && self.plunged_at.is_none() {
-            self.plunged_at = Some(pose.tip);
+        if forces.plunging_without_centre_cutting {
+            let from = *self.descent_from.get_or_insert(pose.tip);
+            let depth = (from - pose.tip).dot(&pose.axis);
+            if depth > PLUNGE_DEPTH && self.plunged_at.is_none() {
+                self.plunged_at = Some(pose.tip);
+            }
+        } else {
+            self.descent_from = None;
         }
         self.last = Some(*pose);
         self.remove_to(pose, false);
         forces
+    }
+
+    /// Whether the tool's fluted part, anywhere between poses `a` and `b`, comes within a cell
+    /// of the stock's box (else no edge can meet material: the force model is not asked).
+    fn near_stock(&self, a: &Pose, b: &Pose) -> bool {
+        let (lo, hi) = self.stock.bounds();
+        let margin = self.tool.radius() + 2.0 * self.stock.resolution();
+        let reach = self.tool.flute_length;
+        let ends = [a, b].map(|p| [p.tip, p.tip + p.axis.into_inner() * reach]);
+        (0..3).all(|k| {
+            let (min, max) = ends
+                .iter()
+                .flatten()
+                .fold((f64::INFINITY, f64::NEG_INFINITY), |(m, n), p| (m.min(p[k]), n.max(p[k])));
+            min - margin <= hi[k] && max + margin >= lo[k]
+        })
     }
 
     /// Removes what the tool sweeps from the last removed pose to `pose`, if it has moved
@@ -170,6 +207,13 @@ impl Material for Stock {
     fn contains(&self, point: &Point3<f64>, normal_hint: &Vector3<f64>) -> bool {
         let probe = point + normal_hint * (ENGAGEMENT_PROBE_RESOLUTIONS * self.resolution());
         Stock::contains(self, &probe, normal_hint)
+    }
+
+    /// The lattice's box, grown by the probe's reach: an edge farther out reads no material.
+    fn bounds(&self) -> Option<(Point3<f64>, Point3<f64>)> {
+        let (lo, hi) = Stock::bounds(self);
+        let grow = Vector3::repeat(ENGAGEMENT_PROBE_RESOLUTIONS * self.resolution());
+        Some((lo - grow, hi + grow))
     }
 }
 

@@ -50,6 +50,12 @@ pub trait Material {
     /// outward unit normal there, for implementations that resolve boundary points by
     /// looking slightly ahead along it.
     fn contains(&self, point: &Point3<f64>, normal_hint: &Vector3<f64>) -> bool;
+
+    /// A box outside which no point holds material (part frame, m), where one is known: the
+    /// model then leaves out the slices whose edge ring cannot reach it.
+    fn bounds(&self) -> Option<(Point3<f64>, Point3<f64>)> {
+        None
+    }
 }
 
 /// Largest slice along the profile (m): 0.25 mm.
@@ -400,12 +406,19 @@ impl ForceModel {
             b1: &b1,
             sense,
         };
+        let (reach_lo, reach_hi) = self.heights_near(material, pose);
         for j in 0..flutes {
             let (sa, ca) = (angle + f64::from(j) * pitch).sin_cos();
             let mut flute_engaged = false;
             // Whether the stock holds the node shared with the previous slice, when known.
             let mut below: Option<bool> = None;
             for (i, slice) in self.slices.iter().enumerate() {
+                if slice_z_max(&self.nodes[i], &self.nodes[i + 1]) < reach_lo
+                    || slice_z_min(&self.nodes[i], &self.nodes[i + 1]) > reach_hi
+                {
+                    below = None;
+                    continue;
+                }
                 let m = &slice.mid;
                 let (st, ct) = rotate(sa, ca, m, sense);
                 let vr = ct * vb0 + st * vb1;
@@ -463,6 +476,32 @@ impl ForceModel {
             engaged_flutes,
             engaged_slices,
         }
+    }
+
+    /// The heights above the tip (m) between which an edge ring of the tool can reach the
+    /// material's box: per axis k the ring at height z spans the axis point ± R·√(1 − â_k²);
+    /// all heights where the material has no box.
+    fn heights_near(&self, material: &dyn Material, pose: &Pose) -> (f64, f64) {
+        let Some((lo, hi)) = material.bounds() else {
+            return (f64::NEG_INFINITY, f64::INFINITY);
+        };
+        let radius = self.tool.radius();
+        let (mut z0, mut z1) = (f64::NEG_INFINITY, f64::INFINITY);
+        for k in 0..3 {
+            let a = pose.axis[k];
+            let spread = radius * (1.0 - a * a).max(0.0).sqrt();
+            let (below, above) = (lo[k] - spread - pose.tip[k], hi[k] + spread - pose.tip[k]);
+            if a.abs() < 1e-12 {
+                if below > 0.0 || above < 0.0 {
+                    return (f64::INFINITY, f64::NEG_INFINITY);
+                }
+                continue;
+            }
+            let (p, q) = (below / a, above / a);
+            z0 = z0.max(p.min(q));
+            z1 = z1.min(p.max(q));
+        }
+        (z0, z1)
     }
 
     /// Whether the tool's envelope runs into material along `velocity` (part frame, m/s):
@@ -565,6 +604,14 @@ impl EdgeFrame<'_> {
         let normal = r * p.sin_k - self.axis * p.cos_k;
         material.contains(&point, &normal)
     }
+}
+
+fn slice_z_min(a: &ProfilePoint, b: &ProfilePoint) -> f64 {
+    a.z.min(b.z)
+}
+
+fn slice_z_max(a: &ProfilePoint, b: &ProfilePoint) -> f64 {
+    a.z.max(b.z)
 }
 
 /// Whether a tool that does not cut at its centre (flat, bull nose) is plunging into

@@ -333,31 +333,28 @@ pub fn mesh_volume(triangles: &[[Point3<f64>; 3]]) -> f64 {
         / 6.0
 }
 
-/// Writes triangles (m) as a binary STL, in millimetres when `scale_to_mm` (the usual unit
-/// of STL files), else in metres. Each facet's normal is its vertices' right-hand normal.
-pub fn write_binary_stl(
-    path: &Path,
-    triangles: &[[Point3<f64>; 3]],
-    scale_to_mm: bool,
-) -> std::io::Result<()> {
+/// Writes a mesh (m) as a binary STL, in millimetres when `scale_to_mm` (the usual unit of STL
+/// files), else in metres. Each facet's normal is its vertices' right-hand normal. Facets are
+/// made as they are written: a part of millions of triangles takes no second copy in memory.
+pub fn write_binary_stl(path: &Path, mesh: &IndexedMesh, scale_to_mm: bool) -> std::io::Result<()> {
     let scale = if scale_to_mm { 1000.0 } else { 1.0 };
-    let facets: Vec<stl_io::Triangle> = triangles
-        .iter()
-        .map(|t| {
-            let n: Vector3<f64> = (t[1] - t[0]).cross(&(t[2] - t[0]));
-            let n = n.try_normalize(0.0).unwrap_or_else(Vector3::zeros);
-            stl_io::Triangle {
-                normal: stl_io::Normal::new([n.x as f32, n.y as f32, n.z as f32]),
-                vertices: t.map(|p| {
-                    stl_io::Vertex::new([
-                        (p.x * scale) as f32,
-                        (p.y * scale) as f32,
-                        (p.z * scale) as f32,
-                    ])
-                }),
-            }
-        })
-        .collect();
-    let mut file = std::fs::File::create(path)?;
-    stl_io::write_stl(&mut file, facets.iter())
+    let vertex = |i: u32| mesh.vertices[i as usize];
+    let facets = mesh.triangles.iter().map(|t| {
+        let [a, b, c] = t.map(vertex);
+        let n: Vector3<f64> = (b - a).cross(&(c - a));
+        let n = n.try_normalize(0.0).unwrap_or_else(Vector3::zeros);
+        stl_io::Triangle {
+            normal: stl_io::Normal::new([n.x as f32, n.y as f32, n.z as f32]),
+            vertices: [a, b, c].map(|p| {
+                stl_io::Vertex::new([
+                    (p.x * scale) as f32,
+                    (p.y * scale) as f32,
+                    (p.z * scale) as f32,
+                ])
+            }),
+        }
+    });
+    let mut file = std::io::BufWriter::new(std::fs::File::create(path)?);
+    stl_io::write_stl(&mut file, facets)?;
+    std::io::Write::flush(&mut file)
 }

@@ -38,7 +38,11 @@ pub fn run_blueprint(setup: &RecordingSetup<'_>) -> Blueprint {
         Horizontal::new([
             Spatial3DView::new("tool path on the workpiece")
                 .with_origin(format!("world/machine/{workpiece}"))
-                .with_contents(["$origin/paths/**", "$origin/stock/**"])
+                .with_contents(if setup.stock_frame.is_some() {
+                    vec!["$origin/paths/**", "$origin/stock/**"]
+                } else {
+                    vec!["$origin/paths/**"]
+                })
                 .into(),
             Spatial3DView::new("path error, magnified")
                 .with_origin("magnified")

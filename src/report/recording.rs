@@ -79,6 +79,8 @@ pub struct RecordingSetup<'a> {
 const STOCK_SNAPSHOTS: f64 = 40.0;
 /// Most triangles a snapshot of the stock is drawn with.
 const STOCK_TRIANGLES: usize = 200_000;
+/// Most surface points the finished part is drawn with.
+const PART_POINTS: usize = 500_000;
 
 /// Columns of one lane's recorded rows, sent every [`CHUNK_ROWS`] rows.
 #[derive(Default)]
@@ -351,11 +353,18 @@ impl RrdWriter {
             }
         }
         if self.stock_frame.is_some() {
+            // The three components apart: red, green, blue as the axes are drawn; the analytic
+            // lane's paler, an A/B variant's its own colour.
+            let components: [[u8; 3]; 3] = match (kind, &self.variant) {
+                (LaneKind::Analytic, _) => [[240, 150, 150], [150, 220, 150], [150, 170, 240]],
+                (_, Some(_)) => [colour; 3],
+                _ => [[220, 40, 40], [40, 170, 60], [50, 90, 230]],
+            };
             for (k, a) in ["x", "y", "z"].iter().enumerate() {
                 add(
                     format!("cutting/force/{a}/{kind}"),
                     format!("F{a}, {kind} (N)"),
-                    colour,
+                    components[k],
                     Quantity::CutForce(k),
                 );
             }
@@ -673,7 +682,10 @@ impl RrdWriter {
     ) -> String {
         let logged = self.log_stock(time, stock);
         self.keep(logged);
-        let points = &comparison.points;
+        // At most PART_POINTS points drawn (every k-th): the viewer's budget, not the figures'.
+        let stride = comparison.points.len().div_ceil(PART_POINTS).max(1);
+        let points: Vec<&crate::cutting::SurfacePoint> =
+            comparison.points.iter().step_by(stride).collect();
         let worst = comparison.max_error;
         let (lo, hi) = stock.bounds();
         let k = magnification((hi - lo).norm(), worst);
@@ -684,14 +696,16 @@ impl RrdWriter {
             [q.x as f32, q.y as f32, q.z as f32]
         };
         let radius = rerun::Radius::new_scene_units((0.6 * stock.resolution()) as f32);
-        let at = self.rec.log_static(
+        // The finished part is a result of the whole run: shown from its end on.
+        self.rec.set_duration_secs("sim_time", time);
+        let at = self.rec.log(
             self.entity("part/machined"),
             &rerun::Points3D::new(points.iter().map(|p| place(&p.position)))
                 .with_colors(points.iter().map(|p| colour(p.error)))
                 .with_radii([radius]),
         );
         self.keep(at);
-        let at = self.rec.log_static(
+        let at = self.rec.log(
             self.entity("part/magnified"),
             &rerun::Points3D::new(
                 points
@@ -701,6 +715,7 @@ impl RrdWriter {
             .with_colors(points.iter().map(|p| colour(p.error)))
             .with_radii([radius]),
         );
+        self.rec.disable_timeline("sim_time");
         self.keep(at);
         format!(
             "*The part as cut*: its surface points coloured by their normal distance from the nominal part's surface, blue where the tool cut too deep, red where it left material (±{:.3} µm at full colour); the magnified view moves each point {k} × that distance along its normal.",
@@ -824,10 +839,23 @@ fn stock_mesh(triangles: &[[Point3<f64>; 3]], colour: [u8; 3]) -> rerun::Mesh3D 
         .flatten()
         .map(|p| [p.x as f32, p.y as f32, p.z as f32])
         .collect();
+    // Each triangle's own normal at its three corners: flat shading, so a groove or a wall
+    // reads as one (without normals the viewer draws the whole mesh in one flat colour).
+    let normals: Vec<[f32; 3]> = triangles
+        .iter()
+        .flat_map(|t| {
+            let n = (t[1] - t[0])
+                .cross(&(t[2] - t[0]))
+                .try_normalize(0.0)
+                .unwrap_or_else(nalgebra::Vector3::z);
+            [[n.x as f32, n.y as f32, n.z as f32]; 3]
+        })
+        .collect();
     let indices: Vec<rerun::TriangleIndices> = (0..triangles.len() as u32)
         .map(|t| rerun::TriangleIndices::from([3 * t, 3 * t + 1, 3 * t + 2]))
         .collect();
     rerun::Mesh3D::new(vertices)
+        .with_vertex_normals(normals)
         .with_triangle_indices(indices)
         .with_albedo_factor(rerun::Rgba32::from_rgb(colour[0], colour[1], colour[2]))
 }

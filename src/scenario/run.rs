@@ -298,7 +298,7 @@ impl Assembly {
         if let Some(p) = &part {
             if let Some(dir) = &out_dir {
                 let stl = dir.join("part.stl");
-                crate::cutting::write_binary_stl(&stl, &p.machined.surface(), true).map_err(
+                crate::cutting::write_binary_stl(&stl, &p.machined.surface_mesh(), true).map_err(
                     |source| ReportError::Io {
                         path: stl.clone(),
                         source,
