@@ -469,3 +469,24 @@ fn the_force_spectrum_peaks_at_the_tooth_passing_frequency() {
         .unwrap();
     assert!((peak.0 - 150.0).abs() <= 1.0, "spectrum peaks at {} Hz", peak.0);
 }
+
+#[test]
+fn the_tool_in_the_spindle_gives_its_table_diameter_where_the_scenario_gives_none() {
+    let dir = tempfile::tempdir().unwrap();
+    std::fs::write(dir.path().join("tools.tbl"), "T1 P1 Z60.0 D6.0 ;6 mm end mill\nT2 P2 Z70.0 D12.0\n").unwrap();
+    let program = "G21 G90 G17 G94\nT1 M6\nS12000 M3\nG0 X-50 Y0 Z5\nG1 Z-3 F600\nG1 X50 F1200\nG0 Z5\nM5\nM2\n";
+    let path = slot_variant(dir.path(), program, |t| {
+        t.replace("diameter_mm = 10.0\n", "")
+            .replace("file = \"part.ngc\"", "file = \"part.ngc\"\ntool_table = \"tools.tbl\"")
+    });
+    let assembly = Assembly::new(&Scenario::load(&path).unwrap()).unwrap();
+    let tool = assembly.cut.as_ref().unwrap().tool;
+    assert!((tool.diameter - 6e-3).abs() < 1e-12, "{tool:?}");
+    // Without a tool in the spindle and without a diameter: refused, saying what to give.
+    let path = slot_variant(dir.path(), SLOT, |t| t.replace("diameter_mm = 10.0\n", ""));
+    let err = match Assembly::new(&Scenario::load(&path).unwrap()) {
+        Err(e) => e.to_string(),
+        Ok(_) => panic!("a cut without a tool diameter was accepted"),
+    };
+    assert!(err.contains("diameter_mm"), "{err}");
+}

@@ -5,12 +5,21 @@
 use super::{CutProcess, ForceModel, Material, Pose, Stock, StepForces, Tool};
 use nalgebra::{Point3, Unit, Vector3};
 
-/// Where material removal waits for the tool: it sweeps the tool from the last removed pose
-/// once the tip has moved this many stock resolutions, or the axis has turned enough to move
-/// the tool's far end as much. The force model tests engagement at the tool's envelope, ahead
-/// of the motion, so material the lag leaves behind the tool (within a quarter of the
-/// resolution) is never read as engaged: the chip thickness there is negative.
-const REMOVAL_LAG_RESOLUTIONS: f64 = 0.25;
+/// How far the tool's path may stray from the straight chord removal sweeps it along (m): the
+/// stock is cut by the tool swept in straight chords, each as long as the path stays within
+/// this of it (at the tip, and at the far end of the fluted part for a turning axis). On a
+/// 25 mm radius that is a chord of 0.2 mm; on a straight line the chord grows to
+/// [`MAX_CHORD_RESOLUTIONS`].
+const CHORD_TOLERANCE: f64 = 0.2e-6;
+
+/// Longest chord (in stock resolutions). Removal lagging behind the tool does not change what
+/// the force model reads (it asks in front of the moving tool, where nothing was removed
+/// yet; behind it the chip thickness is negative), but a tool turning back into its own track
+/// would meet material up to a chord's length too late.
+const MAX_CHORD_RESOLUTIONS: f64 = 4.0;
+
+/// Poses kept between removals, to test the chord against.
+const MAX_PENDING: usize = 256;
 
 /// One lane's cut.
 pub struct Cut {
@@ -19,6 +28,8 @@ pub struct Cut {
     tool: Tool,
     /// The pose up to which the stock has been cut.
     removed_to: Option<Pose>,
+    /// The poses since, in order (the tool's path the next chord must follow).
+    pending: Vec<Pose>,
     /// The pose of the last step.
     last: Option<Pose>,
     /// Peak values over the cut so far.
@@ -59,6 +70,7 @@ impl Cut {
             process: CutProcess::new(model),
             tool,
             removed_to: None,
+            pending: Vec::new(),
             last: None,
             totals: CutTotals::default(),
             fault: None,
@@ -120,20 +132,55 @@ impl Cut {
         })
     }
 
-    /// Removes what the tool sweeps from the last removed pose to `pose`, if it has moved
-    /// far enough (or `always`).
+    /// Moves the tool on to `pose`: the stock loses what the tool sweeps, in straight chords
+    /// that follow the path within [`CHORD_TOLERANCE`] (or, with `always`, up to `pose` now).
     fn remove_to(&mut self, pose: &Pose, always: bool) {
-        // The first pose: the tool stands where it stands (a tool started inside the stock
-        // removes its own volume).
-        let from = self.removed_to.unwrap_or(*pose);
-        let lag = REMOVAL_LAG_RESOLUTIONS * self.stock.resolution();
-        let reach = self.tool.flute_length.max(self.tool.diameter);
-        let moved = (pose.tip - from.tip).norm()
-            + reach * (pose.axis.into_inner() - from.axis.into_inner()).norm();
-        if self.removed_to.is_some() && !always && moved < lag {
+        let Some(from) = self.removed_to else {
+            // The first pose: the tool stands where it stands (a tool started inside the
+            // stock removes its own volume).
+            self.sweep(pose, pose);
+            self.removed_to = Some(*pose);
+            return;
+        };
+        let longest = MAX_CHORD_RESOLUTIONS * self.stock.resolution();
+        let follows = (pose.tip - from.tip).norm() <= longest
+            && self.pending.len() < MAX_PENDING
+            && self.pending.iter().all(|p| self.off_chord(&from, pose, p) <= CHORD_TOLERANCE);
+        if follows && !always {
+            self.pending.push(*pose);
             return;
         }
-        match self.stock.remove_swept(&self.tool, &from, pose) {
+        // The chord to the last pose that still followed, then on from there.
+        if let Some(&last) = self.pending.last().filter(|_| !follows) {
+            self.sweep(&from, &last);
+            self.pending.clear();
+            self.removed_to = Some(last);
+            return self.remove_to(pose, always);
+        }
+        self.sweep(&from, pose);
+        self.pending.clear();
+        self.removed_to = Some(*pose);
+    }
+
+    /// How far pose `p` lies from the chord `a`–`b` (m): its tip's distance from the segment,
+    /// plus how far its axis turns the fluted part's far end from the chord's interpolation.
+    fn off_chord(&self, a: &Pose, b: &Pose, p: &Pose) -> f64 {
+        let ab = b.tip - a.tip;
+        let length2 = ab.norm_squared();
+        let t = if length2 > 0.0 {
+            ((p.tip - a.tip).dot(&ab) / length2).clamp(0.0, 1.0)
+        } else {
+            0.0
+        };
+        let on_chord = a.tip + ab * t;
+        let axis = a.axis.into_inner() * (1.0 - t) + b.axis.into_inner() * t;
+        let turn = (p.axis.into_inner() - axis).norm() * self.tool.flute_length;
+        (p.tip - on_chord).norm() + turn
+    }
+
+    /// Removes what the tool sweeps from `a` to `b`.
+    fn sweep(&mut self, a: &Pose, b: &Pose) {
+        match self.stock.remove_swept(&self.tool, a, b) {
             Ok(volume) => self.totals.removed_volume += volume,
             Err(e) => {
                 if self.fault.is_none() {
@@ -141,7 +188,6 @@ impl Cut {
                 }
             }
         }
-        self.removed_to = Some(*pose);
     }
 
     /// Why the cut cannot go on, if it cannot.

@@ -611,19 +611,31 @@ impl Stock {
         }
         let angle = axes[0].dot(&axes[1]).clamp(-1.0, 1.0).acos();
         let steps = if angle > 1e-12 {
-            // The farthest a tool point can be from the tip while inside the stock.
+            // The farthest a tool point can be from the tip while inside the stock: the
+            // highest point of the axis (at either end's axis) within a radius of the stock's
+            // box, plus the radius.
             let (lo, hi) = self.bounds();
-            let far = [from.tip, to.tip]
+            let far = [(from.tip, axes[0]), (to.tip, axes[1])]
                 .iter()
-                .flat_map(|t| {
-                    (0..8).map(move |c| {
-                        let corner_pt = Vector3::new(
-                            if c & 1 == 0 { lo.x } else { hi.x },
-                            if c & 2 == 0 { lo.y } else { hi.y },
-                            if c & 4 == 0 { lo.z } else { hi.z },
-                        );
-                        (corner_pt - t.coords).norm()
-                    })
+                .map(|(tip, a)| {
+                    let (mut h0, mut h1) = (0.0f64, reach);
+                    for k in 0..3 {
+                        let (below, above) = (lo[k] - radius - tip[k], hi[k] + radius - tip[k]);
+                        if a[k].abs() < 1e-12 {
+                            if below > 0.0 || above < 0.0 {
+                                h1 = -1.0;
+                            }
+                            continue;
+                        }
+                        let (p, q) = (below / a[k], above / a[k]);
+                        h0 = h0.max(p.min(q));
+                        h1 = h1.min(p.max(q));
+                    }
+                    if h1 >= h0 {
+                        h1 + radius
+                    } else {
+                        0.0
+                    }
                 })
                 .fold(0.0, f64::max);
             let ell = (reach + radius).min(far);

@@ -190,7 +190,8 @@ pub struct Program {
     pub moves: Vec<Move>,
     /// Diagnostics that did not stop decoding.
     pub warnings: Vec<Warning>,
-    /// The tools the program describes, in the order described (APT `TLDATA`).
+    /// The tools the program describes, in the order described: APT `TLDATA`; in G-code the
+    /// tools M6 or M61 put in the spindle that the tool table gives a diameter.
     pub tools: Vec<ProgramTool>,
 }
 

@@ -312,6 +312,7 @@ impl Interpreter<'_> {
                 self.s.turning = Turning::Stopped;
                 self.sync_spindle();
                 self.set_tool_parameters();
+                self.describe_spindle_tool(span);
             }
             Some(word) => {
                 let Some(q) = block.word(b'q') else {
@@ -319,6 +320,7 @@ impl Interpreter<'_> {
                 };
                 self.s.current_tool = self.tool_number(q)?;
                 self.set_tool_parameters();
+                self.describe_spindle_tool(span);
             }
             None => {}
         }
@@ -563,6 +565,31 @@ impl Interpreter<'_> {
                 offset: [0.0; 6],
                 diameter: 0.0,
             })
+    }
+
+    /// Records the tool now in the spindle among the program's tools (its table diameter in
+    /// metres), once per tool, where it has one: what a cut uses when the scenario gives no
+    /// diameter.
+    fn describe_spindle_tool(&mut self, span: Span) {
+        let tool = self.spindle_tool();
+        if tool.number == 0 || tool.diameter <= 0.0 {
+            return;
+        }
+        let name = format!("T{}", tool.number);
+        let tools = &mut self.canon.program.tools;
+        if tools.iter().any(|t| t.name.as_deref() == Some(name.as_str())) {
+            return;
+        }
+        let metres = self.options.gcode.user_units.metres();
+        tools.push(crate::program::types::ProgramTool {
+            name: Some(name),
+            // A tool table says no more than the diameter and the length offset.
+            kind: "tool table".into(),
+            diameter: tool.diameter * metres,
+            length: tool.offset[2] * metres,
+            span,
+            ..Default::default()
+        });
     }
 
     fn set_tool_parameters(&mut self) {

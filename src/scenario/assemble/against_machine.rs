@@ -100,15 +100,23 @@ pub(super) fn check_against_machine(
         }
     }
     // The metric names a run of this machine produces.
-    let template = report::MetricsAccumulator::new(
+    let accumulator = report::MetricsAccumulator::new(
         labels,
         s.actuator.map(|a| a.kind) == Some(ActuatorKind::DcMotor),
         s.timing.servo_period,
         &vec![0.0; labels.len()],
         s.analytic.is_some(),
-    )
-    .finish(&s.name, &crate::sim::Outcome::default())
-    .to_json();
+    );
+    let accumulator = if s.cutting.is_some() {
+        accumulator.with_cutting()
+    } else {
+        accumulator
+    };
+    let mut metrics = accumulator.finish(&s.name, &crate::sim::Outcome::default());
+    if s.cutting.is_some() {
+        metrics.part = Some(report::PartMetrics::default());
+    }
+    let template = metrics.to_json();
     let mut known = Vec::new();
     collect_numeric_paths(&template, "", &mut known);
     if let crate::scenario::ProgramSource::Ballbar(b) = &s.program.source {

@@ -66,9 +66,16 @@ pub(super) fn cut_setup(
             .map(|t| t.diameter)
             .find(|&d| d > 0.0)
             .ok_or_else(|| {
-                error("[cutting.tool]: the program describes no tool with a diameter: give diameter_mm".into())
+                error("[cutting.tool]: the program describes no tool with a diameter (a CL file's TLDATA, or a G-code tool table's tool loaded with M6): give diameter_mm".into())
             })?,
     };
+    let size = spec.stock.max - spec.stock.min;
+    if spec.stock.stl.is_none() && diameter > size.max() {
+        return Err(error(format!(
+            "[cutting.tool]: the program's tool is {:?} mm wide, wider than every side of the stock",
+            diameter * 1e3
+        )));
+    }
     let tool = spec.tool.with_diameter(diameter);
     ForceModel::new(tool, spec.coefficients).map_err(|e| error(format!("[cutting]: {e}")))?;
     if frame.directions.determinant() < 0.0 {
