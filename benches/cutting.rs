@@ -40,7 +40,9 @@ fn cutting(c: &mut Criterion) {
     let assembly = Assembly::new(&five_axis).expect("the 5-axis cut assembles");
     group.bench_function("mill_table2_cut (5-axis, 0.1 mm stock)", |b| {
         b.iter(|| {
-            let run = assembly.run(RunOptions::new()).expect("the 5-axis cut runs");
+            let run = assembly
+                .run(RunOptions::new())
+                .expect("the 5-axis cut runs");
             assert!(run.stop().is_none());
             run.metrics.sim_time_s
         })

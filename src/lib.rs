@@ -9,8 +9,8 @@
 
 pub mod command;
 pub mod control;
-pub mod cutting;
 pub(crate) mod convert;
+pub mod cutting;
 pub mod diagnostics;
 pub mod dynamics;
 pub mod fmi;

@@ -22,7 +22,10 @@ fn scenario(name: &str) -> Scenario {
 }
 
 fn run_traced(s: &Scenario) -> RunOutput {
-    Assembly::new(s).unwrap().run(RunOptions::new().traced()).unwrap()
+    Assembly::new(s)
+        .unwrap()
+        .run(RunOptions::new().traced())
+        .unwrap()
 }
 
 /// Altintas' average forces on the tool per revolution (feed +X, tool axis +Z, M3), for
@@ -161,7 +164,9 @@ fn the_side_milled_wall_stands_where_the_actual_tool_centre_went() {
         by_angle.sort_by(|a, b| a.0.total_cmp(&b.0));
         assert!(by_angle.len() > 1000, "{name}: {} samples", by_angle.len());
         let deviation_at = |angle: f64| {
-            let i = by_angle.partition_point(|s| s.0 < angle).min(by_angle.len() - 1);
+            let i = by_angle
+                .partition_point(|s| s.0 < angle)
+                .min(by_angle.len() - 1);
             by_angle[i].1
         };
         // Wall points between 1 and 4 mm deep, away from where the pass starts and ends
@@ -254,7 +259,10 @@ name = "al6082"
 fn physics_and_the_analytic_lane_agree_within_a_micrometre_while_cutting() {
     let dir = tempfile::tempdir().unwrap();
     let s = Scenario::load(&xyz_slot(dir.path())).unwrap();
-    let run = Assembly::new(&s).unwrap().run(RunOptions::new().traced()).unwrap();
+    let run = Assembly::new(&s)
+        .unwrap()
+        .run(RunOptions::new().traced())
+        .unwrap();
     assert!(run.stop().is_none(), "{:?}", run.stop());
     let cutting = run.metrics.cutting.unwrap();
     assert!(cutting.max_force_n > 1.0, "the slot cuts: {cutting:?}");
@@ -292,7 +300,8 @@ fn slot_variant(dir: &Path, program: &str, edit: impl Fn(String) -> String) -> P
     path
 }
 
-const SLOT: &str = "G21 G90 G17 G94\nS12000 M3\nG0 X-50 Y0 Z5\nG1 Z-3 F600\nG1 X50 F1200\nG0 Z5\nM5\nM2\n";
+const SLOT: &str =
+    "G21 G90 G17 G94\nS12000 M3\nG0 X-50 Y0 Z5\nG1 Z-3 F600\nG1 X50 F1200\nG0 Z5\nM5\nM2\n";
 
 /// The line (1-based) of the first line of `text` containing `needle`.
 fn line_of(text: &str, needle: &str) -> usize {
@@ -365,7 +374,10 @@ fn a_stock_past_the_machines_memory_is_refused_with_the_estimate_before_anything
         Err(e) => e.to_string(),
         Ok(_) => panic!("a 1 µm lattice over 80 × 60 × 20 mm was accepted"),
     };
-    assert!(err.contains("[cutting.stock]") && err.contains(" MB"), "{err}");
+    assert!(
+        err.contains("[cutting.stock]") && err.contains(" MB"),
+        "{err}"
+    );
     assert!(err.contains("raise resolution_mm"), "{err}");
 }
 
@@ -373,11 +385,17 @@ fn a_stock_past_the_machines_memory_is_refused_with_the_estimate_before_anything
 fn the_spindle_stopped_in_the_stock_stops_the_run_with_time_and_line_and_keeps_what_it_computed() {
     let dir = tempfile::tempdir().unwrap();
     // M5 before the cut: the tool feeds into the block with the spindle standing.
-    let program = "G21 G90 G17 G94\nS12000 M3\nG0 X-50 Y0 Z5\nG1 Z-3 F600\nM5\nG1 X50 F1200\nG0 Z5\nM2\n";
+    let program =
+        "G21 G90 G17 G94\nS12000 M3\nG0 X-50 Y0 Z5\nG1 Z-3 F600\nM5\nG1 X50 F1200\nG0 Z5\nM2\n";
     let path = slot_variant(dir.path(), program, |t| t);
     let out = dir.path().join("out");
     let run = std::process::Command::new(env!("CARGO_BIN_EXE_cncsim"))
-        .args(["run", path.to_str().unwrap(), "--out", out.to_str().unwrap()])
+        .args([
+            "run",
+            path.to_str().unwrap(),
+            "--out",
+            out.to_str().unwrap(),
+        ])
         .output()
         .unwrap();
     let stderr = String::from_utf8_lossy(&run.stderr);
@@ -409,7 +427,10 @@ fn a_plunge_with_a_flat_end_mill_and_a_program_that_never_cuts_are_warned_once()
         .unwrap();
     let warnings: Vec<String> = run.warnings.iter().map(|w| w.to_string()).collect();
     assert_eq!(
-        warnings.iter().filter(|w| w.contains("plunges into the stock")).count(),
+        warnings
+            .iter()
+            .filter(|w| w.contains("plunges into the stock"))
+            .count(),
         1,
         "{warnings:?}"
     );
@@ -423,7 +444,10 @@ fn a_plunge_with_a_flat_end_mill_and_a_program_that_never_cuts_are_warned_once()
     assert!(run.stop().is_none());
     let warnings: Vec<String> = run.warnings.iter().map(|w| w.to_string()).collect();
     assert_eq!(
-        warnings.iter().filter(|w| w.contains("never touched the stock")).count(),
+        warnings
+            .iter()
+            .filter(|w| w.contains("never touched the stock"))
+            .count(),
         1,
         "{warnings:?}"
     );
@@ -467,17 +491,27 @@ fn the_force_spectrum_peaks_at_the_tooth_passing_frequency() {
         .map(|f| (f as f64, power(f as f64)))
         .max_by(|a, b| a.1.total_cmp(&b.1))
         .unwrap();
-    assert!((peak.0 - 150.0).abs() <= 1.0, "spectrum peaks at {} Hz", peak.0);
+    assert!(
+        (peak.0 - 150.0).abs() <= 1.0,
+        "spectrum peaks at {} Hz",
+        peak.0
+    );
 }
 
 #[test]
 fn the_tool_in_the_spindle_gives_its_table_diameter_where_the_scenario_gives_none() {
     let dir = tempfile::tempdir().unwrap();
-    std::fs::write(dir.path().join("tools.tbl"), "T1 P1 Z60.0 D6.0 ;6 mm end mill\nT2 P2 Z70.0 D12.0\n").unwrap();
+    std::fs::write(
+        dir.path().join("tools.tbl"),
+        "T1 P1 Z60.0 D6.0 ;6 mm end mill\nT2 P2 Z70.0 D12.0\n",
+    )
+    .unwrap();
     let program = "G21 G90 G17 G94\nT1 M6\nS12000 M3\nG0 X-50 Y0 Z5\nG1 Z-3 F600\nG1 X50 F1200\nG0 Z5\nM5\nM2\n";
     let path = slot_variant(dir.path(), program, |t| {
-        t.replace("diameter_mm = 10.0\n", "")
-            .replace("file = \"part.ngc\"", "file = \"part.ngc\"\ntool_table = \"tools.tbl\"")
+        t.replace("diameter_mm = 10.0\n", "").replace(
+            "file = \"part.ngc\"",
+            "file = \"part.ngc\"\ntool_table = \"tools.tbl\"",
+        )
     });
     let assembly = Assembly::new(&Scenario::load(&path).unwrap()).unwrap();
     let tool = assembly.cut.as_ref().unwrap().tool;

@@ -2,7 +2,7 @@
 //! of what the tool sweeps. The plant calls [`Cut::step`] every physics step with the tool's
 //! pose and velocity on the part; the cut answers with the force and removes material.
 
-use super::{CutProcess, ForceModel, Material, Pose, Stock, StepForces, Tool};
+use super::{CutProcess, ForceModel, Material, Pose, StepForces, Stock, Tool};
 use nalgebra::{Point3, Unit, Vector3};
 
 /// How far the tool's path may stray from the straight chord removal sweeps it along (m): the
@@ -82,7 +82,13 @@ impl Cut {
     /// One physics step of length `dt`: the tool at `pose` moving at `velocity` (tool relative
     /// to part, stock frame) with the spindle at `omega` (rad/s, > 0 for M3). Returns the
     /// step's forces (averaged over the step) and removes what the tool swept up to `pose`.
-    pub fn step(&mut self, pose: &Pose, velocity: &Vector3<f64>, omega: f64, dt: f64) -> StepForces {
+    pub fn step(
+        &mut self,
+        pose: &Pose,
+        velocity: &Vector3<f64>,
+        omega: f64,
+        dt: f64,
+    ) -> StepForces {
         let ahead = Pose {
             tip: pose.tip + velocity * dt,
             axis: pose.axis,
@@ -127,7 +133,9 @@ impl Cut {
             let (min, max) = ends
                 .iter()
                 .flatten()
-                .fold((f64::INFINITY, f64::NEG_INFINITY), |(m, n), p| (m.min(p[k]), n.max(p[k])));
+                .fold((f64::INFINITY, f64::NEG_INFINITY), |(m, n), p| {
+                    (m.min(p[k]), n.max(p[k]))
+                });
             min - margin <= hi[k] && max + margin >= lo[k]
         })
     }
@@ -145,7 +153,10 @@ impl Cut {
         let longest = MAX_CHORD_RESOLUTIONS * self.stock.resolution();
         let follows = (pose.tip - from.tip).norm() <= longest
             && self.pending.len() < MAX_PENDING
-            && self.pending.iter().all(|p| self.off_chord(&from, pose, p) <= CHORD_TOLERANCE);
+            && self
+                .pending
+                .iter()
+                .all(|p| self.off_chord(&from, pose, p) <= CHORD_TOLERANCE);
         if follows && !always {
             self.pending.push(*pose);
             return;

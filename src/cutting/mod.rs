@@ -22,11 +22,11 @@ pub mod stock;
 pub mod surface;
 pub mod tool;
 
+pub use compare::{compare, SurfaceComparison, SurfacePoint};
 pub use cut::{Cut, CutTotals};
 pub use force::{EdgeForces, ForceModel, Material};
 pub use material::{material, Coefficients, MaterialEntry, MATERIALS};
 pub use process::{CutProcess, StepForces};
-pub use compare::{compare, SurfaceComparison, SurfacePoint};
 pub use stock::{Stock, StockError};
 pub use surface::{mesh_volume, write_binary_stl, IndexedMesh};
 pub use tool::{Pose, Tool, ToolShape};

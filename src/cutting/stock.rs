@@ -819,7 +819,11 @@ fn edge_function(a: [f64; 3], b: [f64; 3], pu: f64, pv: f64) -> f64 {
             dx.signum() * f64::MIN_POSITIVE
         };
     }
-    if swap { -f } else { f }
+    if swap {
+        -f
+    } else {
+        f
+    }
 }
 
 /// Edges of the mesh used by an odd number of triangles, matching vertices exactly.

@@ -1064,7 +1064,12 @@ impl Plant {
 
     /// Velocity (world frame) of the world point `point` carried by the last link of the chain
     /// `dofs`, from the joints' generalised velocities (a Jacobian product).
-    fn point_velocity(&self, mb: &Multibody, dofs: &[ChainDof], point: &Point3<f64>) -> Vector3<f64> {
+    fn point_velocity(
+        &self,
+        mb: &Multibody,
+        dofs: &[ChainDof],
+        point: &Point3<f64>,
+    ) -> Vector3<f64> {
         let v = mb.generalized_velocity();
         let mut velocity = Vector3::zeros();
         for d in dofs {

@@ -185,9 +185,11 @@ pub fn ab_blueprint(
         ));
     }
     let names: Vec<String> = variants.iter().map(|(p, n)| format!("{p}: {n}")).collect();
-    let mut left = vec![Spatial3DView::new(format!("tool paths: {}", names.join(" vs ")))
-        .with_contents(paths)
-        .into()];
+    let mut left = vec![
+        Spatial3DView::new(format!("tool paths: {}", names.join(" vs ")))
+            .with_contents(paths)
+            .into(),
+    ];
     if cutting {
         left.push(
             Horizontal::new(variants.iter().map(|(p, n)| {

@@ -497,7 +497,10 @@ impl RrdWriter {
                 self.magnified.push((q, path.tool, path.contour_error));
             }
             if let Some(stock) = r.stock {
-                if self.stock_drawn.is_none_or(|t| r.time - t >= self.stock_every) {
+                if self
+                    .stock_drawn
+                    .is_none_or(|t| r.time - t >= self.stock_every)
+                {
                     self.stock_drawn = Some(r.time);
                     let drawn = self.log_stock(r.time, stock);
                     self.keep(drawn);
@@ -659,7 +662,11 @@ impl RrdWriter {
     }
 
     /// The stock as cut at program time `time`, in its frame on the workpiece.
-    fn log_stock(&mut self, time: f64, stock: &crate::cutting::Stock) -> rerun::RecordingStreamResult<()> {
+    fn log_stock(
+        &mut self,
+        time: f64,
+        stock: &crate::cutting::Stock,
+    ) -> rerun::RecordingStreamResult<()> {
         let triangles = stock.surface_coarse(STOCK_TRIANGLES);
         self.rec.set_duration_secs("sim_time", time);
         let logged = self.rec.log(
@@ -866,9 +873,17 @@ fn signed_heat(x: f64) -> rerun::Color {
     let grey = 200.0;
     let (r, g, b) = if x < 0.0 {
         let t = -x;
-        (grey * (1.0 - t), grey * (1.0 - t) + 60.0 * t, grey + (255.0 - grey) * t)
+        (
+            grey * (1.0 - t),
+            grey * (1.0 - t) + 60.0 * t,
+            grey + (255.0 - grey) * t,
+        )
     } else {
-        (grey + (255.0 - grey) * x, grey * (1.0 - x), grey * (1.0 - x))
+        (
+            grey + (255.0 - grey) * x,
+            grey * (1.0 - x),
+            grey * (1.0 - x),
+        )
     };
     rerun::Color::from_rgb(r as u8, g as u8, b as u8)
 }

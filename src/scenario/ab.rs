@@ -80,8 +80,8 @@ pub fn run_ab(
         &[("a", &a.name), ("b", &b.name)],
         cutting,
     )
-        .send(&rec, rerun::blueprint::BlueprintActivation::default())
-        .map_err(|e| fail(&e))?;
+    .send(&rec, rerun::blueprint::BlueprintActivation::default())
+    .map_err(|e| fail(&e))?;
     let mut outputs = Vec::new();
     for (i, (assembly, prefix)) in [(&aa, "a"), (&ab, "b")].into_iter().enumerate() {
         let s = &assembly.scenario;
@@ -230,7 +230,12 @@ fn compare(a: &Scenario, ra: &RunOutput, b: &Scenario, rb: &RunOutput) -> AbRepo
         );
     }
     if let (Some(x), Some(y)) = (&ma.cutting, &mb.cutting) {
-        row("cutting: max force".into(), "N", x.max_force_n, y.max_force_n);
+        row(
+            "cutting: max force".into(),
+            "N",
+            x.max_force_n,
+            y.max_force_n,
+        );
         row(
             "cutting: max spindle power".into(),
             "W",

@@ -737,7 +737,9 @@ impl AxisModel {
         match contact {
             Contact::Open => self.carriage_force(),
             Contact::Compliant { side } => self.spring_force(y, side) + self.carriage_force(),
-            Contact::Rigid | Contact::Closed { .. } => self.motor(y, input).0 + self.carriage_force(),
+            Contact::Rigid | Contact::Closed { .. } => {
+                self.motor(y, input).0 + self.carriage_force()
+            }
         }
     }
 

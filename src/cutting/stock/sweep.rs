@@ -469,7 +469,11 @@ fn swept_disc_residual(
         let zh = z.dot(n);
         let zw = z - n * zh;
         let w = zw.norm();
-        if w <= rho { n * zh } else { z - zw * (rho / w) }
+        if w <= rho {
+            n * zh
+        } else {
+            z - zw * (rho / w)
+        }
     };
     // The squared distance at t is convex with derivative −2·residual(t)·d, so m(t) =
     // residual(t)·d falls with t; its root (or the end it does not cross) is the nearest t.

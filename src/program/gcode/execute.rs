@@ -577,7 +577,10 @@ impl Interpreter<'_> {
         }
         let name = format!("T{}", tool.number);
         let tools = &mut self.canon.program.tools;
-        if tools.iter().any(|t| t.name.as_deref() == Some(name.as_str())) {
+        if tools
+            .iter()
+            .any(|t| t.name.as_deref() == Some(name.as_str()))
+        {
             return;
         }
         let metres = self.options.gcode.user_units.metres();

@@ -86,13 +86,21 @@ pub(super) fn cut_setup(
         Some(path) => {
             let triangles = read_stl(path)?;
             let (lo, hi) = bounds(&triangles);
-            check_memory(s, Stock::estimate_bytes(lo, hi, spec.stock.resolution), limit)?;
+            check_memory(
+                s,
+                Stock::estimate_bytes(lo, hi, spec.stock.resolution),
+                limit,
+            )?;
             Stock::from_triangles(&triangles, spec.stock.resolution, limit / STOCK_COPIES)
                 .map_err(|e| RunError::from(FileError::new(path, None, e.to_string())))?
         }
         None => {
             let st = &spec.stock;
-            check_memory(s, Stock::estimate_bytes(st.min, st.max, st.resolution), limit)?;
+            check_memory(
+                s,
+                Stock::estimate_bytes(st.min, st.max, st.resolution),
+                limit,
+            )?;
             Stock::from_box(st.min, st.max, st.resolution, limit / STOCK_COPIES)
                 .map_err(|e| error(format!("[cutting.stock]: {e}")))?
         }
@@ -182,8 +190,13 @@ fn memory_limit() -> u64 {
 /// The triangles of the stock's starting shape (an STL, OBJ or COLLADA mesh in mm, read as
 /// metres by the reader machines' meshes go through).
 fn read_stl(path: &std::path::Path) -> Result<Vec<[Point3<f64>; 3]>, RunError> {
-    let mesh = crate::machine::read_mesh(path, [1e-3; 3])
-        .map_err(|m| RunError::from(FileError::new(path, None, format!("the stock's shape: {m}"))))?;
+    let mesh = crate::machine::read_mesh(path, [1e-3; 3]).map_err(|m| {
+        RunError::from(FileError::new(
+            path,
+            None,
+            format!("the stock's shape: {m}"),
+        ))
+    })?;
     let vertex = |i: u32| {
         let p = mesh.vertices[i as usize];
         Point3::new(f64::from(p[0]), f64::from(p[1]), f64::from(p[2]))

@@ -75,7 +75,8 @@ impl TryFrom<InFile<'_, &RawCutting>> for CuttingSpec {
                 ));
             }
         }
-        let (coefficients, material_name) = coefficients(raw.material.get_ref(), raw.material.span(), file)?;
+        let (coefficients, material_name) =
+            coefficients(raw.material.get_ref(), raw.material.span(), file)?;
         Ok(CuttingSpec {
             stock,
             tool,
@@ -211,16 +212,15 @@ fn tool(raw: &RawTool, file: &super::source::Source<'_>) -> Result<ToolSpec, Fil
                 ToolShape::Bull { corner_radius: r }
             }
             None => {
-                return Err(file.error(
-                    at,
-                    "cutting.tool: shape = \"bull\" needs corner_radius_mm",
-                ))
+                return Err(file.error(at, "cutting.tool: shape = \"bull\" needs corner_radius_mm"))
             }
         },
         Some((other, at)) => {
             return Err(file.error(
                 at,
-                format!("cutting.tool.shape = \"{other}\": expected \"flat\", \"ball\" or \"bull\""),
+                format!(
+                    "cutting.tool.shape = \"{other}\": expected \"flat\", \"ball\" or \"bull\""
+                ),
             ))
         }
     };
