@@ -7,10 +7,13 @@
 //!
 //! Every period each lane samples its plant's sensors, checks them (divergence, the drive's
 //! following-error trip), quantises the feedback (encoder), runs its controller once and holds
-//! the command over the period while the plant advances. A run has one or more lanes on the
-//! same setpoint stream in lockstep: the Rapier machine ([`PhysicsPlant`]) and, beside it, the
-//! analytic reference model ([`AnalyticPlant`]), each with its own controller instance, so the
-//! two are compared sample by sample. What happens is handed, tick by tick, to an
+//! the command over the period while the plant advances. The program's spindle speed is the
+//! plant's second input, set before each period: a plant that cuts (the cutting process is a
+//! block inside it, stepped at the physics step) turns its tool at that speed, and a plant
+//! that cannot go on (the tool in the stock with the spindle stopped) stops its lane. A run has
+//! one or more lanes on the same setpoint stream in lockstep: the Rapier machine
+//! ([`PhysicsPlant`]) and, beside it, the analytic reference model ([`AnalyticPlant`]), each
+//! with its own controller instance, so the two are compared sample by sample. What happens is handed, tick by tick, to an
 //! [`Observer`] (metrics, CSV, recording, an in-memory [`Trace`]): nothing per tick is kept
 //! here, so memory does not grow with the program's length.
 
