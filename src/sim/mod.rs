@@ -13,9 +13,9 @@
 //! that cannot go on (the tool in the stock with the spindle stopped) stops its lane. A run has
 //! one or more lanes on the same setpoint stream in lockstep: the Rapier machine
 //! ([`PhysicsPlant`]) and, beside it, the analytic reference model ([`AnalyticPlant`]), each
-//! with its own controller instance, so the two are compared sample by sample. What happens is handed, tick by tick, to an
-//! [`Observer`] (metrics, CSV, recording, an in-memory [`Trace`]): nothing per tick is kept
-//! here, so memory does not grow with the program's length.
+//! with its own controller instance, so the two are compared sample by sample. What happens is
+//! handed, tick by tick, to an [`Observer`] (metrics, CSV, recording, an in-memory [`Trace`]):
+//! nothing per tick is kept here, so memory does not grow with the program's length.
 
 pub mod analytic;
 mod blocks;
