@@ -30,8 +30,6 @@ pub struct Cut {
     removed_to: Option<Pose>,
     /// The poses since, in order (the tool's path the next chord must follow).
     pending: Vec<Pose>,
-    /// The pose of the last step.
-    last: Option<Pose>,
     /// Peak values over the cut so far.
     totals: CutTotals,
     /// Why the cut could not go on (a removal refused, e.g. a pose not finite).
@@ -71,7 +69,6 @@ impl Cut {
             tool,
             removed_to: None,
             pending: Vec::new(),
-            last: None,
             totals: CutTotals::default(),
             fault: None,
             plunged_at: None,
@@ -117,7 +114,6 @@ impl Cut {
         } else {
             self.descent_from = None;
         }
-        self.last = Some(*pose);
         self.remove_to(pose, false);
         forces
     }
@@ -215,13 +211,13 @@ impl Cut {
     /// Moves the tool to `pose` without forces: removes what it sweeps (the nominal part's
     /// cut, from the programmed path).
     pub fn sweep_to(&mut self, pose: &Pose) {
-        self.last = Some(*pose);
         self.remove_to(pose, false);
     }
 
     /// Removes what the last steps swept and not yet removed (at the end of a run).
     pub fn finish(&mut self) {
-        if let Some(last) = self.last {
+        // The last pose the tool reached: the newest one not yet swept to, if any.
+        if let Some(&last) = self.pending.last() {
             self.remove_to(&last, true);
         }
     }

@@ -10,8 +10,9 @@ use nalgebra::{Isometry3, Point3, Vector3};
 /// A plant's cut, placed on the part.
 pub struct PlantCut {
     cut: Cut,
-    /// The stock's frame in the frame of the link carrying the part.
+    /// The stock's frame in the frame of the link carrying the part, and its inverse.
     stock_in_part: Isometry3<f64>,
+    part_to_stock: Isometry3<f64>,
     /// Spindle speed over the present period (rad/s, > 0 as M3).
     spindle: f64,
     fault: Option<String>,
@@ -35,6 +36,7 @@ impl PlantCut {
         PlantCut {
             cut,
             stock_in_part,
+            part_to_stock: stock_in_part.inverse(),
             spindle: 0.0,
             fault: None,
             period: PeriodSums::default(),
@@ -56,7 +58,7 @@ impl PlantCut {
         velocity: &Vector3<f64>,
         dt: f64,
     ) -> CuttingLoad {
-        let to_stock = self.stock_in_part.inverse();
+        let to_stock = self.part_to_stock;
         let tool = pose(to_stock * point, to_stock * axis);
         let v = to_stock * velocity;
         let f = self.cut.step(&tool, &v, self.spindle, dt);

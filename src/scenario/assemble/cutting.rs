@@ -119,10 +119,7 @@ pub(super) fn cut_setup(
 /// the spindle.
 pub(super) fn spindles(s: &Scenario, program: &Program) -> Spindles {
     let rad_s = |rpm: f64| rpm * 2.0 * PI / 60.0;
-    let programmed = program
-        .moves
-        .iter()
-        .any(|m| !matches!(m.spindle, Spindle::Off));
+    let programmed = starts_spindle(program);
     let fallback = s.cutting.as_ref().and_then(|c| c.spindle_rpm);
     let speed = program
         .moves
@@ -144,13 +141,17 @@ pub(super) fn spindles(s: &Scenario, program: &Program) -> Spindles {
 /// one. Returns the message.
 pub(super) fn missing_spindle(s: &Scenario, program: &Program) -> Option<String> {
     let cutting = s.cutting.as_ref()?;
-    let programmed = program
-        .moves
-        .iter()
-        .any(|m| !matches!(m.spindle, Spindle::Off));
-    (!programmed && cutting.spindle_rpm.is_none()).then(|| {
+    (!starts_spindle(program) && cutting.spindle_rpm.is_none()).then(|| {
         "[cutting]: the program never starts the spindle (S with M3/M4, or SPINDL): give [cutting] spindle_rpm".to_string()
     })
+}
+
+/// Whether the program turns the spindle anywhere.
+fn starts_spindle(program: &Program) -> bool {
+    program
+        .moves
+        .iter()
+        .any(|m| !matches!(m.spindle, Spindle::Off))
 }
 
 fn check_memory(s: &Scenario, estimate: u64, limit: u64) -> Result<(), RunError> {
