@@ -18,7 +18,8 @@ use std::fmt;
 
 use nalgebra::{Point3, Vector3};
 
-use super::tool::{Pose, Tool};
+use super::tool::{Pose, Tool, ToolShape};
+use rayon::prelude::*;
 use sweep::Sweep;
 
 /// `more` value of a dexel whose intervals are inline (zero or one interval).
@@ -573,13 +574,17 @@ impl Stock {
     ///
     /// A straight move with a fixed axis sweeps a convex solid, cut from each ray exactly
     /// (closed form for flat and ball ends, converged Newton iterations for the bull nose's
-    /// corner). When the axis turns by θ, the move is split into `N` sub-moves each swept
-    /// with a fixed axis, the slerped axis at its middle; a tool point at distance ℓ from the
-    /// tip is then off its true path by at most ℓ·θ/(2N). `N` is chosen so that this is at
-    /// most 0.5 µm for ℓ the farthest the tool can reach into the stock, capped at 256
-    /// sub-moves (then the bound grows accordingly: a 1° turn within 5 mm of the tip stays
-    /// within 0.5 µm; a 10° turn with 30 mm in the stock is off by up to 10 µm). Callers that step in small time steps,
-    /// as the co-simulation does, turn by little in each call and need few sub-moves.
+    /// corner). When the axis turns by θ, the move is split into `N` sub-moves, and each
+    /// sub-move's tool into height bands, each band swept with the sub-move's middle axis
+    /// about its own pivot on the axis (the pivot follows its true path; see
+    /// [`band_layout`]). A point of a band at distance `E` from its pivot is then off its true
+    /// path by at most `E·θ/(2N)`, held to [`ROTATION_TOLERANCE`]: rotation costs in
+    /// proportion to the band's half-height (0.5 mm at least), not to the tool's length;
+    /// only the flat end's face and a bull nose's disc, which turn with the axis, need their
+    /// radius as `E`. At most [`MAX_SUBSTEPS`] sub-moves (then the bound grows accordingly).
+    /// Callers that step in small time steps, as the co-simulation does, turn by little in
+    /// each call and need few sub-moves. Heights of the tool that cannot be in the stock
+    /// (its axis farther than the radius from the stock's box) are not swept.
     pub fn remove_swept_reach(
         &mut self,
         tool: &Tool,
@@ -587,8 +592,6 @@ impl Stock {
         to: &Pose,
         reach: f64,
     ) -> Result<f64, StockError> {
-        const ROTATION_TOLERANCE: f64 = 0.5e-6;
-        const MAX_SUBSTEPS: f64 = 256.0;
         let radius = tool.radius();
         let corner = tool.corner_radius();
         let valid = radius.is_finite()
@@ -610,40 +613,21 @@ impl Stock {
             *axis = a / norm;
         }
         let angle = axes[0].dot(&axes[1]).clamp(-1.0, 1.0).acos();
-        let steps = if angle > 1e-12 {
-            // The farthest a tool point can be from the tip while inside the stock: the
-            // highest point of the axis (at either end's axis) within a radius of the stock's
-            // box, plus the radius.
-            let (lo, hi) = self.bounds();
-            let far = [(from.tip, axes[0]), (to.tip, axes[1])]
-                .iter()
-                .map(|(tip, a)| {
-                    let (mut h0, mut h1) = (0.0f64, reach);
-                    for k in 0..3 {
-                        let (below, above) = (lo[k] - radius - tip[k], hi[k] + radius - tip[k]);
-                        if a[k].abs() < 1e-12 {
-                            if below > 0.0 || above < 0.0 {
-                                h1 = -1.0;
-                            }
-                            continue;
-                        }
-                        let (p, q) = (below / a[k], above / a[k]);
-                        h0 = h0.max(p.min(q));
-                        h1 = h1.min(p.max(q));
-                    }
-                    if h1 >= h0 {
-                        h1 + radius
-                    } else {
-                        0.0
-                    }
-                })
-                .fold(0.0, f64::max);
-            let ell = (reach + radius).min(far);
-            (angle * ell / (2.0 * ROTATION_TOLERANCE))
+        // The tool's far end turns with the axis where it can be in the stock.
+        let end_in_stock = [(from.tip, axes[0]), (to.tip, axes[1])]
+            .iter()
+            .any(|(tip, a)| self.highest_in_stock(&[*tip], a, radius) > reach);
+        let (steps, half_band) = if angle > 1e-12 {
+            let turning = turning_lever(tool, end_in_stock);
+            let steps = (angle * turning / (2.0 * ROTATION_TOLERANCE))
                 .ceil()
-                .clamp(1.0, MAX_SUBSTEPS) as usize
+                .clamp(1.0, MAX_SUBSTEPS);
+            (
+                steps as usize,
+                (2.0 * ROTATION_TOLERANCE * steps / angle).max(MIN_HALF_BAND),
+            )
         } else {
-            1
+            (1, f64::INFINITY)
         };
         let mut removed = 0.0;
         for i in 0..steps {
@@ -651,11 +635,53 @@ impl Stock {
             let t1 = (i + 1) as f64 / steps as f64;
             let p0 = from.tip + (to.tip - from.tip) * t0;
             let p1 = from.tip + (to.tip - from.tip) * t1;
-            let axis = slerp(&axes[0], &axes[1], angle, 0.5 * (t0 + t1));
-            let sweep = Sweep::new(tool, reach, p0, p1, axis);
-            removed += self.remove_sweep(&sweep);
+            let [a0, a1, axis] =
+                [t0, t1, 0.5 * (t0 + t1)].map(|t| slerp(&axes[0], &axes[1], angle, t));
+            // A band's pivot moves at most half a band's turn off the tip's fixed-axis path.
+            let margin = radius + reach * (a1 - a0).norm() + ROTATION_TOLERANCE;
+            let top = self.highest_in_stock(&[p0, p1], &axis, margin);
+            if top < 0.0 {
+                continue;
+            }
+            let top = top.min(reach).max(radius).max(2.0 * corner);
+            for band in band_layout(tool, top, half_band, top >= reach && end_in_stock) {
+                let shift = |a: &Vector3<f64>| (a - axis) * band.pivot;
+                let sweep = Sweep::new(
+                    tool,
+                    band.lo,
+                    band.hi,
+                    p0 + shift(&a0),
+                    p1 + shift(&a1),
+                    axis,
+                );
+                removed += self.remove_sweep(&sweep);
+            }
         }
         Ok(removed)
+    }
+
+    /// The highest a point of the axis `a` above any of the tips can be while within
+    /// `margin` of the stock's box in every coordinate (m; negative where the axis never
+    /// comes that near). An upper bound: each coordinate bounds the height on its own.
+    fn highest_in_stock(&self, tips: &[Point3<f64>], a: &Vector3<f64>, margin: f64) -> f64 {
+        let (lo, hi) = self.bounds();
+        let mut top = f64::INFINITY;
+        for k in 0..3 {
+            if a[k].abs() < 1e-12 {
+                continue;
+            }
+            let bound = if a[k] > 0.0 {
+                hi[k] + margin
+            } else {
+                lo[k] - margin
+            };
+            let most = tips
+                .iter()
+                .map(|tip| (bound - tip[k]) / a[k])
+                .fold(f64::NEG_INFINITY, f64::max);
+            top = top.min(most);
+        }
+        top
     }
 
     /// Cuts one fixed-axis straight sweep from every ray in its bounding box.
@@ -690,29 +716,59 @@ impl Stock {
             if s_lo > s_hi {
                 continue;
             }
-            let mut removed = 0.0;
             let ray_sweep = sweep.for_axis(k);
-            for jv in iv0..=iv1 as usize {
+            let family = &self.fam[k];
+            // One row of rays: the intervals to remove, found from the stock as it is (rows
+            // are independent, so they may be found in parallel and applied in order).
+            let row = |jv: usize| -> Vec<(usize, f32, f32)> {
+                let mut cuts = Vec::new();
                 for ju in iu0..=iu1 as usize {
-                    let idx = self.fam[k].index(ju, jv);
-                    // Rays without material in the sweep's span need no geometry.
-                    let ivs = self.fam[k].intervals(idx);
-                    let (first, last) = match (ivs.first(), ivs.last()) {
-                        (Some(f), Some(l)) => (f64::from(f[0]), f64::from(l[1])),
-                        _ => continue,
+                    let idx = family.index(ju, jv);
+                    let ivs = family.intervals(idx);
+                    let (Some(first), Some(last)) = (ivs.first(), ivs.last()) else {
+                        continue;
                     };
-                    let (a, b) = (s_lo.max(first), s_hi.min(last));
+                    // Rays without material where the sweep can be need no exact geometry.
+                    let (mut a, mut b) =
+                        (s_lo.max(f64::from(first[0])), s_hi.min(f64::from(last[1])));
                     if a >= b {
                         continue;
                     }
                     let mut p = o;
                     p[u] += ju as f64 * res;
                     p[v] += jv as f64 * res;
-                    self.rays_cut += 1;
+                    let Some((c0, c1)) = ray_sweep.bound(&p) else {
+                        continue;
+                    };
+                    (a, b) = (a.max(c0), b.min(c1));
+                    // Material the sweep can reach by less than a nanometre (a wall the same
+                    // tool left, touched again) is not worth the exact geometry.
+                    let overlaps = |iv: &[f32; 2]| {
+                        f64::from(iv[1]).min(b) - f64::from(iv[0]).max(a) > CONTACT_ONLY
+                    };
+                    if !ivs.iter().any(overlaps) {
+                        continue;
+                    }
                     if let Some((s0, s1)) = ray_sweep.interval(&p, a, b) {
-                        removed += self.fam[k].subtract(idx, s0 as f32, s1 as f32);
+                        cuts.push((idx, s0 as f32, s1 as f32));
+                    } else {
+                        // Looked at, nothing to cut: counted as a ray cut all the same.
+                        cuts.push((idx, 0.0, 0.0));
                     }
                 }
+                cuts
+            };
+            let rows = iv0..=iv1 as usize;
+            let rays = (iu1 as usize + 1 - iu0) * rows.clone().count();
+            let cuts: Vec<Vec<(usize, f32, f32)>> = if rays >= PARALLEL_RAYS {
+                rows.into_par_iter().map(row).collect()
+            } else {
+                rows.map(row).collect()
+            };
+            let mut removed = 0.0;
+            for (idx, s0, s1) in cuts.into_iter().flatten() {
+                self.rays_cut += 1;
+                removed += self.fam[k].subtract(idx, s0, s1);
             }
             total += removed;
         }
@@ -786,6 +842,92 @@ pub(crate) fn most_aligned(n: &Vector3<f64>) -> usize {
     } else {
         0
     }
+}
+
+/// How far (m) a turning tool's swept solid may be from the true one, per sub-move.
+const ROTATION_TOLERANCE: f64 = 0.5e-6;
+
+/// Overlap (m) of a ray's material with where a sweep can be below which the ray is taken as
+/// only touched, not cut.
+const CONTACT_ONLY: f64 = 1e-9;
+
+/// Most sub-moves one call splits a turning move into.
+const MAX_SUBSTEPS: f64 = 256.0;
+
+/// Half the thinnest height band a turning tool is split into (m): thinner bands would allow
+/// fewer sub-moves, at a cost per band that outgrows the saving.
+const MIN_HALF_BAND: f64 = 0.5e-3;
+
+/// Rays in a sweep's box from which its rows are found in parallel (below, a thread's start
+/// costs more than the rays).
+const PARALLEL_RAYS: usize = 4096;
+
+/// The lever arm (m) that sets a turning tool's sub-moves: the thinnest band's half-height,
+/// or the radius of a face that turns with the axis (a flat end's, the far end's when it
+/// can be in the stock; a bull nose's disc).
+fn turning_lever(tool: &Tool, end_in_stock: bool) -> f64 {
+    let big = tool.radius();
+    let face = match tool.shape {
+        ToolShape::Flat => big,
+        ToolShape::Ball => 0.0,
+        ToolShape::Bull { .. } => big - tool.corner_radius(),
+    };
+    let end = if end_in_stock { big } else { 0.0 };
+    face.max(end).max(MIN_HALF_BAND)
+}
+
+/// A height band of the tool swept with one pivot.
+#[derive(Debug, Clone, Copy, PartialEq)]
+struct Band {
+    lo: f64,
+    hi: f64,
+    /// The height (m) whose point follows its true path.
+    pivot: f64,
+}
+
+/// The tool's heights `[0, top]` in bands whose points lie within `half` (m) of their pivot
+/// along the axis, or whose turning face lies within it: the bottom band pivots at the ball's
+/// or disc's centre (a ball is the same ball turned about its centre) or at a flat end's
+/// face; a far end inside the stock (`end_cap`) pivots at the end's face; the bands between
+/// at their middles. `half` infinite: one band.
+fn band_layout(tool: &Tool, top: f64, half: f64, end_cap: bool) -> Vec<Band> {
+    let bottom = match tool.shape {
+        ToolShape::Flat => 0.0,
+        ToolShape::Ball => tool.radius(),
+        ToolShape::Bull { .. } => tool.corner_radius(),
+    };
+    if !half.is_finite() || bottom + half >= top {
+        return vec![Band {
+            lo: 0.0,
+            hi: top,
+            pivot: bottom.min(top),
+        }];
+    }
+    let mut bands = vec![Band {
+        lo: 0.0,
+        hi: bottom + half,
+        pivot: bottom,
+    }];
+    let mut lo = bottom + half;
+    // The far end's band pivots at the end; its height is `half`, not twice that.
+    let last = if end_cap { top - half } else { top };
+    while lo < last {
+        let hi = (lo + 2.0 * half).min(last);
+        bands.push(Band {
+            lo,
+            hi,
+            pivot: 0.5 * (lo + hi),
+        });
+        lo = hi;
+    }
+    if end_cap {
+        bands.push(Band {
+            lo: lo.min(top),
+            hi: top,
+            pivot: top,
+        });
+    }
+    bands
 }
 
 /// Unit vector a fraction `t` of the way from unit `a` to unit `b`, `angle` apart.

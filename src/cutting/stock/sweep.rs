@@ -43,73 +43,100 @@ pub(crate) struct Sweep {
     pieces: [Option<Piece>; 2],
     min: Point3<f64>,
     max: Point3<f64>,
+    enclosing: Enclosing,
+    /// The unit normal of the plane of the axis and the move, if they span one.
+    across: Option<Vector3<f64>>,
+}
+
+/// A still cylinder holding the whole sweep: the tool's at the move's middle, its radius and
+/// height range grown by half the move across and along the axis. A ray that misses it, or
+/// whose material lies outside it, needs no exact geometry.
+#[derive(Debug, Clone, Copy)]
+struct Enclosing {
+    centre: Point3<f64>,
+    radius2: f64,
+    /// Heights along the axis from `centre`.
+    lo: f64,
+    hi: f64,
+    /// Half the sweep's width across the plane of the axis and the move: the radius.
+    slab: f64,
 }
 
 impl Sweep {
-    /// The tool, solid up to `reach` above its tip, moving its tip from `p0` to `p1` with the
-    /// unit axis `n`. The caller has checked the tool and `reach ≥ max(R, 2r)`.
+    /// The part of the tool between heights `lo` and `hi` above its tip (with the ball or
+    /// puck at the bottom when `lo` is 0), moving its tip from `p0` to `p1` with the unit
+    /// axis `n`. The caller has checked the tool and `hi ≥ max(R, 2r)` where `lo` is 0.
     pub(crate) fn new(
         tool: &Tool,
-        reach: f64,
+        lo: f64,
+        hi: f64,
         p0: Point3<f64>,
         p1: Point3<f64>,
         n: Vector3<f64>,
     ) -> Sweep {
         let big = tool.radius();
         let r = tool.corner_radius();
+        let cylinder = |h0: f64| Piece::Cylinder {
+            r2: big * big,
+            h0: h0.max(lo),
+            h1: hi,
+        };
         let pieces = match tool.shape {
-            ToolShape::Flat => [
-                Some(Piece::Cylinder {
-                    r2: big * big,
-                    h0: 0.0,
-                    h1: reach,
-                }),
-                None,
-            ],
-            ToolShape::Ball => [
-                Some(Piece::Cylinder {
-                    r2: big * big,
-                    h0: big,
-                    h1: reach,
-                }),
+            ToolShape::Flat => [Some(cylinder(0.0)), None],
+            ToolShape::Ball if lo == 0.0 => [
+                Some(cylinder(big)),
                 Some(Piece::Ball {
                     ch: big,
                     r2: big * big,
                 }),
             ],
-            ToolShape::Bull { .. } => [
-                Some(Piece::Cylinder {
-                    r2: big * big,
-                    h0: r,
-                    h1: reach,
-                }),
+            ToolShape::Bull { .. } if lo == 0.0 => [
+                Some(cylinder(r)),
                 Some(Piece::Puck {
                     ch: r,
                     rho: big - r,
                     r,
                 }),
             ],
+            ToolShape::Ball | ToolShape::Bull { .. } => [Some(cylinder(lo)), None],
         };
-        // The tool lies in the cylinder of radius R over [0, reach]; its box per axis is the
-        // axis segment's widened by R·sin(angle to that axis).
+        // The tool lies in the cylinder of radius R over [lo, top] (the ball or puck may reach
+        // above `hi`); its box per axis is the axis segment's widened by R·sin(angle to that
+        // axis).
+        let top = match pieces[1] {
+            Some(Piece::Ball { .. }) => hi.max(2.0 * big),
+            Some(Piece::Puck { .. }) => hi.max(2.0 * r),
+            _ => hi,
+        };
         let mut min = Point3::from(Vector3::repeat(f64::INFINITY));
         let mut max = Point3::from(Vector3::repeat(f64::NEG_INFINITY));
         for a in 0..3 {
             let ext = big * (1.0 - n[a] * n[a]).max(0.0).sqrt() + 1e-9;
             for p in [p0, p1] {
-                for q in [p[a], p[a] + reach * n[a]] {
+                for q in [p[a] + lo * n[a], p[a] + top * n[a]] {
                     min[a] = min[a].min(q - ext);
                     max[a] = max[a].max(q + ext);
                 }
             }
         }
+        let d = p1 - p0;
+        let along = d.dot(&n);
+        let across = (d - n * along).norm();
         Sweep {
             tip: p0,
-            d: p1 - p0,
+            d,
             n,
             pieces,
             min,
             max,
+            enclosing: Enclosing {
+                centre: p0 + d * 0.5,
+                radius2: (big + 0.5 * across + 1e-9).powi(2),
+                lo: lo - 0.5 * along.abs() - 1e-9,
+                hi: top + 0.5 * along.abs() + 1e-9,
+                slab: big,
+            },
+            across: n.cross(&d).try_normalize(1e-12 * (1.0 + d.norm())),
         }
     }
 
@@ -202,6 +229,54 @@ impl Quadratic {
 }
 
 impl RaySweep<'_> {
+    /// Where the ray `p + s·e_k` can meet the swept solid at all: its interval in the
+    /// enclosing cylinder, a cheap superset of [`RaySweep::interval`]'s.
+    pub(crate) fn bound(&self, p: &Point3<f64>) -> Option<(f64, f64)> {
+        let en = &self.sweep.enclosing;
+        let n = &self.sweep.n;
+        let nk = n[self.k];
+        let y = p - en.centre;
+        let h0 = y.dot(n);
+        // Heights h0 + s·nk within [lo, hi].
+        let (mut lo, mut hi) = if nk.abs() > 1e-12 {
+            let (a, b) = ((en.lo - h0) / nk, (en.hi - h0) / nk);
+            (a.min(b), a.max(b))
+        } else if (en.lo..=en.hi).contains(&h0) {
+            (f64::NEG_INFINITY, f64::INFINITY)
+        } else {
+            return None;
+        };
+        // Radial: |w0 + s·(e − n·nk)|² ≤ ρ² with w0 = y − h0·n (so w0·(e − n·nk) = w0_k).
+        let w0 = y - n * h0;
+        let a = 1.0 - nk * nk;
+        let (b, c) = (w0[self.k], w0.norm_squared() - en.radius2);
+        if a > 1e-12 {
+            let disc = b * b - a * c;
+            if disc < 0.0 {
+                return None;
+            }
+            let root = disc.sqrt();
+            lo = lo.max((-b - root) / a);
+            hi = hi.min((-b + root) / a);
+        } else if c > 0.0 {
+            return None;
+        }
+        // The slab across the move: no point of the sweep is farther than R from the plane of
+        // the axis and the move.
+        if let Some(m) = self.sweep.across {
+            let (y0, mk) = ((p - self.sweep.tip).dot(&m), m[self.k]);
+            let big = self.sweep.enclosing.slab;
+            if mk.abs() > 1e-12 {
+                let (a, b) = ((-big - y0) / mk, (big - y0) / mk);
+                lo = lo.max(a.min(b));
+                hi = hi.min(a.max(b));
+            } else if y0.abs() > big {
+                return None;
+            }
+        }
+        (lo <= hi).then_some((lo, hi))
+    }
+
     /// Where the ray `p + s·e_k`, `s ∈ [s_lo, s_hi]`, meets the swept solid.
     pub(crate) fn interval(&self, p: &Point3<f64>, s_lo: f64, s_hi: f64) -> Option<(f64, f64)> {
         let sw = self.sweep;
