@@ -7,7 +7,7 @@ mod common;
 use std::path::Path;
 
 use cncsim::program::{
-    arc_sweep, parse_apt, plane_axes, read_program, CircleSense, Motion, Program, ReadOptions,
+    arc_sweep, parse_apt, plane_axes, read_program, ClWriter, Motion, Program, ReadOptions,
 };
 use nalgebra::{Rotation3, Unit, Vector3};
 
@@ -209,8 +209,9 @@ fn nx_clsf_arcs_follow_their_circle_records() {
 #[test]
 fn a_large_circle_is_an_arc_not_a_chord() {
     // The case: a radius-473 mm arc (90°), once silently a chord up to 139 mm off.
-    let program =
-        apt("UNITS/MM\nFEDRAT/1000\nGOTO/473,0,0\nCIRCLE/0,0,0,0,0,-1,473,0.01\nGOTO/0,473,0\n");
+    let program = apt(
+        "TOOL PATH/CONTOUR,TOOL,MILL\nUNITS/MM\nFEDRAT/1000\nGOTO/473,0,0\nCIRCLE/0,0,0,0,0,-1,473,0.01\nGOTO/0,473,0\n",
+    );
     let mv = &program.moves[1];
     let decoded = decoded_arc(&program.moves[0].end.linear, mv);
     let record = Record {
@@ -236,7 +237,10 @@ fn arcs_about_tilted_axes_are_chords_within_a_micrometre() {
         "UNITS/MM\nFEDRAT/600\nGOTO/20,0,0\nCIRCLE/0,0,0,0,0.7071068,0.7071068,20,0.01\nGOTO/0,{s},{}\n",
         -s
     );
-    let program = apt(&text);
+    // Read as NX writes arcs (clockwise about the axis).
+    let mut nx = ReadOptions::default();
+    nx.apt.writer = Some(ClWriter::Nx);
+    let program = parse_apt(&text, "t.cls", &nx).unwrap();
     let points: Vec<Vector3<f64>> = std::iter::once(Vector3::new(20.0, 0.0, 0.0))
         .chain(
             program.moves[1..]
@@ -263,11 +267,9 @@ fn arcs_about_tilted_axes_are_chords_within_a_micrometre() {
         .warnings
         .iter()
         .any(|w| w.message.contains("chords within 0.0010 mm")));
-    // Clockwise about the axis, the end is three quarters round; the other sense takes
-    // the quarter turn.
-    let mut options = ReadOptions::default();
-    options.apt.circle_sense = CircleSense::CounterClockwiseAboutAxis;
-    let other = parse_apt(&text, "t.cls", &options).unwrap();
+    // Clockwise about the axis, the end is three quarters round; APT's sense takes the
+    // quarter turn.
+    let other = apt(&text);
     let ratio = (program.moves.len() - 1) as f64 / (other.moves.len() - 1) as f64;
     assert!((ratio - 3.0).abs() < 0.05, "{ratio}");
 }
@@ -925,4 +927,443 @@ fn a_goto_list_without_feed_runs_at_the_feed_given_or_is_refused() {
         e.contains("this file is HPGL, which programs its own feed"),
         "{e}"
     );
+}
+
+// ---------------------------------------------------------------------------------------
+// The writer's conventions, and the tangents that catch a wrong reading
+// ---------------------------------------------------------------------------------------
+
+/// The records of CL text read by hand: `$$` comments dropped, `$` continuations joined;
+/// each as (major word, parameters).
+fn own_records(text: &str) -> Vec<(String, Vec<String>)> {
+    let mut records = Vec::new();
+    let mut pending = String::new();
+    for line in text.lines() {
+        let line = line.trim();
+        if line.starts_with("$$") {
+            continue;
+        }
+        match line.strip_suffix('$') {
+            Some(head) => pending.push_str(head),
+            None => {
+                pending.push_str(line);
+                let record = std::mem::take(&mut pending);
+                let (major, rest) = record.split_once('/').unwrap_or((&record, ""));
+                let parameters = rest
+                    .split(',')
+                    .map(|p| p.trim().to_string())
+                    .filter(|p| !p.is_empty())
+                    .collect();
+                records.push((major.trim().to_uppercase(), parameters));
+            }
+        }
+    }
+    records
+}
+
+/// Cut length (mm) of CL text read by hand: GOTO moves at feed (not the one after RAPID),
+/// each CIRCLE's arc from the tool to the next GOTO turned counter-clockwise about its axis
+/// vector (APT's definition) when `counter_clockwise`, else the other way, helical where the
+/// GOTO moves along the axis.
+fn own_cut_length(text: &str, counter_clockwise: bool) -> f64 {
+    let mut at: Option<Vector3<f64>> = None;
+    let mut rapid = false;
+    let mut circle: Option<(Vector3<f64>, Vector3<f64>)> = None;
+    let mut length = 0.0;
+    for (major, parameters) in own_records(text) {
+        let numbers: Vec<f64> = parameters.iter().filter_map(|p| p.parse().ok()).collect();
+        match major.as_str() {
+            "RAPID" => rapid = true,
+            "CIRCLE" => {
+                circle = Some((
+                    Vector3::new(numbers[0], numbers[1], numbers[2]),
+                    Vector3::new(numbers[3], numbers[4], numbers[5]).normalize(),
+                ))
+            }
+            "GOTO" => {
+                let to = Vector3::new(numbers[0], numbers[1], numbers[2]);
+                if let (Some(from), false) = (at, rapid) {
+                    length += match circle.take() {
+                        None => (to - from).norm(),
+                        Some((centre, axis)) => {
+                            let across = |p: Vector3<f64>| {
+                                let r = p - centre;
+                                r - axis * r.dot(&axis)
+                            };
+                            let (a, b) = (across(from), across(to));
+                            let turned = axis.dot(&a.cross(&b)).atan2(a.dot(&b));
+                            let mut sweep = if counter_clockwise {
+                                turned.rem_euclid(std::f64::consts::TAU)
+                            } else {
+                                (-turned).rem_euclid(std::f64::consts::TAU)
+                            };
+                            if sweep < 1e-9 {
+                                sweep = std::f64::consts::TAU;
+                            }
+                            let rise = (to - from).dot(&axis);
+                            (sweep * a.norm()).hypot(rise)
+                        }
+                    };
+                }
+                circle = None;
+                rapid = false;
+                at = Some(to);
+            }
+            _ => {}
+        }
+    }
+    length
+}
+
+fn cut_length_mm(program: &Program) -> f64 {
+    cncsim::program::summarize(program).cut_length * 1e3
+}
+
+#[test]
+fn creo_arcs_turn_counter_clockwise_and_cut_what_the_file_means() {
+    // PTC's CL files: `$$* Pro/CLfile` in the header; CIRCLE counter-clockwise about its
+    // axis vector, as APT defines it. Read the NX way, the pocket's corner arcs become
+    // three-quarter loops.
+    let Some(creo) = common::shared_corpus("programs/creo") else {
+        return;
+    };
+    for name in ["profilfraesen_2.ncl.1", "schruppen_1.ncl.1"] {
+        let path = creo.join(name);
+        let text = std::fs::read_to_string(&path).unwrap();
+        let program = read_program(&path, &ReadOptions::default()).unwrap();
+        let reading = program.reading.clone().unwrap();
+        assert!(
+            reading.contains("PTC Creo") && reading.contains("line 1: `$$*"),
+            "{name}: {reading}"
+        );
+        let expected = own_cut_length(&text, true);
+        let loops = own_cut_length(&text, false);
+        let got = cut_length_mm(&program);
+        assert!(
+            (got - expected).abs() <= 1e-6 * expected,
+            "{name}: cut length {got:.4} mm, the counter-clockwise reading {expected:.4} mm"
+        );
+        // The other way round, every corner is a three-quarter loop.
+        assert!(loops > 1.1 * expected, "{name}: {loops} vs {expected}");
+        assert!(
+            !program
+                .warnings
+                .iter()
+                .any(|w| w.message.contains("against")),
+            "{name}: {:?}",
+            program.warnings
+        );
+        // Read as NX writes arcs, the arcs whose entry or exit runs along them still turn the
+        // way those moves say, and the file says it is not NX's. The profile's arcs all have
+        // a tangent lead; of the roughing's 419, the 161 that do are read right (the others
+        // are entered and left across the circle or along the tool axis: nothing tells).
+        let mut options = ReadOptions::default();
+        options.apt.writer = Some(ClWriter::Nx);
+        let forced = read_program(&path, &options).unwrap();
+        let got = cut_length_mm(&forced);
+        if name.starts_with("profil") {
+            assert!(
+                (got - expected).abs() <= 1e-6 * expected,
+                "{name} read as NX: cut length {got:.4} mm, the tangent reading {expected:.4} mm"
+            );
+        }
+        let told = if name.starts_with("profil") { 20 } else { 161 };
+        assert!(
+            forced.warnings.iter().any(|w| w.message.contains(&format!(
+                "({told} of the {told} arcs whose entry or exit move runs along them"
+            ))),
+            "{name}: {:?}",
+            forced.warnings
+        );
+        let said: Vec<&str> = forced
+            .warnings
+            .iter()
+            .map(|w| w.message.as_str())
+            .filter(|m| m.contains("likely written by another CAM system"))
+            .collect();
+        assert_eq!(said.len(), 1, "{name}: {:?}", forced.warnings);
+        assert!(said[0].contains("Siemens NX"), "{}", said[0]);
+    }
+}
+
+#[test]
+fn nx_corpus_files_are_read_as_nx_and_their_tangents_agree() {
+    let Some(directory) = common::shared_corpus("programs/apt") else {
+        return;
+    };
+    let mut arcs = 0;
+    for entry in std::fs::read_dir(&directory).unwrap() {
+        let path = entry.unwrap().path();
+        let name = path.file_name().unwrap().to_str().unwrap().to_string();
+        if !name.starts_with("CLSFProcessor") {
+            continue;
+        }
+        let text = std::fs::read_to_string(&path).unwrap();
+        let program = read_program(&path, &ReadOptions::default()).unwrap();
+        let reading = program.reading.clone().unwrap();
+        assert!(
+            reading.contains("Siemens NX") && reading.contains("`TOOL PATH/"),
+            "{name}: {reading}"
+        );
+        assert!(
+            !program
+                .warnings
+                .iter()
+                .any(|w| w.message.contains("against")),
+            "{name}: {:?}",
+            program.warnings
+        );
+        arcs += text.matches("CIRCLE/").count();
+    }
+    assert!(arcs > 100, "{arcs} arcs");
+}
+
+/// The one arc of `program` (a Motion::Arc): whether it turns clockwise seen from +Z.
+fn the_arc_is_clockwise(program: &Program) -> bool {
+    let arcs: Vec<bool> = program
+        .moves
+        .iter()
+        .filter_map(|m| match m.motion {
+            Motion::Arc { clockwise, .. } => Some(clockwise),
+            _ => None,
+        })
+        .collect();
+    assert_eq!(arcs.len(), 1, "{:?}", program.moves);
+    arcs[0]
+}
+
+#[test]
+fn an_arc_turns_the_way_its_entry_or_exit_runs_along_it() {
+    // No writer named: APT's convention, counter-clockwise about (0,0,1).
+    let quarter = "FEDRAT/600\nGOTO/0,10,0\nCIRCLE/0,0,0,0,0,1,10\nGOTO/10,0,0\n";
+    // From the left heading +X at (0,10): clockwise seen from +Z, against the convention.
+    let entering = format!("FEDRAT/600\nRAPID\nGOTO/-10,10,0\n{}", &quarter[11..]);
+    let program = apt(&entering);
+    assert!(the_arc_is_clockwise(&program));
+    assert!((cut_length_mm(&program) - (10.0 + 5.0 * std::f64::consts::PI)).abs() < 1e-9);
+    let against: Vec<&str> = program
+        .warnings
+        .iter()
+        .map(|w| w.message.as_str())
+        .filter(|m| m.contains("against the convention of standard APT"))
+        .collect();
+    assert_eq!(against.len(), 2, "{:?}", program.warnings);
+    assert!(
+        against[0].contains("as its entry move runs along it")
+            && against[0].contains("(1 of the 1 arcs")
+    );
+    // Entered radially (says nothing), left heading -Y at (10,0): clockwise again.
+    let leaving = format!(
+        "FEDRAT/600\nRAPID\nGOTO/0,20,0\n{}GOTO/10,-10,0\n",
+        &quarter[11..]
+    );
+    let program = apt(&leaving);
+    assert!(the_arc_is_clockwise(&program));
+    assert!(program.warnings[0]
+        .message
+        .contains("as its exit move runs along it"));
+    // Entered and left radially: the convention, without a word.
+    let radial = format!("FEDRAT/600\nGOTO/0,20,0\n{}GOTO/20,0,0\n", &quarter[11..]);
+    let program = apt(&radial);
+    assert!(!the_arc_is_clockwise(&program));
+    assert!(program.warnings.is_empty(), "{:?}", program.warnings);
+    // The tangent reading agrees with the convention: no word either.
+    let along = format!("FEDRAT/600\nGOTO/10,10,0\n{}", &quarter[11..]);
+    let program = apt(&along);
+    assert!(!the_arc_is_clockwise(&program));
+    assert!(program.warnings.is_empty(), "{:?}", program.warnings);
+}
+
+#[test]
+fn the_writer_is_named_by_the_header_or_the_user() {
+    let read = |text: &str, name: &str, writer: Option<ClWriter>| {
+        let mut options = ReadOptions::default();
+        options.apt.writer = writer;
+        parse_apt(text, name, &options).unwrap().reading.unwrap()
+    };
+    let plain = "FEDRAT/600\nGOTO/1,2,3\n";
+    assert!(read(plain, "a.apt", None)
+        .contains("standard APT (no writer recognised) (no writer's mark"));
+    assert!(read(plain, "part.ncl", None).contains("PTC Creo / Pro/ENGINEER (the file name's .ncl"));
+    assert!(read(&format!("$$*CATIA0\n{plain}"), "a.aptsource", None)
+        .contains("CATIA (line 1: `$$*CATIA0`)"));
+    assert!(read(&format!("$$Machine Group-1\n{plain}"), "a.apt", None).contains("Mastercam"));
+    let named = read(
+        &format!("TOOL PATH/A,TOOL,B\n{plain}"),
+        "a.cls",
+        Some(ClWriter::Creo),
+    );
+    assert!(
+        named.contains("PTC Creo") && named.contains("named by the user"),
+        "{named}"
+    );
+    assert!(
+        named.contains("turn counter-clockwise about their axis vector"),
+        "{named}"
+    );
+}
+
+#[test]
+fn apt_is_recognised_with_blanks_around_the_slash_and_partno_without_one() {
+    use cncsim::program::ProgramFormat;
+    for head in [
+        "PARTNO CORE_WORK\nUNITS / MM\n",
+        "$$* header\nPARTNO PART TO BE MACHINED\n",
+        "$$ comment\nGOTO / 1.0, 2.0, 3.0\n",
+        "MULTAX\nGOTO  / 1, 2, 3\n",
+    ] {
+        assert_eq!(
+            ProgramFormat::from_content(head.as_bytes()),
+            Some(ProgramFormat::Apt),
+            "{head:?}"
+        );
+    }
+    for name in ["x.ncl", "bohren_1.ncl.8"] {
+        assert_eq!(
+            ProgramFormat::from_path(Path::new(name)),
+            Some(ProgramFormat::Apt),
+            "{name}"
+        );
+    }
+    // G-code is not taken for CL data.
+    assert_ne!(
+        ProgramFormat::from_content(b"G0 X1 Y2\nG1 Z-1 F100\n"),
+        Some(ProgramFormat::Apt)
+    );
+}
+
+#[test]
+fn a_tap_feeds_one_pitch_per_revolution() {
+    // 20 threads per inch at 600 rpm: 1.27 mm × 600 = 762 mm/min, whatever feed is written.
+    for (pitch, written) in [("TPI, 20", ", MMPM, 700"), ("PITCH, 1.27", "")] {
+        let text = format!(
+            "UNITS / MM\nSPINDL / RPM, 600, CLW\nFEDRAT / 300, MMPM\nRAPID\nGOTO / 0, 0, 5\nCYCLE / TAP, DEPTH, 10, {pitch}{written}, CLEAR, 2\nGOTO / 0, 0, 0\nCYCLE / OFF\n"
+        );
+        let program = apt(&text);
+        let feeds: Vec<f64> = program
+            .moves
+            .iter()
+            .filter_map(|m| match m.feed {
+                cncsim::program::Feed::PathSpeed(speed) => Some(speed * 60e3),
+                _ => None,
+            })
+            .collect();
+        assert!(!feeds.is_empty());
+        for feed in feeds {
+            assert!((feed - 762.0).abs() < 1e-9, "{pitch}: {feed} mm/min");
+        }
+        let warned = program
+            .warnings
+            .iter()
+            .any(|w| w.message.contains("not pitch × spindle speed"));
+        assert_eq!(warned, !written.is_empty(), "{:?}", program.warnings);
+    }
+    // Without a turning spindle a tap cannot be fed.
+    let error = first_error(
+        "UNITS/MM\nFEDRAT/300\nCYCLE/TAP,DEPTH,10,TPI,20,CLEAR,2\n",
+        &ReadOptions::default(),
+    );
+    assert!(
+        error.contains("expected a turning spindle for CYCLE/TAP"),
+        "{error}"
+    );
+}
+
+#[test]
+fn lathe_programs_are_refused_as_lathe_programs_by_name() {
+    for (record, what) in [
+        ("HEAD / 1", "HEAD selects a lathe's turret head"),
+        (
+            "CYCLE / TURN, 2.0, MMPR, 0.2",
+            "CYCLE/TURN is a turning cycle",
+        ),
+        (
+            "OP / THREAD, 1.5",
+            "OP/THREAD is a threading pass on a lathe",
+        ),
+    ] {
+        let text =
+            format!("PARTNO / SHAFT\nUNITS / MM\n{record}\nFEDRAT / 0.2, MMPR\nGOTO / 10, 0, 0\n");
+        let errors = parse_apt(&text, "shaft.ncl", &ReadOptions::default()).unwrap_err();
+        assert_eq!(errors.errors.len(), 1, "{record}: {errors}");
+        let message = errors.errors[0].to_string();
+        assert!(
+            message.starts_with("shaft.ncl:3:1: expected a milling program; ")
+                && message.contains(what)
+                && message.contains("this is a lathe (turning) program"),
+            "{message}"
+        );
+    }
+}
+
+#[test]
+fn movarc_is_an_arc_through_its_angle() {
+    // Autodesk's APT post: MOVARC/centre, normal, radius, ANGLE, sweep; counter-clockwise
+    // about the normal.
+    let text = "PARTNO/'BOSS'\nPPRINT/'Autodesk Fusion'\nUNITS/MM\nFEDRAT/600,MMPM\nRAPID\nGOTO/10,0,0\nMOVARC/0,0,0,0,0,1,10,ANGLE,450\nGOTO/0,10,0\n";
+    let program = apt(text);
+    assert!(program
+        .reading
+        .as_ref()
+        .unwrap()
+        .contains("Autodesk Fusion"));
+    assert!(!the_arc_is_clockwise(&program));
+    let expected = 10.0 * std::f64::consts::PI * 2.5;
+    assert!(
+        (cut_length_mm(&program) - expected).abs() < 1e-9,
+        "{}",
+        cut_length_mm(&program)
+    );
+}
+
+#[test]
+fn catia_lines_wrapped_inside_a_number_are_joined_as_written() {
+    // CATIA wraps its records at a fixed column, inside a number if need be.
+    let text = "$$*CATIA0\nPARTNO PART TO BE MACHINED\nFEDRAT/ 2000.0000,MMPM\nGOTO  / 10.00000, 20.00000,   0$\n.752602\nGOTO  / 10.00000, 21.00000, $\n  1.5\n";
+    let program = apt(text);
+    let ends: Vec<[f64; 3]> = program
+        .moves
+        .iter()
+        .map(|m| m.end.linear.map(|v| v * 1e3))
+        .collect();
+    assert_eq!(ends.len(), 2, "{ends:?}");
+    assert!((ends[0][2] - 0.752602).abs() < 1e-9, "{ends:?}");
+    assert!((ends[1][2] - 1.5).abs() < 1e-9, "{ends:?}");
+    assert!(program.reading.unwrap().contains("CATIA"));
+}
+
+#[test]
+fn points_after_a_goto_are_more_points_of_it_and_of_its_arc() {
+    // Pro/ENGINEER: a CIRCLE, a GOTO, then the arc's further points on lines of their own;
+    // here a full circle of radius 0.025 in through 300°, 60° and back to 180°.
+    let text = "$$*  Pro/CLfile  Vers 1.0\nUNITS / INCHES\nFEDRAT / 10.000000,  IPM\nGOTO / 7.4300, 5.8500, 1.8000\nCIRCLE / 7.4550, 5.8500, 1.8000,  $\n0.0000, 0.0000, 1.0000,  0.0250\nGOTO / 7.4675, 5.8283, 1.8000\n       7.4675, 5.8717, 1.8000\n       7.4300, 5.8500, 1.8000\nFEDRAT / 5.000000,  IPM\nGOTO / 7.4300, 5.8500, 1.3000\n";
+    let program = apt(text);
+    let arcs: Vec<&cncsim::program::Move> = program
+        .moves
+        .iter()
+        .filter(|m| {
+            matches!(
+                m.motion,
+                Motion::Arc {
+                    clockwise: false,
+                    ..
+                }
+            )
+        })
+        .collect();
+    assert_eq!(arcs.len(), 3, "{:?}", program.moves);
+    // 4 in from the origin (not cut: no RAPID, so it counts), one full turn of 0.025 in.
+    let circumference = std::f64::consts::TAU * 0.025 * 25.4;
+    let first: f64 = Vector3::new(7.43, 5.85, 1.8).norm() * 25.4;
+    let last = 0.5 * 25.4;
+    let expected = first + circumference + last;
+    // The points are written to 0.0001 in: the arcs through them are as long within 0.01 mm.
+    assert!(
+        (cut_length_mm(&program) - expected).abs() < 0.01,
+        "{} vs {expected}",
+        cut_length_mm(&program)
+    );
+    // Bare numbers anywhere else are still an error.
+    assert!(first_error("FEDRAT/10\n1,2,3\n", &ReadOptions::default())
+        .contains("expected an APT statement word"));
 }

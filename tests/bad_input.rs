@@ -127,6 +127,21 @@ fn bad_scenarios_are_reported_with_file_and_line() {
             17,
             "expected a bound such as { max = 0.01 }",
         ),
+        (
+            "unknown CAM system",
+            scenario_text(|s| {
+                let program = Path::new(env!("CARGO_MANIFEST_DIR"))
+                    .join("scenarios/programs/d_table1.apt")
+                    .display()
+                    .to_string();
+                s.replace(
+                    "polyline = { points_mm = [[10.0, 10.0, 0.0], [11.0, 10.0, 0.0]] }\nfeed_mm_s = 5.0",
+                    &format!("file = \"{program}\"\ncl_writer = \"gibbs\""),
+                )
+            }),
+            5,
+            "cl_writer: expected one of nx, creo, catia, solidworks, camworks, mastercam, fusion, camplete, apt, found 'gibbs'",
+        ),
         ("not toml", "machine = [\n".to_string(), 1, "unclosed array"),
     ];
     let dir = tempfile::tempdir().unwrap();

@@ -290,6 +290,14 @@ const CASES: &[Case] = &[
         tolerance: 1.0,
         options: plain,
     },
+    // Polygon mode entered with the pen down: the edges are pen-down moves.
+    Case {
+        file: "kicad_polygons.plt",
+        oracle: "ezdxf",
+        marks_only: false,
+        tolerance: 0.5,
+        options: outlines_only,
+    },
 ];
 
 /// Compares cncsim's reading of `case.file` with the oracle's output `oracle_text`.
@@ -419,6 +427,53 @@ fn live_ezdxf_agrees() {
         "ezdxf",
         &[python.as_str(), "-c", "import ezdxf.addons.hpgl2"],
     );
+}
+
+/// Width and height (plotter units) of what the polylines cover.
+fn extent(lines: &[Polyline]) -> [f64; 2] {
+    let mut low = [f64::INFINITY; 2];
+    let mut high = [f64::NEG_INFINITY; 2];
+    for point in lines.iter().flatten() {
+        for axis in 0..2 {
+            low[axis] = low[axis].min(point[axis]);
+            high[axis] = high[axis].max(point[axis]);
+        }
+    }
+    [high[0] - low[0], high[1] - low[1]]
+}
+
+/// KiCad's filled shapes (`PA x,y;PD;PM 0;PA …;PM 2; FP; EP;`): the drawing covers what
+/// hp2xx's covers within a plotter unit (0.025 mm), fills and all.
+#[test]
+fn kicad_polygons_cover_what_hp2xx_draws() {
+    let python = python();
+    let probe = format!("command -v hp2xx && '{python}' -c 'import sys'");
+    let path = fixtures().join("kicad_polygons.plt");
+    let Some(output) = run_oracle(&["hp2xx", path.to_str().unwrap()], &["sh", "-c", &probe]) else {
+        return;
+    };
+    let text = std::fs::read(&path).unwrap();
+    let program = parse_hpgl(&text, &path, &plain()).unwrap();
+    let ours: Vec<Polyline> = our_polylines(&program, true)
+        .into_iter()
+        .map(|(line, _)| line)
+        .collect();
+    let theirs: Vec<Polyline> = oracle_polylines(&output)
+        .into_iter()
+        .map(|(_, line)| line)
+        .collect();
+    let (ours, theirs) = (extent(&ours), extent(&theirs));
+    // What the fixture draws: 47.475 × 50.475 mm.
+    assert!(
+        (theirs[0] - 1899.0).abs() <= 1.0 && (theirs[1] - 2019.0).abs() <= 1.0,
+        "{theirs:?}"
+    );
+    for axis in 0..2 {
+        assert!(
+            (ours[axis] - theirs[axis]).abs() <= 1.0,
+            "cncsim covers {ours:?}, hp2xx {theirs:?} plotter units"
+        );
+    }
 }
 
 /// The files of hp2xx's own test set that cncsim refuses, each by name, and why. The set is

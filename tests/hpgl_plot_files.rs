@@ -606,3 +606,85 @@ fn dv_stacks_label_characters_along_the_text_path() {
     // DF goes back to the right.
     assert!(close(pen_after("DV1;DF;SI0.2,0.4;"), [1240.0, 1000.0]));
 }
+
+#[test]
+fn polygon_mode_entered_with_the_pen_down_draws_its_edges() {
+    // KiCad's filled pads: `PA x,y;PD;PM 0;PA …;PM 2; FP; EP;`. The pen stays down in
+    // polygon mode (HP-GL/2), so the edges are pen-down moves, drawn by EP and FP.
+    let mut options = ReadOptions::default();
+    options.hpgl.hatch_fills = false;
+    let program = hpgl_with(
+        b"IN;VS40;PU;PA;SP1;\nPA 640,500;PD;PM 0;\nPA 640,700;PA 760,700;PA 760,500;PA 640,500;PM 2; FP; EP;\nPU;PA;SP0;\n",
+        &options,
+    );
+    let segments = drawn(&program);
+    for corner in [[640.0, 700.0], [760.0, 700.0], [760.0, 500.0]] {
+        assert!(
+            segments.iter().any(|s| close(s[1], corner)),
+            "{corner:?} not drawn: {segments:?}"
+        );
+    }
+    // Entered with the pen up (KiCad's round pads: `PU;PM 0; PA cx,cy;CI r;PM 2;`), the
+    // pen-up move only places the circle.
+    let program = hpgl_with(
+        b"IN;PA 1070,500;PU;PM 0; PA 1000,500;CI 70;PM 2; FP; EP;\nPU;\n",
+        &options,
+    );
+    let lines = polylines(&program);
+    assert!(!lines.is_empty());
+    assert!(
+        lines
+            .iter()
+            .flatten()
+            .all(|p| ((p[0] - 1000.0).hypot(p[1] - 500.0) - 70.0).abs() < 1e-6),
+        "{lines:?}"
+    );
+}
+
+#[test]
+fn a_stray_letter_after_the_last_command_is_passed_over_with_one_warning() {
+    let program = hpgl(b"IN;SP1;PA0,0;PD100,0;PUx;\n");
+    assert_eq!(drawn(&program).len(), 1);
+    let said = warnings(&program);
+    assert_eq!(said.len(), 1, "{said:?}");
+    assert!(
+        said[0].contains("`x;` after the plot's last command is not a command"),
+        "{}",
+        said[0]
+    );
+    // Refused with --strict, and anywhere but at the end.
+    assert!(first_error(b"IN;PA0,0;PD100,0;PUx;\n", &strict()).contains("bad.plt:1:"));
+    assert!(first_error(b"IN;PUx;PD100,0;PU;\n", &ReadOptions::default()).contains("bad.plt:1:"));
+}
+
+#[test]
+fn drawing_off_the_page_and_pen_down_records_that_draw_nothing_are_said() {
+    // PS sets a 100 × 50 mm page; one line leaves it.
+    let program = hpgl(b"IN;PS4000,2000;SP1;PA0,0;PD1000,1000;PD5000,1000;PD6000,1500;PU;\n");
+    let said = warnings(&program);
+    let off: Vec<&&str> = said.iter().filter(|m| m.contains("off the page")).collect();
+    assert_eq!(off.len(), 1, "{said:?}");
+    assert!(
+        off[0].contains("100.0 × 50.0 mm")
+            && off[0].contains("first to (125.00, 25.00) mm")
+            && off[0].contains("2 times"),
+        "{}",
+        off[0]
+    );
+    // On the page: not a word.
+    assert!(warnings(&hpgl(b"IN;PS4000,2000;SP1;PA0,0;PD1000,1000;PU;\n")).is_empty());
+    // Twelve PD records in polygon mode that no EP or FP draws.
+    let mut text = b"IN;SP1;PA0,0;PM0;".to_vec();
+    for k in 0..12 {
+        text.extend_from_slice(format!("PD{},{};", 100 * k, 50 * (k % 2)).as_bytes());
+    }
+    text.extend_from_slice(b"PM2;PU;\n");
+    let program = hpgl(&text);
+    assert!(drawn(&program).is_empty());
+    let said = warnings(&program);
+    assert!(
+        said.iter()
+            .any(|m| m.contains("12 pen-down records (PD), the first here, and nothing drawn")),
+        "{said:?}"
+    );
+}

@@ -189,6 +189,10 @@ pub enum Command {
         /// none (a list of GOTO records).
         #[arg(long, value_name = "MM_S")]
         feed: Option<f64>,
+        /// APT CL data: read it as this CAM system writes it (nx, creo, catia, solidworks,
+        /// camworks, mastercam, fusion, apt) instead of the one its header names.
+        #[arg(long, value_name = "NAME", value_parser = parse_cl_writer)]
+        cl_writer: Option<cncsim::program::ClWriter>,
         /// List every move, however long the program.
         #[arg(long)]
         all: bool,
@@ -353,4 +357,14 @@ pub enum BodeLoop {
     Plant,
     Velocity,
     Position,
+}
+
+/// `--cl-writer NAME`: a CAM system cncsim knows the CL conventions of.
+fn parse_cl_writer(name: &str) -> Result<cncsim::program::ClWriter, String> {
+    cncsim::program::ClWriter::from_name(name).ok_or_else(|| {
+        format!(
+            "expected one of {}, found '{name}'",
+            cncsim::program::ClWriter::names()
+        )
+    })
 }

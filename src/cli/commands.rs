@@ -118,10 +118,12 @@ pub fn dispatch(command: Option<Command>, interrupted: &AtomicBool) -> Result<Sh
             no_hatch,
             page,
             feed,
+            cl_writer,
             all,
             tool_table,
         }) => {
             let mut options = ReadOptions::default();
+            options.apt.writer = cl_writer;
             if let Some(table) = tool_table {
                 options.gcode.tools = std::fs::read_to_string(&table)
                     .map_err(|error| {

@@ -951,6 +951,7 @@ impl AcTableKinematics {
             moves,
             warnings,
             tools: program.tools.clone(),
+            reading: program.reading.clone(),
         })
     }
 }

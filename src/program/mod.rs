@@ -28,7 +28,7 @@ use std::fs::File;
 use std::io::BufReader;
 use std::path::Path;
 
-pub use self::apt::{parse_apt, CircleSense};
+pub use self::apt::{parse_apt, CircleSense, ClWriter, Identification};
 pub use self::error::{display_text, Found, ProgramError, ProgramErrors};
 pub use self::gcode::{parse_gcode, parse_gcode_reader, parse_tool_table};
 pub use self::geometry::{arc_segment, PathGeometry, Segment};
@@ -60,23 +60,27 @@ pub enum ProgramFormat {
 
 impl ProgramFormat {
     /// The format a file name's extension stands for (case-insensitive): `.ngc .nc .gcode
-    /// .tap` G-code, `.plt .hpgl .hpg .hgl .hp .hp2 .pl2 .prn` HPGL, `.apt .cl .cls .clsf`
-    /// APT CL data.
+    /// .tap` G-code, `.plt .hpgl .hpg .hgl .hp .hp2 .pl2 .prn` HPGL, `.apt .cl .cls .clsf
+    /// .ncl` (and Creo's numbered `.ncl.N`) APT CL data.
     pub fn from_path(path: &Path) -> Option<ProgramFormat> {
+        if apt::is_ncl(path) {
+            return Some(ProgramFormat::Apt);
+        }
         let extension = path.extension()?.to_str()?.to_ascii_lowercase();
         match extension.as_str() {
             "ngc" | "nc" | "gcode" | "tap" => Some(ProgramFormat::Gcode),
             "plt" | "hpgl" | "hpg" | "hgl" | "hp" | "hp2" | "pl2" | "prn" => {
                 Some(ProgramFormat::Hpgl)
             }
-            "apt" | "cl" | "cls" | "clsf" => Some(ProgramFormat::Apt),
+            "apt" | "cl" | "cls" | "clsf" | "ncl" => Some(ProgramFormat::Apt),
             _ => None,
         }
     }
 
     /// The format the first bytes of a file are unmistakably in: a plot file (an HP-GL
-    /// command, an escape sequence, PJL) or CL data (an APT statement word and '/', or GOTO
-    /// records). `None` when they could be either or neither.
+    /// command, an escape sequence, PJL) or CL data (an APT statement word and '/' with or
+    /// without blanks around it, `PARTNO` with its name after a blank, or GOTO records).
+    /// `None` when they could be either or neither.
     pub fn from_content(head: &[u8]) -> Option<ProgramFormat> {
         let text = String::from_utf8_lossy(head);
         // CL data: the first statement is an APT word, or GOTO records come early.
@@ -119,11 +123,20 @@ impl ProgramFormat {
             if APT_WORDS.contains(&word) && (rest.is_empty() || rest.starts_with('/')) {
                 return Some(ProgramFormat::Apt);
             }
+            // `PARTNO name`: APT's part name, which some writers give without a slash.
+            let mut words = upper.split_whitespace();
+            if words.next() == Some("PARTNO") && words.next().is_some() {
+                return Some(ProgramFormat::Apt);
+            }
         }
-        if text
-            .lines()
-            .any(|line| line.trim_start().to_ascii_uppercase().starts_with("GOTO/"))
-        {
+        // `GOTO/x` or `GOTO / x`.
+        let is_goto = |line: &str| {
+            let upper = line.trim_start().to_ascii_uppercase();
+            upper
+                .strip_prefix("GOTO")
+                .is_some_and(|rest| rest.trim_start().starts_with('/'))
+        };
+        if text.lines().any(is_goto) {
             return Some(ProgramFormat::Apt);
         }
         // Plot files: past leading blanks and control characters, an escape, PJL, or an
@@ -234,7 +247,7 @@ pub fn read_program_detailed(
             None => "expected a part program (G-code, HPGL or APT CL data); the content is none of them and the file name has no extension".to_string(),
         };
         return Err(ProgramErrors::single(ProgramError::new(path, None, problem).hint(
-            "use .ngc .nc .gcode .tap (G-code), .plt .hpgl .hpg .hgl .hp .prn (HPGL) or .apt .cl .cls .clsf (APT CL data)",
+            "use .ngc .nc .gcode .tap (G-code), .plt .hpgl .hpg .hgl .hp .prn (HPGL) or .apt .cl .cls .clsf .ncl (APT CL data)",
         )));
     };
     if options.apt.default_feed.is_some() && format != ProgramFormat::Apt {

@@ -1,7 +1,7 @@
 //! Settings that steer the readers: feed rule, G-code defaults, HPGL pen heights and
 //! optimisation, APT feed units, error limits.
 
-use super::apt::CircleSense;
+use super::apt::ClWriter;
 use super::types::{FeedRule, Position};
 
 /// Length units a G-code program starts in (before any G20/G21).
@@ -232,8 +232,9 @@ pub struct AptOptions {
     pub initial_units: LengthUnit,
     /// How to read a `FEDRAT` value that carries no IPM/MMPM word.
     pub feed_time_base: FeedTimeBase,
-    /// Which way CIRCLE arcs turn about their axis vector (NX: clockwise).
-    pub circle_sense: CircleSense,
+    /// The CAM system whose conventions apply (which way CIRCLE arcs turn, …); `None`: the
+    /// one the file's header names.
+    pub writer: Option<ClWriter>,
     /// Largest distance (m) of the chords standing for an arc about a tilted axis.
     pub chord_tolerance: f64,
     /// At most this many chords for one such arc.
@@ -250,7 +251,7 @@ impl Default for AptOptions {
         AptOptions {
             initial_units: LengthUnit::default(),
             feed_time_base: FeedTimeBase::default(),
-            circle_sense: CircleSense::default(),
+            writer: None,
             chord_tolerance: 1e-6,
             max_chords: 1_000_000,
             strict: false,

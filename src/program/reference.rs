@@ -73,6 +73,7 @@ pub fn circle(spec: &CircleSpec, source: &Path) -> Program {
         moves: vec![base_move(arc, start, spec.speed)],
         warnings: Vec::new(),
         tools: Vec::new(),
+        reading: None,
     }
 }
 
@@ -94,5 +95,6 @@ pub fn polyline(spec: &PolylineSpec, source: &Path) -> Program {
             .collect(),
         warnings: Vec::new(),
         tools: Vec::new(),
+        reading: None,
     }
 }

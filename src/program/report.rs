@@ -198,6 +198,9 @@ pub fn inspect_report(
     let mut out = String::new();
     let summary = summarize(program);
     let _ = writeln!(out, "program: {}", program.source.display());
+    if let Some(reading) = &program.reading {
+        let _ = writeln!(out, "read as: {reading}");
+    }
     let _ = writeln!(
         out,
         "moves: {} ({} cutting, {} rapid/pen-up, {} dwell)",

@@ -791,7 +791,7 @@ fn read_program_dispatches_on_extension() {
     assert_eq!(
         read_program(&unknown, &ReadOptions::default()).unwrap_err().to_string(),
         format!(
-            "{}: expected a part program (G-code, HPGL or APT CL data); the content is none of them and '.txt' names none; hint: use .ngc .nc .gcode .tap (G-code), .plt .hpgl .hpg .hgl .hp .prn (HPGL) or .apt .cl .cls .clsf (APT CL data)",
+            "{}: expected a part program (G-code, HPGL or APT CL data); the content is none of them and '.txt' names none; hint: use .ngc .nc .gcode .tap (G-code), .plt .hpgl .hpg .hgl .hp .prn (HPGL) or .apt .cl .cls .clsf .ncl (APT CL data)",
             unknown.display()
         )
     );

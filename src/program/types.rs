@@ -193,6 +193,9 @@ pub struct Program {
     /// The tools the program describes, in the order described: APT `TLDATA`; in G-code the
     /// tools M6 or M61 put in the spindle that the tool table gives a diameter.
     pub tools: Vec<ProgramTool>,
+    /// How the reader read a file whose conventions depend on its writer (CL data: the CAM
+    /// system it assumed and why), as shown to the user.
+    pub reading: Option<String>,
 }
 
 impl Program {

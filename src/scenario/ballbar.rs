@@ -305,6 +305,7 @@ pub fn ballbar_program(
         ],
         warnings: Vec::new(),
         tools: Vec::new(),
+        reading: None,
     }
 }
 

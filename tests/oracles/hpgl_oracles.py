@@ -90,6 +90,10 @@ def ezdxf_lines(path):
 
     with open(path, "rb") as file:
         data = file.read()
+    # ezdxf reads HP-GL/2 after the escape that enters it (or a known BP/IN start); a bare
+    # HP-GL/2 file (KiCad's `IN;VS40;…`) gets that escape put in front.
+    if b"\x1b%" not in data and not tokenizer.has_known_start_sequence(data):
+        data = b"\x1b%1B" + data
     collect = Collect()
     Interpreter(Plotter(collect)).run(tokenizer.hpgl2_commands(data))
     for pen, points in collect.lines:

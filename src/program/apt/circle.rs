@@ -3,23 +3,30 @@
 //!
 //! NX writes `CIRCLE/x,y,z,i,j,k,r,t,f,d,e[,TIMES,n]`: centre, axis vector, radius, total
 //! tolerance (INTOL + OUTTOL), tolerance ratio, tool diameter and corner radius; the tool
-//! moves *clockwise* about the axis vector. Arcs about X, Y or Z become [`Motion::Arc`] in
-//! the YZ, ZX or XY plane; arcs about any other axis are followed by chords that stay
-//! within a stated distance of the arc.
+//! moves *clockwise* about the axis vector, where APT and the other writers move it
+//! counter-clockwise (see `writer`). Arcs about X, Y or Z become [`Motion::Arc`] in the YZ,
+//! ZX or XY plane; arcs about any other axis are followed by chords that stay within a
+//! stated distance of the arc.
 
 use nalgebra::{Unit, Vector3};
 
 use crate::program::types::{Motion, Plane};
 
 /// Which way the tool goes round the axis vector of a CIRCLE record.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub enum CircleSense {
     /// NX CLSF: clockwise about (i, j, k), i.e. counter-clockwise about −(i, j, k).
-    #[default]
     ClockwiseAboutAxis,
     /// Counter-clockwise about (i, j, k) (right-hand rule).
     CounterClockwiseAboutAxis,
 }
+
+/// How far (degrees) a move entering or leaving an arc may turn from the arc's tangent and
+/// still say which way the arc turns: CAM systems lead into and out of arcs tangentially.
+/// Wider would mislead: a zig-zag pass that reverses into a short arc along a pocket's wall
+/// meets it 20° to 40° off the other way's tangent, and a radial lead or a plunge says
+/// nothing.
+pub(super) const TANGENT_ANGLE: f64 = 15.0;
 
 /// A CIRCLE record in metres, in the frame the moves are in.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -51,6 +58,49 @@ impl Circle {
         let from_centre = point - self.centre;
         let radial = from_centre - self.axis.into_inner() * from_centre.dot(&self.axis);
         (radial.norm() - self.radius).abs()
+    }
+
+    /// The unit direction of travel at `point` on the circle going round the `sense` way
+    /// (`None` on the axis).
+    pub(super) fn tangent(&self, point: &Vector3<f64>, sense: CircleSense) -> Option<Vector3<f64>> {
+        let axis = self.axis.into_inner();
+        let radial = point - self.centre;
+        let radial = radial - axis * radial.dot(&axis);
+        if radial.norm() <= 1e-12 {
+            return None;
+        }
+        // Counter-clockwise about +axis (right-hand rule): axis × radial.
+        let counter_clockwise = axis.cross(&radial).normalize();
+        Some(match sense {
+            CircleSense::CounterClockwiseAboutAxis => counter_clockwise,
+            CircleSense::ClockwiseAboutAxis => -counter_clockwise,
+        })
+    }
+
+    /// The way round the circle a move through `point` along `direction` runs, when it runs
+    /// along the circle: its part across the axis within [`TANGENT_ANGLE`] of the tangent
+    /// one way. `None` for a move across the circle or along its axis, which tells nothing.
+    pub(super) fn tangent_sense(
+        &self,
+        point: &Vector3<f64>,
+        direction: &Vector3<f64>,
+    ) -> Option<CircleSense> {
+        let axis = self.axis.into_inner();
+        let across = direction - axis * direction.dot(&axis);
+        // Mostly along the axis (a plunge onto a helix): no reading.
+        if across.norm() <= 0.25 * direction.norm() || across.norm() <= 1e-12 {
+            return None;
+        }
+        let ahead = self.tangent(point, CircleSense::CounterClockwiseAboutAxis)?;
+        let cosine = across.normalize().dot(&ahead);
+        let limit = TANGENT_ANGLE.to_radians().cos();
+        if cosine >= limit {
+            Some(CircleSense::CounterClockwiseAboutAxis)
+        } else if cosine <= -limit {
+            Some(CircleSense::ClockwiseAboutAxis)
+        } else {
+            None
+        }
     }
 
     /// The arc from `start` to `end`, or what is wrong with them.
@@ -243,5 +293,35 @@ mod tests {
         }
         // The quarter turn: the first chord heads towards the end, not away from it.
         assert!(points[0].dot(&end) > 0.0);
+    }
+
+    #[test]
+    fn moves_along_the_circle_tell_its_sense_and_moves_across_it_do_not() {
+        let arc = circle(Vector3::new(0.0, 0.0, -1.0));
+        let start = Vector3::new(0.01, 0.0, 0.0);
+        // Seen from +Z the tool at +X heading +Y goes counter-clockwise: clockwise about -Z.
+        let sense = |direction: Vector3<f64>| arc.tangent_sense(&start, &direction);
+        assert_eq!(
+            sense(Vector3::new(0.0, 1.0, 0.0)),
+            Some(CircleSense::ClockwiseAboutAxis)
+        );
+        assert_eq!(
+            sense(Vector3::new(0.1, -1.0, 0.0)),
+            Some(CircleSense::CounterClockwiseAboutAxis)
+        );
+        // Radial, 20° off (a zig-zag reversing into the arc), or down the axis: nothing.
+        assert_eq!(sense(Vector3::new(1.0, 0.0, 0.0)), None);
+        assert_eq!(sense(Vector3::new(0.364, 1.0, 0.0)), None);
+        assert_eq!(sense(Vector3::new(0.0, 0.1, -1.0)), None);
+        // 10° off: tangent.
+        assert_eq!(
+            sense(Vector3::new(0.176, 1.0, 0.0)),
+            Some(CircleSense::ClockwiseAboutAxis)
+        );
+        // A helical lead (mostly across the axis) still tells.
+        assert_eq!(
+            sense(Vector3::new(0.0, 1.0, -0.2)),
+            Some(CircleSense::ClockwiseAboutAxis)
+        );
     }
 }

@@ -15,6 +15,7 @@ mod circle;
 mod cycle;
 mod nurbs;
 mod records;
+mod writer;
 
 use std::collections::BTreeMap;
 use std::path::Path;
@@ -26,6 +27,7 @@ use self::circle::{ArcPath, Circle};
 use self::cycle::{Cycle, CycleKind, HoleMove};
 use self::nurbs::Spline;
 use self::records::{records, tokens, Record, Token, TokenKind};
+pub use self::writer::{is_ncl, ClWriter, Identification};
 use super::error::{display_text, ErrorSink, Found, ProgramError, ProgramErrors};
 use super::options::{FeedTimeBase, LengthUnit, ReadOptions};
 use super::source::LineIndex;
@@ -41,6 +43,13 @@ pub fn parse_apt(
 ) -> Result<Program, ProgramErrors> {
     let text = text.as_ref();
     let source = source.as_ref();
+    let writer = match options.apt.writer {
+        Some(writer) => Identification {
+            writer,
+            reason: "named by the user: cl_writer, --cl-writer".into(),
+        },
+        None => writer::identify(text, source),
+    };
     let mut reader = AptReader {
         text,
         lines: LineIndex::new(text),
@@ -49,8 +58,13 @@ pub fn parse_apt(
         errors: ErrorSink::new(options.max_errors),
         program: Program {
             source: source.to_path_buf(),
+            reading: Some(writer.describe()),
             ..Program::default()
         },
+        writer,
+        heading: None,
+        open_arc: None,
+        arc_readings: ArcReadings::default(),
         units: options.apt.initial_units,
         feed: None,
         rapid_next: false,
@@ -60,6 +74,7 @@ pub fn parse_apt(
         finished: false,
         frame: None,
         circle: None,
+        goto_continues: None,
         home: None,
         warned: BTreeMap::new(),
         cycle: None,
@@ -75,6 +90,7 @@ pub fn parse_apt(
     }
     reader.finish_nurbs();
     reader.count_skipped();
+    reader.count_arcs_against_convention();
     if let Some((_, span)) = reader.circle.take() {
         reader.errors.push(ProgramError::new(
             source,
@@ -149,8 +165,20 @@ const PATH_CHANGING: &[(&str, &str)] = &[
     ("ROTABL", "rotary table positioning"),
     ("ROTHED", "rotary head positioning"),
     ("ROTATE", "rotary positioning"),
-    ("MOVARC", "arcs given by MOVARC"),
-    ("HEAD", "head changes"),
+];
+
+/// Records and cycle words of lathe (turning) programs, and what each is: such a program is
+/// refused as a whole, by name.
+const LATHE: &[(&str, &str)] = &[
+    ("HEAD", "selects a lathe's turret head"),
+    ("LATHE", "sets up a lathe"),
+    ("OP/THREAD", "is a threading pass on a lathe"),
+    ("THREAD/TURN", "cuts a thread by turning"),
+    ("CYCLE/TURN", "is a turning cycle"),
+    ("CYCLE/LATHE", "is a turning cycle"),
+    ("CYCLE/ROUGH", "is a lathe roughing cycle"),
+    ("CYCLE/GROOVE", "is a lathe grooving cycle"),
+    ("CYCLE/CUTOFF", "is a lathe parting-off cycle"),
 ];
 
 /// What a CYCLE record does.
@@ -195,6 +223,9 @@ struct AptReader<'a> {
     frame: Option<(Matrix3<f64>, Vector3<f64>)>,
     /// A CIRCLE waiting for the GOTO that ends its arc, and where it was.
     circle: Option<(Circle, Span)>,
+    /// After a GOTO: the CIRCLE its arc was on, if any. A record of bare numbers right
+    /// after it is another point of it (Pro/ENGINEER writes an arc's points so).
+    goto_continues: Option<Option<(Circle, Span)>>,
     /// The FROM point (where GOHOME returns).
     home: Option<Position>,
     /// Kinds of skipped record: the index of the one warning about each in the program's
@@ -208,6 +239,37 @@ struct AptReader<'a> {
     nurbs: Option<NurbsRecords>,
     /// The operation and tool names of the last NX `TOOL PATH` record.
     operation: Option<(String, Option<String>)>,
+    /// The CAM system the file is read as, whose conventions apply.
+    writer: Identification,
+    /// Unit direction of travel at the end of the last move, where known.
+    heading: Option<Vector3<f64>>,
+    /// The last arc, while the move leaving it may still say which way it turns.
+    open_arc: Option<OpenArc>,
+    /// What the tangents of the arcs said against the writer's convention.
+    arc_readings: ArcReadings,
+}
+
+/// An arc read by the writer's convention because its entry move said nothing: the move that
+/// leaves it may turn it round.
+struct OpenArc {
+    circle: Circle,
+    start: Position,
+    end: Position,
+    feed: Feed,
+    span: Span,
+    /// Index of its first move in the program.
+    first_move: usize,
+    sense: CircleSense,
+}
+
+/// Arcs whose entry or exit move said which way they turn, and those against the writer's
+/// convention.
+#[derive(Default)]
+struct ArcReadings {
+    by_tangent: usize,
+    against: usize,
+    /// The warning about the first arc against the convention (its index in the warnings).
+    first_against: Option<usize>,
 }
 
 /// The records of a NURBS read so far (knots as written, control points in metres in the
@@ -270,6 +332,20 @@ impl<'a> AptReader<'a> {
 
     fn statement(&mut self, tokens: &[Token], span: Span) -> Result<(), RecordError> {
         let first = &tokens[0];
+        let continued = self.goto_continues.take();
+        if let (TokenKind::Number(_), Some(circle)) = (&first.kind, continued) {
+            // `GOTO / x1,y1,z1` then `x2,y2,z2` on the next line: a GOTO to each point, on
+            // the same CIRCLE when the first was an arc (Pro/ENGINEER's points along an arc).
+            self.circle = circle;
+            let at = |kind| Token {
+                kind,
+                start: first.start,
+                end: first.start,
+            };
+            let mut goto = vec![at(TokenKind::Word("GOTO".into())), at(TokenKind::Slash)];
+            goto.extend_from_slice(tokens);
+            return self.statement(&goto, span);
+        }
         let TokenKind::Word(major) = &first.kind else {
             return Err(RecordError::at(
                 first,
@@ -368,6 +444,28 @@ impl<'a> AptReader<'a> {
                     hint: None,
                 });
             }
+        }
+        let first_word = parameters.first().and_then(|token| match &token.kind {
+            TokenKind::Word(word) => Some(word.as_str()),
+            _ => None,
+        });
+        let with_word = first_word.map(|word| format!("{major}/{word}"));
+        let lathe = lookup(LATHE, &major)
+            .map(|what| (major.clone(), what))
+            .or_else(|| {
+                let name = with_word?;
+                lookup(LATHE, &name).map(|what| (name, what))
+            });
+        if let Some((name, what)) = lathe {
+            // Nothing after it can be read as milling: one error, not one per record.
+            self.finished = true;
+            return Err(RecordError {
+                start: first.start,
+                end: record_end,
+                problem: format!("expected a milling program; {name} {what}: this is a lathe (turning) program, which cncsim does not simulate"),
+                found: None,
+                hint: Some("cncsim's machines are mills; post the milling operations alone"),
+            });
         }
         let numbers = |count_ok: &[usize]| -> Result<Vec<f64>, RecordError> {
             let mut values = Vec::new();
@@ -529,6 +627,7 @@ impl<'a> AptReader<'a> {
                 if major == "GOTO" {
                     if let Some(cycle) = self.cycle.clone() {
                         self.rapid_next = false;
+                        self.goto_continues = Some(None);
                         return self.hole(&cycle, target, span, first, record_end);
                     }
                 }
@@ -559,18 +658,14 @@ impl<'a> AptReader<'a> {
                     }
                 };
                 self.rapid_next = false;
-                match self.circle.take() {
+                let arc = self.circle.take();
+                if major == "GOTO" {
+                    self.goto_continues = Some(arc.clone());
+                }
+                match arc {
                     None => self.push_move(Motion::Linear, end, feed, span),
                     Some((circle, _)) => {
-                        let start = Vector3::from(self.position.linear);
-                        let path = circle
-                            .path(
-                                &start,
-                                &target,
-                                circle.sense.unwrap_or(self.options.apt.circle_sense),
-                                self.options.apt.chord_tolerance,
-                                self.options.apt.max_chords,
-                            )
+                        self.arc(circle, end, feed, span)
                             .map_err(|problem| RecordError {
                                 start: first.start,
                                 end: record_end,
@@ -578,38 +673,24 @@ impl<'a> AptReader<'a> {
                                 found: None,
                                 hint: Some("check the CIRCLE record before this GOTO"),
                             })?;
-                        match path {
-                            ArcPath::Plane(motion) => self.push_move(motion, end, feed, span),
-                            ArcPath::Chords(points) => {
-                                self.warn_once(
-                                    "tilted CIRCLE",
-                                    span,
-                                    format!(
-                                        "CIRCLE about an axis other than X, Y or Z: the arc is followed by chords within {:.4} mm of it",
-                                        self.options.apt.chord_tolerance * 1e3
-                                    ),
-                                );
-                                for point in points {
-                                    let mut to = end;
-                                    to.linear = [point.x, point.y, point.z];
-                                    self.push_move(Motion::Linear, to, feed, span);
-                                }
-                            }
-                        }
                     }
                 }
             }
-            "CIRCLE" => {
+            "CIRCLE" | "MOVARC" => {
                 if self.circle.is_some() {
                     return Err(RecordError {
                         start: first.start,
                         end: record_end,
-                        problem: "expected a GOTO to end the arc of the CIRCLE before, not another CIRCLE".into(),
+                        problem: format!("expected a GOTO to end the arc of the CIRCLE before, not another {major}"),
                         found: None,
                         hint: None,
                     });
                 }
-                let circle = self.circle_record(&parameters, first, record_end)?;
+                let circle = if major == "MOVARC" {
+                    self.movarc_record(&parameters, first, record_end)?
+                } else {
+                    self.circle_record(&parameters, first, record_end)?
+                };
                 self.circle = Some((circle, span));
             }
             // SolidWorks CAM: `TRNTYP/WORLD,0,0,0` before each CSYS says the CSYS is given in
@@ -1203,6 +1284,8 @@ impl<'a> AptReader<'a> {
         let mut steps = Vec::new();
         let mut dwell = 0.0;
         let mut feed = None;
+        // A tap's thread pitch (m): `TPI,n` (threads per inch) or `PITCH,p`.
+        let mut pitch = None;
         // Numbers without a keyword (APT's CYCLE/DRILL,depth,IPM,f,clearance): depth first.
         let mut positional = 0;
         let number_after = |index: usize, word: &str| -> Result<f64, RecordError> {
@@ -1313,6 +1396,14 @@ impl<'a> AptReader<'a> {
                         dwell = seconds;
                         index += 1;
                     }
+                    "TPI" | "PITCH" => {
+                        let value = number_after(index, word)?;
+                        if !(value > 0.0 && value <= 1e4) {
+                            return Err(RecordError::at(parameters[index + 1], format!("expected a positive {word} in CYCLE (at most 10000)")));
+                        }
+                        pitch = Some(if word == "TPI" { 0.0254 / value } else { metres(value) });
+                        index += 1;
+                    }
                     "MMPM" | "IPM" | "MMPR" | "IPR" => {
                         let value = number_after(index, word)?;
                         if value <= 0.0 {
@@ -1358,6 +1449,34 @@ impl<'a> AptReader<'a> {
                 "expected the kind of cycle (DRILL, DEEP, BRKCHP, BORE, …) in CYCLE".into(),
             ));
         };
+        if let Some(pitch) = pitch {
+            // A tap advances one pitch per spindle revolution, whatever feed is written.
+            let rpm = match self.spindle {
+                Spindle::Clockwise { rpm } | Spindle::CounterClockwise { rpm } if rpm > 0.0 => rpm,
+                _ => {
+                    return Err(RecordError {
+                        hint: Some("start the spindle (SPINDL) before a tapping cycle"),
+                        ..whole(format!("expected a turning spindle for CYCLE/{name} with a thread pitch: the tap feeds one pitch per revolution"))
+                    })
+                }
+            };
+            let synchronised = pitch * rpm / 60.0;
+            if let Some(written) = feed {
+                if (written - synchronised).abs() > 0.01 * synchronised {
+                    self.warn_once(
+                        "tap feed",
+                        span,
+                        format!(
+                            "CYCLE/{name}: the written feed {:.3} mm/min is not pitch × spindle speed ({:.4} mm × {rpm} rpm = {:.3} mm/min); the tap feeds at the latter",
+                            written * 60e3,
+                            pitch * 1e3,
+                            synchronised * 60e3
+                        ),
+                    );
+                }
+            }
+            feed = Some(synchronised);
+        }
         let Some(feed_to) = feed_to else {
             return Err(whole(format!("expected FEDTO (the depth) in CYCLE/{name}")));
         };
@@ -1522,6 +1641,20 @@ impl<'a> AptReader<'a> {
     }
 
     fn push_move(&mut self, motion: Motion, end: Position, feed: Feed, span: Span) {
+        match motion {
+            // A dwell leaves the tool where the arc ended.
+            Motion::Dwell { .. } => {}
+            Motion::Linear => {
+                let direction = Vector3::from(end.linear) - Vector3::from(self.position.linear);
+                if let Some(arc) = self.open_arc.take() {
+                    self.reconsider(arc, &direction);
+                }
+                if direction.norm() > 1e-12 {
+                    self.heading = Some(direction.normalize());
+                }
+            }
+            _ => self.open_arc = None,
+        }
         self.program.moves.push(Move {
             motion,
             end,
@@ -1534,6 +1667,202 @@ impl<'a> AptReader<'a> {
             span,
         });
         self.position = end;
+    }
+
+    /// The arc of `circle` from the tool to `end`, turned the way its entry move runs along
+    /// it, else the writer's way (until the move leaving it says otherwise: see
+    /// [`AptReader::reconsider`]). A way the record names itself is not second-guessed.
+    fn arc(&mut self, circle: Circle, end: Position, feed: Feed, span: Span) -> Result<(), String> {
+        // An arc leaving an arc says nothing of the first's way round: its own may be unknown.
+        self.open_arc = None;
+        let start = self.position;
+        let convention = self.writer.writer.circle_sense();
+        let by_entry = match (circle.sense, self.heading) {
+            (None, Some(heading)) => circle.tangent_sense(&Vector3::from(start.linear), &heading),
+            _ => None,
+        };
+        let sense = circle.sense.or(by_entry).unwrap_or(convention);
+        let first_move = self.program.moves.len();
+        self.arc_moves(&circle, end, feed, span, sense)?;
+        if circle.sense.is_none() {
+            match by_entry {
+                Some(sense) => self.tally_tangent_reading(sense, span, "entry"),
+                None => {
+                    // The way it leaves may be the other: not a heading to read the next
+                    // arc by.
+                    self.heading = None;
+                    self.open_arc = Some(OpenArc {
+                        circle,
+                        start,
+                        end,
+                        feed,
+                        span,
+                        first_move,
+                        sense,
+                    })
+                }
+            }
+        }
+        Ok(())
+    }
+
+    /// The moves of the arc of `circle` from the tool to `end` going round the `sense` way.
+    fn arc_moves(
+        &mut self,
+        circle: &Circle,
+        end: Position,
+        feed: Feed,
+        span: Span,
+        sense: CircleSense,
+    ) -> Result<(), String> {
+        let target = Vector3::from(end.linear);
+        let path = circle.path(
+            &Vector3::from(self.position.linear),
+            &target,
+            sense,
+            self.options.apt.chord_tolerance,
+            self.options.apt.max_chords,
+        )?;
+        match path {
+            ArcPath::Plane(motion) => self.push_move(motion, end, feed, span),
+            ArcPath::Chords(points) => {
+                self.warn_once(
+                    "tilted CIRCLE",
+                    span,
+                    format!(
+                        "CIRCLE about an axis other than X, Y or Z: the arc is followed by chords within {:.4} mm of it",
+                        self.options.apt.chord_tolerance * 1e3
+                    ),
+                );
+                for point in points {
+                    let mut to = end;
+                    to.linear = [point.x, point.y, point.z];
+                    self.push_move(Motion::Linear, to, feed, span);
+                }
+            }
+        }
+        self.heading = circle.tangent(&target, sense);
+        Ok(())
+    }
+
+    /// The move leaving an arc whose entry said nothing: where it runs along the arc the
+    /// other way than the arc was read, the arc is read again that way.
+    fn reconsider(&mut self, arc: OpenArc, direction: &Vector3<f64>) {
+        let Some(sense) = arc
+            .circle
+            .tangent_sense(&Vector3::from(arc.end.linear), direction)
+        else {
+            return;
+        };
+        if sense != arc.sense {
+            let moves = self.program.moves.split_off(arc.first_move);
+            let position = std::mem::replace(&mut self.position, arc.start);
+            if self
+                .arc_moves(&arc.circle, arc.end, arc.feed, arc.span, sense)
+                .is_err()
+            {
+                // The other way cannot be followed (too many chords): the reading stays.
+                self.program.moves.truncate(arc.first_move);
+                self.program.moves.extend(moves);
+                self.position = position;
+                return;
+            }
+        }
+        self.tally_tangent_reading(sense, arc.span, "exit");
+    }
+
+    /// Counts an arc whose entry or exit move said which way it turns; warns at the first
+    /// that turns against the writer's convention.
+    fn tally_tangent_reading(&mut self, sense: CircleSense, span: Span, which: &str) {
+        self.arc_readings.by_tangent += 1;
+        if sense == self.writer.writer.circle_sense() {
+            return;
+        }
+        self.arc_readings.against += 1;
+        if self.arc_readings.first_against.is_none() {
+            self.arc_readings.first_against = Some(self.program.warnings.len());
+            let way = match sense {
+                CircleSense::ClockwiseAboutAxis => "clockwise",
+                CircleSense::CounterClockwiseAboutAxis => "counter-clockwise",
+            };
+            self.program.warnings.push(Warning {
+                span,
+                message: format!(
+                    "the arc ending here turns {way} about its CIRCLE's axis, as its {which} move runs along it, against the convention of {}: read as its {which} move says",
+                    self.writer.writer.title()
+                ),
+            });
+        }
+    }
+
+    /// Puts the count of arcs against the writer's convention into the first one's warning,
+    /// and says once when most arcs are.
+    fn count_arcs_against_convention(&mut self) {
+        let ArcReadings {
+            by_tangent,
+            against,
+            first_against,
+        } = self.arc_readings;
+        let Some(index) = first_against else {
+            return;
+        };
+        let warning = &mut self.program.warnings[index];
+        warning.message = format!(
+            "{} ({against} of the {by_tangent} arcs whose entry or exit move runs along them turn against it)",
+            warning.message
+        );
+        if 2 * against > by_tangent {
+            let span = warning.span;
+            self.program.warnings.push(Warning {
+                span,
+                message: format!(
+                    "{against} of the {by_tangent} arcs whose entry or exit runs along them turn against the convention of {} ({}): the file is likely written by another CAM system; those arcs were read as their moves say, the others by that convention; name the writer with cl_writer in [program] or inspect --cl-writer ({})",
+                    self.writer.writer.title(),
+                    self.writer.reason,
+                    ClWriter::names()
+                ),
+            });
+        }
+    }
+
+    /// `MOVARC/x,y,z,i,j,k,r[,ANGLE,degrees]` (Autodesk's APT post): the arc of a CIRCLE
+    /// through the angle given (more than 360°: whole turns besides).
+    fn movarc_record(
+        &self,
+        parameters: &[&Token],
+        first: &Token,
+        record_end: usize,
+    ) -> Result<Circle, RecordError> {
+        let angle_at = parameters
+            .iter()
+            .position(|token| token.kind == TokenKind::Word("ANGLE".into()));
+        let circle_part = &parameters[..angle_at.unwrap_or(parameters.len())];
+        if circle_part.len() != 7 {
+            return Err(RecordError {
+                start: first.start,
+                end: record_end,
+                problem: format!(
+                    "expected MOVARC/x,y,z,i,j,k,r[,ANGLE,degrees]: 7 numbers before ANGLE, not {}",
+                    circle_part.len()
+                ),
+                found: None,
+                hint: None,
+            });
+        }
+        let mut circle = self.circle_record(circle_part, first, record_end)?;
+        if let Some(at) = angle_at {
+            let degrees = match parameters.get(at + 1).map(|t| &t.kind) {
+                Some(TokenKind::Number(value)) if value.abs() <= 360.0 * 1e6 => value.abs(),
+                _ => {
+                    return Err(RecordError::at(
+                        parameters[at],
+                        "expected the arc's angle in degrees after ANGLE in MOVARC",
+                    ))
+                }
+            };
+            circle.turns = ((degrees / 360.0) - 1e-9).floor().max(0.0) as u32;
+        }
+        Ok(circle)
     }
 
     /// `CIRCLE/x,y,z,i,j,k,r[,t,f,d,e][,TIMES,n]` in the current units and frame.
@@ -1638,10 +1967,12 @@ impl<'a> AptReader<'a> {
                 hint: None,
             });
         }
-        // The record's own tolerance (NX: INTOL + OUTTOL), else 0.01 mm.
+        // The record's own tolerance (NX: INTOL + OUTTOL), else 0.01 mm. CAMplete writes the
+        // arc's sweep angle there instead.
         let tolerance = values
             .get(7)
             .copied()
+            .filter(|_| self.writer.writer != ClWriter::Camplete)
             .filter(|t| *t > 0.0)
             .map_or(1e-5, metres);
         Ok(Circle {

@@ -87,10 +87,43 @@ pub(super) struct Token {
     pub(super) end: usize,
 }
 
-/// Tokenises a record; words are upper-cased.
+/// Tokenises a record; words are upper-cased. Its lines are joined by a blank, except where
+/// a line was wrapped inside a number or word (CATIA wraps at a fixed column: `…, 0$` then
+/// `.752602` on the next line), which is joined as written.
 pub(super) fn tokens(text: &[u8], record: &Record) -> Vec<Token> {
+    let mut joined = Vec::new();
+    // Where each byte of `joined` is in `text`.
+    let mut origin = Vec::new();
+    for (index, &(start, end)) in record.pieces.iter().enumerate() {
+        if index > 0 {
+            let previous_end = record.pieces[index - 1].1;
+            let before = text[previous_end - 1];
+            let wrapped = (before.is_ascii_alphanumeric() || before == b'.')
+                && text.get(previous_end) == Some(&b'$')
+                && (text[start].is_ascii_digit() || text[start] == b'.');
+            if !wrapped {
+                joined.push(b' ');
+                origin.push(previous_end);
+            }
+        }
+        joined.extend_from_slice(&text[start..end]);
+        origin.extend(start..end);
+    }
+    scan_tokens(&joined)
+        .into_iter()
+        .map(|token| Token {
+            start: origin[token.start],
+            end: origin[token.end - 1] + 1,
+            ..token
+        })
+        .collect()
+}
+
+/// The tokens of `text`, at their offsets in it.
+fn scan_tokens(text: &[u8]) -> Vec<Token> {
     let mut tokens = Vec::new();
-    for &(start, end) in &record.pieces {
+    {
+        let (start, end) = (0, text.len());
         let mut at = start;
         while at < end {
             let byte = text[at];

@@ -109,6 +109,7 @@ impl Reader<'_> {
         let start = self.scan.at;
         let mnemonic = match self.scan.mnemonic() {
             Ok(mnemonic) => mnemonic,
+            Err(_) if self.trailing_junk(start) => return,
             Err(error) => {
                 self.scan_error(error);
                 self.scan.skip_to_terminator();
@@ -519,7 +520,12 @@ impl Reader<'_> {
             }
             "PM" => match values.as_slice() {
                 [] | [0.0] => {
+                    // The stroke drawn so far ends; the pen stays up or down as it is
+                    // (HP-GL/2): KiCad enters polygon mode with the pen down, so its edges
+                    // are pen-down moves.
+                    let down = self.plotter.pen_down;
                     self.pen_up(span);
+                    self.plotter.pen_down = down;
                     self.polygon_mode = true;
                     self.polygon = Polygon {
                         paths: vec![SubPath {
@@ -981,7 +987,11 @@ impl Reader<'_> {
     ) -> Result<(), Problem> {
         match name {
             "PU" => self.pen_up(span),
-            "PD" => self.pen_down(span),
+            "PD" => {
+                self.pen_down_records.0 += 1;
+                self.pen_down_records.1.get_or_insert(span);
+                self.pen_down(span);
+            }
             "PA" => self.plotter.absolute = true,
             _ => self.plotter.absolute = false,
         }

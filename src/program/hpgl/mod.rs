@@ -120,8 +120,10 @@ pub fn parse_hpgl_detailed(
         carriage: [0.0, 0.0],
         pages: Pages::default(),
         fill_budget: options.hpgl.max_fill_lines,
+        pen_down_records: (0, None),
     };
     reader.run();
+    reader.warn_nothing_drawn();
     reader.count_skipped();
     let Reader {
         errors,
@@ -157,6 +159,12 @@ pub fn parse_hpgl_detailed(
         },
     })
 }
+
+/// At most this many bytes after a plot's last command are passed over as trailing junk.
+const MAX_TRAILING_JUNK: usize = 64;
+
+/// A file with this many PD records that draws nothing is said to.
+const MANY_PEN_DOWN_RECORDS: usize = 10;
 
 /// Which language the bytes are in: HPGL, or the PCL / PJL job around an HP-GL/2 plot.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -213,6 +221,8 @@ struct Reader<'a> {
     pages: Pages,
     /// Hatch lines still allowed in this file.
     fill_budget: usize,
+    /// PD records read, and where the first was.
+    pen_down_records: (usize, Option<Span>),
 }
 
 impl<'a> Reader<'a> {
@@ -243,6 +253,7 @@ impl<'a> Reader<'a> {
                             );
                             self.scan.at = end;
                         }
+                        _ if self.trailing_junk(self.scan.at) => {}
                         _ => {
                             let start = self.scan.at;
                             let end = self.scan.char_end(start);
@@ -285,6 +296,34 @@ impl<'a> Reader<'a> {
 
     fn span(&self, at: usize) -> Span {
         self.lines.span(at)
+    }
+
+    /// Whether what is left from `start` is a stray letter and its terminator, not a command
+    /// and holding none (no two letters in a row, no digit, ending in ';', at most
+    /// [`MAX_TRAILING_JUNK`] bytes): `x;` after the last command, which plotters pass over.
+    /// It is passed over with one warning (refused with `strict`), and the reading ends. A
+    /// lone letter at the end (a cut-off file) or a stray number is not.
+    fn trailing_junk(&mut self, start: usize) -> bool {
+        let rest = &self.scan.text[start..];
+        let letters_in_a_row = rest
+            .windows(2)
+            .any(|pair| pair[0].is_ascii_alphabetic() && pair[1].is_ascii_alphabetic());
+        let junk = rest.len() <= MAX_TRAILING_JUNK
+            && !letters_in_a_row
+            && rest.iter().any(u8::is_ascii_alphabetic)
+            && !rest.iter().any(u8::is_ascii_digit)
+            && rest.trim_ascii_end().ends_with(b";");
+        if self.options.strict || !junk {
+            return false;
+        }
+        let shown = display_text(rest.trim_ascii());
+        let span = self.span(start);
+        self.warn(
+            span,
+            format!("`{shown}` after the plot's last command is not a command: passed over, as plotters pass over what they cannot read"),
+        );
+        self.scan.at = self.scan.text.len();
+        true
     }
 
     /// Whether the current page is plotted: every page, or the one `page` chooses.
@@ -366,13 +405,36 @@ impl<'a> Reader<'a> {
                 None,
             );
         } else {
-            let index = self.warnings.len();
-            let entry = self.warned.entry(kind.to_string()).or_insert((index, 0));
-            entry.1 += 1;
-            if entry.0 == index && entry.1 == 1 {
-                let span = self.span(start);
-                self.warn(span, format!("{what} and {done}"));
-            }
+            let span = self.span(start);
+            self.warn_counted(kind, span, || format!("{what} and {done}"));
+        }
+    }
+
+    /// One warning per `kind`, made by `message` the first time, with the count of times put
+    /// in at the end of the file.
+    fn warn_counted(&mut self, kind: &str, span: Span, message: impl FnOnce() -> String) {
+        let index = self.warnings.len();
+        let entry = self.warned.entry(kind.to_string()).or_insert((index, 0));
+        entry.1 += 1;
+        if entry.0 == index && entry.1 == 1 {
+            self.warn(span, message());
+        }
+    }
+
+    /// At the end of the file: many PD records and not one stroke drawn is a reading that
+    /// lost the drawing (or a file that has none), said once.
+    fn warn_nothing_drawn(&mut self) {
+        let (records, first) = self.pen_down_records;
+        let drawn = self
+            .drawing
+            .iter()
+            .any(|element| matches!(element, Element::Stroke(stroke) if !stroke.steps.is_empty()));
+        if records >= MANY_PEN_DOWN_RECORDS && !drawn {
+            let span = first.unwrap_or_else(|| self.span(0));
+            self.warn(
+                span,
+                format!("{records} pen-down records (PD), the first here, and nothing drawn: every pen-down move is in polygon mode without EP or FP, off the page plotted, or clipped away"),
+            );
         }
     }
 

@@ -235,12 +235,37 @@ impl Reader<'_> {
             if let Some(stroke) = &mut self.stroke {
                 stroke.steps.push(step);
             }
+            self.check_on_page(to, span);
         } else {
             let to = self.metres(to);
             self.drawing.push(Element::Travel { to, span });
         }
         self.plotter.position = to;
         Ok(())
+    }
+
+    /// A pen-down move ending beyond the page the file set (PS): drawn as written, with one
+    /// warning counting them (a plotter clips at its limits, which cncsim does not model).
+    fn check_on_page(&mut self, to: [f64; 2], span: Span) {
+        let Some(page) = self.plotter.page else {
+            return;
+        };
+        let point = self.plotter.to_page(to, self.options);
+        // Half a plotter unit: rounding in the file's coordinates.
+        let slack = 0.5;
+        if (0..2).all(|axis| point[axis] >= -slack && point[axis] <= page[axis] + slack) {
+            return;
+        }
+        let per_mm = self.options.units_per_mm;
+        self.warn_counted("off the page", span, || {
+            format!(
+                "the pen draws off the page the file set (PS: {:.1} × {:.1} mm), first to ({:.2}, {:.2}) mm on it: drawn as written, where a plotter clips at its limits",
+                page[0] / per_mm,
+                page[1] / per_mm,
+                point[0] / per_mm,
+                point[1] / per_mm
+            )
+        });
     }
 
     /// Polygon mode: a pen-down move adds an edge; a pen-up move closes the sub-polygon and

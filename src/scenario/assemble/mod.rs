@@ -452,6 +452,7 @@ fn approach_for(
         }],
         warnings: Vec::new(),
         tools: Vec::new(),
+        reading: None,
     };
     let settings = plan_settings(s, machine, s.planner.profile)?;
     plan_program(&way, axis_map, &settings).map_err(|source| RunError::Plan {

@@ -5,7 +5,7 @@ use super::limits;
 use super::source::{InFile, Num};
 use crate::diagnostics::{check_range, FileError, LineColumn};
 use crate::program::{
-    parse_tool_table, CircleSpec, FeedRule, LengthUnit, PolylineSpec, ReadOptions,
+    parse_tool_table, CircleSpec, ClWriter, FeedRule, LengthUnit, PolylineSpec, ReadOptions,
 };
 use serde::Deserialize;
 use std::path::PathBuf;
@@ -33,6 +33,8 @@ pub(super) struct RawProgram {
     optimise_pen_up: bool,
     /// HPGL: plot only this page (from 1); default every page, one over another.
     page: Option<Spanned<i64>>,
+    /// CL data: the CAM system whose conventions apply; default the one its header names.
+    cl_writer: Option<Spanned<String>>,
     /// Where the machine is before the program: it reaches the program's first point by an
     /// untraced straight move from here (mm), as a real machine comes from home.
     approach_from_mm: Option<Spanned<[f64; 3]>>,
@@ -203,6 +205,19 @@ impl TryFrom<InFile<'_, &RawProgram>> for ProgramSettings {
             // reader refuses it for G-code and HPGL, which program their own).
             if p.feed_mm_s.is_some() {
                 options.apt.default_feed = Some(feed()?);
+            }
+            if let Some(name) = &p.cl_writer {
+                options.apt.writer =
+                    Some(ClWriter::from_name(name.get_ref()).ok_or_else(|| {
+                        file.error(
+                            name.span(),
+                            format!(
+                                "cl_writer: expected one of {}, found '{}'",
+                                ClWriter::names(),
+                                name.get_ref()
+                            ),
+                        )
+                    })?);
             }
             if let Some(page) = &p.page {
                 let n = *page.get_ref();
