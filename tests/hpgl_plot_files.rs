@@ -688,3 +688,54 @@ fn drawing_off_the_page_and_pen_down_records_that_draw_nothing_are_said() {
         "{said:?}"
     );
 }
+
+#[test]
+fn ps_with_a_paper_number_selects_the_paper_of_an_hpgl1_plotter() {
+    // vpype's HP 7475A output: `PS4` (A/A4) or `PS0` (B/A3), then plotter units. The page and
+    // P1/P2 stay: SC still maps onto the HP 7475A's P1–P2, and nothing is off any page.
+    for paper in ["PS4", "PS0"] {
+        let text = format!("IN;{paper};SC0,100,0,100;SP1;PA0,0;PD100,100;PU;SP0;");
+        let program = hpgl(text.as_bytes());
+        let segments = drawn(&program);
+        assert_eq!(segments.len(), 1, "{paper}: {segments:?}");
+        let [from, to] = segments[0];
+        // The HP 7475A's default P1 (250, 596) and P2 (10250, 7796).
+        assert!(
+            close(from, [250.0, 596.0]) && close(to, [10250.0, 7796.0]),
+            "{paper}: {segments:?}"
+        );
+        let said = warnings(&program);
+        assert_eq!(said.len(), 1, "{said:?}");
+        assert!(
+            said[0].contains("selects the paper of an HP-GL/1 plotter"),
+            "{}",
+            said[0]
+        );
+    }
+    // A plot size in plotter units is still one.
+    let program = hpgl(b"IN;PS4000,2000;SP1;PA0,0;PD1000,1000;PU;");
+    assert!(warnings(&program).is_empty());
+}
+
+#[test]
+fn a_roman8_dash_in_a_label_is_drawn_as_a_minus_and_other_8_bit_characters_as_blanks() {
+    // plotutils' PCL output labels its axes with Roman-8's dash (0xF6) for a minus sign.
+    let minus = hpgl(b"IN;SP1;PA0,0;LB\xf61.0\x03;PU;");
+    let ascii = hpgl(b"IN;SP1;PA0,0;LB-1.0\x03;PU;");
+    assert_eq!(drawn(&minus), drawn(&ascii));
+    let said = warnings(&minus);
+    assert!(
+        said.iter().any(|m| m.contains("the first `0xF6`")),
+        "{said:?}"
+    );
+    // Another 8-bit character: a blank cell, the pen moving on as for a character.
+    let blank = hpgl(b"IN;SP1;PA0,0;LB\xb31\x03;PU;");
+    let spaced = hpgl(b"IN;SP1;PA0,0;LB 1\x03;PU;");
+    assert_eq!(drawn(&blank), drawn(&spaced));
+    // UTF-8 text a character a cell: an en dash is a minus, an accented letter a blank.
+    let utf8 = hpgl("IN;SP1;PA0,0;LB\u{2013}1 CAF\u{e9}\x03;PU;".as_bytes());
+    let ascii = hpgl(b"IN;SP1;PA0,0;LB-1 CAF \x03;PU;");
+    assert_eq!(drawn(&utf8), drawn(&ascii));
+    // Refused with --strict.
+    assert!(first_error(b"IN;SP1;PA0,0;LB\xf61.0\x03;", &strict()).contains("ASCII 32"));
+}

@@ -952,7 +952,6 @@ fn bad_inputs_give_exact_messages() {
         (Hpgl, "SC0,0,0,10;", "bad.plt:1:1: expected SC limits with xmin ≠ xmax and ymin ≠ ymax, not 0,0,0,10, found 'SC0,0,0,10'"),
         (Hpgl, "VS0;", "bad.plt:1:1: expected a positive pen speed (cm/s) after VS, not 0, found 'VS0'"),
         (Hpgl, "CI;", "bad.plt:1:1: expected 1 or 2 parameters after CI, not 0, found 'CI'"),
-        (Hpgl, "LBCAF\u{e9}\x03;", "bad.plt:1:6: expected label characters the stroke font has (ASCII 32–126), found '\u{e9}'; hint: the Hershey stroke font draws ASCII only"),
         (Apt, "GOTO/1,2", "bad.apt:1:1: expected 3 or 6 numbers after GOTO/, not 2, found 'GOTO/1,2'"),
         (Apt, "FEDRAT/100\nGOTO/1,2,x", "bad.apt:2:10: expected a number in GOTO, found 'x'"),
         (Apt, "GOTO/1,2,3", "bad.apt:1:1: expected a FEDRAT (or RAPID) before the first GOTO, found 'GOTO/1,2,3'; hint: add e.g. FEDRAT/100 before the motion records, or give the feed (feed_mm_s in [program], inspect --feed)"),

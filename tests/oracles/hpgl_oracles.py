@@ -50,7 +50,9 @@ def hp2xx(path, options=()):
         name, arguments = command[:2], command[2:]
         if name == "SP":
             pen = int(float(arguments)) if arguments else 0
-            current = None
+            # hp2xx writes `SPn;PDx,y` with the pen still down: the next stroke goes on from
+            # the last point, in the new pen.
+            current = [pen, [current[1][-1]]] if current else None
         elif name == "PU":
             current = None
             if arguments:

@@ -357,6 +357,19 @@ impl Reader<'_> {
                 self.plotter.p2 = [p1[0].max(p2[0]), p1[1].max(p2[1])];
                 self.carriage = position;
             }
+            // HP-GL/1 pen plotters (HP 7475A, 7550A) read `PS n` as the paper loaded (4:
+            // A/A4, 0: B/A3), which vpype writes for them; as an HP-GL/2 plot size it would be
+            // a page a tenth of a millimetre long. The page and P1/P2 stay as they were.
+            "PS" if matches!(*values.as_slice(), [n] if n.fract() == 0.0 && (0.0..=4.0).contains(&n)) =>
+            {
+                self.skip(
+                    "PS paper",
+                    start,
+                    self.scan.at,
+                    &format!("PS{} selects the paper of an HP-GL/1 plotter (HP 7475A: 4 = A/A4, 0 = B/A3), not a plot size", fmt_number(values[0])),
+                    "the page and P1/P2 were left as they were",
+                );
+            }
             "PS" => {
                 let default = self.options.default_page;
                 let page = match values.as_slice() {
@@ -531,6 +544,7 @@ impl Reader<'_> {
                         paths: vec![SubPath {
                             start: self.plotter.position,
                             edges: Vec::new(),
+                            open: false,
                         }],
                     };
                 }
@@ -574,7 +588,7 @@ impl Reader<'_> {
                 let was_down = self.plotter.pen_down;
                 match rule {
                     None => {
-                        self.outline(&polygon, span)?;
+                        self.outline(&polygon, false, span)?;
                         self.return_pen(position, was_down, span)?;
                     }
                     Some(rule) => self.fill(&polygon, rule, span)?,
@@ -1185,6 +1199,7 @@ impl Reader<'_> {
                         to,
                     })
                     .collect(),
+                open: false,
             }],
         }
     }
@@ -1200,7 +1215,7 @@ impl Reader<'_> {
         if edged {
             let position = self.plotter.position;
             let was_down = self.plotter.pen_down;
-            self.outline(&polygon, span)?;
+            self.outline(&polygon, true, span)?;
             self.return_pen(position, was_down, span)?;
         } else {
             self.fill(&polygon, Rule::EvenOdd, span)?;
@@ -1242,6 +1257,7 @@ impl Reader<'_> {
             paths: vec![SubPath {
                 start: centre_plotter,
                 edges: Vec::new(),
+                open: false,
             }],
         };
         self.plotter.pen_down = true;
@@ -1302,8 +1318,9 @@ impl Reader<'_> {
         span: Span,
     ) -> Result<(), Problem> {
         let geometry = self.label_geometry();
+        let text = self.ascii_label(text, text_start.unwrap_or(command_start));
         let laid = match label::lay_out(
-            text,
+            &text,
             self.plotter.position,
             self.carriage,
             &geometry,
@@ -1333,6 +1350,44 @@ impl Reader<'_> {
         }
         self.carriage = laid.carriage;
         self.return_pen(laid.end, was_down, span)
+    }
+
+    /// A label's characters outside ASCII, which the stroke font cannot draw: dashes and
+    /// minus signs as `-` (plotting programs write HP Roman-8's dash, 0xF6, for a minus
+    /// sign), any other as a blank cell the pen moves over; text that is valid UTF-8 is read
+    /// a character a cell, other bytes as Roman-8. One warning counts them; refused with
+    /// `strict` (left for the layout to refuse).
+    fn ascii_label(&mut self, text: &[u8], at: usize) -> Vec<u8> {
+        if self.options.strict || text.is_ascii() {
+            return text.to_vec();
+        }
+        let cells: Vec<(u8, Option<String>)> = match std::str::from_utf8(text) {
+            Ok(utf8) => utf8
+                .chars()
+                .map(|c| match c {
+                    c if c.is_ascii() => (c as u8, None),
+                    '\u{2010}'..='\u{2015}' | '\u{2212}' => (b'-', Some(c.to_string())),
+                    c => (b' ', Some(c.to_string())),
+                })
+                .collect(),
+            Err(_) => text
+                .iter()
+                .map(|&b| match b {
+                    b if b.is_ascii() => (b, None),
+                    0xF6 => (b'-', Some("0xF6".into())),
+                    b => (b' ', Some(format!("0x{b:02X}"))),
+                })
+                .collect(),
+        };
+        let span = self.span(at);
+        for (_, shown) in &cells {
+            if let Some(shown) = shown {
+                self.warn_counted("label outside ASCII", span, || {
+                    format!("label characters outside ASCII (the first `{shown}`) are drawn as '-' where they are dashes or minus signs (HP Roman-8's 0xF6 among them), else left blank: the stroke font has ASCII only")
+                });
+            }
+        }
+        cells.into_iter().map(|(byte, _)| byte).collect()
     }
 
     /// Symbol mode: the symbol character centred on a plotted point.

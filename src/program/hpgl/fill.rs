@@ -13,11 +13,15 @@ pub(super) struct Edge {
     pub(super) to: [f64; 2],
 }
 
-/// One closed sub-polygon.
+/// One sub-polygon.
 #[derive(Debug, Clone, PartialEq, Default)]
 pub(super) struct SubPath {
     pub(super) start: [f64; 2],
     pub(super) edges: Vec<Edge>,
+    /// Closed by PM1 or PM2 with the pen up: an edged polygon (EP) leaves its closing edge
+    /// undrawn, as HP-GL/2 plotters and hp2xx do (plotutils draws open polylines so); a
+    /// fill still closes it.
+    pub(super) open: bool,
 }
 
 impl SubPath {
@@ -237,6 +241,7 @@ mod tests {
                 corner(low, high),
                 corner(low, low),
             ],
+            open: false,
         }
     }
 
@@ -273,6 +278,7 @@ mod tests {
                     },
                     to: [10.0, 0.0],
                 }],
+                open: false,
             }],
         };
         let lines = hatch(&polygon, (45.0, 0.5, [0.0, 0.0]), Rule::EvenOdd, true, 1000).unwrap();

@@ -279,6 +279,7 @@ impl Reader<'_> {
             paths.push(SubPath {
                 start: position,
                 edges: Vec::new(),
+                open: false,
             });
         }
         let path = paths.last_mut().expect("a sub-polygon");
@@ -290,18 +291,23 @@ impl Reader<'_> {
             paths.push(SubPath {
                 start: to,
                 edges: Vec::new(),
+                open: false,
             });
         }
     }
 
-    /// Polygon mode: closes the current sub-polygon (PM1, PM2); the next move starts another.
+    /// Polygon mode: closes the current sub-polygon (PM1, PM2), with the pen up an open one;
+    /// the next move starts another.
     pub(super) fn close_subpolygon(&mut self) {
         let position = self.plotter.position;
-        if let Some(path) = self.polygon.paths.last() {
+        let pen_up = !self.plotter.pen_down;
+        if let Some(path) = self.polygon.paths.last_mut() {
             if !path.edges.is_empty() {
+                path.open = pen_up;
                 self.polygon.paths.push(SubPath {
                     start: position,
                     edges: Vec::new(),
+                    open: false,
                 });
             }
         }
@@ -412,8 +418,14 @@ impl Reader<'_> {
         Ok(())
     }
 
-    /// Draws the edges of a polygon, closing each sub-polygon; the pen ends up.
-    pub(super) fn outline(&mut self, polygon: &Polygon, span: Span) -> Result<(), Problem> {
+    /// Draws the edges of a polygon, closing each sub-polygon (an open one only when
+    /// `close_open`: a fill's boundary); the pen ends up.
+    pub(super) fn outline(
+        &mut self,
+        polygon: &Polygon,
+        close_open: bool,
+        span: Span,
+    ) -> Result<(), Problem> {
         for path in &polygon.paths {
             if path.edges.is_empty() {
                 continue;
@@ -424,7 +436,7 @@ impl Reader<'_> {
             for edge in &path.edges {
                 self.move_to(edge.to, edge.piece, span)?;
             }
-            if path.end() != path.start {
+            if path.end() != path.start && (close_open || !path.open) {
                 self.pen_down(span);
                 self.move_to(path.start, Piece::Line, span)?;
             }
@@ -443,7 +455,7 @@ impl Reader<'_> {
     ) -> Result<(), Problem> {
         let position = self.plotter.position;
         let was_down = self.plotter.pen_down;
-        self.outline(polygon, span)?;
+        self.outline(polygon, true, span)?;
         if self.options.hatch_fills {
             let style = self.plotter.fill;
             let pen = style.pen_mm * self.options.units_per_mm;
