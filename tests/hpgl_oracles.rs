@@ -531,6 +531,73 @@ fn hp2xx_test_plots_decode_and_agree_with_the_oracles() {
     );
 }
 
+/// Plot files written by GNU plotutils (Debian package `plotutils`: `graph` in HP-GL/1 and
+/// HP-GL/2, open polylines drawn in polygon mode; `hersheydemo`'s stroke-font page), made
+/// here and read by cncsim and hp2xx: the drawings agree within 2 plotter units.
+#[test]
+fn plotutils_plots_agree_with_hp2xx() {
+    let available = Command::new("sh")
+        .args([
+            "-c",
+            "command -v graph && command -v hersheydemo && command -v hp2xx",
+        ])
+        .output()
+        .is_ok_and(|output| output.status.success());
+    if !available {
+        assert!(
+            !std::env::var("CNCSIM_REQUIRE_ORACLES").is_ok_and(|v| v == "1"),
+            "plotutils (graph, hersheydemo) or hp2xx is not installed and CNCSIM_REQUIRE_ORACLES=1"
+        );
+        eprintln!("skipped: plotutils or hp2xx is not installed");
+        return;
+    }
+    let directory = tempfile::tempdir().unwrap();
+    let data: String = (0..64)
+        .map(|k| {
+            let x = f64::from(k) * 0.1;
+            format!("{x} {}\n", x.sin())
+        })
+        .collect();
+    let data_path = directory.path().join("sine.dat");
+    std::fs::write(&data_path, data).unwrap();
+    let plots = directory.path().join("plots");
+    std::fs::create_dir(&plots).unwrap();
+    for (name, version, command) in [
+        (
+            "graph_hpgl2.hpgl",
+            "2",
+            "graph -T hpgl -X x -Y 'sin x' < sine.dat",
+        ),
+        (
+            "graph_hpgl1.hpgl",
+            "1",
+            "graph -T hpgl -m 2 -S 3 < sine.dat",
+        ),
+        ("hersheydemo_hpgl1.hpgl", "1", "hersheydemo -T hpgl"),
+    ] {
+        let output = Command::new("sh")
+            .args(["-c", command])
+            .current_dir(directory.path())
+            .env("HPGL_VERSION", version)
+            .output()
+            .unwrap();
+        assert!(
+            output.status.success(),
+            "{command}: {}",
+            String::from_utf8_lossy(&output.stderr)
+        );
+        std::fs::write(plots.join(name), output.stdout).unwrap();
+    }
+    let result = compare_corpus(&plots);
+    assert_eq!(result.compared, 3);
+    assert!(result.refused.is_empty(), "refused: {:?}", result.refused);
+    assert!(
+        result.different.is_empty(),
+        "different: {:?}",
+        result.different
+    );
+}
+
 /// Real plot files of any origin (not committed: `CNCSIM_HPGL_CORPUS=DIR`) against the
 /// oracles; prints one line per file and the counts.
 #[test]
