@@ -311,6 +311,7 @@ fn records_that_cannot_be_followed_are_errors() {
         ("CIRCLE/0,0,0,0,0,0,5", "bad.cls:1:1: expected a non-zero axis vector and a positive radius in CIRCLE, found 'CIRCLE/0,0,0,0,0,0,5'"),
         ("CYCLE/MILL,RAPTO,2,FEDTO,-10,MMPM,100", "bad.cls:1:7: expected a cycle cncsim can expand; MILL in CYCLE is not one, found 'MILL'; hint: CYCLE/DRILL (plain, DEEP, BRKCHP), CSINK, BORE, REAM and TAP are expanded; post other cycles as GOTO records"),
         ("ORIGIN/10,0,0", "bad.cls:1:1: expected records cncsim can follow; ORIGIN changes the tool path and origin shifts are not supported, found 'ORIGIN/10,0,0'; hint: post the CL data with the path written out as GOTO (and CIRCLE) records"),
+        ("DEFSUB / 6", "bad.cls:1:1: expected records cncsim can follow; DEFSUB changes the tool path and subroutines (DEFSUB … ENDSUB, CALSUB) are not supported, found 'DEFSUB / 6'; hint: post the CL data with the path written out as GOTO (and CIRCLE) records"),
         ("WIBBLE/3", "bad.cls:1:1: expected an APT record cncsim knows; WIBBLE is not one, found 'WIBBLE'; hint: a record that may change the tool path is not skipped; remove it if it does not"),
         ("MSYS/0,0,0,1,0,0,1,0,0", "bad.cls:1:12: expected unit, perpendicular X and Y axis vectors in MSYS/x,y,z,xi,xj,xk,yi,yj,yk, found '1,0,0,1,0,0'"),
         ("GOHOME", "bad.cls:1:1: expected a FROM point before GOHOME (it returns there), found 'GOHOME'"),

@@ -165,6 +165,8 @@ const PATH_CHANGING: &[(&str, &str)] = &[
     ("ROTABL", "rotary table positioning"),
     ("ROTHED", "rotary head positioning"),
     ("ROTATE", "rotary positioning"),
+    ("DEFSUB", "subroutines (DEFSUB … ENDSUB, CALSUB)"),
+    ("CALSUB", "subroutines (DEFSUB … ENDSUB, CALSUB)"),
 ];
 
 /// Records and cycle words of lathe (turning) programs, and what each is: such a program is
