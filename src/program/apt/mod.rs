@@ -662,7 +662,7 @@ impl<'a> AptReader<'a> {
                 self.rapid_next = false;
                 let arc = self.circle.take();
                 if major == "GOTO" {
-                    self.goto_continues = Some(arc.clone());
+                    self.goto_continues = Some(arc);
                 }
                 match arc {
                     None => self.push_move(Motion::Linear, end, feed, span),
