@@ -203,6 +203,69 @@ fn ctrl_c_keeps_the_finished_rows() {
 }
 
 #[test]
+fn a_run_past_its_time_limit_is_a_row_that_says_timeout() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    // The `long` variant crawls along the 2 mm path for 1000 s of program time: far more than
+    // 3 s of wall time; the others take well under a second.
+    let sweep = setup(d, "long = [\"program.feed_mm_s=0.002\"]");
+    let text = std::fs::read_to_string(&sweep)
+        .unwrap()
+        .replace("name = \"t\"\n", "name = \"t\"\nrun_timeout_s = 3\n");
+    std::fs::write(&sweep, text).unwrap();
+    let out = cncsim(
+        &[
+            "sweep",
+            sweep.to_str().unwrap(),
+            "--jobs",
+            "2",
+            "--out",
+            "o",
+        ],
+        d,
+    );
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    assert_eq!(out.status.code(), Some(1), "{stderr}");
+    let r = rows(&d.join("o"));
+    assert_eq!(r.len(), 12);
+    for row in &r {
+        let variant = row["variant"].as_str().unwrap();
+        let error = row["error"].as_str().unwrap_or("");
+        if variant == "long" {
+            assert!(
+                error.starts_with("timeout after 3 s (stopped at t = "),
+                "{row}"
+            );
+            assert_eq!(row["completed"], Value::Bool(false), "{row}");
+            // The figures up to the stop are kept.
+            assert!(
+                row["metrics"]["sim_time_s"].as_f64().unwrap() > 0.0,
+                "{row}"
+            );
+        } else {
+            assert!(
+                error.is_empty() && row["completed"] == Value::Bool(true),
+                "{row}"
+            );
+        }
+    }
+    // The command line's limit replaces the file's; a bad one is refused by clap (exit 2).
+    let out = cncsim(
+        &[
+            "sweep",
+            sweep.to_str().unwrap(),
+            "--run-timeout-s",
+            "0",
+            "--out",
+            "o2",
+        ],
+        d,
+    );
+    assert_eq!(out.status.code(), Some(2));
+    assert!(String::from_utf8_lossy(&out.stderr).contains("expected a run time limit from 0.1"));
+}
+
+#[test]
 fn the_ray_driver_merges_to_the_single_machine_result() {
     let ray = Command::new("python3").args(["-c", "import ray"]).output();
     if !ray.as_ref().is_ok_and(|o| o.status.success()) {

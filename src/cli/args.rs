@@ -295,6 +295,10 @@ pub enum Command {
         /// Output folder (default: out/sweep_<name>, or …_shard_K_of_N).
         #[arg(long)]
         out: Option<PathBuf>,
+        /// Wall-clock seconds a run may take (instead of the sweep file's run_timeout_s); a
+        /// run past it is ended, its row says `timeout after N s`, and the sweep exits 1.
+        #[arg(long, value_name = "S", value_parser = parse_run_timeout)]
+        run_timeout_s: Option<f64>,
     },
     /// Calibrate: fit machine and scenario keys to measured figures or traces (CMA-ES, seeded,
     /// candidates in parallel); writes OUT/report.md, evaluations.csv/json, convergence.png,
@@ -367,4 +371,12 @@ fn parse_cl_writer(name: &str) -> Result<cncsim::program::ClWriter, String> {
             cncsim::program::ClWriter::names()
         )
     })
+}
+
+/// `--run-timeout-s S`: seconds within the allowed range.
+fn parse_run_timeout(text: &str) -> Result<f64, String> {
+    let seconds: f64 = text
+        .parse()
+        .map_err(|_| format!("expected seconds, found '{text}'"))?;
+    cncsim::sweep::check_run_timeout(seconds)
 }

@@ -264,11 +264,13 @@ pub fn dispatch(command: Option<Command>, interrupted: &AtomicBool) -> Result<Sh
             jobs,
             shard,
             out,
+            run_timeout_s,
         }) => text(Box::new(self::sweep(
             &sweep,
             jobs,
             shard.as_deref(),
             out,
+            run_timeout_s,
             interrupted,
         )?)),
         Some(Command::Merge { dirs, out }) => {
@@ -520,10 +522,12 @@ fn sweep(
     jobs: Option<usize>,
     shard: Option<&str>,
     out: Option<PathBuf>,
+    run_timeout_s: Option<f64>,
     interrupted: &AtomicBool,
 ) -> Result<cncsim::sweep::SweepOutput, Refused> {
     use cncsim::sweep::{execute, parse_shard, run_sweep, Progress, Sweep, SweepResults};
-    let sweep = Sweep::load(path)?;
+    let mut sweep = Sweep::load(path)?;
+    sweep.run_timeout_s = run_timeout_s.or(sweep.run_timeout_s);
     let shard = shard.map(parse_shard).transpose()?;
     let threads = threads(jobs)?;
     let out = out.unwrap_or_else(|| {

@@ -834,6 +834,7 @@ fn evaluate(
                 .targets
                 .iter()
                 .any(|t| matches!(t, Target::Trace { scenario, .. } if scenario == s)),
+            timeout: None,
         })
         .collect();
     let (results, _) = execute(&jobs, 1, interrupted, &Progress::default(), &|_| {});
@@ -1196,6 +1197,7 @@ pub fn predict(
             ),
             recordings: true,
             csv: true,
+            timeout: None,
         })
         .collect();
     let (results, _) = execute(&jobs, threads, interrupted, &Progress::default(), &|_| {});

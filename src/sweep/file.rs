@@ -3,6 +3,7 @@
 //! ```toml
 //! name = "feedforward_vs_pid"
 //! scenarios = ["../scenarios/paper_corner_90.toml", "../scenarios"]   # files or folders
+//! run_timeout_s = 600                   # optional: a run past it ends, its row says timeout
 //! baseline = "pid"                      # optional: ratios and wins against this variant
 //! [variants]                            # named override lists (the `ab` override syntax)
 //! pid = []
@@ -30,6 +31,21 @@ use std::path::{Path, PathBuf};
 
 /// Most runs one sweep may have: a bound on the work a file can ask for.
 pub const MAX_RUNS: usize = 1_000_000;
+
+/// The time a run may be given (s): from a tenth of a second to 30 days.
+pub const RUN_TIMEOUT_S: (f64, f64) = (0.1, 30.0 * 86_400.0);
+
+/// `seconds` as a run's time limit, or what is wrong with it.
+pub fn check_run_timeout(seconds: f64) -> Result<f64, String> {
+    if (RUN_TIMEOUT_S.0..=RUN_TIMEOUT_S.1).contains(&seconds) {
+        Ok(seconds)
+    } else {
+        Err(format!(
+            "expected a run time limit from {} to {} s, found {seconds}",
+            RUN_TIMEOUT_S.0, RUN_TIMEOUT_S.1
+        ))
+    }
+}
 
 /// A sampled parameter's distribution.
 #[derive(Debug, Clone, PartialEq)]
@@ -93,6 +109,9 @@ pub struct Sweep {
     /// Whether each run writes the recording and CSV its `[recording]` asks for
     /// (`report.recordings`; off: metrics only).
     pub recordings: bool,
+    /// Wall-clock time (s) a run may take (`run_timeout_s`); one past it is ended and its row
+    /// says `timeout after N s`.
+    pub run_timeout_s: Option<f64>,
 }
 
 /// The `[random]` table: seeded samples of some keys, for every variant and grid point.
@@ -148,12 +167,34 @@ impl Sweep {
                 "grid",
                 "random",
                 "report",
+                "run_timeout_s",
             ]
             .contains(&key.as_str())
             {
-                return Err(fail(key, format!("unknown key `{key}`, expected one of name, scenarios, baseline, [variants], [grid], [random], [report]")));
+                return Err(fail(key, format!("unknown key `{key}`, expected one of name, scenarios, baseline, run_timeout_s, [variants], [grid], [random], [report]")));
             }
         }
+        let run_timeout_s = match doc.get("run_timeout_s") {
+            None => None,
+            Some(value) => {
+                let seconds = value
+                    .as_float()
+                    .or_else(|| value.as_integer().map(|i| i as f64));
+                Some(
+                    seconds
+                        .and_then(|s| check_run_timeout(s).ok())
+                        .ok_or_else(|| {
+                            fail(
+                                "run_timeout_s",
+                                format!(
+                                    "run_timeout_s: expected seconds from {} to {}, found {value}",
+                                    RUN_TIMEOUT_S.0, RUN_TIMEOUT_S.1
+                                ),
+                            )
+                        })?,
+                )
+            }
+        };
         let dir = path.parent().unwrap_or(Path::new("."));
         let name = match doc.get("name") {
             None => path
@@ -421,6 +462,7 @@ impl Sweep {
             random,
             metrics,
             recordings,
+            run_timeout_s,
         };
         let points = sweep.point_count();
         let runs = sweep

@@ -15,7 +15,10 @@ pub mod file;
 pub mod results;
 pub mod runner;
 
-pub use file::{parse_shard, Change, Distribution, RandomSpec, RunSpec, Sweep, MAX_RUNS};
+pub use file::{
+    check_run_timeout, parse_shard, Change, Distribution, RandomSpec, RunSpec, Sweep, MAX_RUNS,
+    RUN_TIMEOUT_S,
+};
 pub use results::{merge, write_results, MergeOutput, Row, SweepOutput, SweepResults};
 pub use runner::{execute, run_sweep, Job, JobResult, Progress};
 

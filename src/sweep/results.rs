@@ -28,7 +28,7 @@ pub struct Row {
     pub completed: bool,
     /// Why the run stopped early, if it did.
     pub stopped: Option<String>,
-    /// Why the run could not start, if it could not.
+    /// Why the run could not start, or that it was ended at its time limit.
     pub error: Option<String>,
     /// Wall-clock time of the run (s).
     pub wall_time_s: f64,

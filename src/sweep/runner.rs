@@ -13,7 +13,7 @@ use rayon::prelude::*;
 use std::path::PathBuf;
 use std::sync::atomic::{AtomicBool, AtomicUsize, Ordering};
 use std::sync::{Arc, Mutex, OnceLock};
-use std::time::Instant;
+use std::time::{Duration, Instant};
 
 /// One run: a scenario file with its changes, its outputs in `out_dir`.
 #[derive(Debug, Clone)]
@@ -30,6 +30,9 @@ pub struct Job {
     pub recordings: bool,
     /// Write the run's CSV trace even without recordings (a calibration reads it back).
     pub csv: bool,
+    /// Wall-clock time the run may take; past it the run is ended and its result says
+    /// `timeout after N s`.
+    pub timeout: Option<Duration>,
 }
 
 /// How a job ended.
@@ -143,16 +146,36 @@ fn run_job(job: &Job, cache: &PlanCache, interrupted: &AtomicBool) -> JobResult 
         Ok(a) => a,
         Err(e) => return failed(e.to_string()),
     };
-    let mut keep_going = |_: usize, _: usize| !interrupted.load(Ordering::Relaxed);
-    match assembly.run(RunOptions::write_to(&job.out_dir).progress(&mut keep_going)) {
-        Ok(run) => JobResult {
-            index: job.index,
-            stopped: run.stop().cloned(),
-            metrics: Some(run.metrics_json),
-            error: None,
-            wall_time_s: started.elapsed().as_secs_f64(),
-        },
-        Err(e) => failed(e.to_string()),
+    let mut timed_out = false;
+    let mut keep_going = |_: usize, _: usize| {
+        if job.timeout.is_some_and(|limit| started.elapsed() > limit) {
+            timed_out = true;
+        }
+        !timed_out && !interrupted.load(Ordering::Relaxed)
+    };
+    let run = match assembly.run(RunOptions::write_to(&job.out_dir).progress(&mut keep_going)) {
+        Ok(run) => run,
+        Err(e) => return failed(e.to_string()),
+    };
+    // Ended at its time limit (not merely finishing after it): the figures so far are kept,
+    // the row says why.
+    let ended_at = run.stop().filter(|_| timed_out).map(Stop::time);
+    let (stopped, error) = match (job.timeout, ended_at) {
+        (Some(limit), Some(time)) => (
+            None,
+            Some(format!(
+                "timeout after {} s (stopped at t = {time:.3} s of the program)",
+                limit.as_secs_f64()
+            )),
+        ),
+        _ => (run.stop().cloned(), None),
+    };
+    JobResult {
+        index: job.index,
+        stopped,
+        metrics: Some(run.metrics_json),
+        error,
+        wall_time_s: started.elapsed().as_secs_f64(),
     }
 }
 
@@ -197,7 +220,8 @@ pub fn execute(
 }
 
 /// The jobs of a sweep's runs (those of shard `shard` = (K, N): every N-th from the K-th),
-/// each writing into `out/runs/<index>_<scenario>_<variant>[_p<point>]/`.
+/// each writing into `out/runs/<index>_<scenario>_<variant>[_p<point>]/` within the sweep's
+/// `run_timeout_s`.
 pub fn run_sweep(
     sweep: &Sweep,
     out: &std::path::Path,
@@ -226,6 +250,7 @@ pub fn run_sweep(
                 out_dir: out.join("runs").join(crate::scenario::folder_name(&folder)),
                 recordings: sweep.recordings,
                 csv: false,
+                timeout: sweep.run_timeout_s.map(Duration::from_secs_f64),
             }
         })
         .collect();
