@@ -314,7 +314,6 @@ fn records_that_cannot_be_followed_are_errors() {
         ("DEFSUB / 6", "bad.cls:1:1: expected records cncsim can follow; DEFSUB changes the tool path and subroutines (DEFSUB … ENDSUB, CALSUB) are not supported, found 'DEFSUB / 6'; hint: post the CL data with the path written out as GOTO (and CIRCLE) records"),
         ("WIBBLE/3", "bad.cls:1:1: expected an APT record cncsim knows; WIBBLE is not one, found 'WIBBLE'; hint: a record that may change the tool path is not skipped; remove it if it does not"),
         ("MSYS/0,0,0,1,0,0,1,0,0", "bad.cls:1:12: expected unit, perpendicular X and Y axis vectors in MSYS/x,y,z,xi,xj,xk,yi,yj,yk, found '1,0,0,1,0,0'"),
-        ("GOHOME", "bad.cls:1:1: expected a FROM point before GOHOME (it returns there), found 'GOHOME'"),
         ("DELAY/REV,3", "bad.cls:1:11: expected a turning spindle for a delay in revolutions, found '3'; hint: program DELAY in seconds or start the spindle (SPINDL) first"),
     ];
     let mut failures = Vec::new();
@@ -327,6 +326,23 @@ fn records_that_cannot_be_followed_are_errors() {
         }
     }
     assert!(failures.is_empty(), "{}", failures.join("\n"));
+}
+
+#[test]
+fn gohome_without_from_is_left_out_with_a_warning() {
+    // Pro/ENGINEER ends programs with GOHOME and no FROM: the machine's home, not in the data.
+    let program = apt("FEDRAT/100\nGOTO/1,2,3\nRAPID\nGOHOME\nFINI\n");
+    assert_eq!(program.moves.len(), 1);
+    assert!(program
+        .warnings
+        .iter()
+        .any(|w| w.message.starts_with("GOHOME without a FROM point")));
+    let mut strict = ReadOptions::default();
+    strict.apt.strict = true;
+    assert_eq!(
+        first_error("FEDRAT/100\nGOHOME", &strict),
+        "bad.cls:2:1: expected a FROM point before GOHOME (it returns there), found 'GOHOME'"
+    );
 }
 
 #[test]

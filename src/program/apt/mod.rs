@@ -864,13 +864,24 @@ impl<'a> AptReader<'a> {
             }
             "GOHOME" => {
                 let Some(home) = self.home else {
-                    return Err(RecordError {
-                        start: first.start,
-                        end: record_end,
-                        problem: "expected a FROM point before GOHOME (it returns there)".into(),
-                        found: None,
-                        hint: None,
-                    });
+                    if self.options.apt.strict {
+                        return Err(RecordError {
+                            start: first.start,
+                            end: record_end,
+                            problem: "expected a FROM point before GOHOME (it returns there)".into(),
+                            found: None,
+                            hint: None,
+                        });
+                    }
+                    // Without FROM, GOHOME goes to the machine's home (Pro/E writes it at
+                    // the end), which CL data does not give: left out, said once.
+                    self.rapid_next = false;
+                    self.warn_once(
+                        "GOHOME without FROM",
+                        span,
+                        "GOHOME without a FROM point returns to the machine's home, which the CL data does not give: the move is left out (refused with --strict)".into(),
+                    );
+                    return Ok(());
                 };
                 self.rapid_next = false;
                 self.push_move(Motion::Linear, home, Feed::Rapid, span);
