@@ -226,6 +226,18 @@ fn a_run_past_its_time_limit_is_a_row_that_says_timeout() {
     );
     let stderr = String::from_utf8_lossy(&out.stderr);
     assert_eq!(out.status.code(), Some(1), "{stderr}");
+    // Off a terminal, plain progress lines: the last says all are done and names the last
+    // failed run.
+    let last = stderr
+        .lines()
+        .rfind(|l| l.starts_with("sweep: "))
+        .unwrap_or("");
+    assert!(
+        last.starts_with("sweep: 12 of 12 runs done, 4 failed, the last 000")
+            && last.contains("_long_p")
+            && last.contains(" s elapsed"),
+        "{stderr}"
+    );
     let r = rows(&d.join("o"));
     assert_eq!(r.len(), 12);
     for row in &r {

@@ -15,6 +15,7 @@ use cncsim::scenario::{
     ScenarioRun, TuneError, TuneOptions,
 };
 use cncsim::sim::LaneKind;
+use std::io::IsTerminal;
 use std::path::{Path, PathBuf};
 use std::sync::atomic::{AtomicBool, Ordering};
 use std::time::Duration;
@@ -517,6 +518,9 @@ fn threads(jobs: Option<usize>) -> Result<usize, Refused> {
     }
 }
 
+/// Off a terminal, a sweep's progress line comes at most this often.
+const PLAIN_LINE_EVERY: std::time::Duration = std::time::Duration::from_secs(10);
+
 fn sweep(
     path: &Path,
     jobs: Option<usize>,
@@ -553,13 +557,62 @@ fn sweep(
     };
     let bar = progress_bar(Some("runs"));
     bar.set_length(jobs.len() as u64);
+    // Off a terminal (CI logs, batch jobs) the bar is hidden: plain lines instead, at most one
+    // every PLAIN_LINE_EVERY and one at the end.
+    let terminal = std::io::stderr().is_terminal();
+    let started = std::time::Instant::now();
+    let last_line: std::sync::Mutex<Option<std::time::Instant>> = Default::default();
+    let run_name = |index: usize| {
+        jobs.iter()
+            .find(|job| job.index == index)
+            .and_then(|job| job.out_dir.file_name())
+            .map_or(index.to_string(), |name| {
+                name.to_string_lossy().into_owned()
+            })
+    };
     let on_change = |p: &Progress| {
-        bar.set_position(p.done.load(Ordering::Relaxed) as u64);
-        bar.set_message(format!(
-            "({} running, {} failed)",
-            p.running.load(Ordering::Relaxed),
-            p.failed.load(Ordering::Relaxed)
-        ));
+        let done = p.done.load(Ordering::Relaxed);
+        let failed = p.failed.load(Ordering::Relaxed);
+        let last_failed = p
+            .last_failed
+            .lock()
+            .ok()
+            .and_then(|last| *last)
+            .map(run_name);
+        let failed_text = match &last_failed {
+            Some(name) => format!("{failed} failed, the last {name}"),
+            None => format!("{failed} failed"),
+        };
+        if terminal {
+            bar.set_position(done as u64);
+            bar.set_message(format!(
+                "({} running, {failed_text})",
+                p.running.load(Ordering::Relaxed)
+            ));
+            return;
+        }
+        let Ok(mut last) = last_line.lock() else {
+            return;
+        };
+        let now = std::time::Instant::now();
+        let finished = done == p.total;
+        if !finished && last.is_some_and(|at| now - at < PLAIN_LINE_EVERY) {
+            return;
+        }
+        *last = Some(now);
+        let elapsed = started.elapsed().as_secs_f64();
+        let left = if done == 0 || finished {
+            String::new()
+        } else {
+            format!(
+                ", about {:.0} s left",
+                elapsed / done as f64 * (p.total - done) as f64
+            )
+        };
+        eprintln!(
+            "sweep: {done} of {} runs done, {failed_text}; {elapsed:.0} s elapsed{left}",
+            p.total
+        );
     };
     let (results, plans) = execute(&jobs, threads, interrupted, &progress, &on_change);
     bar.finish_and_clear();

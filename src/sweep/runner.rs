@@ -61,6 +61,8 @@ pub struct Progress {
     pub running: AtomicUsize,
     /// Jobs that could not start or stopped early.
     pub failed: AtomicUsize,
+    /// The `index` of the job that failed last, if any.
+    pub last_failed: Mutex<Option<usize>>,
 }
 
 type PlanSlot = Arc<OnceLock<Result<PlannedProgram, String>>>;
@@ -201,6 +203,10 @@ pub fn execute(
         progress.done.fetch_add(1, Ordering::Relaxed);
         if result.error.is_some() || result.stopped.is_some() {
             progress.failed.fetch_add(1, Ordering::Relaxed);
+            *progress
+                .last_failed
+                .lock()
+                .expect("no job panics while holding the lock") = Some(job.index);
         }
         on_change(progress);
         Some(result)
@@ -255,4 +261,34 @@ pub fn run_sweep(
         })
         .collect();
     (runs, jobs)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use std::path::Path;
+
+    /// Slurm job arrays and Kubernetes Indexed Jobs run shard K of N for every K from 1 to N
+    /// (docs/sweeps.md): every run is in exactly one shard, whatever N, more shards than runs
+    /// included, and each keeps its own index and folder.
+    #[test]
+    fn shards_partition_the_runs() {
+        let dir = PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("sweeps");
+        let text = "scenarios = [\"../scenarios/xyz_circle_5mms.toml\"]\n[variants]\na = []\nb = []\nc = []\n[grid]\n\"timing.servo_period_ms\" = [0.5, 1.0, 2.0, 4.0]\n";
+        let sweep = Sweep::parse(&dir.join("t.toml"), text).unwrap();
+        let (_, everything) = run_sweep(&sweep, Path::new("o"), None);
+        assert_eq!(everything.len(), 12);
+        for n in 1..=13 {
+            let mut seen = vec![0; everything.len()];
+            for k in 1..=n {
+                let (runs, jobs) = run_sweep(&sweep, Path::new("o"), Some((k, n)));
+                for (run, job) in runs.iter().zip(&jobs) {
+                    assert_eq!(run.index % n, k - 1);
+                    assert_eq!(job.out_dir, everything[run.index].out_dir);
+                    seen[run.index] += 1;
+                }
+            }
+            assert!(seen.iter().all(|&count| count == 1), "{n} shards: {seen:?}");
+        }
+    }
 }
