@@ -203,6 +203,91 @@ fn ctrl_c_keeps_the_finished_rows() {
 }
 
 #[test]
+fn a_sweep_killed_and_resumed_gives_the_rows_of_one_never_killed() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    let sweep = setup(d, "");
+    let text = std::fs::read_to_string(&sweep)
+        .unwrap()
+        .replace("[0.5, 1.0]", "[0.5, 1.0, 2.0, 0.5, 1.0, 2.0]");
+    std::fs::write(&sweep, text).unwrap();
+    let sweep = sweep.to_str().unwrap();
+    let whole = cncsim(&["sweep", sweep, "--jobs", "2", "--out", "whole"], d);
+    assert_eq!(
+        whole.status.code(),
+        Some(0),
+        "{}",
+        String::from_utf8_lossy(&whole.stderr)
+    );
+    // Killed outright (SIGKILL: nothing written at the end) once a few runs have records.
+    let mut child = Command::new(env!("CARGO_BIN_EXE_cncsim"))
+        .args(["sweep", sweep, "--jobs", "1", "--out", "o"])
+        .current_dir(d)
+        .stderr(std::process::Stdio::null())
+        .spawn()
+        .unwrap();
+    let records = || -> Vec<PathBuf> {
+        let Ok(entries) = std::fs::read_dir(d.join("o/runs")) else {
+            return Vec::new();
+        };
+        entries
+            .map(|e| e.unwrap().path().join("result.json"))
+            .filter(|p| p.is_file())
+            .collect()
+    };
+    let started = std::time::Instant::now();
+    while records().len() < 3 {
+        assert!(started.elapsed().as_secs() < 120, "no records after 120 s");
+        std::thread::sleep(std::time::Duration::from_millis(20));
+    }
+    child.kill().unwrap();
+    child.wait().unwrap();
+    assert!(!d.join("o/results.json").exists());
+    let finished: Vec<(PathBuf, std::time::SystemTime)> = records()
+        .into_iter()
+        .map(|p| {
+            let metrics = p.with_file_name("metrics.json");
+            let modified = std::fs::metadata(&metrics).unwrap().modified().unwrap();
+            (metrics, modified)
+        })
+        .collect();
+    assert!(
+        finished.len() >= 3 && finished.len() < 24,
+        "{}",
+        finished.len()
+    );
+    std::thread::sleep(std::time::Duration::from_millis(50));
+    let resumed = cncsim(
+        &["sweep", sweep, "--jobs", "2", "--out", "o", "--resume"],
+        d,
+    );
+    let stderr = String::from_utf8_lossy(&resumed.stderr);
+    assert_eq!(resumed.status.code(), Some(0), "{stderr}");
+    assert!(
+        stderr.contains(&format!(
+            "resuming: {} of 24 runs have a record",
+            finished.len()
+        )),
+        "{stderr}"
+    );
+    assert_eq!(rows(&d.join("o")), rows(&d.join("whole")));
+    // The runs finished before the kill were not run again.
+    for (metrics, modified) in &finished {
+        let now = std::fs::metadata(metrics).unwrap().modified().unwrap();
+        assert_eq!(now, *modified, "{} was written again", metrics.display());
+    }
+    // Resuming another sweep's folder is refused by name (exit 2); nothing is run.
+    let other = std::fs::read_to_string(d.join("t_sweep.toml"))
+        .unwrap()
+        .replace("slow = [", "slower = [");
+    std::fs::write(d.join("other_sweep.toml"), other).unwrap();
+    let refused = cncsim(&["sweep", "other_sweep.toml", "--out", "o", "--resume"], d);
+    assert_eq!(refused.status.code(), Some(2));
+    assert!(String::from_utf8_lossy(&refused.stderr)
+        .contains("--resume: the folder holds the runs of another sweep"));
+}
+
+#[test]
 fn a_run_past_its_time_limit_is_a_row_that_says_timeout() {
     let dir = tempfile::tempdir().unwrap();
     let d = dir.path();

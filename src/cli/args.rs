@@ -299,6 +299,10 @@ pub enum Command {
         /// run past it is ended, its row says `timeout after N s`, and the sweep exits 1.
         #[arg(long, value_name = "S", value_parser = parse_run_timeout)]
         run_timeout_s: Option<f64>,
+        /// Go on with the sweep that --out holds: run only the runs without a finished record
+        /// there; refused when the folder holds another sweep's runs.
+        #[arg(long)]
+        resume: bool,
     },
     /// Calibrate: fit machine and scenario keys to measured figures or traces (CMA-ES, seeded,
     /// candidates in parallel); writes OUT/report.md, evaluations.csv/json, convergence.png,

@@ -266,12 +266,14 @@ pub fn dispatch(command: Option<Command>, interrupted: &AtomicBool) -> Result<Sh
             shard,
             out,
             run_timeout_s,
+            resume,
         }) => text(Box::new(self::sweep(
             &sweep,
             jobs,
             shard.as_deref(),
             out,
             run_timeout_s,
+            resume,
             interrupted,
         )?)),
         Some(Command::Merge { dirs, out }) => {
@@ -527,9 +529,13 @@ fn sweep(
     shard: Option<&str>,
     out: Option<PathBuf>,
     run_timeout_s: Option<f64>,
+    resume: bool,
     interrupted: &AtomicBool,
 ) -> Result<cncsim::sweep::SweepOutput, Refused> {
-    use cncsim::sweep::{execute, parse_shard, run_sweep, Progress, Sweep, SweepResults};
+    use cncsim::sweep::{
+        execute, parse_shard, read_record, run_list_digest, run_sweep, Progress, Sweep,
+        SweepResults,
+    };
     let mut sweep = Sweep::load(path)?;
     sweep.run_timeout_s = run_timeout_s.or(sweep.run_timeout_s);
     let shard = shard.map(parse_shard).transpose()?;
@@ -541,11 +547,46 @@ fn sweep(
         }
         Path::new("out").join(name)
     });
-    let (runs, jobs) = run_sweep(&sweep, &out, shard);
+    let (runs, all_jobs) = run_sweep(&sweep, &out, shard);
+    // The folder's sweep is known by the digest of its run list: a resume goes on with its own
+    // sweep only, and reruns only the runs without a whole record.
+    let digest_path = out.join("sweep_digest.txt");
+    let digest = run_list_digest(&all_jobs);
+    let (recorded, jobs): (Vec<_>, Vec<_>) = match std::fs::read_to_string(&digest_path) {
+        Ok(found) if resume && found.trim() != digest => {
+            return Err(Refused::BadInput(format!(
+                "{}: --resume: the folder holds the runs of another sweep (or of this one with other scenarios, changes or shard): its run list's digest is {}, this sweep's {digest}; resume with the sweep that wrote it, or give another --out",
+                out.display(),
+                found.trim()
+            )))
+        }
+        Ok(_) if resume => all_jobs
+            .iter()
+            .map(|job| (read_record(job), job.clone()))
+            .partition(|(record, _)| record.is_some()),
+        _ => (Vec::new(), all_jobs.iter().map(|job| (None, job.clone())).collect()),
+    };
+    let recorded: Vec<_> = recorded
+        .into_iter()
+        .filter_map(|(record, _)| record)
+        .collect();
+    let jobs: Vec<_> = jobs.into_iter().map(|(_, job)| job).collect();
+    std::fs::create_dir_all(&out)
+        .and_then(|()| std::fs::write(&digest_path, &digest))
+        .map_err(|e| Refused::BadInput(format!("{}: {e}", digest_path.display())))?;
+    if resume {
+        eprintln!(
+            "resuming: {} of {} runs have a record in {}; running the other {}",
+            recorded.len(),
+            all_jobs.len(),
+            out.display(),
+            jobs.len()
+        );
+    }
     eprintln!(
         "sweep {}: {} runs ({} scenarios × {} variants × {} points{}) on {threads} threads",
         sweep.name,
-        jobs.len(),
+        all_jobs.len(),
         sweep.scenarios.len(),
         sweep.variants.len(),
         sweep.points().len(),
@@ -616,10 +657,13 @@ fn sweep(
     };
     let (results, plans) = execute(&jobs, threads, interrupted, &progress, &on_change);
     bar.finish_and_clear();
+    let mut results = results;
+    results.extend(recorded);
+    results.sort_by_key(|result| result.index);
     Ok(cncsim::sweep::SweepOutput {
         results: SweepResults::new(&sweep, &runs, &results, shard),
         out,
-        jobs: jobs.len(),
+        jobs: all_jobs.len(),
         done: results.len(),
         plans,
         interrupted: interrupted.load(Ordering::Relaxed),

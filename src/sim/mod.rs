@@ -122,7 +122,7 @@ pub struct Lane<'a> {
 }
 
 /// Why a lane stopped before the end of its setpoints.
-#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+#[derive(Debug, Clone, PartialEq, thiserror::Error, serde::Serialize, serde::Deserialize)]
 pub enum Stop {
     /// An axis's sampled position or velocity is no longer finite.
     #[error("simulation diverged at t = {time:.6} s on axis '{axis}': {what}")]

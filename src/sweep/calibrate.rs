@@ -835,6 +835,7 @@ fn evaluate(
                 .iter()
                 .any(|t| matches!(t, Target::Trace { scenario, .. } if scenario == s)),
             timeout: None,
+            record: false,
         })
         .collect();
     let (results, _) = execute(&jobs, 1, interrupted, &Progress::default(), &|_| {});
@@ -1198,6 +1199,7 @@ pub fn predict(
             recordings: true,
             csv: true,
             timeout: None,
+            record: false,
         })
         .collect();
     let (results, _) = execute(&jobs, threads, interrupted, &Progress::default(), &|_| {});

@@ -20,7 +20,9 @@ pub use file::{
     RUN_TIMEOUT_S,
 };
 pub use results::{merge, write_results, MergeOutput, Row, SweepOutput, SweepResults};
-pub use runner::{execute, run_sweep, Job, JobResult, Progress};
+pub use runner::{
+    execute, read_record, run_list_digest, run_sweep, Job, JobResult, Progress, RECORD,
+};
 
 use crate::diagnostics::FileError;
 use crate::machine::Machine;

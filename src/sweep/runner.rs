@@ -33,10 +33,13 @@ pub struct Job {
     /// Wall-clock time the run may take; past it the run is ended and its result says
     /// `timeout after N s`.
     pub timeout: Option<Duration>,
+    /// Write the result into `out_dir/result.json` when the run ends (a sweep's record of the
+    /// run, which `--resume` reads back).
+    pub record: bool,
 }
 
 /// How a job ended.
-#[derive(Debug, Clone, PartialEq)]
+#[derive(Debug, Clone, PartialEq, serde::Serialize, serde::Deserialize)]
 pub struct JobResult {
     /// The job's `index`.
     pub index: usize,
@@ -199,6 +202,13 @@ pub fn execute(
         progress.running.fetch_add(1, Ordering::Relaxed);
         on_change(progress);
         let result = run_job(job, &cache, interrupted);
+        // A run interrupted (Ctrl-C) is not finished: no record, so a resume runs it again.
+        let interrupted_run = matches!(result.stopped, Some(Stop::Interrupted { .. }));
+        if job.record && !interrupted_run {
+            if let Err(e) = write_record(job, &result) {
+                eprintln!("warning: the record of run {} was not written ({e}): a resumed sweep runs it again", job.index);
+            }
+        }
         progress.running.fetch_sub(1, Ordering::Relaxed);
         progress.done.fetch_add(1, Ordering::Relaxed);
         if result.error.is_some() || result.stopped.is_some() {
@@ -223,6 +233,60 @@ pub fn execute(
         results.into_iter().flatten().collect(),
         cache.made.load(Ordering::Relaxed),
     )
+}
+
+/// The file of a run's record in its folder.
+pub const RECORD: &str = "result.json";
+
+/// Writes the job's result as its record, atomically: a whole file or none, whenever the
+/// process is killed (written beside, then renamed over).
+fn write_record(job: &Job, result: &JobResult) -> std::io::Result<()> {
+    std::fs::create_dir_all(&job.out_dir)?;
+    let partial = job.out_dir.join(format!("{RECORD}.partial"));
+    std::fs::write(
+        &partial,
+        serde_json::to_vec(result).map_err(std::io::Error::other)?,
+    )?;
+    std::fs::rename(&partial, job.out_dir.join(RECORD))
+}
+
+/// The record a finished run of `job` left in its folder, if a whole one is there.
+pub fn read_record(job: &Job) -> Option<JobResult> {
+    let text = std::fs::read(job.out_dir.join(RECORD)).ok()?;
+    serde_json::from_slice::<JobResult>(&text)
+        .ok()
+        .filter(|result| result.index == job.index)
+}
+
+/// A digest (SHA-256, hex) of the runs `jobs` stand for: each one's index, folder name,
+/// scenario file (its name and its bytes) and changes; not where the folder or the files
+/// are, which `./o` and `o` name alike. Another sweep, or the same one with a scenario or a
+/// change edited, has another.
+pub fn run_list_digest(jobs: &[Job]) -> String {
+    use sha2::{Digest, Sha256};
+    let name = |path: &std::path::Path| {
+        path.file_name()
+            .map(|n| n.to_string_lossy().into_owned())
+            .unwrap_or_default()
+    };
+    let mut hash = Sha256::new();
+    for job in jobs {
+        hash.update(job.index.to_le_bytes());
+        hash.update(name(&job.out_dir).as_bytes());
+        hash.update([0]);
+        hash.update(name(&job.scenario).as_bytes());
+        hash.update([0]);
+        hash.update(std::fs::read(&job.scenario).unwrap_or_default());
+        for change in &job.changes {
+            hash.update(change.text().as_bytes());
+            hash.update([0]);
+        }
+        hash.update([1]);
+    }
+    hash.finalize()
+        .iter()
+        .map(|byte| format!("{byte:02x}"))
+        .collect()
 }
 
 /// The jobs of a sweep's runs (those of shard `shard` = (K, N): every N-th from the K-th),
@@ -257,6 +321,7 @@ pub fn run_sweep(
                 recordings: sweep.recordings,
                 csv: false,
                 timeout: sweep.run_timeout_s.map(Duration::from_secs_f64),
+                record: true,
             }
         })
         .collect();
