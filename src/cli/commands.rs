@@ -552,7 +552,7 @@ fn sweep(
     // sweep only, and reruns only the runs without a whole record.
     let digest_path = out.join("sweep_digest.txt");
     let digest = run_list_digest(&all_jobs);
-    let (recorded, jobs): (Vec<_>, Vec<_>) = match std::fs::read_to_string(&digest_path) {
+    let resuming = match std::fs::read_to_string(&digest_path) {
         Ok(found) if resume && found.trim() != digest => {
             return Err(Refused::BadInput(format!(
                 "{}: --resume: the folder holds the runs of another sweep (or of this one with other scenarios, changes or shard): its run list's digest is {}, this sweep's {digest}; resume with the sweep that wrote it, or give another --out",
@@ -560,17 +560,16 @@ fn sweep(
                 found.trim()
             )))
         }
-        Ok(_) if resume => all_jobs
-            .iter()
-            .map(|job| (read_record(job), job.clone()))
-            .partition(|(record, _)| record.is_some()),
-        _ => (Vec::new(), all_jobs.iter().map(|job| (None, job.clone())).collect()),
+        Ok(_) => resume,
+        Err(_) => false,
     };
-    let recorded: Vec<_> = recorded
-        .into_iter()
-        .filter_map(|(record, _)| record)
-        .collect();
-    let jobs: Vec<_> = jobs.into_iter().map(|(_, job)| job).collect();
+    let (mut recorded, mut jobs) = (Vec::new(), Vec::new());
+    for job in &all_jobs {
+        match resuming.then(|| read_record(job)).flatten() {
+            Some(record) => recorded.push(record),
+            None => jobs.push(job.clone()),
+        }
+    }
     std::fs::create_dir_all(&out)
         .and_then(|()| std::fs::write(&digest_path, &digest))
         .map_err(|e| Refused::BadInput(format!("{}: {e}", digest_path.display())))?;

@@ -269,6 +269,8 @@ pub fn run_list_digest(jobs: &[Job]) -> String {
             .map(|n| n.to_string_lossy().into_owned())
             .unwrap_or_default()
     };
+    // Each scenario's bytes, read once however many runs share it.
+    let mut contents: std::collections::HashMap<&PathBuf, Vec<u8>> = Default::default();
     let mut hash = Sha256::new();
     for job in jobs {
         hash.update(job.index.to_le_bytes());
@@ -276,7 +278,10 @@ pub fn run_list_digest(jobs: &[Job]) -> String {
         hash.update([0]);
         hash.update(name(&job.scenario).as_bytes());
         hash.update([0]);
-        hash.update(std::fs::read(&job.scenario).unwrap_or_default());
+        let bytes = contents
+            .entry(&job.scenario)
+            .or_insert_with(|| std::fs::read(&job.scenario).unwrap_or_default());
+        hash.update(&bytes[..]);
         for change in &job.changes {
             hash.update(change.text().as_bytes());
             hash.update([0]);
