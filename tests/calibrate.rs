@@ -1,6 +1,7 @@
 //! `cncsim calibrate`: a known truth is recovered from its own measured trace, the answer is the
-//! same with one thread or two, `--write` puts it into the scenario, and a bad spec is refused
-//! with its file, line and column (exit 2) before anything runs.
+//! same with one thread or two, `--write` puts it into the scenario, a calibration killed midway
+//! resumes to the uninterrupted result, and a bad spec is refused with its file, line and column
+//! (exit 2) before anything runs.
 
 use serde_json::Value;
 use std::path::{Path, PathBuf};
@@ -184,6 +185,123 @@ fn the_same_candidates_with_one_thread_or_two() {
     // Scratch runs are removed; the predictions (the target scenario at the best values) stay.
     assert!(!dir.join("one/scratch").exists());
     assert!(dir.join("one/predictions").is_dir());
+    let _ = std::fs::remove_dir_all(&dir);
+}
+
+/// The complete lines of a calibration's evaluation log after its header.
+fn logged(dir: &Path, out: &str) -> Vec<String> {
+    let text = std::fs::read_to_string(dir.join(out).join("evaluation_log.jsonl")).unwrap();
+    let mut lines: Vec<String> = text.split_inclusive('\n').map(String::from).collect();
+    if lines.last().is_some_and(|l| !l.ends_with('\n')) {
+        lines.pop();
+    }
+    lines.split_off(1)
+}
+
+fn logged_values(line: &str) -> Value {
+    serde_json::from_str::<Value>(line).unwrap()["values"].clone()
+}
+
+#[test]
+fn a_calibration_killed_midway_resumes_to_the_uninterrupted_result() {
+    let dir = fresh_dir("resume");
+    measured_trace(&dir);
+    short_scenario(&dir, "model", FILE_KP);
+    std::fs::write(dir.join("spec.toml"), spec(24)).unwrap();
+    let whole = cncsim(
+        &["calibrate", "spec.toml", "--jobs", "2", "--out", "whole"],
+        &dir,
+    );
+    assert!(
+        whole.status.success(),
+        "{}",
+        String::from_utf8_lossy(&whole.stderr)
+    );
+
+    // The same calibration, killed (SIGKILL: nothing of it runs after) once it has logged 8
+    // evaluations.
+    let mut child = Command::new(env!("CARGO_BIN_EXE_cncsim"))
+        .args(["calibrate", "spec.toml", "--jobs", "2", "--out", "killed"])
+        .current_dir(&dir)
+        .stdout(std::process::Stdio::null())
+        .stderr(std::process::Stdio::null())
+        .spawn()
+        .unwrap();
+    let log = dir.join("killed/evaluation_log.jsonl");
+    let started = std::time::Instant::now();
+    while std::fs::read_to_string(&log).map_or(0, |t| t.lines().count()) < 9 {
+        assert!(
+            child.try_wait().unwrap().is_none(),
+            "the calibration ended before it could be killed"
+        );
+        assert!(started.elapsed().as_secs() < 600, "no evaluation logged");
+        std::thread::sleep(std::time::Duration::from_millis(5));
+    }
+    child.kill().unwrap();
+    child.wait().unwrap();
+    let before = logged(&dir, "killed");
+    assert!(before.len() >= 8);
+    // A line cut short by the kill (written here to be sure of one) is dropped on resume.
+    let mut text = std::fs::read_to_string(&log).unwrap();
+    if !text.ends_with('\n') {
+        text.push('\n');
+    }
+    std::fs::write(&log, text + "{\"values\":[4").unwrap();
+
+    let resumed = cncsim(
+        &[
+            "calibrate",
+            "spec.toml",
+            "--jobs",
+            "2",
+            "--out",
+            "killed",
+            "--resume",
+        ],
+        &dir,
+    );
+    let stderr = String::from_utf8_lossy(&resumed.stderr);
+    assert!(resumed.status.success(), "{stderr}");
+    assert!(
+        stderr.contains(&format!("resuming: {} evaluations", before.len())),
+        "{stderr}"
+    );
+    // The result of the uninterrupted calibration, every candidate alike.
+    let (a, b) = (evaluations(&dir, "whole"), evaluations(&dir, "killed"));
+    assert_eq!(a["evaluations"], b["evaluations"]);
+    assert_eq!(a["best"], b["best"]);
+    assert_eq!(a["sensitivity"], b["sensitivity"]);
+    assert_eq!(a["recalled"], 0);
+    assert!(b["recalled"].as_u64().unwrap() >= before.len() as u64);
+    // The candidates logged before the kill were not run again: the log goes on after them
+    // with other candidates only.
+    let after = logged(&dir, "killed");
+    assert_eq!(after[..before.len()], before[..]);
+    let earlier: Vec<Value> = before.iter().map(|l| logged_values(l)).collect();
+    for line in &after[before.len()..] {
+        assert!(
+            !earlier.contains(&logged_values(line)),
+            "run again after the resume: {line}"
+        );
+    }
+    assert!(b["evaluations"].as_array().unwrap().len() > before.len());
+
+    // Another calibration's log is refused by name.
+    std::fs::write(
+        dir.join("spec.toml"),
+        spec(24).replace("sigma = 0.3", "sigma = 0.2"),
+    )
+    .unwrap();
+    let other = cncsim(
+        &["calibrate", "spec.toml", "--out", "killed", "--resume"],
+        &dir,
+    );
+    let stderr = String::from_utf8_lossy(&other.stderr);
+    assert_eq!(other.status.code(), Some(2), "{stderr}");
+    assert!(
+        stderr.contains("evaluation_log.jsonl:1:1") && stderr.contains("another calibration's"),
+        "{stderr}"
+    );
     let _ = std::fs::remove_dir_all(&dir);
 }
 

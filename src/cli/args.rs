@@ -303,6 +303,11 @@ pub enum Command {
         /// there; refused when the folder holds another sweep's runs.
         #[arg(long)]
         resume: bool,
+        /// Run nothing: list every file the sweep's runs read (the sweep file, scenarios,
+        /// machines, drive files, meshes, programs, tool tables, FMUs, stock shapes), one
+        /// absolute path per line: what a worker without this filesystem needs.
+        #[arg(long, conflicts_with_all = ["resume", "out", "run_timeout_s", "jobs"])]
+        inputs: bool,
     },
     /// Calibrate: fit machine and scenario keys to measured figures or traces (CMA-ES, seeded,
     /// candidates in parallel); writes OUT/report.md, evaluations.csv/json, convergence.png,
@@ -319,6 +324,11 @@ pub enum Command {
         /// (comments kept).
         #[arg(long)]
         write: bool,
+        /// Go on with the calibration whose log (evaluation_log.jsonl) --out holds: its
+        /// candidates are answered from the log, the search goes on from there to the result
+        /// an uninterrupted calibration gives; refused when the log is another calibration's.
+        #[arg(long)]
+        resume: bool,
     },
     /// Merge the output folders of a sweep's shards into one (results, summary, plots).
     Merge {

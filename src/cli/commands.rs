@@ -262,11 +262,29 @@ pub fn dispatch(command: Option<Command>, interrupted: &AtomicBool) -> Result<Sh
         }
         Some(Command::Sweep {
             sweep,
+            shard,
+            inputs: true,
+            ..
+        }) => {
+            let sweep = cncsim::sweep::Sweep::load(&sweep)?;
+            let shard = shard
+                .as_deref()
+                .map(cncsim::sweep::parse_shard)
+                .transpose()?;
+            let (_, jobs) = cncsim::sweep::run_sweep(&sweep, Path::new("."), shard);
+            // The sweep file first: a worker is told where it lies among the others.
+            let mut files = vec![std::fs::canonicalize(&sweep.path).unwrap_or(sweep.path)];
+            files.extend(cncsim::sweep::input_files(&jobs)?);
+            text(Box::new(InputFiles(files)))
+        }
+        Some(Command::Sweep {
+            sweep,
             jobs,
             shard,
             out,
             run_timeout_s,
             resume,
+            inputs: false,
         }) => text(Box::new(self::sweep(
             &sweep,
             jobs,
@@ -289,7 +307,14 @@ pub fn dispatch(command: Option<Command>, interrupted: &AtomicBool) -> Result<Sh
             jobs,
             out,
             write,
-        }) => text(Box::new(calibrate(&spec, jobs, out, write, interrupted)?)),
+            resume,
+        }) => text(Box::new(calibrate(
+            &spec,
+            jobs,
+            out,
+            (write, resume),
+            interrupted,
+        )?)),
     }
 }
 
@@ -381,6 +406,22 @@ fn export_fmu(scenario: &Path, out: &Path) -> Result<ExportFmuReport, Refused> {
     let exported = cncsim::fmi::export::export(&s, &text, &assembly, &library, out)
         .map_err(|e| Refused::BadInput(format!("{}: {e}", scenario.display())))?;
     Ok(ExportFmuReport(exported))
+}
+
+/// What `sweep --inputs` found: the files the sweep reads.
+struct InputFiles(Vec<PathBuf>);
+
+impl Report for InputFiles {
+    fn text(&self) -> String {
+        self.0
+            .iter()
+            .map(|f| format!("{}\n", f.display()))
+            .collect()
+    }
+
+    fn json(&self) -> Option<serde_json::Value> {
+        Some(serde_json::json!(self.0))
+    }
 }
 
 /// What `export-fmu` wrote.
@@ -676,11 +717,11 @@ fn calibrate(
     path: &Path,
     jobs: Option<usize>,
     out: Option<PathBuf>,
-    write: bool,
+    (write, resume): (bool, bool),
     interrupted: &AtomicBool,
 ) -> Result<cncsim::sweep::calibrate::CalibrationOutput, Refused> {
     use cncsim::sweep::calibrate::{
-        calibrate, predict, Calibration, CalibrationOutput, CalibrationProgress,
+        calibrate, predict, Calibration, CalibrationOutput, CalibrationProgress, EvaluationLog,
     };
     let cal = Calibration::load(path)?;
     let threads = threads(jobs)?;
@@ -695,6 +736,28 @@ fn calibrate(
         cal.population,
         cal.max_evaluations
     );
+    // Every candidate is logged as it finishes; a resume answers those from the log.
+    let log = match resume
+        .then(|| EvaluationLog::resume(&cal, &out))
+        .transpose()?
+    {
+        Some(Some(log)) => {
+            eprintln!(
+                "resuming: {} evaluations in {}; the search replays them and goes on",
+                log.earlier(),
+                out.join(cncsim::sweep::calibrate::LOG_FILE).display()
+            );
+            log
+        }
+        Some(None) => {
+            eprintln!(
+                "resuming: {} holds no evaluation log; starting",
+                out.display()
+            );
+            EvaluationLog::start(&cal, &out)?
+        }
+        None => EvaluationLog::start(&cal, &out)?,
+    };
     let bar = progress_bar(Some("candidates"));
     bar.set_length(cal.max_evaluations as u64 + 1);
     let on_change = |p: &CalibrationProgress| {
@@ -704,7 +767,15 @@ fn calibrate(
         }
     };
     let progress = CalibrationProgress::default();
-    let result = calibrate(&cal, &out, threads, interrupted, &progress, &on_change);
+    let result = calibrate(
+        &cal,
+        &out,
+        &log,
+        threads,
+        interrupted,
+        &progress,
+        &on_change,
+    );
     bar.finish_and_clear();
     let result = result?;
     let stopped = interrupted.load(Ordering::Relaxed);

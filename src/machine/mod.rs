@@ -250,6 +250,42 @@ impl Machine {
         drives.attach(tree, &drives_path)
     }
 
+    /// Every file [`Machine::load_with_package_paths`] reads for the machine at `path`: the
+    /// URDF, its drive file, the meshes of its visuals and solids, and the `package.xml` of the
+    /// package each mesh lies in (what `package://` is resolved through). What a run needs
+    /// copied to a machine that has none of them (a Ray worker).
+    pub fn files(path: &Path, package_paths: &[PathBuf]) -> Result<Vec<PathBuf>, FileError> {
+        let tree = load_urdf_with_package_paths(path, package_paths)?;
+        let mut meshes = mesh_path::MeshFiles::new(path, package_search_roots(package_paths));
+        let mut files = vec![path.to_path_buf(), DrivesFile::path_for(path)];
+        for link in &tree.links {
+            for visual in &link.visuals {
+                if let Shape::Mesh(mesh) = &visual.shape {
+                    files.push(mesh.source.clone());
+                }
+            }
+            for solid in &link.solids {
+                if let SolidShape::Mesh { filename, .. } = &solid.shape {
+                    // A solid whose mesh is missing is an error only where its mass is needed.
+                    files.extend(meshes.resolve(filename).ok());
+                }
+            }
+        }
+        let manifests: Vec<PathBuf> = files[2..]
+            .iter()
+            .filter_map(|mesh| {
+                mesh.ancestors()
+                    .skip(1)
+                    .map(|dir| dir.join("package.xml"))
+                    .find(|manifest| manifest.is_file())
+            })
+            .collect();
+        files.extend(manifests);
+        files.sort();
+        files.dedup();
+        Ok(files)
+    }
+
     /// [`Machine::load`] on texts in memory, reported as if read from `path` and its sidecar.
     pub fn parse(path: &Path, urdf: &str, drives: &str) -> Result<Machine, FileError> {
         let tree = urdf::parse_urdf(path, urdf)?;

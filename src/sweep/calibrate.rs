@@ -55,6 +55,9 @@ use std::sync::atomic::{AtomicBool, AtomicUsize, Ordering};
 use std::sync::Mutex;
 use toml::Spanned;
 
+mod log;
+pub use log::{EvaluationLog, LOG_FILE};
+
 /// Most runs a calibration may ask for (evaluations × scenarios).
 pub const MAX_CALIBRATION_RUNS: usize = 100_000;
 /// Most rows of a measured trace.
@@ -692,7 +695,7 @@ pub struct Evaluation {
 }
 
 /// Why a candidate has no cost of its own (it is given the cost of a failure).
-#[derive(Debug, Clone, PartialEq)]
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 pub enum Failure {
     /// A run could not start: a value it refuses, a key the scenario lacks (the message names
     /// the place).
@@ -803,6 +806,9 @@ pub struct CalibrationResult {
     pub sensitivity: Vec<Sensitivity>,
     /// Moves of the compass search after CMA-ES (each to a better neighbour).
     pub polish_rounds: usize,
+    /// Candidates answered from the log of an earlier run of the calibration (`--resume`)
+    /// instead of being run again.
+    pub recalled: usize,
     /// Whether the calibration was interrupted (the best is the best so far).
     pub interrupted: bool,
     /// Why CMA-ES stopped (e.g. MaxFunctionEvaluations, TolFun).
@@ -814,6 +820,23 @@ pub struct CalibrationResult {
 /// Runs one candidate: every target scenario with `values` applied, in `scratch/`, which is
 /// removed afterwards (the figures are kept in the evaluation).
 fn evaluate(
+    cal: &Calibration,
+    scenarios: &[PathBuf],
+    values: Vec<f64>,
+    scratch: &Path,
+    interrupted: &AtomicBool,
+    log: &EvaluationLog,
+) -> Evaluation {
+    if let Some(earlier) = log.recall(&values) {
+        return earlier;
+    }
+    let evaluation = run_candidate(cal, scenarios, values, scratch, interrupted);
+    log.keep(&evaluation);
+    evaluation
+}
+
+/// Runs one candidate (see [`evaluate`]).
+fn run_candidate(
     cal: &Calibration,
     scenarios: &[PathBuf],
     values: Vec<f64>,
@@ -910,9 +933,12 @@ fn evaluate(
 /// Runs the calibration: generations of `population` candidates until `max_evaluations` (or an
 /// interruption, or CMA-ES converging), `threads` runs at once, scratch runs under `out`.
 /// Before the search, the start point is run once: a metric no run has is a spec error.
+/// Every candidate is looked up in `log` first (an earlier run of the calibration that
+/// stopped) and logged there when run.
 pub fn calibrate(
     cal: &Calibration,
     out: &Path,
+    log: &EvaluationLog,
     threads: usize,
     interrupted: &AtomicBool,
     progress: &CalibrationProgress,
@@ -932,6 +958,7 @@ pub fn calibrate(
         cal.values(&start_unit),
         &scratch.join("start"),
         interrupted,
+        log,
     );
     // The start point must run: a run that cannot start (a key the scenario does not have, a
     // value it refuses) or lacks a metric is a fault of the spec, reported before the search.
@@ -970,6 +997,7 @@ pub fn calibrate(
             cal.values(&u),
             &scratch.join(n.to_string()),
             interrupted,
+            log,
         );
         e.generation = generation.load(Ordering::Relaxed);
         e.cost += 1e3 * outside;
@@ -1050,7 +1078,8 @@ pub fn calibrate(
         .clone()
         .filter(|_| !interrupted.load(Ordering::Relaxed))
     {
-        let (profile, mut runs) = profile(cal, &scenarios, &b, &scratch, threads, interrupted);
+        let (profile, mut runs) =
+            profile(cal, &scenarios, &b, &scratch, (threads, interrupted), log);
         let round = generation.load(Ordering::Relaxed) + polish_rounds;
         for e in &mut runs {
             e.generation = round;
@@ -1096,6 +1125,7 @@ pub fn calibrate(
         ranges,
         sensitivity,
         polish_rounds,
+        recalled: log.recalled(),
         interrupted: interrupted.load(Ordering::Relaxed),
         stop_reason,
         wall_time_s: started.elapsed().as_secs_f64(),
@@ -1109,8 +1139,8 @@ fn profile(
     scenarios: &[PathBuf],
     best: &Evaluation,
     scratch: &Path,
-    threads: usize,
-    interrupted: &AtomicBool,
+    (threads, interrupted): (usize, &AtomicBool),
+    log: &EvaluationLog,
 ) -> (Vec<Sensitivity>, Vec<Evaluation>) {
     let unit: Vec<f64> = cal
         .parameters
@@ -1143,6 +1173,7 @@ fn profile(
             values.clone(),
             &scratch.join(format!("profile{k}")),
             interrupted,
+            log,
         )
     };
     let runs: Vec<Evaluation> = match rayon::ThreadPoolBuilder::new()
@@ -1308,6 +1339,12 @@ impl CalibrationResult {
             if self.polish_rounds == 1 { "" } else { "s" },
             if self.interrupted { "; interrupted: the best so far" } else { "" }
         );
+        if self.recalled > 0 {
+            t += &format!(
+                "Resumed: {} of the candidates were answered from the log of the earlier, stopped run ({LOG_FILE}), the others run now; the wall time is this run's.\n\n",
+                self.recalled
+            );
+        }
         let Some(best) = &self.best else {
             return t + "No candidate ran to the end.\n";
         };

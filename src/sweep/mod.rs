@@ -21,7 +21,7 @@ pub use file::{
 };
 pub use results::{merge, write_results, MergeOutput, Row, SweepOutput, SweepResults};
 pub use runner::{
-    execute, read_record, run_list_digest, run_sweep, Job, JobResult, Progress, RECORD,
+    execute, input_files, read_record, run_list_digest, run_sweep, Job, JobResult, Progress, RECORD,
 };
 
 use crate::diagnostics::FileError;

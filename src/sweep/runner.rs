@@ -6,6 +6,7 @@
 
 use super::file::{Change, RunSpec, Sweep};
 use super::machine_with;
+use crate::diagnostics::FileError;
 use crate::plan::PlannedProgram;
 use crate::scenario::{plan_for, with_choices, Assembly, PlanKey, RunOptions, Scenario};
 use crate::sim::Stop;
@@ -36,6 +37,21 @@ pub struct Job {
     /// Write the result into `out_dir/result.json` when the run ends (a sweep's record of the
     /// run, which `--resume` reads back).
     pub record: bool,
+}
+
+impl Job {
+    /// The job's scenario, its scenario overrides applied (machine ones apply to the machine).
+    pub fn scenario(&self) -> Result<Scenario, FileError> {
+        let overrides: Vec<_> = self
+            .changes
+            .iter()
+            .filter_map(|c| match c {
+                Change::Scenario(o) => Some(o.clone()),
+                Change::Machine(_) => None,
+            })
+            .collect();
+        Scenario::load_with_overrides(&self.scenario, &overrides, "override")
+    }
 }
 
 /// How a job ended.
@@ -115,15 +131,7 @@ fn run_job(job: &Job, cache: &PlanCache, interrupted: &AtomicBool) -> JobResult 
         stopped: None,
         wall_time_s: started.elapsed().as_secs_f64(),
     };
-    let overrides: Vec<_> = job
-        .changes
-        .iter()
-        .filter_map(|c| match c {
-            Change::Scenario(o) => Some(o.clone()),
-            Change::Machine(_) => None,
-        })
-        .collect();
-    let mut s = match Scenario::load_with_overrides(&job.scenario, &overrides, "override") {
+    let mut s = match job.scenario() {
         Ok(s) => s,
         Err(e) => return failed(e.to_string()),
     };
@@ -292,6 +300,28 @@ pub fn run_list_digest(jobs: &[Job]) -> String {
         .iter()
         .map(|byte| format!("{byte:02x}"))
         .collect()
+}
+
+/// Every file the runs of `jobs` read: each job's scenario (its overrides applied) with the
+/// files it names, and each machine's files ([`crate::machine::Machine::files`]). Absolute,
+/// sorted, each once; what a sweep needs on a worker that shares no filesystem with here.
+pub fn input_files(jobs: &[Job]) -> Result<Vec<PathBuf>, FileError> {
+    let mut files = std::collections::BTreeSet::new();
+    let mut machines = std::collections::BTreeSet::new();
+    for job in jobs {
+        let scenario = job.scenario()?;
+        files.insert(job.scenario.clone());
+        files.extend(scenario.files.iter().filter(|f| f.is_file()).cloned());
+        if machines.insert(scenario.machine.clone()) {
+            files.extend(crate::machine::Machine::files(&scenario.machine, &[])?);
+        }
+    }
+    Ok(files
+        .into_iter()
+        .map(|f| std::fs::canonicalize(&f).unwrap_or(f))
+        .collect::<std::collections::BTreeSet<_>>()
+        .into_iter()
+        .collect())
 }
 
 /// The jobs of a sweep's runs (those of shard `shard` = (K, N): every N-th from the K-th),

@@ -121,6 +121,9 @@ pub struct Scenario {
     pub ab: Option<DeclaredVariants>,
     /// Values that are legal but look wrong, located in the file.
     pub warnings: Vec<FileError>,
+    /// The files the scenario names (machine, program, tool table, FMU, stock …), resolved
+    /// against its folder: with the machine's own files, what a run reads.
+    pub files: Vec<PathBuf>,
 }
 
 impl Scenario {
@@ -213,6 +216,7 @@ impl Scenario {
             frequency_response.push(entry);
         }
         let machine_at = file.at(raw.machine.span().start);
+        let (warnings, files) = file.into_warnings_and_files();
         Ok(Scenario {
             name: raw.name.unwrap_or_else(|| {
                 path.file_stem()
@@ -236,7 +240,8 @@ impl Scenario {
             expect,
             frequency_response,
             ab,
-            warnings: file.into_warnings(),
+            warnings,
+            files,
         })
     }
 

@@ -15,6 +15,8 @@ pub(super) struct Source<'a> {
     pub path: &'a Path,
     pub text: &'a str,
     warnings: RefCell<Vec<FileError>>,
+    /// Every path the file names, as resolved (what a run reads besides the file itself).
+    named_files: RefCell<Vec<PathBuf>>,
 }
 
 /// A raw section together with the file it came from: what a section's `TryFrom` takes.
@@ -29,6 +31,7 @@ impl<'a> Source<'a> {
             path,
             text,
             warnings: RefCell::new(Vec::new()),
+            named_files: RefCell::new(Vec::new()),
         }
     }
 
@@ -93,7 +96,9 @@ impl<'a> Source<'a> {
 
     /// A path written in the file, relative to the file's folder.
     pub fn resolve(&self, written: &str) -> PathBuf {
-        self.path.parent().unwrap_or(Path::new(".")).join(written)
+        let path = self.path.parent().unwrap_or(Path::new(".")).join(written);
+        self.named_files.borrow_mut().push(path.clone());
+        path
     }
 
     /// Keeps a value that is legal but looks wrong, to be reported with the scenario.
@@ -101,7 +106,8 @@ impl<'a> Source<'a> {
         self.warnings.borrow_mut().push(warning);
     }
 
-    pub fn into_warnings(self) -> Vec<FileError> {
-        self.warnings.into_inner()
+    /// The warnings kept, and the files the scenario names.
+    pub fn into_warnings_and_files(self) -> (Vec<FileError>, Vec<PathBuf>) {
+        (self.warnings.into_inner(), self.named_files.into_inner())
     }
 }
