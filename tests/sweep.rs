@@ -1,7 +1,8 @@
 //! Sweeps: parallel and deterministic (the same rows with one thread or two, and from shards
 //! merged), a failing run is a row with its error, Ctrl-C keeps the finished rows, plans are
 //! made once per distinct setpoint stream, and the Ray driver's merged result equals the
-//! single-machine sweep (when Ray is installed; required under CNCSIM_REQUIRE_ORACLES=1).
+//! single-machine sweep with its workers seeing none of the driver's paths, and it resumes
+//! (when Ray is installed; required under CNCSIM_REQUIRE_ORACLES=1).
 
 use serde_json::Value;
 use std::path::{Path, PathBuf};
@@ -362,6 +363,40 @@ fn a_run_past_its_time_limit_is_a_row_that_says_timeout() {
     assert!(String::from_utf8_lossy(&out.stderr).contains("expected a run time limit from 0.1"));
 }
 
+/// Runs `tools/ray_sweep.py ARGS` in `dir`, handing each line of its stdout to `on_line` as it
+/// comes; returns its exit status, stdout and stderr.
+fn ray_driver(
+    dir: &Path,
+    args: &[&str],
+    mut on_line: impl FnMut(&str),
+) -> (Option<i32>, String, String) {
+    use std::io::{BufRead, Read};
+    let mut child = Command::new("python3")
+        .arg(root().join("tools/ray_sweep.py"))
+        .args(args)
+        .current_dir(dir)
+        .stdout(std::process::Stdio::piped())
+        .stderr(std::process::Stdio::piped())
+        .spawn()
+        .unwrap();
+    // Stderr read on a thread of its own, so that neither pipe fills while the other is read.
+    let mut stderr = child.stderr.take().unwrap();
+    let errors = std::thread::spawn(move || {
+        let mut bytes = Vec::new();
+        stderr.read_to_end(&mut bytes).unwrap();
+        String::from_utf8_lossy(&bytes).into_owned()
+    });
+    let mut stdout = String::new();
+    for line in std::io::BufReader::new(child.stdout.take().unwrap()).split(b'\n') {
+        let line = String::from_utf8_lossy(&line.unwrap()).into_owned();
+        on_line(line.as_str());
+        stdout += &line;
+        stdout.push('\n');
+    }
+    let status = child.wait().unwrap();
+    (status.code(), stdout, errors.join().unwrap())
+}
+
 #[test]
 fn the_ray_driver_merges_to_the_single_machine_result() {
     let ray = Command::new("python3").args(["-c", "import ray"]).output();
@@ -375,40 +410,185 @@ fn the_ray_driver_merges_to_the_single_machine_result() {
     }
     let dir = tempfile::tempdir().unwrap();
     let d = dir.path();
-    let sweep = setup(d, "");
-    let sweep = sweep.to_str().unwrap();
-    let single = cncsim(&["sweep", sweep, "--out", "single"], d);
+    // The sweep's files in one folder, inputs/, with relative paths only: the scenarios name
+    // their machine models/xyz_table.urdf, copied beside them with its drives file.
+    let inputs = d.join("inputs");
+    std::fs::create_dir_all(inputs.join("models")).unwrap();
+    for model in ["xyz_table.urdf", "xyz_table.drives.toml"] {
+        std::fs::copy(
+            root().join("models").join(model),
+            inputs.join("models").join(model),
+        )
+        .unwrap();
+    }
+    setup(&inputs, "");
+    for scenario in ["short.toml", "other.toml"] {
+        let path = inputs.join(scenario);
+        let text = std::fs::read_to_string(&path)
+            .unwrap()
+            .replace(&format!("{}/models/", root().display()), "models/");
+        std::fs::write(&path, text).unwrap();
+    }
+    // Every file the sweep reads is in inputs/ (so that renaming it hides them all).
+    let listed = cncsim(&["sweep", "inputs/t_sweep.toml", "--inputs"], d);
+    assert!(
+        listed.status.success(),
+        "{}",
+        String::from_utf8_lossy(&listed.stderr)
+    );
+    let listed = String::from_utf8_lossy(&listed.stdout).into_owned();
+    let canonical = std::fs::canonicalize(&inputs).unwrap();
+    assert!(
+        listed.lines().any(|l| l.ends_with("xyz_table.urdf"))
+            && listed.lines().all(|l| Path::new(l).starts_with(&canonical)),
+        "{listed}"
+    );
+    let single = cncsim(&["sweep", "inputs/t_sweep.toml", "--out", "single"], d);
     assert!(
         single.status.success(),
         "{}",
         String::from_utf8_lossy(&single.stderr)
     );
-    let driver = root().join("tools/ray_sweep.py");
-    let out = Command::new("python3")
-        .arg(driver)
-        .args([
-            "--sweep",
-            sweep,
-            "--cncsim",
-            env!("CARGO_BIN_EXE_cncsim"),
-            "--shards",
-            "3",
-            "--num-cpus",
-            "2",
-            "--out",
-            "ray",
-        ])
-        .current_dir(d)
-        .output()
-        .unwrap();
-    assert!(
-        out.status.success(),
-        "{}\n{}",
-        String::from_utf8_lossy(&out.stdout),
-        String::from_utf8_lossy(&out.stderr)
-    );
+
+    // The driver runs a copy of the binary. Once the shards are submitted, the inputs and the
+    // binary are renamed away: a worker that looked for them at the driver's paths would fail;
+    // the workers run what the driver shipped, in folders of their own, and the driver merges
+    // with its own copy of the binary it shipped.
+    let binary = d.join("cncsim");
+    std::fs::copy(env!("CARGO_BIN_EXE_cncsim"), &binary).unwrap();
+    let args = [
+        "--sweep",
+        "inputs/t_sweep.toml",
+        "--cncsim",
+        "cncsim",
+        "--shards",
+        "3",
+        "--num-cpus",
+        "2",
+        "--out",
+        "ray",
+    ];
+    let mut hidden = false;
+    let (code, stdout, stderr) = ray_driver(d, &args, |line| {
+        if line == "submitted 3 shards" {
+            std::fs::rename(&inputs, d.join("inputs_gone")).unwrap();
+            std::fs::rename(&binary, d.join("cncsim_gone")).unwrap();
+            hidden = true;
+        }
+    });
+    assert_eq!(code, Some(0), "{stdout}\n{stderr}");
+    assert!(hidden, "no line 'submitted 3 shards':\n{stdout}\n{stderr}");
+    for k in 1..=3 {
+        assert!(stdout.contains(&format!("shard {k}/3 on ")), "{stdout}");
+    }
     assert!(
         rows(&d.join("single")) == rows(&d.join("ray")),
         "Ray's merged sweep differs"
     );
+
+    // A resume over the finished folder submits nothing, writes no shard again and merges the
+    // same rows.
+    std::fs::rename(d.join("inputs_gone"), &inputs).unwrap();
+    std::fs::rename(d.join("cncsim_gone"), &binary).unwrap();
+    let shard_files: Vec<(PathBuf, std::time::SystemTime)> = (1..=3)
+        .map(|k| {
+            let path = d.join(format!("ray/shards/{k}_of_3/results.json"));
+            let modified = std::fs::metadata(&path).unwrap().modified().unwrap();
+            (path, modified)
+        })
+        .collect();
+    std::thread::sleep(std::time::Duration::from_millis(50));
+    let resume: Vec<&str> = args.iter().copied().chain(["--resume"]).collect();
+    let (code, stdout, stderr) = ray_driver(d, &resume, |_| {});
+    assert_eq!(code, Some(0), "{stdout}\n{stderr}");
+    assert!(
+        stdout.contains("resuming: 3 of 3 shards have results") && !stdout.contains("submitted"),
+        "{stdout}\n{stderr}"
+    );
+    for (path, modified) in &shard_files {
+        let now = std::fs::metadata(path).unwrap().modified().unwrap();
+        assert_eq!(now, *modified, "{} was written again", path.display());
+    }
+    assert!(
+        rows(&d.join("single")) == rows(&d.join("ray")),
+        "the resumed merge differs"
+    );
+
+    // A resume with another shard count is refused by its digest (exit 2); nothing is run.
+    let other: Vec<&str> = resume
+        .iter()
+        .map(|a| if *a == "3" { "2" } else { *a })
+        .collect();
+    let (code, stdout, stderr) = ray_driver(d, &other, |_| {});
+    assert_eq!(code, Some(2), "{stdout}\n{stderr}");
+    assert!(
+        stderr.contains("--resume: the folder holds the shards of another sweep")
+            && stderr.contains("digest"),
+        "{stderr}"
+    );
+    assert!(!stdout.contains("submitted"), "{stdout}");
+}
+
+/// `--inputs` lists every file the runs read, a variant's overrides applied: the meshes and
+/// package manifest of a URDF package, the program a variant names, and nothing else.
+#[test]
+fn inputs_are_every_file_the_runs_read() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    let scenarios = root().join("scenarios");
+    let text = format!(
+        "scenarios = [\"{0}/desk_router_circle.toml\", \"{0}/mill_slot.toml\"]\n[variants]\nas_is = []\n",
+        scenarios.display()
+    );
+    std::fs::write(d.join("s.toml"), text).unwrap();
+    let out = cncsim(&["sweep", "s.toml", "--inputs"], d);
+    let stdout = String::from_utf8_lossy(&out.stdout);
+    assert!(
+        out.status.success(),
+        "{stdout}{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let listed: Vec<&str> = stdout.lines().collect();
+    let canonical = |p: PathBuf| std::fs::canonicalize(p).unwrap().display().to_string();
+    assert_eq!(
+        listed[0],
+        canonical(d.join("s.toml")),
+        "the sweep file first"
+    );
+    let models = root().join("models");
+    let router = models.join("desk_router");
+    let mut expected: Vec<String> = std::fs::read_dir(router.join("meshes"))
+        .unwrap()
+        .map(|e| canonical(e.unwrap().path()))
+        .collect();
+    expected.extend(
+        [
+            router.join("package.xml"),
+            router.join("urdf/desk_router.urdf"),
+            router.join("urdf/desk_router.drives.toml"),
+            models.join("ac_mill.urdf"),
+            models.join("ac_mill.drives.toml"),
+            scenarios.join("desk_router_circle.toml"),
+            scenarios.join("mill_slot.toml"),
+            scenarios.join("programs/mill_slot.ngc"),
+        ]
+        .map(canonical),
+    );
+    expected.sort();
+    let mut rest: Vec<String> = listed[1..].iter().map(|s| s.to_string()).collect();
+    rest.sort();
+    assert_eq!(rest, expected);
+
+    // A variant naming another program: both programs are read.
+    let text = format!(
+        "scenarios = [\"{}/mill_slot.toml\"]\n[variants]\nas_is = []\nother = [\"program.file = \\\"programs/d_table2.ngc\\\"\"]\n",
+        scenarios.display()
+    );
+    std::fs::write(d.join("s.toml"), text).unwrap();
+    let out = cncsim(&["sweep", "s.toml", "--inputs"], d);
+    let stdout = String::from_utf8_lossy(&out.stdout);
+    for program in ["mill_slot.ngc", "d_table2.ngc"] {
+        let program = canonical(scenarios.join("programs").join(program));
+        assert!(stdout.lines().any(|l| l == program), "{program}: {stdout}");
+    }
 }
