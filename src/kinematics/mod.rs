@@ -7,6 +7,7 @@
 pub mod ac_table;
 mod frame;
 mod part;
+pub mod tool_path;
 
 pub use frame::{carrier_link, chain_joints, ProgramFrame, ORTHOGONALITY_TOLERANCE};
 pub use part::PartPlacement;

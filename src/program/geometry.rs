@@ -37,6 +37,27 @@ impl Segment {
         (p - self.closest(p)).norm()
     }
 
+    /// The point a `fraction` (0 to 1) of the way along this piece of path: by length on a
+    /// line, by angle on an arc (its rise in proportion), as the interpolators move along it.
+    pub fn point_at(&self, fraction: f64) -> Point3<f64> {
+        match *self {
+            Segment::Line { start, end } => start + (end - start) * fraction,
+            Segment::Arc {
+                center,
+                normal,
+                start,
+                sweep,
+                rise,
+            } => {
+                let r0 = start - center;
+                let (u, radius) = (r0.normalize(), r0.norm());
+                let v = normal.cross(&u);
+                let a = sweep * fraction;
+                center + (u * a.cos() + v * a.sin()) * radius + normal * (rise * fraction)
+            }
+        }
+    }
+
     /// The point of this piece of path nearest to `p`.
     pub fn closest(&self, p: &Point3<f64>) -> Point3<f64> {
         match *self {
@@ -98,8 +119,13 @@ impl Segment {
 pub struct PathGeometry {
     /// The segments in program order.
     pub segments: Vec<Segment>,
-    /// For each program move, the index of its segment (dwells point at the previous one).
+    /// For each program move, the index of its segment (dwells point at the previous one); of
+    /// its last segment where a move has several.
     pub segment_of_move: Vec<usize>,
+    /// For each program move, the index of its first segment, where moves have several (a
+    /// path through the machine's kinematics, [`PathGeometry::from_pieces`]); empty where every
+    /// move has one.
+    pub first_segment_of_move: Vec<usize>,
 }
 
 impl PathGeometry {
@@ -138,7 +164,54 @@ impl PathGeometry {
         PathGeometry {
             segments,
             segment_of_move,
+            first_segment_of_move: Vec::new(),
         }
+    }
+
+    /// A path of straight pieces: for each move, the points it passes through after its
+    /// start (`start` is where the first move starts; a move without points stands still).
+    pub fn from_pieces(start: Point3<f64>, moves: &[Vec<Point3<f64>>]) -> Self {
+        let mut segments = Vec::new();
+        let (mut segment_of_move, mut first_segment_of_move) = (Vec::new(), Vec::new());
+        let mut at = start;
+        for points in moves {
+            first_segment_of_move.push(segments.len());
+            if points.is_empty() {
+                segments.push(Segment::Line { start: at, end: at });
+            }
+            for &p in points {
+                segments.push(Segment::Line { start: at, end: p });
+                at = p;
+            }
+            segment_of_move.push(segments.len() - 1);
+        }
+        PathGeometry {
+            segments,
+            segment_of_move,
+            first_segment_of_move,
+        }
+    }
+
+    /// The point of the path nearest to `p` among the segments of the moves within `window`
+    /// of move `near` (the move the setpoints are on).
+    pub fn closest_to_move(
+        &self,
+        p: &Point3<f64>,
+        near: usize,
+        window: usize,
+    ) -> Option<Point3<f64>> {
+        if self.first_segment_of_move.is_empty() {
+            let segment = self.segment_of_move.get(near).copied().unwrap_or(0);
+            return self.closest_near(p, segment, window);
+        }
+        let last_move = self.segment_of_move.len().checked_sub(1)?;
+        let near = if near > last_move { 0 } else { near };
+        let lo = self.first_segment_of_move[near.saturating_sub(window)];
+        let hi = self.segment_of_move[(near + window).min(last_move)] + 1;
+        self.segments[lo..hi]
+            .iter()
+            .map(|s| s.closest(p))
+            .min_by(|a, b| (p - a).norm().total_cmp(&(p - b).norm()))
     }
 
     /// Distance from `p` to the path, searching the segments within `window` of `near`

@@ -146,6 +146,78 @@ pub struct Metrics {
     /// The part as cut against the nominal part, where the run cuts (set after the run).
     #[serde(skip_serializing_if = "Option::is_none")]
     pub part: Option<PartMetrics>,
+    /// Largest distance of the commanded tool point (where the setpoints put the tool) from
+    /// the programmed path: the planner's corner rounding at the tool (mm).
+    pub max_commanded_contour_error_mm: f64,
+    /// Where the figures contradict each other: a contour error larger than the following
+    /// errors at the tool and the planner's rounding can explain, or setpoints further from
+    /// the programmed path than its corners allow. Absent when the figures agree.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub inconsistent_figures: Option<Inconsistency>,
+}
+
+/// Figures of a run that cannot all be true, with the likeliest reason.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct Inconsistency {
+    /// Program time of the first tick that showed it (s).
+    pub first_time_s: f64,
+    /// Program time of the tick that showed it most (s).
+    pub worst_time_s: f64,
+    /// What was measured there (mm): the contour error, or the commanded tool point's
+    /// distance from the path.
+    pub measured_mm: f64,
+    /// What explains at most (mm): the tool's following error plus the planner's rounding,
+    /// or the corners' tolerance.
+    pub explained_mm: f64,
+    /// Ticks that showed it.
+    pub ticks: usize,
+    /// The likeliest reason, in words.
+    pub likely_cause: String,
+}
+
+/// A contour error is explained up to this much more (m) than the following errors and the
+/// rounding add up to: the first-order lever arms and the Rapier solver's joint tolerance.
+const EXPLAINED_SLACK_M: f64 = 1e-6;
+/// And this share of what they add up to (the same, growing with the figures).
+const EXPLAINED_SLACK_SHARE: f64 = 0.05;
+
+/// Why a contour error exceeds what explains it.
+const TOOL_NOT_WHERE_AXES_PUT_IT: &str = "the simulated tool point is not where the axes' positions put it through the machine's kinematics: a joint the axes do not drive moves the tool (a passive or compliant joint), or the tool link or tool point is not the one the figures assume";
+/// Why setpoints stray from the programmed path beyond the corners' tolerance.
+const PATH_NOT_IN_TOOL_COORDINATES: &str = "the setpoints put the tool further from the programmed path than the program's corner tolerance allows: the programmed path and the tool point are not in the same coordinates (rotary axes that carry the tool, a tool point off the spindle axis, or kinematics the program does not assume)";
+
+/// The first, the worst and the count of ticks where a figure exceeded what explains it.
+#[derive(Debug, Clone, Copy, Default)]
+struct Exceedance {
+    first_time: Option<f64>,
+    worst: (f64, f64, f64),
+    ticks: usize,
+}
+
+impl Exceedance {
+    /// Counts a tick at `time` where `measured` exceeds `explained` beyond the slack.
+    fn observe(&mut self, time: f64, measured: f64, explained: f64) {
+        let limit = explained * (1.0 + EXPLAINED_SLACK_SHARE) + EXPLAINED_SLACK_M;
+        if !(measured > limit) {
+            return;
+        }
+        self.first_time.get_or_insert(time);
+        self.ticks += 1;
+        if measured - explained > self.worst.1 - self.worst.2 {
+            self.worst = (time, measured, explained);
+        }
+    }
+
+    fn report(&self, cause: &str) -> Option<Inconsistency> {
+        Some(Inconsistency {
+            first_time_s: self.first_time?,
+            worst_time_s: self.worst.0,
+            measured_mm: self.worst.1 * 1e3,
+            explained_mm: self.worst.2 * 1e3,
+            ticks: self.ticks,
+            likely_cause: cause.to_string(),
+        })
+    }
 }
 
 /// The cutting process's figures over the run (the physics lane's).
@@ -337,6 +409,11 @@ pub struct MetricsAccumulator {
     primary_tick: Option<usize>,
     /// The cutting figures so far, where the run cuts.
     cutting: Option<CuttingMetrics>,
+    max_commanded_deviation: f64,
+    /// Contour errors beyond the following errors at the tool and the rounding.
+    unexplained_contour: Exceedance,
+    /// Setpoints further from the path than the corners allow.
+    setpoints_off_path: Exceedance,
 }
 
 impl MetricsAccumulator {
@@ -381,6 +458,9 @@ impl MetricsAccumulator {
             primary: vec![0.0; labels.len()],
             primary_tick: None,
             cutting: None,
+            max_commanded_deviation: 0.0,
+            unexplained_contour: Exceedance::default(),
+            setpoints_off_path: Exceedance::default(),
         }
     }
 
@@ -440,6 +520,20 @@ impl MetricsAccumulator {
         }
         self.max_contour = nan_max(self.max_contour, path.contour_error);
         self.sum_contour2 += path.contour_error * path.contour_error;
+        // The figures must agree: the tool's distance from the path is at most the commanded
+        // point's plus how far the following errors move the tool; the commanded point's at
+        // most what the corners allow.
+        self.max_commanded_deviation =
+            nan_max(self.max_commanded_deviation, path.commanded_deviation);
+        self.unexplained_contour.observe(
+            r.time,
+            path.contour_error,
+            path.commanded_deviation + path.tool_following_error,
+        );
+        if let Some(tolerance) = path.corner_tolerance {
+            self.setpoints_off_path
+                .observe(r.time, path.commanded_deviation, tolerance);
+        }
         // A tick at which the command steps between rest and motion (the stream's first sample
         // at feed, its last at rest, an exact stop) compares a command that starts now with a
         // speed measured before it could act: that difference is the step itself, whatever
@@ -546,6 +640,11 @@ impl MetricsAccumulator {
             axes,
             cutting: self.cutting,
             part: None,
+            max_commanded_contour_error_mm: self.max_commanded_deviation * 1e3,
+            inconsistent_figures: self
+                .setpoints_off_path
+                .report(PATH_NOT_IN_TOOL_COORDINATES)
+                .or_else(|| self.unexplained_contour.report(TOOL_NOT_WHERE_AXES_PUT_IT)),
         }
     }
 }

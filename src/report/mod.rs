@@ -24,7 +24,8 @@ pub use bode::{BodeRun, Curve, Figures, MIN_COHERENCE, PROMINENCE_DB};
 pub use csv::CsvWriter;
 pub use events::{Event, EventDetector, MAX_EVENTS_PER_KIND};
 pub use metrics::{
-    AxisMetrics, CuttingMetrics, Metrics, MetricsAccumulator, PartMetrics, StallCounter,
+    AxisMetrics, CuttingMetrics, Inconsistency, Metrics, MetricsAccumulator, PartMetrics,
+    StallCounter,
 };
 pub use path::{PathSample, PathTracker};
 pub use plot::{

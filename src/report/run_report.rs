@@ -210,12 +210,10 @@ impl RunReport {
 impl Observer for RunReport {
     fn tick(&mut self, lane: usize, r: &TickRecord<'_>) {
         let s = r.sensors;
-        let path: PathSample = self.setup.path.sample(
-            s.tool_point,
-            s.tool_velocity,
-            r.setpoint.segment,
-            &r.setpoint.velocity,
-        );
+        let path: PathSample =
+            self.setup
+                .path
+                .sample(s.tool_point, s.tool_velocity, r.setpoint, &s.position);
         let stalled = self.metrics.observe(lane, r, &path);
         if lane == 0 {
             self.envelope.push(r.k, r.time, path.contour_error);

@@ -213,6 +213,13 @@ impl Assembly {
         };
         let mut metrics = report.metrics(&outcome);
         let mut warnings = warnings_of(self);
+        let inconsistency = metrics
+            .inconsistent_figures
+            .as_ref()
+            .map(inconsistency_text);
+        if let Some(text) = &inconsistency {
+            warnings.push(FileError::new(&s.path, None, text.clone()));
+        }
         let part = match &self.cut {
             Some(setup) => lanes_run[0].plant.take_cut().map(|cut| {
                 warnings.extend(cut_warnings(self, &cut));
@@ -289,12 +296,16 @@ impl Assembly {
         }
         let contour_envelope = report.contour_envelope().clone();
         let end = outcome.ticks as f64 * s.timing.servo_period;
-        let notes: Vec<(f64, &'static str, String)> = verdict
+        let mut notes: Vec<(f64, &'static str, String)> = verdict
             .breaches
             .iter()
             .map(|b| (end, "ERROR", format!("bound breached: {b}")))
             .collect();
         let mut summary = summary_markdown(self, &metrics, &verdict);
+        if let (Some(text), Some(found)) = (&inconsistency, &metrics.inconsistent_figures) {
+            notes.push((found.first_time_s, "WARN", text.clone()));
+            summary += &format!("\n**Warning:** {text}\n");
+        }
         if let Some(p) = &part {
             if let Some(dir) = &out_dir {
                 let stl = dir.join("part.stl");
@@ -382,6 +393,20 @@ pub struct PartAsCut {
     pub metrics: crate::report::PartMetrics,
 }
 
+/// What a run whose figures contradict each other says, in its warnings, summary and
+/// recording.
+fn inconsistency_text(found: &crate::report::Inconsistency) -> String {
+    format!(
+        "the figures cannot all be true: from t = {:.3} s ({} ticks; the worst at t = {:.3} s, {:.4} mm where at most {:.4} mm is explained) {}",
+        found.first_time_s,
+        found.ticks,
+        found.worst_time_s,
+        found.measured_mm,
+        found.explained_mm,
+        found.likely_cause
+    )
+}
+
 /// The part as the physics lane cut it (`cut`, after `ticks` program ticks), compared with the
 /// nominal part: the starting stock cut by the programmed tool path over the same ticks, as
 /// the setpoints put the tool through the machine's forward kinematics, without dynamics.
@@ -442,11 +467,7 @@ pub fn report_setup(assembly: &Assembly) -> ReportSetup {
         labels: assembly.labels.clone(),
         dc_motor: assembly.actuator == ActuatorKind::DcMotor,
         period: s.timing.servo_period,
-        path: PathTracker {
-            geometry: PathGeometry::of(assembly.program()),
-            frame: assembly.frame.clone(),
-            linear_axes: ["x", "y", "z"].map(|n| machine.axis_index(n)),
-        },
+        path: path_tracker(assembly),
         peak_velocity: assembly.overview().peak_velocity.clone(),
         ticks: assembly.plan.len(),
         lanes: assembly.lane_kinds(),
@@ -459,6 +480,77 @@ pub fn report_setup(assembly: &Assembly) -> ReportSetup {
             .collect(),
         cutting: assembly.cut.is_some(),
     }
+}
+
+/// What the figures of the tool against the program compare with: the programmed path of the
+/// tool point in the program frame (where rotary axes carry the tool, through the machine's
+/// kinematics: the program's X Y Z are then joint coordinates, not the tool's), with what the
+/// consistency check of every tick needs.
+fn path_tracker(assembly: &Assembly) -> PathTracker {
+    use crate::kinematics::tool_path::{programmed_tool_path, rotary_axes_carry_tool};
+    let machine = &assembly.machine;
+    let program = assembly.program();
+    let carried = rotary_axes_carry_tool(machine, &assembly.frame);
+    let geometry = if carried {
+        programmed_tool_path(machine, &assembly.frame, &assembly.axis_map, program)
+    } else {
+        PathGeometry::of(program)
+    };
+    let arms = crate::plan::tool_lever_arms(machine, program, &assembly.axis_map);
+    let tool_reach = (0..machine.axes.len())
+        .map(|i| {
+            if assembly.axis_map.is_rotary(i) {
+                arms[i]
+            } else {
+                1.0
+            }
+        })
+        .collect();
+    PathTracker {
+        geometry,
+        frame: assembly.frame.clone(),
+        linear_axes: ["x", "y", "z"].map(|n| machine.axis_index(n)),
+        machine: machine.clone(),
+        tool_reach,
+        corner_tolerance: corner_tolerances(program, assembly.plan.settings()),
+        rotary_axes_carry_tool: carried,
+    }
+}
+
+/// Per move, how far the corners at its two ends let the setpoints leave the programmed path
+/// (m): the larger of the two corners' G64 P (with Q, whose joined lines may leave it by that
+/// much more), 0 at exact stops; `None` where a corner is rounded without a bound.
+fn corner_tolerances(
+    program: &crate::program::Program,
+    settings: &crate::plan::PlanSettings,
+) -> Vec<Option<f64>> {
+    use crate::plan::BlendChoice;
+    use crate::program::Blend;
+    let joined = |q: &Option<f64>| settings.naive_cam_tolerance.or(*q).unwrap_or(0.0);
+    let corner = |b: &Blend| match (&settings.blend, b) {
+        (BlendChoice::ExactStop, _) | (BlendChoice::Program, Blend::ExactStop) => Some(0.0),
+        (BlendChoice::Continuous { tolerance }, b) => {
+            let q = match b {
+                Blend::Continuous { naive_cam, .. } => joined(naive_cam),
+                Blend::ExactStop => joined(&None),
+            };
+            tolerance.map(|p| p + q)
+        }
+        (
+            BlendChoice::Program,
+            Blend::Continuous {
+                tolerance,
+                naive_cam,
+            },
+        ) => tolerance.map(|p| p + joined(naive_cam)),
+    };
+    let corners: Vec<Option<f64>> = program.moves.iter().map(|m| corner(&m.blend)).collect();
+    (0..corners.len())
+        .map(|m| {
+            let before = if m == 0 { Some(0.0) } else { corners[m - 1] };
+            Some(before?.max(corners[m]?))
+        })
+        .collect()
 }
 
 /// The recording's view of an assembled scenario, with the programmed tool path on the
