@@ -96,6 +96,13 @@ pub const MAX_DESCRIPTION_BYTES: u64 = 64 << 20;
 
 /// Reads a file to a string, naming the file in the error.
 pub fn read_text(path: &Path, what: &str) -> Result<String, FileError> {
+    check_size(path, what)?;
+    std::fs::read_to_string(path)
+        .map_err(|e| FileError::new(path, None, format!("cannot read {what}: {e}")))
+}
+
+/// Refuses a file past [`MAX_DESCRIPTION_BYTES`] before it is read.
+fn check_size(path: &Path, what: &str) -> Result<(), FileError> {
     let fail = |e: String| FileError::new(path, None, format!("cannot read {what}: {e}"));
     let size = std::fs::metadata(path)
         .map_err(|e| fail(e.to_string()))?
@@ -106,7 +113,39 @@ pub fn read_text(path: &Path, what: &str) -> Result<String, FileError> {
             MAX_DESCRIPTION_BYTES >> 20
         )));
     }
-    std::fs::read_to_string(path).map_err(|e| fail(e.to_string()))
+    Ok(())
+}
+
+/// Reads an XML file as [`read_text`] does, decoding it as its declaration says: UTF-8, or
+/// ISO-8859-1 (Latin-1) where `<?xml … encoding="ISO-8859-1"?>` names it (as XML readers such
+/// as urdfdom's do). Bytes that are neither are refused at their line and column.
+pub fn read_xml_text(path: &Path, what: &str) -> Result<String, FileError> {
+    check_size(path, what)?;
+    let bytes = std::fs::read(path)
+        .map_err(|e| FileError::new(path, None, format!("cannot read {what}: {e}")))?;
+    let bytes = match String::from_utf8(bytes) {
+        Ok(text) => return Ok(text),
+        Err(e) => e.into_bytes(),
+    };
+    let declaration = bytes
+        .split(|&b| b == b'>')
+        .next()
+        .map(|d| String::from_utf8_lossy(d).to_ascii_lowercase())
+        .unwrap_or_default();
+    let latin1 = declaration.starts_with("<?xml")
+        && ["iso-8859-1", "iso8859-1", "latin1", "latin-1"]
+            .iter()
+            .any(|name| declaration.contains(name));
+    if latin1 {
+        return Ok(bytes.iter().map(|&b| char::from(b)).collect());
+    }
+    let valid = std::str::from_utf8(&bytes).map_or_else(|e| e.valid_up_to(), |_| bytes.len());
+    let before = String::from_utf8_lossy(&bytes[..valid]);
+    Err(FileError::new(
+        path,
+        Some(LineColumn::of_offset(&before, valid)),
+        format!("cannot read {what}: a byte that is not UTF-8, and the XML declaration names no other encoding (encoding=\"ISO-8859-1\" is read too)"),
+    ))
 }
 
 /// Checks that `value` (named `name`, in `unit`) lies in `[min, max]`; the message says what was

@@ -10,6 +10,8 @@
 //! `CNCSIM_URDF_CORPUS` (the package's `robots` folder); without it the test is skipped, unless
 //! `CNCSIM_REQUIRE_ORACLES` is set.
 
+mod common;
+
 use cncsim::kinematics::ProgramFrame;
 use cncsim::machine::Machine;
 use cncsim::model::{Plant, PlantOptions};
@@ -24,22 +26,6 @@ fn corpus() -> Option<PathBuf> {
         None => {
             eprintln!("skipped: CNCSIM_URDF_CORPUS is not set");
             None
-        }
-    }
-}
-
-fn urdfs(dir: &Path, out: &mut Vec<PathBuf>) {
-    let mut entries: Vec<_> = std::fs::read_dir(dir)
-        .unwrap()
-        .flatten()
-        .map(|e| e.path())
-        .collect();
-    entries.sort();
-    for p in entries {
-        if p.is_dir() {
-            urdfs(&p, out);
-        } else if p.extension().is_some_and(|e| e == "urdf") {
-            out.push(p);
         }
     }
 }
@@ -113,7 +99,7 @@ fn try_one(urdf: &Path) -> Outcome {
 fn real_urdfs_load_and_run_or_are_refused_by_name() {
     let Some(dir) = corpus() else { return };
     let mut files = Vec::new();
-    urdfs(&dir, &mut files);
+    common::urdfs(&dir, &mut files);
     assert!(
         files.len() >= 60,
         "{} URDFs under {}",

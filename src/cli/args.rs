@@ -367,6 +367,9 @@ pub enum MachineCommand {
         #[arg(long)]
         force: bool,
     },
+    /// Print the URDF a xacro file expands to, as cncsim reads it: the `xacro` Python package
+    /// with `$(find PKG)` resolved by cncsim's package search (no ROS needed).
+    Expand { xacro: PathBuf },
 }
 
 /// The loop `cncsim bode` measures.

@@ -240,6 +240,13 @@ pub fn dispatch(command: Option<Command>, interrupted: &AtomicBool) -> Result<Sh
             }
             Ok((Box::new(DriveFileDraft { urdf, text, out }), false))
         }
+        Some(Command::Machine {
+            action: MachineCommand::Expand { xacro },
+        }) => {
+            let roots = cncsim::machine::package_search_roots(&[]);
+            let urdf = cncsim::machine::xacro::expand(&xacro, &roots)?;
+            Ok((Box::new(Expanded(urdf)), false))
+        }
         Some(Command::Dynamics {
             urdf,
             q,
@@ -406,6 +413,15 @@ fn export_fmu(scenario: &Path, out: &Path) -> Result<ExportFmuReport, Refused> {
     let exported = cncsim::fmi::export::export(&s, &text, &assembly, &library, out)
         .map_err(|e| Refused::BadInput(format!("{}: {e}", scenario.display())))?;
     Ok(ExportFmuReport(exported))
+}
+
+/// What `machine expand` wrote: the URDF of a xacro file.
+struct Expanded(String);
+
+impl Report for Expanded {
+    fn text(&self) -> String {
+        self.0.clone()
+    }
 }
 
 /// What `sweep --inputs` found: the files the sweep reads.

@@ -37,10 +37,11 @@ pub enum DynamicsError {
         problem: String,
     },
 
-    /// A moving joint carries no mass, so the mass matrix would be singular.
+    /// A moving joint's body is massless and the mass matrix is singular: no mass moves with
+    /// that joint that the other joints do not move the same way.
     #[error(
-        "joint '{joint}' moves no mass (links {links:?} are massless): \
-         its row of the mass matrix would be zero"
+        "joint '{joint}' moves the massless links {links:?}, and the mass matrix is singular: \
+         no mass beyond the joint moves with it apart from the other joints' motion"
     )]
     MasslessBody {
         /// Name of the joint.

@@ -167,8 +167,27 @@ impl DynamicsModel {
                     Transform::from_pose(&link_in_body).inverse_transform_inertia(&own);
             }
         }
-        for (b, body) in bodies.iter().enumerate() {
-            if body.inertia.mass <= 0.0 {
+        let massless: Vec<usize> = (0..bodies.len())
+            .filter(|&b| bodies[b].inertia.mass <= 0.0)
+            .collect();
+        let mut model = DynamicsModel {
+            joint_names: bodies.iter().map(|b| b.joint_name.clone()).collect(),
+            bodies,
+            gravity: Vector3::zeros(),
+        };
+        // In reduced coordinates a massless body is fine where every joint still moves mass
+        // (a frame between two slides with the carriage beyond): the mass matrix is then
+        // positive definite. Only a chain whose mass matrix is singular is refused, at the
+        // first massless body.
+        if let Some(&b) = massless.first() {
+            let n = model.dof();
+            let mut mass = nalgebra::DMatrix::zeros(n, n);
+            model.mass_matrix(&mut model.workspace(), &vec![0.0; n], &mut mass);
+            // Singular to round-off: the smallest eigenvalue against the largest diagonal term
+            // (masses and inertias mixed; a real machine's spread is far within 1e12).
+            let largest = mass.diagonal().iter().fold(0.0f64, |m, v| m.max(v.abs()));
+            let smallest = mass.symmetric_eigenvalues().min();
+            if smallest.is_nan() || smallest <= 1e-12 * largest {
                 let names = links
                     .iter()
                     .zip(&attachment)
@@ -176,17 +195,11 @@ impl DynamicsModel {
                     .map(|(l, _)| l.name.clone())
                     .collect();
                 return Err(DynamicsError::MasslessBody {
-                    joint: body.joint_name.clone(),
+                    joint: model.bodies[b].joint_name.clone(),
                     links: names,
                 });
             }
         }
-
-        let mut model = DynamicsModel {
-            joint_names: bodies.iter().map(|b| b.joint_name.clone()).collect(),
-            bodies,
-            gravity: Vector3::zeros(),
-        };
         model.set_gravity(gravity)?;
         Ok(model)
     }

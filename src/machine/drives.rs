@@ -828,6 +828,8 @@ impl DrivesFile {
             None => None,
         };
         let computed = super::inertia::complete(&mut tree, inertia, path)?;
+        // What weighing the geometry found (open meshes weighed by their hull).
+        warnings.append(&mut tree.warnings);
 
         let tool_link = tree
             .links

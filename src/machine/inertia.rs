@@ -27,11 +27,25 @@ pub(super) fn complete(
     let mut no_mass_why: Vec<Option<String>> = vec![None; tree.links.len()];
     if let Some(density) = density {
         let mut files = MeshFiles::new(&tree.path, package_search_roots(&[]));
+        let mut hulls = Vec::new();
         for (i, link) in tree.links.iter_mut().enumerate() {
             if group[i] == root_group || link.mass >= MIN_BODY_MASS_KG {
                 continue;
             }
-            match from_geometry(link, density, &mut files) {
+            let mut open_meshes = Vec::new();
+            let found = from_geometry(link, density, &mut files, &mut open_meshes);
+            for mesh in open_meshes {
+                hulls.push(FileError::new(
+                    &tree.path,
+                    link.place,
+                    format!(
+                        "link '{}': mesh {} is not closed (an edge not shared by exactly two triangles), so it encloses no volume: its mass is that of its convex hull",
+                        link.name,
+                        mesh.display()
+                    ),
+                ));
+            }
+            match found {
                 Ok(properties) => {
                     link.mass = properties.mass();
                     link.center_of_mass = Point3::from(from_vec(&properties.local_com));
@@ -41,11 +55,15 @@ pub(super) fn complete(
                 Err(why) => no_mass_why[i] = Some(why),
             }
         }
+        tree.warnings.extend(hulls);
     }
-    // A moving rigid group without mass, named by its links.
+    // A moving rigid group with no mass in it or beyond it, named by its links. (A massless
+    // frame between two joints with mass beyond is fine in reduced coordinates; whether the
+    // chain as a whole is singular is the dynamics model's check.)
+    let beyond = mass_beyond(tree);
     let mut massless: Vec<usize> = Vec::new();
     for (i, _) in tree.links.iter().enumerate() {
-        if group[i] == i && i != tree.root && group_mass(tree, &group, i) < MIN_BODY_MASS_KG {
+        if group[i] == i && i != tree.root && beyond[i] < MIN_BODY_MASS_KG {
             massless.push(i);
         }
     }
@@ -74,7 +92,7 @@ pub(super) fn complete(
         &tree.path,
         tree.links[first].place,
         format!(
-            "{} moving link{} {} no mass (less than {MIN_BODY_MASS_KG:?} kg with the links fixed to {}), and the physics cannot move a massless body: {}. {remedy}",
+            "{} moving link{} {} no mass (less than {MIN_BODY_MASS_KG:?} kg with every link {} carries), and the physics cannot move a massless body: {}. {remedy}",
             massless.len(),
             if massless.len() == 1 { "" } else { "s" },
             if massless.len() == 1 { "has" } else { "have" },
@@ -94,20 +112,22 @@ fn rigid_groups(tree: &KinematicTree) -> Vec<usize> {
     group
 }
 
-fn group_mass(tree: &KinematicTree, group: &[usize], carrier: usize) -> f64 {
-    tree.links
-        .iter()
-        .enumerate()
-        .filter(|(i, _)| group[*i] == carrier)
-        .map(|(_, l)| l.mass)
-        .sum()
+/// Per link, its mass and that of every link beyond it (joints are ordered parents first).
+fn mass_beyond(tree: &KinematicTree) -> Vec<f64> {
+    let mut beyond: Vec<f64> = tree.links.iter().map(|l| l.mass).collect();
+    for joint in tree.joints.iter().rev() {
+        beyond[joint.parent] += beyond[joint.child];
+    }
+    beyond
 }
 
 /// Mass properties of a link's solids at `density` (in the link frame), or why there are none.
+/// Open meshes are weighed by their convex hull, and pushed to `open_meshes`.
 fn from_geometry(
     link: &Link,
     density: f64,
     files: &mut MeshFiles,
+    open_meshes: &mut Vec<std::path::PathBuf>,
 ) -> Result<MassProperties, String> {
     if link.solids.is_empty() {
         return Err("it has no geometry".into());
@@ -127,7 +147,9 @@ fn from_geometry(
                     .transform_by(&to_pose(&z_up))
             }
             SolidShape::Sphere { radius } => MassProperties::from_ball(density, *radius),
-            SolidShape::Mesh { filename, scale } => mesh_mass(filename, *scale, density, files)?,
+            SolidShape::Mesh { filename, scale } => {
+                mesh_mass(filename, *scale, density, files, open_meshes)?
+            }
         };
         total += own.transform_by(&to_pose(&solid.pose));
     }
@@ -135,12 +157,14 @@ fn from_geometry(
 }
 
 /// A closed mesh's mass properties by its enclosed volume (parry: divergence theorem over its
-/// triangles, so it must be closed and face outwards).
+/// triangles, so it must be closed and face outwards); an open one's by its convex hull (as
+/// MuJoCo weighs meshes), its path pushed to `open_meshes` for a warning.
 fn mesh_mass(
     filename: &str,
     scale: [f64; 3],
     density: f64,
     files: &mut MeshFiles,
+    open_meshes: &mut Vec<std::path::PathBuf>,
 ) -> Result<MassProperties, String> {
     let path = files.resolve(filename)?;
     let mesh = read_mesh(&path, scale).map_err(|e| format!("mesh {}: {e}", path.display()))?;
@@ -149,13 +173,19 @@ fn mesh_mass(
         .iter()
         .map(|v| parry3d_f64::math::Vector::new(v[0].into(), v[1].into(), v[2].into()))
         .collect();
-    if !is_closed(&mesh.vertices, &mesh.triangles) {
-        return Err(format!(
-            "mesh {} is not closed (an edge not shared by exactly two triangles), so it encloses no volume to weigh",
-            path.display()
-        ));
-    }
-    let properties = MassProperties::from_trimesh(density, &vertices, &mesh.triangles);
+    let properties = if is_closed(&mesh.vertices, &mesh.triangles) {
+        MassProperties::from_trimesh(density, &vertices, &mesh.triangles)
+    } else {
+        let (hull, faces) =
+            parry3d_f64::transformation::try_convex_hull(&vertices).map_err(|e| {
+                format!(
+                "mesh {} is not closed, and its points span no volume for a convex hull ({e:?})",
+                path.display()
+            )
+            })?;
+        open_meshes.push(path.clone());
+        MassProperties::from_convex_polyhedron(density, &hull, &faces)
+    };
     let mass = properties.mass();
     if mass.is_finite() && mass > 0.0 {
         Ok(properties)
@@ -223,7 +253,7 @@ mod tests {
             },
         }]);
         let mut files = MeshFiles::new(std::path::Path::new("m.urdf"), Vec::new());
-        let p = from_geometry(&b, rho, &mut files).unwrap();
+        let p = from_geometry(&b, rho, &mut files, &mut Vec::new()).unwrap();
         let m = rho * 0.2 * 0.4 * 0.6;
         assert!((p.mass() - m).abs() < 1e-9 * m);
         let i = from_matrix(&p.reconstruct_inertia_matrix());
@@ -244,7 +274,7 @@ mod tests {
                 length: h,
             },
         }]);
-        let p = from_geometry(&c, rho, &mut files).unwrap();
+        let p = from_geometry(&c, rho, &mut files, &mut Vec::new()).unwrap();
         let m = rho * std::f64::consts::PI * r * r * h;
         assert!((p.mass() - m).abs() < 1e-9 * m);
         assert!((p.local_com.x - dx).abs() < 1e-12);
@@ -300,16 +330,20 @@ mod tests {
             }])
         };
         let rho = 7850.0;
-        let p = from_geometry(&mesh("cube.obj"), rho, &mut files).unwrap();
+        let mut open_meshes = Vec::new();
+        let p = from_geometry(&mesh("cube.obj"), rho, &mut files, &mut open_meshes).unwrap();
+        assert!(open_meshes.is_empty());
         let m = rho * 0.2 * 0.4 * 0.6;
         assert!((p.mass() - m).abs() < 1e-6 * m, "{} kg", p.mass());
         assert!((p.local_com.z - 0.1).abs() < 1e-6);
         let i = from_matrix(&p.reconstruct_inertia_matrix());
         let ixx = m * (0.4f64.powi(2) + 0.6f64.powi(2)) / 12.0;
         assert!((i[(0, 0)] - ixx).abs() < 1e-5 * ixx, "{i}");
-        let e = from_geometry(&mesh("open.obj"), rho, &mut files).unwrap_err();
-        assert!(e.contains("open.obj is not closed"), "{e}");
-        let e = from_geometry(&link(Vec::new()), rho, &mut files).unwrap_err();
+        // Two faces missing: weighed by its convex hull (the whole box), and named.
+        let p = from_geometry(&mesh("open.obj"), rho, &mut files, &mut open_meshes).unwrap();
+        assert!((p.mass() - m).abs() < 1e-6 * m, "{} kg", p.mass());
+        assert!(open_meshes.len() == 1 && open_meshes[0].ends_with("open.obj"));
+        let e = from_geometry(&link(Vec::new()), rho, &mut files, &mut open_meshes).unwrap_err();
         assert_eq!(e, "it has no geometry");
     }
 }

@@ -11,6 +11,7 @@ mod mesh;
 mod mesh_path;
 mod urdf;
 mod visual;
+pub mod xacro;
 mod xml_outline;
 
 pub use drives::{
@@ -251,13 +252,19 @@ impl Machine {
     }
 
     /// Every file [`Machine::load_with_package_paths`] reads for the machine at `path`: the
-    /// URDF, its drive file, the meshes of its visuals and solids, and the `package.xml` of the
-    /// package each mesh lies in (what `package://` is resolved through). What a run needs
+    /// URDF (a xacro file with every file it includes), its drive file, the meshes of its
+    /// visuals and solids, and the `package.xml` of the package each mesh lies in (what
+    /// `package://` is resolved through). What a run needs
     /// copied to a machine that has none of them (a Ray worker).
     pub fn files(path: &Path, package_paths: &[PathBuf]) -> Result<Vec<PathBuf>, FileError> {
         let tree = load_urdf_with_package_paths(path, package_paths)?;
         let mut meshes = mesh_path::MeshFiles::new(path, package_search_roots(package_paths));
         let mut files = vec![path.to_path_buf(), DrivesFile::path_for(path)];
+        let included = if xacro::is_xacro(path) {
+            xacro::dependencies(path, &package_search_roots(package_paths))?
+        } else {
+            Vec::new()
+        };
         for link in &tree.links {
             for visual in &link.visuals {
                 if let Shape::Mesh(mesh) = &visual.shape {
@@ -281,6 +288,7 @@ impl Machine {
             })
             .collect();
         files.extend(manifests);
+        files.extend(included);
         files.sort();
         files.dedup();
         Ok(files)

@@ -14,7 +14,7 @@ use super::mesh_path::{package_search_roots, MeshFiles};
 use super::visual::visuals_from_urdf;
 use super::xml_outline::outline;
 use super::{Joint, JointKind, KinematicTree, Link, Mimic, Solid, SolidShape};
-use crate::diagnostics::{read_text, FileError, LineColumn};
+use crate::diagnostics::{FileError, LineColumn};
 use nalgebra::{Isometry3, Matrix3, Point3, Translation3, UnitQuaternion, Vector3};
 use std::path::{Path, PathBuf};
 
@@ -48,7 +48,20 @@ pub fn load_urdf_with_package_paths(
     path: &Path,
     package_paths: &[PathBuf],
 ) -> Result<KinematicTree, FileError> {
-    let text = read_text(path, "machine model (URDF)")?;
+    if super::xacro::is_xacro(path) {
+        // Expanded first; its places are those of the expansion (`machine expand` prints it).
+        let expanded = super::xacro::expand(path, &package_search_roots(package_paths))?;
+        return parse_urdf_with_package_paths(path, &expanded, package_paths).map_err(|mut e| {
+            if e.path == path && e.at.is_some() {
+                e.message += &format!(
+                    " (the place is in the xacro's expansion: `cncsim machine expand {}` prints it)",
+                    path.display()
+                );
+            }
+            e
+        });
+    }
+    let text = crate::diagnostics::read_xml_text(path, "machine model (URDF)")?;
     parse_urdf_with_package_paths(path, &text, package_paths)
 }
 
@@ -61,19 +74,20 @@ pub(crate) fn parse_urdf_with_package_paths(
     text: &str,
     package_paths: &[PathBuf],
 ) -> Result<KinematicTree, FileError> {
-    refuse_xacro(path, text)?;
+    if !super::xacro::is_xacro(path) {
+        refuse_xacro(path, text)?;
+    }
     // Bounded, located checks first: the recursive reader behind urdf-rs must never see an
     // unbounded nesting, and its messages carry no position.
     let places = outline(path, text)?;
-    // An empty `<texture/>` (exporters write one inside every material) names no file, which
-    // urdf-rs refuses; textures are not drawn, so it is read as blank space of the same length.
-    let blanked;
-    let text_for_reader = if text.contains("<texture") {
-        blanked = blank_empty_textures(text);
-        blanked.as_str()
-    } else {
-        text
-    };
+    // What urdfdom reads past (comments, repeated elements, unknown shapes), and an empty
+    // `<texture/>` (exporters write one inside every material; it names no file, which urdf-rs
+    // refuses; textures are not drawn), are read as blank space of the same length.
+    let mut blanked = blank(text, &places.ignored);
+    if blanked.contains("<texture") {
+        blanked = blank_empty_textures(&blanked);
+    }
+    let text_for_reader = blanked.as_str();
     let robot = urdf_rs::read_from_string(text_for_reader).map_err(|e| {
         FileError::new(
             path,
@@ -88,7 +102,7 @@ pub(crate) fn parse_urdf_with_package_paths(
         }
     };
     let err = |kind: &str, name: &str, msg: String| FileError::new(path, element(kind, name), msg);
-    let mut warnings = Vec::new();
+    let mut warnings = places.warnings.clone();
 
     if robot.links.is_empty() {
         return Err(FileError::new(path, None, "the URDF has no <link>"));
@@ -200,18 +214,22 @@ pub(crate) fn parse_urdf_with_package_paths(
                     )));
                 }
                 if robot.joints.iter().all(|o| o.name != m.joint) {
+                    // urdfdom loads it and nothing follows; here too, said once.
                     let names: Vec<&str> = robot.joints.iter().map(|o| o.name.as_str()).collect();
-                    return Err(e(format!(
-                        "<mimic joint=\"{}\">: no joint of that name (the joints: {})",
+                    warnings.push(e(format!(
+                        "<mimic joint=\"{}\">: no joint of that name (the joints: {}): the mimic is ignored, and joint '{}' is a joint of its own",
                         m.joint,
-                        names.join(", ")
+                        names.join(", "),
+                        j.name
                     )));
+                    None
+                } else {
+                    Some(Mimic {
+                        joint: m.joint.clone(),
+                        multiplier,
+                        offset,
+                    })
                 }
-                Some(Mimic {
-                    joint: m.joint.clone(),
-                    multiplier,
-                    offset,
-                })
             }
         };
         joints.push(Joint {
@@ -540,12 +558,30 @@ fn pose(p: &urdf_rs::Pose) -> Result<Isometry3<f64>, String> {
 fn refuse_xacro(path: &Path, text: &str) -> Result<(), FileError> {
     let comments = comment_ranges(text);
     let in_comment = |at: usize| comments.iter().any(|r| r.contains(&at));
+    // `${` counts inside a tag (an attribute), where xacro substitutes; in element text it is
+    // some plugin's own syntax (a `<gazebo>` block's `${namespace}`).
+    let in_tag = |at: usize| text[..at].rfind('<') > text[..at].rfind('>');
+    // A leftover `<xacro:property>` or `<xacro:arg>` changes nothing where no `${` uses it
+    // (urdfdom reads past it); a macro, an include or a condition would.
+    let xacro_element = |at: usize| {
+        let name = &text[at + "<xacro:".len()..];
+        !["property", "arg"].iter().any(|kept| {
+            name.starts_with(kept) && !name[kept.len()..].starts_with(char::is_alphanumeric)
+        })
+    };
     let marker = ["<xacro:", "${"]
         .iter()
         .filter_map(|m| {
             text.match_indices(m)
                 .map(|(at, _)| at)
-                .find(|&at| !in_comment(at))
+                .find(|&at| {
+                    !in_comment(at)
+                        && if *m == "${" {
+                            in_tag(at)
+                        } else {
+                            xacro_element(at)
+                        }
+                })
                 .map(|at| (at, *m))
         })
         .min();
@@ -565,9 +601,10 @@ fn refuse_xacro(path: &Path, text: &str) -> Result<(), FileError> {
         text,
         offset,
         format!(
-            "this is a xacro file (found `{found}`), not URDF: expand it first with \
-             `xacro {name} > {stem}.urdf` (`pip install xacro`; pass its arguments as name:=value), \
-             then give cncsim the .urdf"
+            "this is a xacro file (found `{found}`), not URDF: name it {stem}.urdf.xacro and \
+             cncsim expands it (with the xacro Python package: `pip install xacro`, no ROS \
+             needed), or expand it yourself with `xacro {name} > {stem}_expanded.urdf` and \
+             give cncsim that file"
         ),
     ))
 }
@@ -595,6 +632,20 @@ fn blank_empty_textures(text: &str) -> String {
         from = end.min(out.len());
     }
     out
+}
+
+/// `text` with the bytes of `ranges` as spaces (line ends kept, so places stay the same).
+fn blank(text: &str, ranges: &[std::ops::Range<usize>]) -> String {
+    let mut bytes = text.as_bytes().to_vec();
+    for range in ranges {
+        for b in &mut bytes[range.clone()] {
+            if *b != b'\n' && *b != b'\r' {
+                *b = b' ';
+            }
+        }
+    }
+    // Ranges start at a `<` and end after a `>`: whole characters become spaces.
+    String::from_utf8(bytes).expect("whole characters were replaced")
 }
 
 /// Byte ranges of the XML comments in `text`.

@@ -26,6 +26,138 @@ pub struct UrdfOutline {
     pub joints: BTreeMap<String, LineColumn>,
     /// The joints whose `<limit>` gives `lower` or `upper` (urdf-rs reads missing ones as 0).
     pub bounded: std::collections::BTreeSet<String>,
+    /// Byte ranges the URDF reader is not to see, as urdfdom does not: comments (urdfdom
+    /// reads `--` in them), repeated elements after the first, an unknown shape's visual or
+    /// collision, a material with neither name nor colour.
+    pub ignored: Vec<std::ops::Range<usize>>,
+    /// What was ignored or is not URDF, located: one warning per kind of element or attribute.
+    pub warnings: Vec<FileError>,
+}
+
+/// The children an element may have once (urdfdom reads the first and ignores the others).
+const SINGLE_CHILDREN: &[(&str, &[&str])] = &[
+    (
+        "joint",
+        &[
+            "origin",
+            "parent",
+            "child",
+            "axis",
+            "limit",
+            "dynamics",
+            "mimic",
+            "safety_controller",
+            "calibration",
+        ],
+    ),
+    ("link", &["inertial"]),
+    ("inertial", &["origin", "mass", "inertia"]),
+    ("visual", &["origin", "geometry", "material"]),
+    ("collision", &["origin", "geometry"]),
+    ("material", &["color", "texture"]),
+];
+
+/// The elements of URDF, by parent, with the common extensions (Gazebo's, ros2_control's,
+/// URDF's `<sensor>`, Bullet's `<contact>`, PR2's `<self_collision_checking>`), whose
+/// contents are not checked.
+const KNOWN_CHILDREN: &[(&str, &[&str])] = &[
+    (
+        "robot",
+        &[
+            "link",
+            "joint",
+            "material",
+            "gazebo",
+            "transmission",
+            "ros2_control",
+            "sensor",
+        ],
+    ),
+    (
+        "link",
+        &[
+            "inertial",
+            "visual",
+            "collision",
+            "gazebo",
+            "contact",
+            "self_collision_checking",
+        ],
+    ),
+    ("geometry", SHAPES),
+];
+
+/// The shapes a `<geometry>` may hold (urdf-rs reads capsules too).
+const SHAPES: &[&str] = &["box", "cylinder", "sphere", "mesh", "capsule"];
+
+/// The attributes of URDF's elements.
+const KNOWN_ATTRIBUTES: &[(&str, &[&str])] = &[
+    ("robot", &["name", "version"]),
+    ("link", &["name", "type"]),
+    ("joint", &["name", "type"]),
+    ("origin", &["xyz", "rpy"]),
+    ("parent", &["link"]),
+    ("child", &["link"]),
+    ("axis", &["xyz"]),
+    ("limit", &["lower", "upper", "effort", "velocity"]),
+    ("dynamics", &["damping", "friction"]),
+    ("mimic", &["joint", "multiplier", "offset"]),
+    (
+        "safety_controller",
+        &[
+            "soft_lower_limit",
+            "soft_upper_limit",
+            "k_position",
+            "k_velocity",
+        ],
+    ),
+    ("calibration", &["rising", "falling", "reference_position"]),
+    ("mass", &["value"]),
+    ("inertia", &["ixx", "ixy", "ixz", "iyy", "iyz", "izz"]),
+    ("visual", &["name"]),
+    ("collision", &["name"]),
+    ("box", &["size"]),
+    ("cylinder", &["radius", "length"]),
+    ("sphere", &["radius"]),
+    ("capsule", &["radius", "length"]),
+    ("mesh", &["filename", "scale"]),
+    ("material", &["name"]),
+    ("color", &["rgba"]),
+    ("texture", &["filename"]),
+];
+
+fn listed<'a>(table: &[(&str, &'a [&'a str])], key: &str) -> Option<&'a [&'a str]> {
+    table.iter().find(|(k, _)| *k == key).map(|(_, v)| *v)
+}
+
+/// Warnings given once per kind (the first place, and how many more there were).
+#[derive(Default)]
+struct OncePerKind {
+    seen: BTreeMap<String, (LineColumn, String, usize)>,
+}
+
+impl OncePerKind {
+    fn note(&mut self, kind: String, at: LineColumn, message: String) {
+        self.seen
+            .entry(kind)
+            .and_modify(|(_, _, more)| *more += 1)
+            .or_insert((at, message, 0));
+    }
+
+    fn into_warnings(self, path: &Path) -> Vec<FileError> {
+        let mut found: Vec<_> = self.seen.into_values().collect();
+        found.sort_by_key(|(at, _, _)| (at.line, at.column));
+        found
+            .into_iter()
+            .map(|(at, message, more)| {
+                let more = match more {
+                    0 => String::new(),
+                    n => format!(" ({n} more like it)"),
+                };
+                FileError::new(path, Some(at), format!("{message}{more}"))
+            })
+            .collect()
+    }
 }
 
 /// Attributes whose value is a list of numbers, with the count URDF gives them.
@@ -68,11 +200,44 @@ const JOINT_TYPES: &[&str] = &[
 struct Open {
     name: String,
     at: LineColumn,
-    /// For `<joint>`: whether `<parent>` and `<child>` were seen.
-    parent: bool,
-    child: bool,
+    /// Byte offset of its `<`.
+    start: usize,
     /// `name` attribute, where there is one.
     label: Option<String>,
+    /// The names of the children seen so far.
+    children: Vec<String>,
+    /// Whether the reader is not to see it (and so nothing inside it).
+    ignored: bool,
+    /// Inside an extension (`<gazebo>`, …): its contents are not URDF's.
+    extension: bool,
+}
+
+impl Open {
+    /// An element that opened at byte `start` (place `at`).
+    fn new(name: String, at: LineColumn, start: u64) -> Open {
+        Open {
+            name,
+            at,
+            start: start as usize,
+            label: None,
+            children: Vec::new(),
+            ignored: false,
+            extension: false,
+        }
+    }
+}
+
+/// Leaves `element` out of what the URDF reader sees: an empty one (ending at `end`) at once,
+/// an open one, with all it holds, when it closes.
+fn leave_out(element: Open, empty: bool, end: u64, stack: &mut Vec<Open>, out: &mut UrdfOutline) {
+    if empty {
+        out.ignored.push(element.start..end as usize);
+    } else {
+        stack.push(Open {
+            ignored: true,
+            ..element
+        });
+    }
 }
 
 /// Checks `text` (the contents of `path`) and returns where its links and joints are.
@@ -83,6 +248,7 @@ pub fn outline(path: &Path, text: &str) -> Result<UrdfOutline, FileError> {
     let mut out = UrdfOutline::default();
     let mut elements = 0usize;
     let mut seen_root = false;
+    let mut notes = OncePerKind::default();
     loop {
         let start_offset = reader.buffer_position();
         let event = reader.read_event().map_err(|e| {
@@ -103,10 +269,38 @@ pub fn outline(path: &Path, text: &str) -> Result<UrdfOutline, FileError> {
                         "a closing tag without an opening one",
                     ));
                 };
+                let inside_ignored = stack.iter().any(|o| o.ignored);
+                let has = |child: &str| open.children.iter().any(|c| c == child);
+                if !open.ignored && !open.extension && !inside_ignored {
+                    match open.name.as_str() {
+                        "visual" | "collision" if !has("geometry") => {
+                            // urdfdom drops it (with an error in its log); it shows nothing.
+                            notes.note(
+                                format!("no geometry {}", open.name),
+                                open.at,
+                                format!("<{}> without <geometry>: ignored", open.name),
+                            );
+                            out.ignored
+                                .push(open.start..reader.buffer_position() as usize);
+                        }
+                        "inertial" if !(has("mass") && has("inertia")) => {
+                            return Err(FileError::new(
+                                path,
+                                Some(open.at),
+                                "<inertial> without both <mass value=\"…\"/> and <inertia ixx=\"…\" …/>: give both, or leave the <inertial> out",
+                            ));
+                        }
+                        _ => {}
+                    }
+                }
+                if open.ignored {
+                    out.ignored
+                        .push(open.start..reader.buffer_position() as usize);
+                }
                 if open.name == "joint" && stack.len() == 1 {
                     let j = open.label.unwrap_or_default();
-                    for (seen, what) in [(open.parent, "parent"), (open.child, "child")] {
-                        if !seen {
+                    for what in ["parent", "child"] {
+                        if !open.children.iter().any(|c| c == what) {
                             return Err(FileError::new(
                                 path,
                                 Some(open.at),
@@ -115,6 +309,19 @@ pub fn outline(path: &Path, text: &str) -> Result<UrdfOutline, FileError> {
                         }
                     }
                 }
+                continue;
+            }
+            Event::Comment(c) => {
+                // urdfdom reads any comment (`--` inside too); the URDF reader never sees them.
+                if c.windows(2).any(|w| w == b"--") || c.ends_with(b"-") {
+                    notes.note(
+                        "comment --".into(),
+                        at(start_offset),
+                        "a comment holds `--`, which XML does not allow in one: read as a comment, as urdfdom (ROS, RViz, Gazebo) does".into(),
+                    );
+                }
+                out.ignored
+                    .push(start_offset as usize..reader.buffer_position() as usize);
                 continue;
             }
             Event::Eof => break,
@@ -143,20 +350,155 @@ pub fn outline(path: &Path, text: &str) -> Result<UrdfOutline, FileError> {
         let attributes = attributes(path, &e, here)?;
         let fail = |m: String| FileError::new(path, Some(here), m);
         if stack.is_empty() {
-            if seen_root {
-                return Err(fail(format!(
-                    "a second top-level element <{name}>: a URDF has one <robot>"
-                )));
+            if seen_root && name == "robot" {
+                return Err(fail(
+                    "a second <robot>: a URDF describes one robot".to_string(),
+                ));
+            }
+            if name != "robot" {
+                // urdfdom looks for the <robot> and passes over anything beside it.
+                notes.note(
+                    format!("top-level {name}"),
+                    here,
+                    format!("<{name}> beside the <robot> element: ignored, as urdfdom does"),
+                );
+                let end = reader.buffer_position();
+                leave_out(
+                    Open::new(name, here, start_offset),
+                    empty,
+                    end,
+                    &mut stack,
+                    &mut out,
+                );
+                continue;
             }
             seen_root = true;
-            if name != "robot" {
-                return Err(fail(format!(
-                    "expected the root element <robot>, found <{name}>"
-                )));
+        }
+        let parent = stack.last().map(|o| o.name.clone());
+        let extension = stack.last().is_some_and(|o| {
+            o.extension
+                || [
+                    "gazebo",
+                    "transmission",
+                    "ros2_control",
+                    "sensor",
+                    "contact",
+                    "self_collision_checking",
+                ]
+                .contains(&o.name.as_str())
+        });
+        let inside_ignored = stack.iter().any(|o| o.ignored);
+        let mut ignored = false;
+        if let (Some(p), false, false) = (&parent, extension, inside_ignored) {
+            let siblings = &stack.last().expect("a parent is open").children;
+            let repeated = siblings.contains(&name)
+                && listed(SINGLE_CHILDREN, p).is_some_and(|c| c.contains(&name.as_str()));
+            if repeated || p == "geometry" && !siblings.is_empty() {
+                ignored = true;
+                notes.note(
+                    format!("second {p}/{name}"),
+                    here,
+                    format!("a second <{name}> in <{p}>: the first is read and this one ignored, as urdfdom (ROS, RViz, Gazebo) does"),
+                );
+            } else if p == "geometry" && !SHAPES.contains(&name.as_str()) {
+                // urdfdom drops a visual or collision whose shape it does not know.
+                if let Some(holder) = stack.iter_mut().rev().nth(1) {
+                    holder.ignored = true;
+                }
+                notes.note(
+                    format!("shape {name}"),
+                    here,
+                    format!("<geometry> holds <{name}>, which is not a URDF shape (box, cylinder, sphere, mesh): its <visual> or <collision> is ignored, as urdfdom does"),
+                );
+            } else if listed(KNOWN_CHILDREN, p).is_some_and(|known| !known.contains(&name.as_str()))
+            {
+                notes.note(
+                    format!("element {p}/{name}"),
+                    here,
+                    format!("<{name}> in <{p}> is not a URDF element: ignored"),
+                );
+            }
+            let open = stack.last_mut().expect("a parent is open");
+            open.children.push(name.clone());
+        }
+        // A material with neither a name nor a colour (an exporter's empty `<material/>`)
+        // says nothing; urdfdom ignores it.
+        if name == "material" && empty && attributes.get("name").is_none_or(|n| n.is_empty()) {
+            ignored = true;
+        }
+        if empty && !inside_ignored && !extension {
+            match name.as_str() {
+                "visual" | "collision" => {
+                    ignored = true;
+                    notes.note(
+                        format!("no geometry {name}"),
+                        here,
+                        format!("<{name}> without <geometry>: ignored"),
+                    );
+                }
+                "inertial" => {
+                    return Err(fail("<inertial> without both <mass value=\"…\"/> and <inertia ixx=\"…\" …/>: give both, or leave the <inertial> out".into()));
+                }
+                _ => {}
+            }
+        }
+        if ignored || inside_ignored || extension {
+            let element = Open {
+                extension,
+                ..Open::new(name, here, start_offset)
+            };
+            if ignored {
+                let end = reader.buffer_position();
+                leave_out(element, empty, end, &mut stack, &mut out);
+            } else if !empty {
+                stack.push(element);
+            }
+            continue;
+        }
+        if let Some(known) = listed(KNOWN_ATTRIBUTES, &name) {
+            for key in attributes.keys() {
+                if !known.contains(&key.as_str()) && !key.contains(':') {
+                    notes.note(
+                        format!("attribute {name}/{key}"),
+                        here,
+                        format!("<{name} {key}=…>: not a URDF attribute: ignored"),
+                    );
+                }
+            }
+        }
+        if name == "color" {
+            if let Err(why) = check_numbers(&name, &attributes) {
+                // A colour only paints: urdfdom reads past a bad one, and so does cncsim.
+                notes.note(
+                    "color rgba".into(),
+                    here,
+                    format!("{why}: the colour is ignored"),
+                );
+                let end = reader.buffer_position();
+                leave_out(
+                    Open::new(name, here, start_offset),
+                    empty,
+                    end,
+                    &mut stack,
+                    &mut out,
+                );
+                continue;
             }
         }
         check_numbers(&name, &attributes).map_err(&fail)?;
-        let parent = stack.last().map(|o| o.name.as_str());
+        if name == "inertia" {
+            let missing: Vec<&str> = ["ixx", "ixy", "ixz", "iyy", "iyz", "izz"]
+                .into_iter()
+                .filter(|k| !attributes.contains_key(*k))
+                .collect();
+            if !missing.is_empty() {
+                return Err(fail(format!(
+                    "<inertia> without {}: expected all six of ixx, ixy, ixz, iyy, iyz, izz (kg·m²)",
+                    missing.join(", ")
+                )));
+            }
+        }
+        let parent = parent.as_deref();
         let in_robot = stack.len() == 1;
         let label = attributes.get("name").cloned();
         match (name.as_str(), parent) {
@@ -195,30 +537,18 @@ pub fn outline(path: &Path, text: &str) -> Result<UrdfOutline, FileError> {
                 out.bounded.insert(joint.label.clone().unwrap_or_default());
             }
             ("parent" | "child", Some("joint")) => {
-                let joint = stack.last_mut().expect("parent is the joint");
+                let joint = stack.last().expect("parent is the joint");
                 let j = joint.label.clone().unwrap_or_default();
                 if attributes.get("link").is_none_or(|l| l.is_empty()) {
                     return Err(fail(format!("joint '{j}': <{name}> has no link attribute")));
                 }
-                let seen = if name == "parent" {
-                    &mut joint.parent
-                } else {
-                    &mut joint.child
-                };
-                if *seen {
-                    return Err(fail(format!("joint '{j}' has a second <{name}>")));
-                }
-                *seen = true;
             }
             _ => {}
         }
         if !empty {
             stack.push(Open {
-                name,
-                at: here,
-                parent: false,
-                child: false,
                 label,
+                ..Open::new(name, here, start_offset)
             });
         } else if name == "joint" && in_robot {
             return Err(fail(format!(
@@ -244,6 +574,7 @@ pub fn outline(path: &Path, text: &str) -> Result<UrdfOutline, FileError> {
             "no <robot> element: the file is empty or not a URDF",
         ));
     }
+    out.warnings = notes.into_warnings(path);
     Ok(out)
 }
 

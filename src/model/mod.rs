@@ -64,9 +64,10 @@ pub enum ModelError {
     /// `solver_iterations` is zero.
     #[error("solver_iterations must be at least 1")]
     SolverIterations,
-    /// A link that moves has no mass (named).
-    #[error("link '{0}' moves but has no mass; give it an <inertial> with a positive mass")]
-    MasslessMovingLink(String),
+    /// A massless moving body on a chain whose mass matrix is singular (the dynamics model's
+    /// reason).
+    #[error("{0}; give the massless links an <inertial> with a positive mass")]
+    SingularMass(String),
     /// Rapier would not add the named joint to the multibody (it would close a kinematic loop).
     #[error("Rapier refused joint '{0}' (it would close a loop)")]
     Joint(String),
@@ -338,17 +339,23 @@ impl Plant {
         // joints at zero); the multibody places them.
         let home = home_poses(machine);
         let groups = RigidGroups::of(machine);
+        let masses = groups.mass_properties(machine);
+        // A massless body is fine in the multibody's reduced coordinates (a frame between two
+        // slides), as long as the mass matrix is not singular: the dynamics model checks it.
+        let massless = masses
+            .iter()
+            .enumerate()
+            .any(|(i, m)| i != machine.root && m.is_some_and(|m| m.mass() <= 0.0));
+        if massless {
+            crate::dynamics::DynamicsModel::from_machine(machine, Vector3::zeros())
+                .map_err(|e| ModelError::SingularMass(e.to_string()))?;
+        }
         let mut group_bodies = vec![None; machine.links.len()];
-        for (i, mass) in groups.mass_properties(machine).into_iter().enumerate() {
+        for (i, mass) in masses.into_iter().enumerate() {
             let Some(mass) = mass else { continue };
             let body = if i == machine.root {
                 RigidBodyBuilder::fixed()
             } else {
-                if mass.mass() <= 0.0 {
-                    return Err(ModelError::MasslessMovingLink(
-                        machine.links[i].name.clone(),
-                    ));
-                }
                 // Machine axes creep at micrometres per second; they must never sleep.
                 RigidBodyBuilder::dynamic()
                     .additional_mass_properties(mass)

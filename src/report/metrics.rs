@@ -198,7 +198,8 @@ impl Exceedance {
     /// Counts a tick at `time` where `measured` exceeds `explained` beyond the slack.
     fn observe(&mut self, time: f64, measured: f64, explained: f64) {
         let limit = explained * (1.0 + EXPLAINED_SLACK_SHARE) + EXPLAINED_SLACK_M;
-        if !(measured > limit) {
+        // A tick without a figure (no path point near) shows nothing either way.
+        if measured.is_nan() || limit.is_nan() || measured <= limit {
             return;
         }
         self.first_time.get_or_insert(time);

@@ -333,8 +333,8 @@ pub fn drive_file_template(urdf: &Path) -> Result<String, FileError> {
             ),
         ));
     }
-    let urdf_text =
-        std::fs::read_to_string(urdf).map_err(|e| FileError::new(urdf, None, e.to_string()))?;
+    // The text the tree was read from (a xacro file's expansion).
+    let urdf_text = tree.text.clone();
     // Masses from geometry only where the URDF leaves a moving body without any.
     let mut density = false;
     let mut text = render(&tree, urdf, &guess, None, density);

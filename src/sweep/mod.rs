@@ -82,7 +82,8 @@ pub fn machine_with(urdf: &Path, changes: &[&MachineOverride]) -> Result<Machine
         return Machine::load(urdf);
     }
     let drives_path = crate::machine::DrivesFile::path_for(urdf);
-    let urdf_text = crate::diagnostics::read_text(urdf, "machine model (URDF)")?;
+    // The text as the loader reads it (a xacro file expanded).
+    let urdf_text = crate::machine::load_urdf(urdf)?.text;
     let drives_text = crate::diagnostics::read_text(&drives_path, "drive data")?;
     let drives: Vec<Override> = changes
         .iter()
@@ -161,6 +162,13 @@ pub fn machine_edits(
         })
         .collect();
     if !masses.is_empty() {
+        if crate::machine::xacro::is_xacro(urdf) {
+            return Err(FileError::new(
+                urdf,
+                None,
+                "link masses are written into a URDF, not into a xacro file (its masses may be macro arguments or expressions): write them into the xacro by hand",
+            ));
+        }
         let mut text = crate::diagnostics::read_text(urdf, "machine model (URDF)")?;
         for (link, mass) in masses {
             text = set_link_mass(&text, link, mass).map_err(|m| FileError::new(urdf, None, m))?;

@@ -507,3 +507,20 @@ pub fn shared_corpus(relative: &str) -> Option<std::path::PathBuf> {
     );
     None
 }
+
+/// Every `*.urdf` under `dir`, depth first, in name order.
+pub fn urdfs(dir: &std::path::Path, out: &mut Vec<std::path::PathBuf>) {
+    let mut entries: Vec<std::path::PathBuf> = std::fs::read_dir(dir)
+        .unwrap()
+        .flatten()
+        .map(|e| e.path())
+        .collect();
+    entries.sort();
+    for p in entries {
+        if p.is_dir() {
+            urdfs(&p, out);
+        } else if p.extension().is_some_and(|e| e == "urdf") {
+            out.push(p);
+        }
+    }
+}

@@ -244,6 +244,46 @@ fn rejects_trees_without_dynamics() {
         "{err}"
     );
 
+    // A massless frame between two slides with a carriage beyond: the mass matrix is positive
+    // definite, the model builds (reduced coordinates need no mass on every body) …
+    let slides = |second_axis: Vector3<f64>| {
+        tree(
+            vec![
+                base_link(),
+                base_link_named("frame"),
+                link("carriage", 2.0, [0.0; 3], Matrix3::identity() * 0.01),
+            ],
+            vec![
+                joint(
+                    "X",
+                    JointKind::Prismatic,
+                    0,
+                    1,
+                    pose([0.0; 3], [0.0; 3]),
+                    Vector3::x(),
+                ),
+                joint(
+                    "Y",
+                    JointKind::Prismatic,
+                    1,
+                    2,
+                    pose([0.0; 3], [0.0; 3]),
+                    second_axis,
+                ),
+            ],
+        )
+    };
+    let model = DynamicsModel::new(&slides(Vector3::y()), GRAVITY).unwrap();
+    let mut mass = nalgebra::DMatrix::zeros(2, 2);
+    model.mass_matrix(&mut model.workspace(), &[0.0, 0.0], &mut mass);
+    assert!((mass - nalgebra::DMatrix::identity(2, 2) * 2.0).norm() < 1e-12);
+    // … but two slides along one line with nothing between them are one coordinate too many.
+    let err = DynamicsModel::new(&slides(Vector3::x()), GRAVITY).unwrap_err();
+    assert!(
+        matches!(err, DynamicsError::MasslessBody { ref joint, .. } if joint == "X"),
+        "{err}"
+    );
+
     let mut not_pd = fixed_only.clone();
     not_pd.joints[0].kind = JointKind::Revolute;
     not_pd.links[1].inertia = Matrix3::from_diagonal(&Vector3::new(1.0, 1.0, -0.1));
