@@ -236,6 +236,30 @@ fn check_passes_on_every_bundled_scenario() {
         stdout.contains(&format!("{runnable} passed, 0 failed, {planning} skipped")),
         "{stdout}"
     );
+    // Their figures agree with each other: no run reports inconsistent figures.
+    let mut metrics = Vec::new();
+    let mut folders = vec![out_dir.path().to_path_buf()];
+    while let Some(folder) = folders.pop() {
+        for entry in std::fs::read_dir(folder).unwrap() {
+            let path = entry.unwrap().path();
+            if path.is_dir() {
+                folders.push(path);
+            } else if path.file_name().is_some_and(|n| n == "metrics.json") {
+                metrics.push(path);
+            }
+        }
+    }
+    assert!(metrics.len() >= runnable, "{metrics:?}");
+    for path in metrics {
+        let json: serde_json::Value =
+            serde_json::from_str(&std::fs::read_to_string(&path).unwrap()).unwrap();
+        assert!(
+            json.get("inconsistent_figures").is_none(),
+            "{}: {}",
+            path.display(),
+            json["inconsistent_figures"]
+        );
+    }
 }
 
 /// A bound that the run cannot meet makes `check` fail, naming the bound's line.

@@ -280,7 +280,7 @@ pub fn dispatch(command: Option<Command>, interrupted: &AtomicBool) -> Result<Sh
                 .transpose()?;
             let (_, jobs) = cncsim::sweep::run_sweep(&sweep, Path::new("."), shard);
             // The sweep file first: a worker is told where it lies among the others.
-            let mut files = vec![std::fs::canonicalize(&sweep.path).unwrap_or(sweep.path)];
+            let mut files = vec![cncsim::sweep::runner::absolute_as_named(&sweep.path)];
             files.extend(cncsim::sweep::input_files(&jobs)?);
             text(Box::new(InputFiles(files)))
         }

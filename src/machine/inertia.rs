@@ -86,17 +86,17 @@ pub(super) fn complete(
             "Give each an <inertial> with a positive mass, or add `inertia_from_geometry = {{ density_kg_m3 = 2700.0 }}` to {} to compute them from their geometry",
             drives_path.display()
         ),
-        Some(_) => "Give each an <inertial> with a positive mass, or a closed collision geometry".into(),
+        Some(_) => "Give each an <inertial> with a positive mass, or collision geometry with a volume".into(),
     };
     Err(FileError::new(
         &tree.path,
         tree.links[first].place,
         format!(
-            "{} moving link{} {} no mass (less than {MIN_BODY_MASS_KG:?} kg with every link {} carries), and the physics cannot move a massless body: {}. {remedy}",
+            "{} moving link{} {} no mass (less than {MIN_BODY_MASS_KG:?} kg with every link {}), and the physics cannot move a massless body: {}. {remedy}",
             massless.len(),
             if massless.len() == 1 { "" } else { "s" },
             if massless.len() == 1 { "has" } else { "have" },
-            if massless.len() == 1 { "it" } else { "them" },
+            if massless.len() == 1 { "it carries" } else { "they carry" },
             names.join(", ")
         ),
     ))

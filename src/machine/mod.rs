@@ -278,17 +278,20 @@ impl Machine {
                 }
             }
         }
-        let manifests: Vec<PathBuf> = files[2..]
+        files.extend(included);
+        // The package each file lies in: what `package://` and `$(find …)` are resolved by.
+        let manifests: Vec<PathBuf> = files
             .iter()
-            .filter_map(|mesh| {
-                mesh.ancestors()
+            .filter_map(|file| {
+                file.ancestors()
                     .skip(1)
                     .map(|dir| dir.join("package.xml"))
                     .find(|manifest| manifest.is_file())
             })
             .collect();
         files.extend(manifests);
-        files.extend(included);
+        // A drive file not written yet is not read.
+        files.retain(|f| f.is_file());
         files.sort();
         files.dedup();
         Ok(files)

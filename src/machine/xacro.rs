@@ -73,7 +73,17 @@ pub fn dependencies(path: &Path, roots: &[PathBuf]) -> Result<Vec<PathBuf>, File
 /// Runs xacro with `options` on `path`; returns what it writes.
 fn run_xacro(path: &Path, roots: &[PathBuf], options: &[&str]) -> Result<String, FileError> {
     let fail = |m: String| FileError::new(path, None, m);
-    let shim = std::env::temp_dir().join(format!("cncsim-xacro-{}", std::process::id()));
+    // A folder of this call's own (runs of a sweep load their machines in parallel), removed
+    // when it is dropped.
+    let folder = tempfile::Builder::new()
+        .prefix("cncsim-xacro-")
+        .tempdir()
+        .map_err(|e| {
+            fail(format!(
+                "cannot expand the xacro file: a temporary folder: {e}"
+            ))
+        })?;
+    let shim = folder.path().to_path_buf();
     let package = shim.join("ament_index_python");
     std::fs::create_dir_all(&package)
         .and_then(|()| std::fs::write(package.join("__init__.py"), ""))
@@ -111,7 +121,7 @@ fn run_xacro(path: &Path, roots: &[PathBuf], options: &[&str]) -> Result<String,
         .env("CNCSIM_PACKAGES_ABOVE", above)
         .env("CNCSIM_PACKAGE_ROOTS", roots)
         .output();
-    let _ = std::fs::remove_dir_all(&shim);
+    drop(folder);
     let by_hand = format!(
         "`pip install xacro` (no ROS needed) and run again; `cncsim machine expand {} > FILE.urdf` then writes the expansion, and `--package-path DIR` finds a package `$(find …)` names elsewhere",
         path.display()

@@ -297,7 +297,7 @@ pub fn outline(path: &Path, text: &str) -> Result<UrdfOutline, FileError> {
                     out.ignored
                         .push(open.start..reader.buffer_position() as usize);
                 }
-                if open.name == "joint" && stack.len() == 1 {
+                if open.name == "joint" && stack.len() == 1 && !inside_ignored && !open.ignored {
                     let j = open.label.unwrap_or_default();
                     for what in ["parent", "child"] {
                         if !open.children.iter().any(|c| c == what) {
@@ -402,7 +402,12 @@ pub fn outline(path: &Path, text: &str) -> Result<UrdfOutline, FileError> {
                 );
             } else if p == "geometry" && !SHAPES.contains(&name.as_str()) {
                 // urdfdom drops a visual or collision whose shape it does not know.
-                if let Some(holder) = stack.iter_mut().rev().nth(1) {
+                if let Some(holder) = stack
+                    .iter_mut()
+                    .rev()
+                    .nth(1)
+                    .filter(|h| h.name == "visual" || h.name == "collision")
+                {
                     holder.ignored = true;
                 }
                 notes.note(

@@ -830,19 +830,25 @@ fn evaluate(
     if let Some(earlier) = log.recall(&values) {
         return earlier;
     }
-    let evaluation = run_candidate(cal, scenarios, values, scratch, interrupted);
-    log.keep(&evaluation);
+    let (evaluation, cut_short) = run_candidate(cal, scenarios, values, scratch, interrupted);
+    // A candidate an interruption cut short anywhere, or whose runs could not start (a cause
+    // outside the log's digest may go away), is run again by a resume.
+    let cannot_start = matches!(evaluation.failure, Some(Failure::CannotStart(_)));
+    if !cut_short && !cannot_start {
+        log.keep(&evaluation);
+    }
     evaluation
 }
 
-/// Runs one candidate (see [`evaluate`]).
+/// Runs one candidate (see [`evaluate`]); says whether an interruption cut any of its runs
+/// short.
 fn run_candidate(
     cal: &Calibration,
     scenarios: &[PathBuf],
     values: Vec<f64>,
     scratch: &Path,
     interrupted: &AtomicBool,
-) -> Evaluation {
+) -> (Evaluation, bool) {
     let changes = cal.changes(&values);
     let jobs: Vec<Job> = scenarios
         .iter()
@@ -862,6 +868,10 @@ fn run_candidate(
         })
         .collect();
     let (results, _) = execute(&jobs, 1, interrupted, &Progress::default(), &|_| {});
+    let cut_short = results.len() < jobs.len()
+        || results
+            .iter()
+            .any(|r| matches!(r.stopped, Some(Stop::Interrupted { .. })));
     // A run that cannot start is the spec's fault: it is named before any other failure.
     let mut failure = results
         .iter()
@@ -920,14 +930,15 @@ fn run_candidate(
         out.push(value);
     }
     let _ = std::fs::remove_dir_all(scratch);
-    Evaluation {
+    let evaluation = Evaluation {
         index: 0,
         generation: 0,
         values,
         results: out,
         cost,
         failure,
-    }
+    };
+    (evaluation, cut_short)
 }
 
 /// Runs the calibration: generations of `population` candidates until `max_evaluations` (or an

@@ -318,10 +318,21 @@ pub fn input_files(jobs: &[Job]) -> Result<Vec<PathBuf>, FileError> {
     }
     Ok(files
         .into_iter()
-        .map(|f| std::fs::canonicalize(&f).unwrap_or(f))
+        .map(|f| absolute_as_named(&f))
         .collect::<std::collections::BTreeSet<_>>()
         .into_iter()
         .collect())
+}
+
+/// `file` made absolute with its folder's links resolved but its own name kept: cncsim opens
+/// it by that name, which may be a link (a `colcon --symlink-install` tree).
+pub fn absolute_as_named(file: &std::path::Path) -> PathBuf {
+    let absolute = std::path::absolute(file).unwrap_or_else(|_| file.to_path_buf());
+    match (absolute.parent(), absolute.file_name()) {
+        (Some(folder), Some(name)) => std::fs::canonicalize(folder)
+            .map_or_else(|_| absolute.clone(), |folder| folder.join(name)),
+        _ => absolute,
+    }
 }
 
 /// The jobs of a sweep's runs (those of shard `shard` = (K, N): every N-th from the K-th),

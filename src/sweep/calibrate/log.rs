@@ -60,6 +60,8 @@ pub struct EvaluationLog {
     earlier: HashMap<Vec<u64>, Line>,
     /// Candidates answered from `earlier` so far.
     recalled: AtomicUsize,
+    /// A write failed: nothing more is appended (a half line would make the log unreadable).
+    broken: std::sync::atomic::AtomicBool,
 }
 
 impl EvaluationLog {
@@ -140,6 +142,7 @@ impl EvaluationLog {
             file: Mutex::new(file),
             earlier,
             recalled: AtomicUsize::new(0),
+            broken: std::sync::atomic::AtomicBool::new(false),
         })
     }
 
@@ -167,11 +170,12 @@ impl EvaluationLog {
         })
     }
 
-    /// Logs an evaluation as one whole line (not one an interruption cut short: a resume runs
-    /// that candidate again). A failed write is warned once per calibration and not fatal: the
-    /// search goes on, only a resume would run the candidate again.
+    /// Logs an evaluation as one whole line. A failed write is warned once and ends the log
+    /// there (a resume runs the later candidates again); the search goes on.
     pub(super) fn keep(&self, e: &Evaluation) {
-        if e.failure.as_ref().is_some_and(Failure::interrupted) {
+        if e.failure.as_ref().is_some_and(Failure::interrupted)
+            || self.broken.load(Ordering::Relaxed)
+        {
             return;
         }
         let line = Line {
@@ -184,25 +188,45 @@ impl EvaluationLog {
         text.push('\n');
         let mut file = self.file.lock().expect("no panics while held");
         if let Err(error) = file.write_all(text.as_bytes()) {
-            eprintln!(
-                "warning: {}: cannot log an evaluation ({error}); a resumed calibration runs it again",
-                self.path.display()
-            );
+            if !self.broken.swap(true, Ordering::Relaxed) {
+                eprintln!(
+                    "warning: {}: cannot log an evaluation ({error}); the log ends here, and a resumed calibration runs the later candidates again",
+                    self.path.display()
+                );
+            }
         }
     }
 }
 
-/// The log's first line: the calibration's name and the digest of its inputs.
+/// The log's first line: the calibration's name and the digest of its inputs: the spec, its
+/// measured traces, every file its target scenarios' runs read (scenarios, machines, programs
+/// …), and cncsim's version.
 fn header_line(cal: &Calibration) -> Result<String, FileError> {
     use sha2::{Digest, Sha256};
     let mut files = vec![cal.path.clone()];
-    files.extend(cal.target_scenarios());
     for t in &cal.targets {
         if let super::Target::Trace { trace, .. } = t {
             files.push(trace.clone());
         }
     }
+    let runs: Vec<super::Job> = cal
+        .target_scenarios()
+        .into_iter()
+        .enumerate()
+        .map(|(index, scenario)| super::Job {
+            index,
+            scenario,
+            changes: Vec::new(),
+            out_dir: PathBuf::new(),
+            recordings: false,
+            csv: false,
+            timeout: None,
+            record: false,
+        })
+        .collect();
+    files.extend(crate::sweep::input_files(&runs)?);
     let mut hash = Sha256::new();
+    hash.update(env!("CARGO_PKG_VERSION").as_bytes());
     for file in &files {
         let bytes = std::fs::read(file)
             .map_err(|e| FileError::new(file, None, format!("cannot read: {e}")))?;
