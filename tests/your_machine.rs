@@ -929,12 +929,16 @@ axes.z = { kp = 116.2, ki = 2922.0, kd = 1.48, output_limit = 0.5 }
 enabled = true
 [recording]
 rrd = false
+# The Y joint's own <dynamics friction="3"> (N) acts, in the physics and the analytic model
+# alike: the PID's integral has to break it away at every reversal of Y (measured: contour
+# 72.3 µm, Y 86.3 µm, path speed 3.195 mm/s; the bounds before the friction was applied were
+# 2 µm, 52 µm and 3.1 mm/s). Physics and analytic model still agree within 0.5 µm on Y.
 [expect]
-max_contour_error_mm = { max = 0.002 }
-max_path_speed_error_mm_s = { max = 3.1 }
+max_contour_error_mm = { max = 0.075 }
+max_path_speed_error_mm_s = { max = 3.25 }
 path_speed_catch_up_s = { max = 0.06 }
 axes.x.max_following_error_mm = { max = 0.0013 }
-axes.y.max_following_error_mm = { max = 0.052 }
+axes.y.max_following_error_mm = { max = 0.088 }
 axes.z.max_following_error_mm = { max = 0.00003 }
 axes.x.max_physics_vs_analytic_mm = { max = 0.00001 }
 axes.y.max_physics_vs_analytic_mm = { max = 0.0005 }
@@ -1090,4 +1094,53 @@ fn the_walkthrough_router_reads_as_an_exporters_package() {
             "models/desk_router/{file} is not what tools/desk_router.py writes"
         );
     }
+}
+
+#[test]
+fn a_driven_joints_urdf_friction_acts_and_behind_backlash_is_refused_by_name() {
+    // `<dynamics friction>` on the bed's driven joint: the physics holds the bed against up to
+    // that force (a stiff zero-speed motor at the joint), and the reference model adds it to
+    // the axis's Coulomb friction.
+    let (urdf, drives) = gantry_text();
+    let with_friction = urdf.replace(
+        "<limit lower=\"-0.15\" upper=\"0.15\" effort=\"500\" velocity=\"0.5\"/>\n  </joint>",
+        "<limit lower=\"-0.15\" upper=\"0.15\" effort=\"500\" velocity=\"0.5\"/>\n    <dynamics friction=\"40\"/>\n  </joint>",
+    );
+    assert_ne!(with_friction, urdf);
+    let machine = Machine::parse(&fixture("cad_gantry.urdf"), &with_friction, &drives).unwrap();
+    let y = machine.axis_index("y").unwrap();
+    let options = cncsim::model::PlantOptions {
+        step: 2.5e-4,
+        gravity: [0.0, 0.0, -9.81],
+        initial_positions: vec![0.0; machine.axes.len()],
+        include_drive_dynamics: false,
+        solver_iterations: 4,
+    };
+    let travel = |force: f64| {
+        let mut plant = cncsim::model::Plant::new(&machine, &options).unwrap();
+        let mut forces = vec![0.0; machine.axes.len()];
+        forces[y] = force;
+        for _ in 0..400 {
+            plant.set_joint_forces(&forces);
+            plant.step();
+        }
+        let mut q = vec![0.0; machine.axes.len()];
+        plant.positions(&mut q);
+        q[y].abs()
+    };
+    // 30 N against 40 N of friction: held (below a µm in 0.1 s); 80 N: the bed moves.
+    assert!(travel(30.0) < 1e-6, "{}", travel(30.0));
+    assert!(travel(80.0) > 1e-4, "{}", travel(80.0));
+    // Behind backlash the carriage hangs on the drive side: no joint for it to act at.
+    let backlash = drives.replace(
+        "joint = \"bed_joint\"",
+        "joint = \"bed_joint\"\nbacklash = 0.00002",
+    );
+    let e = Machine::parse(&fixture("cad_gantry.urdf"), &with_friction, &backlash)
+        .unwrap_err()
+        .to_string();
+    assert!(
+        e.contains("cad_gantry.urdf:23:3") && e.contains("<dynamics friction=\"40\">"),
+        "{e}"
+    );
 }

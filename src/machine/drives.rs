@@ -874,6 +874,23 @@ impl DrivesFile {
             if axes.iter().any(|a: &Axis| a.joint == joint) {
                 return Err(fail(format!("joint '{}' is driven twice", drive.joint)));
             }
+            // The URDF's `<dynamics friction>` acts at the joint, between the carriage and what
+            // carries it. Behind backlash or a compliant transmission the multibody has no such
+            // joint (the carriage hangs on the drive side), so it is refused there by name.
+            let urdf_joint = &tree.joints[joint];
+            if urdf_joint.friction > 0.0 && (drive.backlash > 0.0 || drive.compliance().is_some()) {
+                return Err(FileError::new(
+                    &tree.path,
+                    urdf_joint.place,
+                    format!(
+                        "joint '{}': <dynamics friction=\"{}\"> on axis {} with backlash or a compliant transmission: there the friction is the guide's (guide = {{ friction_coefficient = … }} in [axes.{name}] of {}); set the URDF's friction to 0",
+                        urdf_joint.name,
+                        urdf_joint.friction,
+                        name.to_uppercase(),
+                        path.display()
+                    ),
+                ));
+            }
             // The dead band must fit in the travel, or the carriage never engages.
             let limits = tree.joints[joint].limits;
             let travel = match (kind, limits) {

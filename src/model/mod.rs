@@ -64,6 +64,9 @@ pub enum ModelError {
     /// `solver_iterations` is zero.
     #[error("solver_iterations must be at least 1")]
     SolverIterations,
+    /// A driven joint with `<dynamics friction>` behind backlash or a compliant transmission.
+    #[error("joint '{0}': its <dynamics friction> cannot act behind backlash or a compliant transmission (the carriage hangs on the drive side): give the friction as the axis guide's (guide = {{ friction_coefficient = … }}) and set the URDF's to 0")]
+    FrictionBehindDriveTrain(String),
     /// A massless moving body on a chain whose mass matrix is singular (the dynamics model's
     /// reason).
     #[error("{0}; give the massless links an <inertial> with a positive mass")]
@@ -415,6 +418,10 @@ impl Plant {
                 multibody.get_or_insert(handle);
                 Ok::<_, ModelError>(handle)
             };
+            if (backlash > 0.0 || compliance.is_some()) && joint.friction > 0.0 {
+                // The multibody has no joint between the carriage and its carrier there.
+                return Err(ModelError::FrictionBehindDriveTrain(joint.name.clone()));
+            }
             if backlash > 0.0 || compliance.is_some() {
                 // The drive side (motor, gearbox, pulley or screw nut) as its own body: no mass
                 // of its own, its inertia is the drive's armature on its DOF. The carriage
@@ -451,9 +458,10 @@ impl Plant {
                     .local_frame1(to_pose(&(origin * frame)))
                     .local_frame2(to_pose(&frame))
                     .contacts_enabled(guide.is_some());
-                if axis.is_none() && joint.friction > 0.0 {
-                    // A passive joint's own Coulomb friction: a motor holding zero speed with
-                    // at most the friction force, stiff enough to hold below a µm/s of creep.
+                if joint.friction > 0.0 {
+                    // The joint's own Coulomb friction (a passive joint's, or a driven one's
+                    // `<dynamics friction>`): a motor holding zero speed with at most the
+                    // friction force, stiff enough to hold below a µm/s of creep.
                     let travel = match joint.kind {
                         JointKind::Revolute => JointAxis::AngX,
                         _ => JointAxis::LinX,

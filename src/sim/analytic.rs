@@ -493,9 +493,11 @@ impl AxisModel {
                         guide.coefficient().scaled(load)
                     }
                 };
-                // A follower's own Coulomb friction, reflected through its multiplier.
-                friction.kinetic += follower_friction;
-                friction.breakaway += follower_friction;
+                // The joint's own Coulomb friction (the URDF's `<dynamics friction>`), and a
+                // follower's, reflected through its multiplier.
+                let joint_friction = joint.friction + follower_friction;
+                friction.kinetic += joint_friction;
+                friction.breakaway += joint_friction;
                 let options = AxisModelOptions {
                     friction,
                     backlash: axis.drive.backlash,
