@@ -973,6 +973,14 @@ fn gantries_written_by_others_run_as_published_and_their_figures_are_the_tool_on
     let machine = Machine::load(&urdf).unwrap();
     let meshes = machine.links.iter().flat_map(|l| &l.visuals).count();
     assert_eq!(meshes, 9);
+    // `machine check` says that the Y joint's own friction acts.
+    let check = cncsim::scenario::check_machine(&urdf).unwrap().text();
+    assert!(
+        check.contains(
+            "Y also has the URDF's <dynamics> at joint 'BasePlateJoint': damping 0 N·s/m, Coulomb friction 3 N"
+        ),
+        "{check}"
+    );
 
     // The Blender/Phobos export (Apache-2.0): a 6.6 m overhead gantry of 1.3 t, as published,
     // with the drive file `machine init` writes and a model-based controller (no gains to

@@ -34,6 +34,11 @@ pub struct AxisRow {
     pub home: f64,
     /// Travel limits of the joint (m or rad); `None`: endless.
     pub travel: Option<[f64; 2]>,
+    /// The URDF joint's own `<dynamics damping>` (N·s/m or N·m·s/rad), applied at the joint
+    /// besides the drive's.
+    pub joint_damping: f64,
+    /// The URDF joint's own `<dynamics friction>` (N or N·m), applied at the joint.
+    pub joint_friction: f64,
 }
 
 /// What `cncsim machine check` found.
@@ -105,6 +110,8 @@ pub fn check_machine(urdf: &Path) -> Result<MachineReport, FileError> {
                 sign: a.drive.sign,
                 home: a.drive.home,
                 travel: joint.limits,
+                joint_damping: joint.damping,
+                joint_friction: joint.friction,
             }
         })
         .collect();
@@ -238,6 +245,26 @@ impl MachineReport {
                 travel
             );
         }
+        // The URDF's own joint damping and friction act besides the drives': said, not hidden.
+        for a in self
+            .axes
+            .iter()
+            .filter(|a| a.joint_damping > 0.0 || a.joint_friction > 0.0)
+        {
+            let (damping, friction) = if a.rotary {
+                ("N·m·s/rad", "N·m")
+            } else {
+                ("N·s/m", "N")
+            };
+            let _ = writeln!(
+                out,
+                "{} also has the URDF's <dynamics> at joint '{}': damping {} {damping}, Coulomb friction {} {friction}",
+                a.letter.to_uppercase(),
+                a.joint,
+                a.joint_damping,
+                a.joint_friction
+            );
+        }
         let _ = writeln!(
             out,
             "X, Y, Z are {}",
@@ -299,6 +326,8 @@ impl MachineReport {
                 "sign": a.sign,
                 "home": a.home,
                 "travel": a.travel,
+                "joint_damping": a.joint_damping,
+                "joint_friction": a.joint_friction,
             })).collect::<Vec<_>>(),
             "undriven_joints": self.undriven.iter().map(|(n, w)| serde_json::json!({"joint": n, "mode": w})).collect::<Vec<_>>(),
             "links": self.links.iter().map(|(n, m)| serde_json::json!({"link": n, "mass_kg": m, "from_geometry": self.masses_from_geometry.contains(n)})).collect::<Vec<_>>(),
