@@ -416,3 +416,30 @@ fn a_xacro_file_with_find_and_includes_is_expanded_without_ros() {
         "{e}"
     );
 }
+
+#[test]
+fn a_frame_whose_geometry_gives_no_mass_is_said_even_where_it_may_stay_massless() {
+    // inertia_from_geometry asked for, the frame's mesh not found: with the carriage's mass
+    // beyond it the frame may stay massless, but not silently.
+    let text = std::fs::read_to_string(probe("massless_between_slides"))
+        .unwrap()
+        .replace(
+            "<link name=\"x_carriage\"/>",
+            "<link name=\"x_carriage\"><collision><geometry><mesh filename=\"package://nowhere_pkg/box.stl\"/></geometry></collision></link>",
+        );
+    assert!(text.contains("nowhere_pkg"));
+    let urdf = probe("massless_between_slides");
+    let drives = cncsim::scenario::drive_file_template(&urdf)
+        .unwrap()
+        .replace("# inertia_from_geometry = ", "inertia_from_geometry = ");
+    let machine = Machine::parse(&urdf, &text, &drives).unwrap_or_else(|e| panic!("{e}"));
+    let warned: Vec<String> = machine.warnings.iter().map(|w| w.to_string()).collect();
+    assert!(
+        warned
+            .iter()
+            .any(|w| w.contains("massless_between_slides.urdf:4:3")
+                && w.contains("inertia_from_geometry gives it no mass")
+                && w.contains("nowhere_pkg")),
+        "{warned:#?}"
+    );
+}

@@ -124,12 +124,19 @@ def run_shard(bundle, binary, sweep, k, n):
         with open(exe, "wb") as f:
             f.write(binary)
         os.chmod(exe, 0o755)
+        # Packages the driver found on its package path (`package://` meshes, `$(find …)`)
+        # were shipped inside inputs/: the worker searches there.
+        env = dict(os.environ)
+        env["ROS_PACKAGE_PATH"] = os.pathsep.join(
+            [os.path.join(work, "inputs")] + ([env["ROS_PACKAGE_PATH"]] if env.get("ROS_PACKAGE_PATH") else [])
+        )
         done = subprocess.run(
             ["./cncsim", "sweep", os.path.join("inputs", sweep), "--shard", f"{k}/{n}",
              "--jobs", "1", "--out", "out"],
             capture_output=True,
             text=True,
             cwd=work,
+            env=env,
         )
         path = os.path.join(work, "out", "results.json")
         results = open(path, encoding="utf-8").read() if os.path.exists(path) else None

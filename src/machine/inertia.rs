@@ -67,6 +67,21 @@ pub(super) fn complete(
             massless.push(i);
         }
     }
+    // Asked for masses from geometry, a link that got none (a mesh not found) is said even
+    // where the mass beyond it lets it stay massless.
+    for (i, why) in no_mass_why.iter().enumerate() {
+        if let Some(why) = why.as_ref().filter(|_| !massless.contains(&i)) {
+            let link = &tree.links[i];
+            tree.warnings.push(FileError::new(
+                &tree.path,
+                link.place,
+                format!(
+                    "link '{}': inertia_from_geometry gives it no mass ({why}): it stays massless, the links beyond it carrying the mass",
+                    link.name
+                ),
+            ));
+        }
+    }
     let Some(&first) = massless.first() else {
         return Ok(computed);
     };
