@@ -80,13 +80,9 @@ pub(crate) fn parse_urdf_with_package_paths(
     // Bounded, located checks first: the recursive reader behind urdf-rs must never see an
     // unbounded nesting, and its messages carry no position.
     let places = outline(path, text)?;
-    // What urdfdom reads past (comments, repeated elements, unknown shapes), and an empty
-    // `<texture/>` (exporters write one inside every material; it names no file, which urdf-rs
-    // refuses; textures are not drawn), are read as blank space of the same length.
-    let mut blanked = blank(text, &places.ignored);
-    if blanked.contains("<texture") {
-        blanked = blank_empty_textures(&blanked);
-    }
+    // What urdfdom reads past (comments, repeated elements, unknown shapes, empty textures)
+    // is read as blank space of the same length, so places stay where they were.
+    let blanked = blank(text, &places.ignored);
     let text_for_reader = blanked.as_str();
     let robot = urdf_rs::read_from_string(text_for_reader).map_err(|e| {
         FileError::new(
@@ -607,31 +603,6 @@ fn refuse_xacro(path: &Path, text: &str) -> Result<(), FileError> {
              give cncsim that file"
         ),
     ))
-}
-
-/// `text` with every `<texture/>` that has no attribute turned into spaces.
-fn blank_empty_textures(text: &str) -> String {
-    let mut out = text.to_string();
-    let mut from = 0;
-    while let Some(start) = out[from..].find("<texture").map(|i| from + i) {
-        let Some(end) = out[start..].find('>').map(|i| start + i + 1) else {
-            break;
-        };
-        let inner = out[start + "<texture".len()..end - 1].trim();
-        if inner == "/" || inner.is_empty() {
-            // An empty element, or an opening tag whose closing `</texture>` follows.
-            let end = if inner.is_empty() {
-                out[end..]
-                    .find("</texture>")
-                    .map_or(end, |i| end + i + "</texture>".len())
-            } else {
-                end
-            };
-            out.replace_range(start..end, &" ".repeat(end - start));
-        }
-        from = end.min(out.len());
-    }
-    out
 }
 
 /// `text` with the bytes of `ranges` as spaces (line ends kept, so places stay the same).

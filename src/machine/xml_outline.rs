@@ -28,7 +28,7 @@ pub struct UrdfOutline {
     pub bounded: std::collections::BTreeSet<String>,
     /// Byte ranges the URDF reader is not to see, as urdfdom does not: comments (urdfdom
     /// reads `--` in them), repeated elements after the first, an unknown shape's visual or
-    /// collision, a material with neither name nor colour.
+    /// collision, a material with neither name nor colour, a texture naming no file.
     pub ignored: Vec<std::ops::Range<usize>>,
     /// What was ignored or is not URDF, located: one warning per kind of element or attribute.
     pub warnings: Vec<FileError>,
@@ -429,6 +429,11 @@ pub fn outline(path: &Path, text: &str) -> Result<UrdfOutline, FileError> {
         // A material with neither a name nor a colour (an exporter's empty `<material/>`)
         // says nothing; urdfdom ignores it.
         if name == "material" && empty && attributes.get("name").is_none_or(|n| n.is_empty()) {
+            ignored = true;
+        }
+        // So does a `<texture/>` naming no file (exporters write one in every material, and
+        // urdf-rs refuses it); textures are not drawn.
+        if name == "texture" && attributes.is_empty() {
             ignored = true;
         }
         if empty && !inside_ignored && !extension {

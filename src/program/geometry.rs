@@ -49,11 +49,8 @@ impl Segment {
                 sweep,
                 rise,
             } => {
-                let r0 = start - center;
-                let (u, radius) = (r0.normalize(), r0.norm());
-                let v = normal.cross(&u);
-                let a = sweep * fraction;
-                center + (u * a.cos() + v * a.sin()) * radius + normal * (rise * fraction)
+                let basis = arc_basis(center, normal, start);
+                on_arc(center, basis, normal, sweep * fraction, rise * fraction)
             }
         }
     }
@@ -78,10 +75,7 @@ impl Segment {
                 sweep,
                 rise,
             } => {
-                let r0 = start - center;
-                let radius = r0.norm();
-                let u = r0 / radius;
-                let v = normal.cross(&u);
+                let (u, v, radius) = arc_basis(center, normal, start);
                 let rel = p - center;
                 let angle = rel.dot(&v).atan2(rel.dot(&u));
                 // Candidate angles along the sweep: the projection's angle (and its turns), and
@@ -102,7 +96,7 @@ impl Segment {
                 }
                 for a in candidates {
                     let along = if sweep != 0.0 { a / sweep } else { 0.0 };
-                    let q = center + (u * a.cos() + v * a.sin()) * radius + normal * (rise * along);
+                    let q = on_arc(center, (u, v, radius), normal, a, rise * along);
                     let d = (p - q).norm();
                     if d < best {
                         (best, nearest) = (d, q);
@@ -112,6 +106,30 @@ impl Segment {
             }
         }
     }
+}
+
+/// An arc's in-plane unit vectors (towards its start, and a quarter turn on about `normal`)
+/// and its radius.
+fn arc_basis(
+    center: Point3<f64>,
+    normal: Vector3<f64>,
+    start: Point3<f64>,
+) -> (Vector3<f64>, Vector3<f64>, f64) {
+    let r0 = start - center;
+    let radius = r0.norm();
+    let u = r0 / radius;
+    (u, normal.cross(&u), radius)
+}
+
+/// The point of an arc at `angle` from its start, risen `rise` along its normal.
+fn on_arc(
+    center: Point3<f64>,
+    (u, v, radius): (Vector3<f64>, Vector3<f64>, f64),
+    normal: Vector3<f64>,
+    angle: f64,
+    rise: f64,
+) -> Point3<f64> {
+    center + (u * angle.cos() + v * angle.sin()) * radius + normal * rise
 }
 
 /// The programmed path of a program: one segment per move with motion (dwells have none).
