@@ -142,6 +142,24 @@ fn bad_scenarios_are_reported_with_file_and_line() {
             5,
             "cl_writer: expected one of nx, creo, catia, solidworks, camworks, mastercam, fusion, camplete, apt, found 'gibbs'",
         ),
+        (
+            "unknown program kinematics",
+            scenario_text(|s| s.replace("feed_mm_s = 5.0\n", "feed_mm_s = 5.0\nkinematics = \"tpc\"\n")),
+            6,
+            "kinematics: expected \"joint\" (the words are joint coordinates) or \"tcp\" (X Y Z the tool tip on the part), found 'tpc'",
+        ),
+        (
+            "tool-tip tolerance without tool-tip kinematics",
+            scenario_text(|s| s.replace("feed_mm_s = 5.0\n", "feed_mm_s = 5.0\ntcp_tolerance_mm = 0.01\n")),
+            6,
+            "tcp_tolerance_mm applies with kinematics = \"tcp\"",
+        ),
+        (
+            "tool-tip tolerance out of range",
+            scenario_text(|s| s.replace("feed_mm_s = 5.0\n", "feed_mm_s = 5.0\nkinematics = \"tcp\"\ntcp_tolerance_mm = 0.0\n")),
+            7,
+            "tcp_tolerance_mm",
+        ),
         ("not toml", "machine = [\n".to_string(), 1, "unclosed array"),
     ];
     let dir = tempfile::tempdir().unwrap();
@@ -474,6 +492,24 @@ fn bad_program_files_are_reported_against_the_program() {
     assert!(
         err.contains(&format!("{}:3:", rotary.display()))
             && err.contains("drives axis A, which the machine 'xyz_table' does not have"),
+        "{err}"
+    );
+}
+
+#[test]
+fn a_tool_tip_program_on_a_machine_without_two_rotary_axes_is_refused_at_the_key() {
+    let dir = tempfile::tempdir().unwrap();
+    let text = scenario_text(|s| {
+        s.replace(
+            "feed_mm_s = 5.0\n",
+            "feed_mm_s = 5.0\nkinematics = \"tcp\"\n",
+        )
+    });
+    let p = write(dir.path(), "tcp.toml", &text);
+    let err = run_expecting_bad_input(&p, dir.path());
+    assert!(
+        err.contains(&format!("{}:6:", p.display()))
+            && err.contains("kinematics = \"tcp\" reads X Y Z as the tool tip on the part: machine 'xyz_table' has no tool-tip kinematics: expected two rotary axes turning the tool relative to the part, found 0"),
         "{err}"
     );
 }

@@ -436,7 +436,7 @@ fn rotation(axis: &Unit<Vector3<f64>>, angle: f64) -> Isometry3<f64> {
 
 /// `value + 2πk` for the k that brings it nearest `previous`, restricted to `limits`;
 /// `None` if no multiple lies within the limits.
-fn nearest_turn(value: f64, previous: f64, limits: Option<[f64; 2]>) -> Option<f64> {
+pub(super) fn nearest_turn(value: f64, previous: f64, limits: Option<[f64; 2]>) -> Option<f64> {
     let mut k = ((previous - value) / TAU).round();
     if let Some([lower, upper]) = limits {
         let k_min = ((lower - TRAVEL_SLACK - value) / TAU).ceil();
@@ -957,4 +957,4 @@ impl AcTableKinematics {
 }
 
 #[cfg(test)]
-mod tests;
+pub(crate) mod tests;

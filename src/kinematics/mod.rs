@@ -1,13 +1,17 @@
 //! Machine kinematics: how program coordinates become machine-axis coordinates.
 //!
 //! A Cartesian machine (the XYZ table) maps each program axis letter to the machine axis of the
-//! same name one to one (LinuxCNC's "trivial kinematics"); the 5-axis table adds inverse
-//! kinematics here.
+//! same name one to one (LinuxCNC's "trivial kinematics"); five-axis machines add inverse
+//! kinematics here: the A-C table's closed form ([`ac_table`]) and any chain's
+//! ([`five_axis`]), which put cutter-location data and tool-tip programs on the axes
+//! ([`tool_tip`]).
 
 pub mod ac_table;
+pub mod five_axis;
 mod frame;
 mod part;
 pub mod tool_path;
+pub mod tool_tip;
 
 pub use frame::{carrier_link, chain_joints, ProgramFrame, ORTHOGONALITY_TOLERANCE};
 pub use part::PartPlacement;

@@ -33,8 +33,8 @@ pub use file::{
     limits, ActuatorSettings, AnalyticSettings, Approach, AxisCascade, AxisGains, CascadeTable,
     CompensationEntry, ControlSpace, ControllerSettings, ControllerType, DeclaredVariants,
     Expectation, FeedbackSettings, FmuSettings, FrequencyResponse, InverseDynamicsSettings,
-    Mechanics, PidTable, PlannerSettings, ProfileName, ProgramSettings, ProgramSource,
-    RecordingSettings, Scenario, Timing, TransmissionEntry,
+    Mechanics, PidTable, PlannerSettings, ProfileName, ProgramKinematics, ProgramSettings,
+    ProgramSource, RecordingSettings, Scenario, Timing, TransmissionEntry,
 };
 pub use machine_setup::{
     check_machine, drive_file_template, AxisRow, DriveFileDraft, MachineReport,

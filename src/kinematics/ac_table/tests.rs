@@ -12,7 +12,7 @@ fn crate_path(relative: &str) -> PathBuf {
     Path::new(env!("CARGO_MANIFEST_DIR")).join(relative)
 }
 
-fn ac_mill() -> Machine {
+pub(crate) fn ac_mill() -> Machine {
     Machine::load(&crate_path("models/ac_mill.urdf")).expect("ac_mill loads")
 }
 
@@ -32,7 +32,7 @@ fn joint(machine: &Machine, name: &str) -> usize {
 /// does not pass through the base origin, C turns about −Z and is offset sideways from A, the
 /// workpiece is rotated on the table, the Y slide runs along −Y, the tool point is off the
 /// tool link origin. Still an A-C table machine, so the same closed form must hold.
-fn general_variant() -> Machine {
+pub(crate) fn general_variant() -> Machine {
     let mut m = ac_mill();
     let a = joint(&m, "a");
     let c = joint(&m, "c");

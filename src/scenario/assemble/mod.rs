@@ -10,9 +10,11 @@ mod cutting;
 pub use controller::ControllerRecipe;
 pub use cutting::CutSetup;
 
-use super::{AnalyticSettings, ProgramSource, Scenario};
+use super::{AnalyticSettings, ProgramKinematics, ProgramSource, Scenario};
 use crate::control::{Actuator, ActuatorKind, Controller};
 use crate::diagnostics::{FileError, LineColumn};
+use crate::kinematics::five_axis::{FiveAxisKinematics, PartFrame};
+use crate::kinematics::tool_tip::{cl_to_machine, tcp_to_machine};
 use crate::kinematics::{AcAxes, AcTableKinematics, AxisMap, ProgramFrame};
 use crate::machine::Machine;
 use crate::model::{ModelError, PlantOptions};
@@ -681,35 +683,69 @@ pub fn load_checked_program(s: &Scenario, machine: &Machine) -> Result<Program, 
         )
         .into());
     }
-    if program.moves.iter().any(|m| m.tool_axis.is_some()) {
-        // Cutter-location data (tool tip and axis on the workpiece): machine axes come from the
-        // 5-axis inverse kinematics, starting from machine zero. Its joint coordinates are the
-        // program's: no work offset, sign or home applies on top.
-        let shifted = machine
-            .axes
-            .iter()
-            .find(|a| a.drive.sign != 1 || a.drive.home != 0.0);
-        if s.program.work_offset != [0.0; 3] || shifted.is_some() {
-            let what = match shifted {
-                Some(a) => format!("axis '{}' of the drive file has a sign or home", a.name),
-                None => "the scenario sets [program] work_offset_mm".into(),
-            };
-            return Err(FileError::new(
-                &program.source,
-                None,
-                format!("the program gives tool-axis vectors (CL data), placed on the machine by the A-C table's inverse kinematics in joint coordinates, but {what}: remove it for this program"),
-            )
-            .into());
-        }
-        let kinematics = AcTableKinematics::new(machine).map_err(|e| {
-            FileError::new(&program.source, None, format!("the program gives tool-axis vectors (CL data), which need a table-tilting A-C machine: {e}"))
-        })?;
-        program = kinematics
-            .program_to_machine(&program, &AcAxes::default())
-            .map_err(RunError::Program)?;
+    let cl_data = program.moves.iter().any(|m| m.tool_axis.is_some());
+    if cl_data {
+        program = cl_on_the_axes(s, machine, program)?;
+    } else if let ProgramKinematics::ToolTip { tolerance } = s.program.kinematics {
+        let kinematics = five_axis(
+            s,
+            machine,
+            PartFrame::Program,
+            "kinematics = \"tcp\" reads X Y Z as the tool tip on the part",
+        )?;
+        program = tcp_to_machine(&kinematics, &program, tolerance).map_err(RunError::Program)?;
     }
     check_program_axes(&program, machine)?;
     Ok(program)
+}
+
+/// Cutter-location data (tool tip and axis on the workpiece link) on the machine's axes,
+/// from every axis at home: by the A-C table's closed form where the machine is one (in joint
+/// coordinates: no sign or home on top), else by the kinematics of its chain.
+fn cl_on_the_axes(s: &Scenario, machine: &Machine, program: Program) -> Result<Program, RunError> {
+    if s.program.work_offset != [0.0; 3] {
+        return Err(FileError::new(
+            &program.source,
+            None,
+            "the program gives tool-axis vectors (CL data), whose coordinates are the workpiece link's, but the scenario sets [program] work_offset_mm: remove it for this program",
+        )
+        .into());
+    }
+    let plain = machine
+        .axes
+        .iter()
+        .all(|a| a.drive.sign == 1 && a.drive.home == 0.0);
+    if let (true, Ok(closed)) = (plain, AcTableKinematics::new(machine)) {
+        return closed
+            .program_to_machine(&program, &AcAxes::default())
+            .map_err(RunError::Program);
+    }
+    let kinematics = five_axis(
+        s,
+        machine,
+        PartFrame::WorkpieceLink,
+        "the program gives tool-axis vectors (CL data)",
+    )?;
+    cl_to_machine(&kinematics, &program).map_err(RunError::Program)
+}
+
+/// The five-axis kinematics of `machine`; where it has none, the error says what asked for it.
+fn five_axis(
+    s: &Scenario,
+    machine: &Machine,
+    part: PartFrame,
+    asker: &str,
+) -> Result<FiveAxisKinematics, RunError> {
+    let (frame, _) = ProgramFrame::new(machine)?;
+    let map = AxisMap::new(machine)
+        .map_err(|e| FileError::new(&machine.urdf_path, None, e.to_string()))?;
+    FiveAxisKinematics::new(machine, &frame, &map, part).map_err(|e| {
+        let (file, at) = match part {
+            PartFrame::Program => (&s.path, s.program.kinematics_at),
+            PartFrame::WorkpieceLink => (&s.path, s.program.at),
+        };
+        FileError::new(file, at, format!("{asker}: {e}")).into()
+    })
 }
 
 /// A program may only move axes the machine has.

@@ -28,7 +28,7 @@ pub use controller::{
 pub use frequency::FrequencyResponse;
 pub use outputs::{AnalyticSettings, RecordingSettings};
 pub use planner::{PlannerSettings, ProfileName};
-pub use program::{Approach, ProgramSettings, ProgramSource};
+pub use program::{Approach, ProgramKinematics, ProgramSettings, ProgramSource};
 pub use timing::Timing;
 
 use crate::diagnostics::{read_text, toml_error, FileError, LineColumn};

@@ -47,6 +47,11 @@ pub(super) struct RawProgram {
     tool_table: Option<Spanned<String>>,
     g28_home_mm: Option<[f64; 3]>,
     g30_home_mm: Option<[f64; 3]>,
+    /// What the program's words mean: joint coordinates (default) or the tool tip on the part
+    /// with the rotary axes' angles (G43.4, TRAORI, TCPM).
+    kinematics: Option<Spanned<String>>,
+    /// How far the tool tip may stray from the programmed path in a tool-tip program (mm).
+    tcp_tolerance_mm: Option<Num>,
 }
 
 #[derive(Deserialize, Default, Clone, Copy)]
@@ -100,6 +105,19 @@ struct RawPolyline {
     points_mm: Vec<[f64; 3]>,
 }
 
+/// What a program's X Y Z and rotary words mean.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub enum ProgramKinematics {
+    /// Joint coordinates of the machine's axes (LinuxCNC's trivial kinematics).
+    Joint,
+    /// X Y Z: the tool tip in part coordinates; rotary words: the axes' angles. The tip is
+    /// held within `tolerance` (m) of the programmed path while the rotary axes turn.
+    ToolTip {
+        /// Largest distance of the tip from the programmed path (m).
+        tolerance: f64,
+    },
+}
+
 /// Where the program comes from.
 #[derive(Debug, Clone, PartialEq)]
 pub enum ProgramSource {
@@ -140,6 +158,10 @@ pub struct ProgramSettings {
     pub approach_speed: Option<f64>,
     /// Machine coordinates of program zero along X, Y, Z (m): the work offset (G54).
     pub work_offset: [f64; 3],
+    /// What the program's words mean, and where that was said.
+    pub kinematics: ProgramKinematics,
+    /// Where `kinematics` is set, if it is.
+    pub kinematics_at: Option<LineColumn>,
     /// Where the `[program]` table is.
     pub at: Option<LineColumn>,
 }
@@ -372,11 +394,34 @@ impl TryFrom<InFile<'_, &RawProgram>> for ProgramSettings {
         if let Some(v) = &p.feed_mm_s {
             warn_if_fast(file, "feed_mm_s", v);
         }
+        let kinematics_at = p.kinematics.as_ref().and_then(|k| file.place(k.span()));
+        let kinematics = match p.kinematics.as_ref().map(|k| (k.get_ref().as_str(), k.span())) {
+            None | Some(("joint", _)) => {
+                if let Some(t) = &p.tcp_tolerance_mm {
+                    return Err(file.error(t.span(), "tcp_tolerance_mm applies with kinematics = \"tcp\""));
+                }
+                ProgramKinematics::Joint
+            }
+            Some(("tcp", _)) => ProgramKinematics::ToolTip {
+                tolerance: file
+                    .ranged_opt(p.tcp_tolerance_mm.as_ref(), "tcp_tolerance_mm", "mm", (1e-6, 1.0))?
+                    .unwrap_or(1e-3)
+                    * 1e-3,
+            },
+            Some((other, span)) => {
+                return Err(file.error(
+                    span,
+                    format!("kinematics: expected \"joint\" (the words are joint coordinates) or \"tcp\" (X Y Z the tool tip on the part), found '{other}'"),
+                ))
+            }
+        };
         Ok(ProgramSettings {
             source,
             approach_from,
             approach_speed,
             work_offset,
+            kinematics,
+            kinematics_at,
             at,
         })
     }
