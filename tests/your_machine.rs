@@ -800,7 +800,7 @@ fn machine_check_prints_the_mapping_and_run_on_a_urdf_points_to_it() {
     for line in [
         "X     rail_left            linear   tool   [ 1.0000,  0.0000,  0.0000]      +1",
         "Y     bed_joint            linear   part   [ 0.0000,  0.0000,  1.0000]      -1",
-        "X, Y, Z are right-handed (ISO 841)",
+        "X, Y, Z are right-handed with +Z up, from the part towards the tool (ISO 841)",
         "rail_right: follows 'rail_left' (<mimic>), riding on its link",
         "clamp_joint: locked at 0 ([joints] in the drive file)",
         "clamp_jaw_joint: held at 0 by its <mimic> of 'clamp_joint'",
@@ -1151,4 +1151,310 @@ fn a_driven_joints_urdf_friction_acts_and_behind_backlash_is_refused_by_name() {
         e.contains("cad_gantry.urdf:23:3") && e.contains("<dynamics friction=\"40\">"),
         "{e}"
     );
+}
+
+/// A URDF of the given joints (name, type, parent, child, axis), every link 1 kg, the tool
+/// and part links named by the joints' children; written into `dir` as `name.urdf`.
+fn machine_of(dir: &Path, name: &str, joints: &[(&str, &str, &str, &str, [f64; 3])]) -> PathBuf {
+    let mut links: Vec<&str> = vec!["base"];
+    for j in joints {
+        links.push(j.3);
+    }
+    let mut text = format!("<robot name=\"{name}\">\n");
+    for l in &links {
+        text += &format!(
+            "  <link name=\"{l}\"><inertial><mass value=\"1\"/><inertia ixx=\"0.01\" ixy=\"0\" ixz=\"0\" iyy=\"0.01\" iyz=\"0\" izz=\"0.01\"/></inertial></link>\n"
+        );
+    }
+    for (j, kind, parent, child, axis) in joints {
+        let limit = if *kind == "continuous" {
+            String::new()
+        } else {
+            "<limit lower=\"-0.5\" upper=\"0.5\" effort=\"100\" velocity=\"1\"/>".to_string()
+        };
+        text += &format!(
+            "  <joint name=\"{j}\" type=\"{kind}\"><parent link=\"{parent}\"/><child link=\"{child}\"/><origin xyz=\"0 0 0.1\"/><axis xyz=\"{} {} {}\"/>{limit}</joint>\n",
+            axis[0], axis[1], axis[2]
+        );
+    }
+    text += "</robot>\n";
+    let path = dir.join(format!("{name}.urdf"));
+    std::fs::write(&path, text).unwrap();
+    path
+}
+
+#[test]
+fn machine_init_names_second_parallel_motions_as_iso_841_does_and_check_says_why() {
+    // A boring mill: a W quill in the Z ram, a C head turning about Z and a C table under
+    // the part. The second Z slide is W and the second Z rotation D, never another axis's
+    // letter; programs hold them at home.
+    let dir = tempfile::tempdir().unwrap();
+    let urdf = machine_of(
+        dir.path(),
+        "boring_mill",
+        &[
+            (
+                "table_turn",
+                "continuous",
+                "base",
+                "part_table",
+                [0.0, 0.0, 1.0],
+            ),
+            ("x", "prismatic", "base", "column", [1.0, 0.0, 0.0]),
+            ("y", "prismatic", "column", "saddle", [0.0, 1.0, 0.0]),
+            ("z", "prismatic", "saddle", "ram", [0.0, 0.0, 1.0]),
+            ("quill", "prismatic", "ram", "quill_body", [0.0, 0.0, 1.0]),
+            (
+                "head_turn",
+                "continuous",
+                "quill_body",
+                "tool",
+                [0.0, 0.0, 1.0],
+            ),
+        ],
+    );
+    let drives = cncsim::scenario::drive_file_template(&urdf).unwrap();
+    std::fs::write(dir.path().join("boring_mill.drives.toml"), &drives).unwrap();
+    let machine = Machine::load(&urdf).unwrap();
+    let letters: Vec<(String, String)> = machine
+        .axes
+        .iter()
+        .map(|a| (machine.joints[a.joint].name.clone(), a.name.clone()))
+        .collect();
+    for (joint, letter) in [
+        ("table_turn", "c"),
+        ("x", "x"),
+        ("y", "y"),
+        ("z", "z"),
+        ("quill", "w"),
+        ("head_turn", "d"),
+    ] {
+        assert!(
+            letters.contains(&(joint.to_string(), letter.to_string())),
+            "{joint} → {letter}: {letters:?}\n{drives}"
+        );
+    }
+    assert!(
+        drives.contains("# W: URDF joint 'quill', which moves the tool along Z in the base's frame like Z (joint 'z'): W, ISO 841's secondary linear motion; programs hold it at home."),
+        "{drives}"
+    );
+    assert!(
+        drives.contains("# D: URDF joint 'head_turn', which turns about Z in the base's frame like C (joint 'table_turn'): D, ISO 841's secondary rotary motion; programs hold it at home."),
+        "{drives}"
+    );
+    // Programs can run on it: the secondary axes hold their home.
+    AxisMap::new(&machine).unwrap();
+    let report = cncsim::scenario::check_machine(&urdf).unwrap();
+    let text = report.text();
+    for line in [
+        "  C: turns about Z: C (ISO 841: A, B, C turn about X, Y, Z)",
+        "  W: a second motion along Z: W, ISO 841's secondary linear motion; programs hold it at home",
+        "  D: a second rotation (about Z): D, ISO 841's secondary rotary motion; programs hold it at home",
+    ] {
+        assert!(text.contains(line), "{line}\n{text}");
+    }
+    // A letter against its axis is explained, with the letter it should have.
+    let wrong = drives.replace("[axes.c]", "[axes.a]");
+    std::fs::write(dir.path().join("boring_mill.drives.toml"), wrong).unwrap();
+    let text = cncsim::scenario::check_machine(&urdf).unwrap().text();
+    assert!(
+        text.contains("  A: turns about Z, but A turns about X in ISO 841: name it C (or D, E where C is taken)"),
+        "{text}"
+    );
+}
+
+#[test]
+fn machine_init_never_writes_a_left_handed_or_z_down_frame() {
+    // Every sign of every slide's joint axis, each slide on the tool's or the part's side: the
+    // drive file init writes reads right-handed with +Z up, and check says so.
+    let dir = tempfile::tempdir().unwrap();
+    let mut cases = 0;
+    for signs in 0..8u32 {
+        for sides in 0..8u32 {
+            let s = |k: u32| if signs & (1 << k) == 0 { 1.0 } else { -1.0 };
+            let on_part = |k: u32| sides & (1 << k) != 0;
+            // Part-side slides stack under the part, tool-side ones under the tool.
+            let mut joints = Vec::new();
+            let (mut part_parent, mut tool_parent) = ("base", "base");
+            let names = [("x", "sx"), ("y", "sy"), ("z", "sz")];
+            for (k, (joint, link)) in names.iter().enumerate() {
+                let axis = [0.0, 0.0, 0.0];
+                let mut axis = axis;
+                axis[k] = s(k as u32);
+                let parent = if on_part(k as u32) {
+                    part_parent
+                } else {
+                    tool_parent
+                };
+                joints.push((*joint, "prismatic", parent, *link, axis));
+                if on_part(k as u32) {
+                    part_parent = link;
+                } else {
+                    tool_parent = link;
+                }
+            }
+            joints.push(("part_mount", "fixed", part_parent, "part", [1.0, 0.0, 0.0]));
+            joints.push(("tool_mount", "fixed", tool_parent, "tool", [1.0, 0.0, 0.0]));
+            let name = format!("m{signs}_{sides}");
+            let urdf = machine_of(dir.path(), &name, &joints);
+            let drives = cncsim::scenario::drive_file_template(&urdf).unwrap();
+            std::fs::write(dir.path().join(format!("{name}.drives.toml")), &drives).unwrap();
+            let report = cncsim::scenario::check_machine(&urdf)
+                .unwrap_or_else(|e| panic!("{name}: {e}\n{drives}"));
+            assert!(
+                report.right_handed && report.z_up == Some(true),
+                "{name}: right-handed {}, z up {:?}\n{drives}",
+                report.right_handed,
+                report.z_up
+            );
+            assert!(
+                report.text().contains(
+                    "X, Y, Z are right-handed with +Z up, from the part towards the tool (ISO 841)"
+                ),
+                "{name}"
+            );
+            let machine = Machine::load(&urdf).unwrap();
+            let (_, warnings) = ProgramFrame::new(&machine).unwrap();
+            assert!(warnings.is_empty(), "{name}: {warnings:?}");
+            cases += 1;
+        }
+    }
+    assert_eq!(cases, 64);
+}
+
+#[test]
+fn a_z_axis_pointing_into_the_part_is_warned_of_and_check_says_so() {
+    let dir = tempfile::tempdir().unwrap();
+    let urdf = machine_of(
+        dir.path(),
+        "z_down",
+        &[
+            ("x", "prismatic", "base", "sx", [1.0, 0.0, 0.0]),
+            ("y", "prismatic", "sx", "sy", [0.0, -1.0, 0.0]),
+            ("z", "prismatic", "sy", "tool", [0.0, 0.0, -1.0]),
+        ],
+    );
+    std::fs::write(
+        dir.path().join("z_down.drives.toml"),
+        GANTRY_LIKE_DRIVES.replace("MACHINE", "z_down"),
+    )
+    .unwrap();
+    let machine = Machine::load(&urdf).unwrap();
+    let (_, warnings) = ProgramFrame::new(&machine).unwrap();
+    assert!(
+        warnings
+            .iter()
+            .any(|w| w.to_string().contains("program +Z points down")),
+        "{warnings:?}"
+    );
+    let report = cncsim::scenario::check_machine(&urdf).unwrap();
+    assert_eq!(report.z_up, Some(false));
+    assert!(report.right_handed, "X, −Y, −Z is right-handed");
+    assert!(
+        report
+            .text()
+            .contains("+Z points DOWN, from the tool into the part"),
+        "{}",
+        report.text()
+    );
+}
+
+/// A drive file for a three-slide machine written by `machine_of` (MACHINE: its name).
+const GANTRY_LIKE_DRIVES: &str = r#"machine = "MACHINE"
+[tool]
+link = "tool"
+[axes.x]
+joint = "x"
+transmission = { kind = "screw", lead_m = 0.01 }
+rotor_inertia_kg_m2 = 1e-4
+viscous_damping_nm_s_per_rad = 1e-4
+motor = { torque_constant_nm_per_a = 0.6, back_emf_v_s_per_rad = 0.6, resistance_ohm = 1.5, inductance_h = 4e-3 }
+amplifier_gain = 10.0
+supply_voltage_v = 300.0
+peak_torque_nm = 7.0
+[axes.y]
+joint = "y"
+transmission = { kind = "screw", lead_m = 0.01 }
+rotor_inertia_kg_m2 = 1e-4
+viscous_damping_nm_s_per_rad = 1e-4
+motor = { torque_constant_nm_per_a = 0.6, back_emf_v_s_per_rad = 0.6, resistance_ohm = 1.5, inductance_h = 4e-3 }
+amplifier_gain = 10.0
+supply_voltage_v = 300.0
+peak_torque_nm = 7.0
+[axes.z]
+joint = "z"
+transmission = { kind = "screw", lead_m = 0.01 }
+rotor_inertia_kg_m2 = 1e-4
+viscous_damping_nm_s_per_rad = 1e-4
+motor = { torque_constant_nm_per_a = 0.6, back_emf_v_s_per_rad = 0.6, resistance_ohm = 1.5, inductance_h = 4e-3 }
+amplifier_gain = 10.0
+supply_voltage_v = 300.0
+peak_torque_nm = 7.0
+"#;
+
+#[test]
+fn the_tool_link_init_guesses_is_said_to_be_a_guess_until_checked() {
+    // A link named like a tool wins over a deeper one that is not ("multiple" holds "tip"
+    // only as letters, not as a word).
+    let dir = tempfile::tempdir().unwrap();
+    let urdf = machine_of(
+        dir.path(),
+        "printer",
+        &[
+            ("x", "prismatic", "base", "sx", [1.0, 0.0, 0.0]),
+            ("y", "prismatic", "sx", "sy", [0.0, 1.0, 0.0]),
+            ("z", "prismatic", "sy", "carriage", [0.0, 0.0, 1.0]),
+            (
+                "tip_mount",
+                "fixed",
+                "carriage",
+                "nozzle_tip",
+                [1.0, 0.0, 0.0],
+            ),
+            (
+                "fan",
+                "continuous",
+                "carriage",
+                "multiple_fan_blades",
+                [0.0, 0.0, 1.0],
+            ),
+        ],
+    );
+    let drives = cncsim::scenario::drive_file_template(&urdf).unwrap();
+    assert!(
+        drives
+            .contains("[tool]\nlink = \"nozzle_tip\"\noffset_m = [0.0, 0.0, 0.0]\nguessed = true"),
+        "{drives}"
+    );
+    std::fs::write(dir.path().join("printer.drives.toml"), &drives).unwrap();
+    let machine = Machine::load(&urdf).unwrap();
+    assert!(
+        machine.warnings.iter().any(|w| w
+            .to_string()
+            .contains("[tool] link = 'nozzle_tip' is `machine init`'s guess")),
+        "{:?}",
+        machine.warnings
+    );
+    let text = cncsim::scenario::check_machine(&urdf).unwrap().text();
+    assert!(
+        text.contains("tool point: link 'nozzle_tip' + [0.000, 0.000, 0.000] mm, at [0.000, 0.000, 400.000] mm in 'base' with every axis at home — machine init's GUESS"),
+        "{text}"
+    );
+    // Checked by the user: the line deleted, nothing more said.
+    std::fs::write(
+        dir.path().join("printer.drives.toml"),
+        drives.replace("guessed = true\n", ""),
+    )
+    .unwrap();
+    let machine = Machine::load(&urdf).unwrap();
+    assert!(
+        !machine
+            .warnings
+            .iter()
+            .any(|w| w.to_string().contains("guess")),
+        "{:?}",
+        machine.warnings
+    );
+    let text = cncsim::scenario::check_machine(&urdf).unwrap().text();
+    assert!(!text.contains("GUESS"), "{text}");
 }

@@ -187,6 +187,21 @@ impl ProgramFrame {
                 ),
             ));
         }
+        // ISO 841: +Z points from the part towards the tool, up on a machine whose Z is
+        // vertical (the URDF's +z is up, REP 103).
+        let up = (carrier_rotation * directions.column(2)).normalize().z;
+        if found[2].is_some() && up < -0.5 {
+            warnings.push(FileError::new(
+                &DrivesFile::path_for(urdf),
+                None,
+                format!(
+                    "program +Z points down (its direction {} in link '{}' is {:.1}° from the URDF's +z): ISO 841's +Z points from the part towards the tool, so a program's Z moves come out upside down. Flip it: `sign = -1` in [axes.z], and in one of [axes.x], [axes.y] to stay right-handed",
+                    show(&directions.column(2).into()),
+                    machine.links[carrier].name,
+                    up.clamp(-1.0, 1.0).acos().to_degrees()
+                ),
+            ));
+        }
         let to_program = (directions != Matrix3::identity()).then(|| {
             directions
                 .try_inverse()

@@ -27,28 +27,44 @@ use crate::program::Position;
 /// Where each machine axis takes its coordinate from in a program [`Position`] (in machine
 /// coordinates: a work offset is the program reader's), and how: joint = home + sign ×
 /// coordinate. On a plain machine (sign +1, home 0) the program's numbers are the joints'.
+/// ISO 841's secondary axes (U V W, D E) have no program coordinate: programs hold them at
+/// their home.
 #[derive(Debug, Clone, PartialEq)]
 pub struct AxisMap {
-    /// For machine axis i: (linear?, index into `Position::linear` or `Position::rotary`).
-    sources: Vec<(bool, usize)>,
+    /// For machine axis i: (linear?, index into `Position::linear` or `Position::rotary`), or
+    /// `None` for a secondary axis held at home.
+    sources: Vec<Option<(bool, usize)>>,
     /// For machine axis i: (sign, home), where not (1, 0).
     affine: Vec<Option<(f64, f64)>>,
+    /// For machine axis i: whether it turns.
+    rotary: Vec<bool>,
 }
 
-/// A machine axis whose name is not a program axis letter (x, y, z, a, b, c); holds the name.
+/// A machine axis whose name is not an axis letter; holds the name.
 #[derive(Debug, Clone, thiserror::Error, PartialEq)]
-#[error("machine axis '{0}' has no program coordinate (expected one of x, y, z, a, b, c)")]
+#[error("machine axis '{0}' has no program coordinate (expected one of x, y, z, a, b, c, or a secondary axis u, v, w, d, e)")]
 pub struct UnknownAxis(pub String);
+
+/// The program letters and where each takes its coordinate from; secondary letters after.
+const PROGRAM_LETTERS: [(&str, bool, usize); 6] = [
+    ("x", true, 0),
+    ("y", true, 1),
+    ("z", true, 2),
+    ("a", false, 0),
+    ("b", false, 1),
+    ("c", false, 2),
+];
+const SECONDARY_LETTERS: [&str; 5] = ["u", "v", "w", "d", "e"];
 
 impl AxisMap {
     /// Trivial kinematics: machine axis `x` takes program X, and so on, each with its drive's
     /// sign and home.
     pub fn new(machine: &Machine) -> Result<AxisMap, UnknownAxis> {
         let mut map = Self::joint_coordinates(machine)?;
-        for (affine, axis) in map.affine.iter_mut().zip(&machine.axes) {
+        for (i, axis) in machine.axes.iter().enumerate() {
             let (sign, home) = (f64::from(axis.drive.sign), axis.drive.home);
-            if sign != 1.0 || home != 0.0 {
-                *affine = Some((sign, home));
+            if sign != 1.0 || home != 0.0 || map.sources[i].is_none() {
+                map.affine[i] = Some((sign, home));
             }
         }
         Ok(map)
@@ -57,39 +73,52 @@ impl AxisMap {
     /// Program coordinates that are joint coordinates (the A-C table's inverse kinematics
     /// gives joint coordinates).
     pub fn joint_coordinates(machine: &Machine) -> Result<AxisMap, UnknownAxis> {
-        let sources: Vec<(bool, usize)> = machine
+        let sources: Vec<Option<(bool, usize)>> = machine
             .axes
             .iter()
-            .map(|a| match a.name.as_str() {
-                "x" => Ok((true, 0)),
-                "y" => Ok((true, 1)),
-                "z" => Ok((true, 2)),
-                "a" => Ok((false, 0)),
-                "b" => Ok((false, 1)),
-                "c" => Ok((false, 2)),
-                other => Err(UnknownAxis(other.to_string())),
-            })
+            .map(
+                |a| match PROGRAM_LETTERS.iter().find(|(l, _, _)| *l == a.name) {
+                    Some(&(_, linear, i)) => Ok(Some((linear, i))),
+                    None if SECONDARY_LETTERS.contains(&a.name.as_str()) => Ok(None),
+                    None => Err(UnknownAxis(a.name.clone())),
+                },
+            )
             .collect::<Result<_, _>>()?;
         let affine = vec![None; sources.len()];
-        Ok(AxisMap { sources, affine })
+        // A program letter's kind is its letter's (A B C turn); a secondary axis's, its joint's.
+        let rotary = (sources.iter().zip(&machine.axes))
+            .map(|(source, a)| source.map_or(a.is_rotary(machine), |(linear, _)| !linear))
+            .collect();
+        Ok(AxisMap {
+            sources,
+            affine,
+            rotary,
+        })
     }
 
     /// A map from explicit sources: (linear?, index) per machine axis.
     #[cfg(test)]
     pub(crate) fn from_sources(sources: Vec<(bool, usize)>) -> AxisMap {
         let affine = vec![None; sources.len()];
-        AxisMap { sources, affine }
+        let rotary = sources.iter().map(|&(linear, _)| !linear).collect();
+        AxisMap {
+            sources: sources.into_iter().map(Some).collect(),
+            affine,
+            rotary,
+        }
     }
 
     /// The machine axis fed by a program coordinate (linear index 0–2 = X, Y, Z; rotary 0–2 =
     /// A, B, C), if the machine has one.
     pub fn machine_axis(&self, linear: bool, index: usize) -> Option<usize> {
-        self.sources.iter().position(|&s| s == (linear, index))
+        self.sources
+            .iter()
+            .position(|&s| s == Some((linear, index)))
     }
 
-    /// Whether machine axis `i` takes a rotary program coordinate.
+    /// Whether machine axis `i` is a rotary one (A, B, C, or a turning secondary axis).
     pub fn is_rotary(&self, i: usize) -> bool {
-        !self.sources[i].0
+        self.rotary[i]
     }
 
     /// Number of machine axes.
@@ -97,10 +126,14 @@ impl AxisMap {
         self.sources.len()
     }
 
-    /// Machine-axis coordinates of a program position.
+    /// Machine-axis coordinates of a program position (a secondary axis: its home).
     pub fn machine_axes(&self, p: &Position, out: &mut [f64]) {
-        for ((o, &(linear, i)), affine) in out.iter_mut().zip(&self.sources).zip(&self.affine) {
-            let v = if linear { p.linear[i] } else { p.rotary[i] };
+        for ((o, &source), affine) in out.iter_mut().zip(&self.sources).zip(&self.affine) {
+            let v = match source {
+                Some((true, i)) => p.linear[i],
+                Some((false, i)) => p.rotary[i],
+                None => 0.0,
+            };
             *o = match affine {
                 None => v,
                 Some((sign, zero)) => zero + sign * v,
@@ -110,8 +143,12 @@ impl AxisMap {
 
     /// Machine-axis components of a program-frame vector (a velocity, a direction).
     pub fn machine_vector(&self, v: &Position, out: &mut [f64]) {
-        for ((o, &(linear, i)), affine) in out.iter_mut().zip(&self.sources).zip(&self.affine) {
-            let c = if linear { v.linear[i] } else { v.rotary[i] };
+        for ((o, &source), affine) in out.iter_mut().zip(&self.sources).zip(&self.affine) {
+            let c = match source {
+                Some((true, i)) => v.linear[i],
+                Some((false, i)) => v.rotary[i],
+                None => 0.0,
+            };
             *o = match affine {
                 Some((sign, _)) if *sign < 0.0 => -c,
                 _ => c,
@@ -141,15 +178,15 @@ impl AxisMap {
     /// Program position of machine-axis coordinates (axes the machine lacks stay at zero).
     pub fn program_position(&self, q: &[f64]) -> Position {
         let mut p = Position::default();
-        for ((&v, &(linear, i)), affine) in q.iter().zip(&self.sources).zip(&self.affine) {
+        for ((&v, &source), affine) in q.iter().zip(&self.sources).zip(&self.affine) {
             let v = match affine {
                 None => v,
                 Some((sign, zero)) => sign * (v - zero),
             };
-            if linear {
-                p.linear[i] = v;
-            } else {
-                p.rotary[i] = v;
+            match source {
+                Some((true, i)) => p.linear[i] = v,
+                Some((false, i)) => p.rotary[i] = v,
+                None => {}
             }
         }
         p

@@ -636,6 +636,9 @@ pub struct Tool {
     /// Tool point in the tool link's frame (m).
     #[serde(default)]
     pub offset_m: [f64; 3],
+    /// The link is `machine init`'s guess, not yet checked by the user (said at every load).
+    #[serde(default)]
+    pub guessed: bool,
 }
 
 /// The link that carries the workpiece (tool-tip figures are given in its frame).
@@ -644,6 +647,9 @@ pub struct Tool {
 pub struct Workpiece {
     /// The URDF link that carries the workpiece.
     pub link: String,
+    /// The link is `machine init`'s guess, not yet checked by the user (said at every load).
+    #[serde(default)]
+    pub guessed: bool,
 }
 
 /// What happens to a moving URDF joint that no axis drives (`[joints.<name>]`).
@@ -680,8 +686,10 @@ pub struct InertiaFromGeometry {
 /// Range of `inertia_from_geometry.density_kg_m3`: from foam to tungsten, with margin.
 pub const DENSITY_RANGE_KG_M3: (f64, f64) = (10.0, 25_000.0);
 
-/// The program letters an axis may have.
-pub const AXIS_LETTERS: [&str; 6] = ["x", "y", "z", "a", "b", "c"];
+/// The letters an axis may have (ISO 841): X, Y, Z linear and A, B, C turning about them,
+/// which programs move; then the secondary motions U, V, W (linear, parallel to X, Y, Z) and
+/// D, E (a second rotation parallel to one already named), which programs hold at home.
+pub const AXIS_LETTERS: [&str; 11] = ["x", "y", "z", "a", "b", "c", "u", "v", "w", "d", "e"];
 
 /// Contents of a drive sidecar file.
 #[derive(Debug, Clone, PartialEq, Deserialize)]
@@ -926,10 +934,10 @@ impl DrivesFile {
                     )));
                 }
             }
-            let rotary_letter = ["a", "b", "c"].contains(&name.as_str());
+            let rotary_letter = ["a", "b", "c", "d", "e"].contains(&name.as_str());
             if rotary_letter != (kind == JointKind::Revolute) {
                 return Err(fail(format!(
-                    "joint '{}' is {}: the letters x, y, z name linear axes, a, b, c rotary ones",
+                    "joint '{}' is {}: the letters x, y, z (and u, v, w) name linear axes, a, b, c (and d, e) rotary ones",
                     drive.joint,
                     if kind == JointKind::Revolute {
                         "revolute"
@@ -946,6 +954,21 @@ impl DrivesFile {
         }
         // Axes in chain order (parents first), the order the physics model uses.
         axes.sort_by_key(|a| a.joint);
+        let guesses = [
+            self.tool.guessed.then_some(("tool", &self.tool.link)),
+            (self.workpiece.as_ref())
+                .filter(|w| w.guessed)
+                .map(|w| ("workpiece", &w.link)),
+        ];
+        for (table, link) in guesses.into_iter().flatten() {
+            warnings.push(FileError::new(
+                path,
+                at(&format!("[{table}]")),
+                format!(
+                    "[{table}] link = '{link}' is `machine init`'s guess (guessed = true): check it in `cncsim machine check`, then delete the guessed line"
+                ),
+            ));
+        }
         Ok(Machine {
             name: tree.name,
             urdf_path: tree.path,

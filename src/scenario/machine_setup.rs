@@ -39,6 +39,21 @@ pub struct AxisRow {
     pub joint_damping: f64,
     /// The URDF joint's own `<dynamics friction>` (N or N·m), applied at the joint.
     pub joint_friction: f64,
+    /// Why the letter fits the axis in ISO 841, or what it should be instead.
+    pub letter_reason: String,
+}
+
+/// Where the tool point is, as `check` shows it.
+#[derive(Debug, Clone, PartialEq)]
+pub struct ToolPointRow {
+    /// The tool link.
+    pub link: String,
+    /// Offset in the tool link's frame (m).
+    pub offset: [f64; 3],
+    /// With every axis at its home, in the carrier link's frame (m).
+    pub at_home: [f64; 3],
+    /// `guessed = true` in `[tool]`: `machine init`'s guess, unchecked.
+    pub guessed: bool,
 }
 
 /// What `cncsim machine check` found.
@@ -68,6 +83,12 @@ pub struct MachineReport {
     pub meshes: Vec<String>,
     /// Whether X, Y, Z form a right-handed frame (ISO 841); else parts come out mirrored.
     pub right_handed: bool,
+    /// Whether +Z points up (from the part towards the tool, ISO 841): `None` where Z is
+    /// horizontal (a horizontal spindle) or the machine has no Z.
+    pub z_up: Option<bool>,
+    /// The tool point: its link, offset (m), where it is at home in the program frame's
+    /// carrier (m), and whether the link is `machine init`'s unchecked guess.
+    pub tool_point: ToolPointRow,
     /// What loads but may not be meant: the machine's and the program frame's warnings.
     pub warnings: Vec<FileError>,
 }
@@ -99,6 +120,7 @@ pub fn check_machine(urdf: &Path) -> Result<MachineReport, FileError> {
                 }
             };
             AxisRow {
+                letter_reason: letter_reason(&a.name, &frame.program_vector(&direction), rotary),
                 letter: a.name.clone(),
                 joint: joint.name.clone(),
                 rotary,
@@ -179,8 +201,66 @@ pub fn check_machine(urdf: &Path) -> Result<MachineReport, FileError> {
         masses_from_geometry: machine.masses_from_geometry.clone(),
         meshes,
         right_handed: frame.directions.determinant() > 0.0,
+        z_up: z_up(&machine, &frame, &poses),
+        tool_point: ToolPointRow {
+            link: machine.tool.link.clone(),
+            offset: machine.tool.offset_m,
+            at_home: (frame.origin.coords).into(),
+            guessed: machine.tool.guessed,
+        },
         warnings,
     })
+}
+
+/// Whether program +Z points up (the URDF's +z, REP 103) at home, so from the part towards
+/// the tool; `None` where it is within 60° of horizontal or the machine has no Z axis.
+fn z_up(
+    machine: &Machine,
+    frame: &ProgramFrame,
+    poses: &[nalgebra::Isometry3<f64>],
+) -> Option<bool> {
+    machine.axis_index("z")?;
+    let up = (poses[frame.carrier].rotation * frame.directions.column(2))
+        .normalize()
+        .z;
+    (up.abs() >= 0.5).then_some(up > 0.0)
+}
+
+/// Why a letter fits an axis in ISO 841 (A, B, C turn about X, Y, Z; U, V, W and D, E are
+/// the secondary motions), or what it should be: `direction` in program axes.
+fn letter_reason(letter: &str, direction: &Vector3<f64>, rotary: bool) -> String {
+    let nearest = (0..3)
+        .max_by(|&a, &b| direction[a].abs().total_cmp(&direction[b].abs()))
+        .unwrap_or(0);
+    let about = ["X", "Y", "Z"][nearest];
+    let (primary, secondary): (&[&str], &[&str]) = if rotary {
+        (&["a", "b", "c"], &["d", "e"])
+    } else {
+        (&["x", "y", "z"], &["u", "v", "w"])
+    };
+    let upper = letter.to_uppercase();
+    match (primary.iter().position(|l| *l == letter), secondary.iter().position(|l| *l == letter)) {
+        (Some(_), _) if !rotary => format!("moves the tool along {upper} relative to the part (ISO 841)"),
+        (Some(i), _) if i == nearest => format!("turns about {about}: {upper} (ISO 841: A, B, C turn about X, Y, Z)"),
+        (Some(_), _) => format!(
+            "turns about {about}, but {upper} turns about {} in ISO 841: name it {} (or D, E where {} is taken)",
+            ["X", "Y", "Z"][primary.iter().position(|l| *l == letter).unwrap_or(0)],
+            primary[nearest].to_uppercase(),
+            primary[nearest].to_uppercase()
+        ),
+        (None, Some(_)) if rotary => format!("a second rotation (about {about}): {upper}, ISO 841's secondary rotary motion; programs hold it at home"),
+        (None, Some(i)) if i == nearest => format!("a second motion along {about}: {upper}, ISO 841's secondary linear motion; programs hold it at home"),
+        (None, Some(_)) => format!(
+            "moves along {about}, but {upper} is parallel to {} in ISO 841: name it {}",
+            ["X", "Y", "Z"][secondary.iter().position(|l| *l == letter).unwrap_or(0)],
+            secondary[nearest].to_uppercase()
+        ),
+        (None, None) => format!(
+            "{upper} names a {} motion in ISO 841, but its joint {}",
+            if rotary { "linear" } else { "rotary" },
+            if rotary { "turns" } else { "slides" }
+        ),
+    }
 }
 
 impl MachineReport {
@@ -265,13 +345,46 @@ impl MachineReport {
                 a.joint_friction
             );
         }
+        let _ = writeln!(out, "\nletters (ISO 841):");
+        for a in &self.axes {
+            let _ = writeln!(out, "  {}: {}", a.letter.to_uppercase(), a.letter_reason);
+        }
+        let hand = if self.right_handed {
+            "right-handed"
+        } else {
+            "LEFT-handed: parts come out mirrored (see the warning)"
+        };
+        let _ = match self.z_up {
+            Some(true) if self.right_handed => writeln!(
+                out,
+                "X, Y, Z are right-handed with +Z up, from the part towards the tool (ISO 841)"
+            ),
+            Some(false) => writeln!(
+                out,
+                "X, Y, Z are {hand}, and +Z points DOWN, from the tool into the part: ISO 841's +Z points from the part towards the tool. Flip `sign = -1` in [axes.z] and, to stay right-handed, in one of [axes.x], [axes.y]"
+            ),
+            None if self.right_handed => writeln!(
+                out,
+                "X, Y, Z are right-handed (ISO 841); +Z is not vertical (a horizontal spindle?): check that it points from the part towards the tool"
+            ),
+            _ => writeln!(out, "X, Y, Z are {hand}"),
+        };
+        let p = &self.tool_point;
         let _ = writeln!(
             out,
-            "X, Y, Z are {}",
-            if self.right_handed {
-                "right-handed (ISO 841)"
+            "tool point: link '{}' + [{:.3}, {:.3}, {:.3}] mm, at [{:.3}, {:.3}, {:.3}] mm in '{}' with every axis at home{}",
+            p.link,
+            p.offset[0] * 1e3,
+            p.offset[1] * 1e3,
+            p.offset[2] * 1e3,
+            p.at_home[0] * 1e3,
+            p.at_home[1] * 1e3,
+            p.at_home[2] * 1e3,
+            self.carrier,
+            if p.guessed {
+                " — machine init's GUESS (guessed = true in [tool]): check the link and offset, then delete that line"
             } else {
-                "LEFT-handed: parts come out mirrored (see the warning)"
+                ""
             }
         );
         if !self.undriven.is_empty() {
@@ -317,6 +430,13 @@ impl MachineReport {
             "workpiece_link": self.workpiece,
             "frame_link": self.carrier,
             "right_handed": self.right_handed,
+            "z_up": self.z_up,
+            "tool_point": {
+                "link": self.tool_point.link,
+                "offset_m": self.tool_point.offset,
+                "at_home_m": self.tool_point.at_home,
+                "guessed": self.tool_point.guessed,
+            },
             "axes": self.axes.iter().map(|a| serde_json::json!({
                 "letter": a.letter,
                 "joint": a.joint,
@@ -328,6 +448,7 @@ impl MachineReport {
                 "travel": a.travel,
                 "joint_damping": a.joint_damping,
                 "joint_friction": a.joint_friction,
+                "letter_reason": a.letter_reason,
             })).collect::<Vec<_>>(),
             "undriven_joints": self.undriven.iter().map(|(n, w)| serde_json::json!({"joint": n, "mode": w})).collect::<Vec<_>>(),
             "links": self.links.iter().map(|(n, m)| serde_json::json!({"link": n, "mass_kg": m, "from_geometry": self.masses_from_geometry.contains(n)})).collect::<Vec<_>>(),
@@ -338,9 +459,9 @@ impl MachineReport {
 }
 
 /// Link names that say "the tool is here", and "the part is here", most telling first.
-const TOOL_WORDS: [&str; 11] = [
-    "tool", "tcp", "nozzle", "spindle", "laser", "torch", "pen", "extruder", "hotend", "effector",
-    "head",
+const TOOL_WORDS: [&str; 12] = [
+    "tool", "tcp", "tip", "nozzle", "spindle", "laser", "torch", "pen", "extruder", "hotend",
+    "effector", "head",
 ];
 const WORKPIECE_WORDS: [&str; 7] = ["workpiece", "work", "part", "bed", "table", "plate", "vise"];
 
@@ -366,21 +487,43 @@ pub fn drive_file_template(urdf: &Path) -> Result<String, FileError> {
     let urdf_text = tree.text.clone();
     // Masses from geometry only where the URDF leaves a moving body without any.
     let mut density = false;
-    let mut text = render(&tree, urdf, &guess, None, density);
+    let mut text = render(&tree, urdf, &guess, &[], density);
     if Machine::parse(urdf, &urdf_text, &text).is_err() {
         density = true;
-        text = render(&tree, urdf, &guess, None, density);
+        text = render(&tree, urdf, &guess, &[], density);
     }
-    // Check the guess the way a run will read it, and make the axes right-handed.
+    // Check the guess the way a run will read it: +Z up, from the part towards the tool, and
+    // X, Y, Z right-handed (ISO 841).
     let machine = Machine::parse(urdf, &urdf_text, &text)?;
     let (frame, _) = ProgramFrame::new(&machine)?;
-    if frame.directions.determinant() < 0.0 {
-        // Flip the axis that points most against its namesake of the frame's link.
-        let flip = (0..3)
-            .filter(|&c| machine.axis_index(["x", "y", "z"][c]).is_some())
-            .min_by(|&a, &b| frame.directions[(a, a)].total_cmp(&frame.directions[(b, b)]))
-            .unwrap_or(1);
-        text = render(&tree, urdf, &guess, Some(["x", "y", "z"][flip]), density);
+    let home: Vec<f64> = machine.axes.iter().map(|a| a.drive.home).collect();
+    let poses = kinematics::link_poses(&machine, &home);
+    let mut directions = frame.directions;
+    let mut flips: Vec<(&str, &str)> = Vec::new();
+    let z_set = z_up(&machine, &frame, &poses);
+    if z_set == Some(false) {
+        flips.push(("z", "+Z pointed down, into the part: reversed so it points from the part towards the tool (ISO 841)"));
+        directions.set_column(2, &-directions.column(2));
+    }
+    if directions.determinant() < 0.0 {
+        // Flip the axis that points most against its namesake of the frame's link; Z only
+        // where gravity did not fix its sign.
+        let candidates = ["x", "y", "z"]
+            .iter()
+            .enumerate()
+            .filter(|&(c, l)| machine.axis_index(l).is_some() && (c < 2 || z_set.is_none()))
+            .map(|(c, _)| c);
+        if let Some(flip) =
+            candidates.min_by(|&a, &b| directions[(a, a)].total_cmp(&directions[(b, b)]))
+        {
+            flips.push((
+                ["x", "y", "z"][flip],
+                "the axes were left-handed: this one is reversed so parts are not mirrored",
+            ));
+        }
+    }
+    if !flips.is_empty() {
+        text = render(&tree, urdf, &guess, &flips, density);
     }
     Ok(text)
 }
@@ -389,8 +532,8 @@ pub fn drive_file_template(urdf: &Path) -> Result<String, FileError> {
 struct Guess {
     tool: usize,
     workpiece: usize,
-    /// (joint, letter) for the joints that move the tool or the part.
-    axes: Vec<(usize, &'static str)>,
+    /// (joint, letter, why that letter) for the joints that move the tool or the part.
+    axes: Vec<(usize, &'static str, String)>,
     /// Moving joints on neither chain (grippers, doors, tool changers).
     others: Vec<usize>,
 }
@@ -406,9 +549,18 @@ impl Guess {
                 })
                 .count()
         };
+        // Words of three letters match whole words of the name only ("tip" is not in
+        // "multiple", "pen" not in "open").
         let named = |words: &[&str], l: usize| {
             let name = tree.links[l].name.to_lowercase();
-            words.iter().position(|w| name.contains(w))
+            let tokens: Vec<&str> = name.split(|c: char| !c.is_ascii_alphabetic()).collect();
+            words.iter().position(|w| {
+                if w.len() <= 3 {
+                    tokens.contains(w)
+                } else {
+                    name.contains(w)
+                }
+            })
         };
         // The tool: a link named like one, deepest first; else the leaf with the longest
         // moving chain. Leaves that tie (the fingers of a gripper) hang on one hand: the tool
@@ -456,10 +608,20 @@ impl Guess {
                     usize::MAX - named(&WORKPIECE_WORDS, l).unwrap_or(0),
                 )
             })
+            // Else the link moved most on a branch of its own, which no joint moving the tool
+            // carries (a moving table), else the base.
+            .or_else(|| {
+                let moving_tool_joint =
+                    |j: &usize| tool_chain.contains(j) && tree.joints[*j].kind != JointKind::Fixed;
+                (0..tree.links.len())
+                    .filter(|&l| !chain(l).iter().any(moving_tool_joint))
+                    .filter(|&l| l != tool && moving(&chain(l)) > 0)
+                    .max_by_key(|&l| moving(&chain(l)))
+            })
             .unwrap_or(tree.root);
         let work_chain = chain(workpiece);
         let poses = kinematics::link_poses(&probe, &[]);
-        let mut axes: Vec<(usize, &'static str)> = Vec::new();
+        let mut axes: Vec<(usize, &'static str, String)> = Vec::new();
         let mut others = Vec::new();
         for (j, joint) in tree.joints.iter().enumerate() {
             if joint.kind == JointKind::Fixed || joint.mimic.is_some() {
@@ -473,24 +635,54 @@ impl Guess {
             }
             let world = (poses[joint.parent] * joint.origin).rotation * joint.axis;
             let direction = if on_tool { world } else { -world };
-            let letters: [&'static str; 3] = if joint.kind == JointKind::Revolute {
-                ["a", "b", "c"]
+            let rotary = joint.kind == JointKind::Revolute;
+            // ISO 841: the letter of the axis it moves along (turns about) most; a second one
+            // parallel to a letter already taken is a secondary motion (U V W, D E).
+            let (letters, secondary): ([&'static str; 3], &[&'static str]) = if rotary {
+                (["a", "b", "c"], &["d", "e"])
             } else {
-                ["x", "y", "z"]
+                (["x", "y", "z"], &["u", "v", "w"])
             };
-            // The free letter whose axis the joint moves along most.
-            let mut order = [0usize, 1, 2];
-            order.sort_by(|&a, &b| direction[b].abs().total_cmp(&direction[a].abs()));
-            match order
-                .iter()
-                .map(|&c| letters[c])
-                .find(|l| axes.iter().all(|(_, t)| t != l))
-            {
-                Some(letter) => axes.push((j, letter)),
-                None => others.push(j),
+            let nearest = (0..3)
+                .max_by(|&a, &b| direction[a].abs().total_cmp(&direction[b].abs()))
+                .unwrap_or(0);
+            let (verb, along) = if rotary {
+                ("turns about", ["X", "Y", "Z"][nearest])
+            } else {
+                ("moves the tool along", ["X", "Y", "Z"][nearest])
+            };
+            let taken = |l: &str| axes.iter().any(|(_, t, _)| *t == l);
+            let holder = |l: &str| {
+                axes.iter()
+                    .find(|(_, t, _)| *t == l)
+                    .map_or(String::new(), |(j, _, _)| tree.joints[*j].name.clone())
+            };
+            let primary = letters[nearest];
+            let free_secondary = if rotary {
+                secondary.iter().copied().find(|l| !taken(l))
+            } else {
+                Some(secondary[nearest]).filter(|l| !taken(l))
+            };
+            if !taken(primary) {
+                let reason = format!(
+                    "{verb} {along} in the base's frame: {} (ISO 841)",
+                    primary.to_uppercase()
+                );
+                axes.push((j, primary, reason));
+            } else if let Some(letter) = free_secondary {
+                let reason = format!(
+                    "{verb} {along} in the base's frame like {} (joint '{}'): {}, ISO 841's secondary {} motion; programs hold it at home",
+                    primary.to_uppercase(),
+                    holder(primary),
+                    letter.to_uppercase(),
+                    if rotary { "rotary" } else { "linear" }
+                );
+                axes.push((j, letter, reason));
+            } else {
+                others.push(j);
             }
         }
-        axes.sort_by_key(|(_, l)| AXIS_LETTERS.iter().position(|a| a == l));
+        axes.sort_by_key(|(_, l, _)| AXIS_LETTERS.iter().position(|a| a == l));
         Guess {
             tool,
             workpiece,
@@ -514,6 +706,7 @@ fn provisional(tree: &KinematicTree, tool: usize, workpiece: usize) -> Machine {
         tool: Tool {
             link: tree.links[tool].name.clone(),
             offset_m: [0.0; 3],
+            guessed: true,
         },
         tool_link: tool,
         workpiece_link: workpiece,
@@ -525,7 +718,7 @@ fn render(
     tree: &KinematicTree,
     urdf: &Path,
     guess: &Guess,
-    flip: Option<&str>,
+    flips: &[(&str, &str)],
     density: bool,
 ) -> String {
     let mut t = String::new();
@@ -556,22 +749,24 @@ fn render(
     let _ = writeln!(
         t,
         "# The tool point: a point fixed in one link (guessed: '{}'), offset_m in that link's frame.\n\
-         [tool]\nlink = {:?}\noffset_m = [0.0, 0.0, 0.0]\n",
+         # `cncsim machine check` shows where it is; delete `guessed` once it is right.\n\
+         [tool]\nlink = {:?}\noffset_m = [0.0, 0.0, 0.0]\nguessed = true\n",
         tree.links[guess.tool].name, tree.links[guess.tool].name
     );
     let _ = writeln!(
         t,
         "# The link that carries the part (guessed: '{}'). Program X, Y, Z are where each axis moves\n\
          # the tool relative to it (ISO 841); without this table, the base link.\n\
-         [workpiece]\nlink = {:?}\n",
+         [workpiece]\nlink = {:?}\nguessed = true\n",
         tree.links[guess.workpiece].name, tree.links[guess.workpiece].name
     );
-    for &(j, letter) in &guess.axes {
+    for (j, letter, reason) in &guess.axes {
+        let (j, letter) = (*j, *letter);
         let joint = &tree.joints[j];
         let rotary = joint.kind == JointKind::Revolute;
         let _ = writeln!(
             t,
-            "# {}: URDF joint '{}' (letter guessed from its direction).",
+            "# {}: URDF joint '{}', which {reason}.",
             letter.to_uppercase(),
             joint.name
         );
@@ -606,10 +801,9 @@ fn render(
                 "# guide = {{ friction_coefficient = 0.01 }}   # guide contact with Coulomb friction; default frictionless"
             );
         }
-        let sign = if flip == Some(letter) {
-            "sign = -1                               # the axes were left-handed: this one is reversed so parts are not mirrored"
-        } else {
-            "# sign = 1                              # -1 reverses the letter's direction; default 1"
+        let sign = match flips.iter().find(|(l, _)| *l == letter) {
+            Some((_, why)) => format!("sign = -1                               # {why}"),
+            None => "# sign = 1                              # -1 reverses the letter's direction; default 1".to_string(),
         };
         let unit = if rotary { "rad" } else { "m" };
         let home = match joint.limits {

@@ -37,7 +37,7 @@ pub use file::{
     ProgramSource, RecordingSettings, Scenario, Timing, TransmissionEntry,
 };
 pub use machine_setup::{
-    check_machine, drive_file_template, AxisRow, DriveFileDraft, MachineReport,
+    check_machine, drive_file_template, AxisRow, DriveFileDraft, MachineReport, ToolPointRow,
 };
 pub use overrides::{edit_toml, Override};
 pub use plan::{plan_scenario, PlanOutput, PlanReport};
