@@ -492,7 +492,7 @@ fn a_compliant_axis_shows_its_two_mass_resonance() {
     assert_eq!(expected.len(), 1, "python-control: {expected:?}");
     assert_eq!(measured.len(), 1, "measured: {measured:?}");
     assert!(
-        (measured[0] / expected[0] - 1.0).abs() < 0.02,
+        (measured[0] / expected[0] - 1.0).abs() < 0.01,
         "resonance {measured:?} vs python-control {expected:?}"
     );
     let anti = numbers(&r, "antiresonances_hz");
@@ -503,7 +503,7 @@ fn a_compliant_axis_shows_its_two_mass_resonance() {
         "{anti:?} vs {anti_expected:?}"
     );
     for (a, b) in anti.iter().zip(&anti_expected) {
-        assert!((a / b - 1.0).abs() < 0.02, "antiresonance {a} vs {b}");
+        assert!((a / b - 1.0).abs() < 0.01, "antiresonance {a} vs {b}");
     }
     let (mag, phase) = (numbers(&r, "magnitude_db"), numbers(&r, "phase_deg"));
     let (om, op) = (numbers(&o, "magnitude_db"), numbers(&o, "phase_deg"));
@@ -538,6 +538,64 @@ fn a_compliant_axis_shows_its_two_mass_resonance() {
     for (key, tol) in [("phase_margin_deg", 5.0), ("gain_margin_db", 1.0)] {
         let (a, b) = (number(&r, key).unwrap(), number(&o, key).unwrap());
         assert!((a - b).abs() < tol, "{key}: {a} vs python-control {b}");
+    }
+}
+
+#[test]
+fn a_lightly_damped_resonance_is_located_by_a_search_with_the_default_options() {
+    // The XYZ table's X belt as a 6·10⁵ N/m spring with no damping of its own (ζ ≈ 0.005 from
+    // the motor's back-EMF), friction and backlash off: the case a coarse grid and unsettled
+    // points measured 3 % low. Default options: the resonance must match the undamped
+    // two-mass formula of the drive data, √(k(1/m_d + 1/m_c)), on the physics and on the
+    // analytic model.
+    let dir = tempfile::tempdir().unwrap();
+    let text = std::fs::read_to_string(compliant_scenario(dir.path()))
+        .unwrap()
+        .replacen(
+            "[mechanics.transmission.y]\nstiffness_n_per_m = 7.0e5\ndamping_n_s_per_m = 368.0\n",
+            "",
+            1,
+        )
+        .replacen(
+            "stiffness_n_per_m = 7.0e5\ndamping_n_s_per_m = 368.0",
+            "stiffness_n_per_m = 6.0e5",
+            1,
+        );
+    assert!(
+        text.contains("stiffness_n_per_m = 6.0e5\n")
+            && !text.contains("[mechanics.transmission.y]"),
+        "{text}"
+    );
+    let path = dir.path().join("light.toml");
+    std::fs::write(&path, text).unwrap();
+    let s = path.display().to_string();
+    let (k, md, mc) = (6.0e5, 3.89e-5 * 4000.0f64.powi(2), 17.74585);
+    let two_mass = (k * (1.0 / md + 1.0 / mc)).sqrt() / std::f64::consts::TAU;
+    for (what, extra) in [("physics", None), ("analytic", Some("--analytic"))] {
+        let mut args = vec![s.as_str(), "--axis", "x"];
+        args.extend(extra);
+        let r = bode_json(&args, &dir.path().join(what));
+        let measured = numbers(&r, "resonances_hz");
+        assert_eq!(measured.len(), 1, "{what}: {measured:?}");
+        // Physics: Rapier's 0.25 ms step adds about 0.1 %.
+        assert!(
+            (measured[0] / two_mass - 1.0).abs() < 0.005,
+            "{what}: {measured:?} vs the two-mass {two_mass} Hz"
+        );
+        let model = numbers(&r["model_figures"], "resonances_hz");
+        assert!(
+            (model[0] / two_mass - 1.0).abs() < 0.001,
+            "model {model:?} vs {two_mass}"
+        );
+        // The search reached its resolution, and the loop's ringing set the settling.
+        assert!(number(&r, "search_resolution").unwrap() <= 1e-3);
+        assert!(number(&r, "settle_s").unwrap() > 1.0, "{}", r["settle_s"]);
+        eprintln!(
+            "{what}: resonance {:.3} Hz, model {:.3} Hz, two-mass {two_mass:.3} Hz, settle {:.2} s",
+            measured[0],
+            model[0],
+            number(&r, "settle_s").unwrap()
+        );
     }
 }
 

@@ -218,6 +218,13 @@ pub struct BodeRun {
     /// Notes on what the measurement could not do (saturation, low coherence, nonlinear
     /// mechanics the model leaves out).
     pub notes: Vec<String>,
+    /// Settling of each frequency before it is measured (s): at least five of the loop's
+    /// slowest ringing time constants by the model.
+    pub settle_s: f64,
+    /// The relative frequency resolution to which the search on the physics located the peaks
+    /// and dips (the widest final gap between measured points, e.g. 0.001); `None` where there
+    /// were none.
+    pub search_resolution: Option<f64>,
 }
 
 fn opt(v: Option<f64>, digits: usize, unit: &str) -> String {
@@ -229,7 +236,7 @@ fn list(v: &[f64]) -> String {
         "none".into()
     } else {
         v.iter()
-            .map(|f| format!("{f:.1}"))
+            .map(|f| format!("{f:.2}"))
             .collect::<Vec<_>>()
             .join(", ")
             + " Hz"
@@ -274,6 +281,14 @@ impl BodeRun {
             list(&self.figures.antiresonances_hz),
             list(&m.antiresonances_hz),
         );
+        if let Some(r) = self.search_resolution {
+            out += &format!(
+                "  located       by a search on the {} to ±{:.2} % (each frequency settled {:.2} s)\n",
+                self.plant,
+                50.0 * r,
+                self.settle_s
+            );
+        }
         out += &row(
             "bandwidth",
             opt(self.figures.bandwidth_hz, 1, "Hz (−3 dB)"),

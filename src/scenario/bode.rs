@@ -230,11 +230,24 @@ struct Sweep {
     lp: Loop,
 }
 
-/// What one sweep measured.
+/// What one sweep measured, over one or more runs of the loop.
 struct Measured {
     excitation: Excitation,
     estimates: Vec<Estimate>,
     ticks: usize,
+    /// Runs of the loop (each with its lead-in).
+    runs: usize,
+}
+
+impl Measured {
+    /// Joins another run's points, kept in frequency order.
+    fn add(&mut self, more: Measured) {
+        self.ticks += more.ticks;
+        self.runs += more.runs;
+        self.estimates.extend(more.estimates);
+        self.estimates
+            .sort_by(|a, b| a.frequency.total_cmp(&b.frequency));
+    }
 }
 
 /// The amplitude the model allows: the command within [`COMMAND_SHARE`] of its range and the
@@ -247,72 +260,13 @@ fn amplitude(model: &AxisLinearModel, sweep: &Sweep, segs: &[Segment], rotary: b
     };
     let (mut command, mut displacement) = (0.0f64, 0.0f64);
     for s in segs {
-        let r = model
-            .controller
-            .response(sweep.lp, &model.plant, &model.sampled, s.frequency);
-        let (u, x) = match sweep.injection {
-            // Injected at the plant input: u = d/(1 + L), x = P·d/(1 + L).
-            Injection::ControllerOutput => {
-                let s = 1.0 / (1.0 + r.open);
-                (s, r.plant.feedback * s)
-            }
-            _ => (r.command, r.displacement),
-        };
+        let (u, x) = excited(model, sweep, s.frequency);
         command = command.max(u.norm());
         displacement = displacement.max(x.norm());
     }
     let by_command = COMMAND_SHARE * model.command_limit / command;
     let by_displacement = max_disp / displacement;
     by_command.min(by_displacement)
-}
-
-fn measure(
-    assembly: &Assembly,
-    model: &AxisLinearModel,
-    axis: usize,
-    sweep: &Sweep,
-    segs: &[Segment],
-    kind: LaneKind,
-    progress: &mut dyn FnMut(usize, usize) -> bool,
-) -> Result<Measured, BodeError> {
-    let rotary = assembly.labels[axis].rotary;
-    let excitation = Excitation {
-        axis,
-        injection: sweep.injection,
-        amplitude: amplitude(model, sweep, segs, rotary),
-        segments: segs.to_vec(),
-        start: assembly.start(),
-        period: assembly.scenario.timing.servo_period,
-    };
-    let settings = &assembly.loop_settings;
-    let plant = assembly.plant(kind, &excitation.start)?;
-    let inner = sweep.recipe.build();
-    let controller: Box<dyn crate::control::Controller + '_> = match sweep.injection {
-        Injection::ControllerOutput => Box::new(Injected::new(
-            inner,
-            &excitation,
-            crate::frequency::measure::lead_in(settings),
-        )),
-        _ => inner,
-    };
-    let lane = Lane {
-        kind,
-        plant,
-        controller,
-    };
-    let (samples, stop) = run_sweep(settings, lane, &excitation, progress);
-    if let Some(stop) = stop {
-        return Err(BodeError::Failed(format!(
-            "{}: the sweep stopped: {stop}",
-            assembly.scenario.path.display()
-        )));
-    }
-    let estimates = estimates(&excitation, &samples);
-    Ok(Measured {
-        ticks: samples.excitation.len(),
-        excitation,
-        estimates,
-    })
 }
 
 /// Measures the frequency response `options` asks for. `progress(done, total)` hears about the
@@ -325,13 +279,84 @@ pub fn run_bode(
     bode_on(&Assembly::new(s)?, options, progress)
 }
 
-/// [`run_bode`] on a scenario already assembled.
+/// [`run_bode`] on a scenario already assembled: the coarse sweep, a zoom around every peak
+/// and dip, a search on the physics that locates each of them, then the curves and figures.
 pub fn bode_on(
     assembly: &Assembly,
     options: &BodeOptions,
     progress: &mut dyn FnMut(usize, usize) -> bool,
 ) -> Result<BodeRun, BodeError> {
     let started = Instant::now();
+    let axis = checked_axis(assembly, options)?;
+    let model = axis_linear_model(assembly, axis)?;
+    let period = assembly.scenario.timing.servo_period;
+    let (from, to) = (
+        options.from.unwrap_or(DEFAULT_FROM_HZ),
+        options.to.unwrap_or(DEFAULT_TO_SHARE / period),
+    );
+    let bad = |m: String| BodeError::from(FileError::new(&assembly.scenario.path, None, m));
+    check_range(from, to, period).map_err(bad)?;
+    if !(1..=MAX_PER_DECADE).contains(&options.per_decade) {
+        return Err(bad(format!(
+            "--per-decade {}: must be from 1 to {MAX_PER_DECADE}",
+            options.per_decade
+        )));
+    }
+    let sweeps = sweeps(assembly, options.lp, axis);
+    let ringing = sweeps
+        .iter()
+        .map(|sweep| ringing_time(&model, sweep, from, to))
+        .fold(0.0, f64::max);
+    let timing = SweepTiming {
+        min_settle: (SETTLE_TIME_CONSTANTS * ringing)
+            .clamp(SweepTiming::default().min_settle, MAX_SETTLE_S),
+        ..SweepTiming::default()
+    };
+    let meter = Meter {
+        assembly,
+        model: &model,
+        axis,
+        kind: options.plant,
+        timing,
+    };
+    let decades = (to / from).log10();
+    let count = ((decades * options.per_decade as f64).ceil() as usize + 1).max(2);
+    let segs = segments(&log_grid(from, to, count), period, &timing);
+    let mut measured = Vec::new();
+    for sweep in &sweeps {
+        measured.push(meter.measure(sweep, &segs, progress)?);
+    }
+    let feature = Feature {
+        lp: options.lp,
+        from,
+        to,
+    };
+    let fine_segs = zoom_segments(&meter, &feature, &measured, &segs);
+    if !fine_segs.is_empty() {
+        for (sweep, m) in sweeps.iter().zip(measured.iter_mut()) {
+            let more = meter.measure(sweep, &fine_segs, progress)?;
+            m.add(more);
+        }
+    }
+    let search = search_extrema(&meter, &feature, &sweeps, &mut measured, progress)?;
+    let mut run = BodeReport::new(assembly, options, &model, axis, &measured).run(from, to);
+    let runs = measured.iter().map(|m| m.runs).sum::<usize>();
+    let ticks: usize = measured.iter().map(|m| m.ticks).sum();
+    let settle = crate::frequency::measure::lead_in(&assembly.loop_settings) * runs;
+    run.simulated_time_s = (ticks + settle) as f64 * period;
+    run.wall_time_s = started.elapsed().as_secs_f64();
+    run.settle_s = timing.min_settle;
+    run.search_resolution = search;
+    if SETTLE_TIME_CONSTANTS * ringing > MAX_SETTLE_S {
+        run.notes.push(format!(
+            "the loop rings with a time constant of {ringing:.1} s by the model: each frequency settled for {MAX_SETTLE_S} s only, and points near that mode may still carry its transient"
+        ));
+    }
+    Ok(run)
+}
+
+/// The axis `options` names, and whether its loop can be measured.
+fn checked_axis(assembly: &Assembly, options: &BodeOptions) -> Result<usize, BodeError> {
     let s = &assembly.scenario;
     let bad = |m: String| BodeError::from(FileError::new(&s.path, None, m));
     let machine = &assembly.machine;
@@ -351,21 +376,12 @@ pub fn bode_on(
             kind.name()
         )));
     }
-    let model = axis_linear_model(assembly, axis)?;
-    let period = s.timing.servo_period;
-    let from = options.from.unwrap_or(DEFAULT_FROM_HZ);
-    let to = options.to.unwrap_or(DEFAULT_TO_SHARE / period);
-    check_range(from, to, period).map_err(bad)?;
-    if !(1..=MAX_PER_DECADE).contains(&options.per_decade) {
-        return Err(bad(format!(
-            "--per-decade {}: must be from 1 to {MAX_PER_DECADE}",
-            options.per_decade
-        )));
-    }
-    let decades = (to / from).log10();
-    let count = ((decades * options.per_decade as f64).ceil() as usize + 1).max(2);
-    let segs = segments(&log_grid(from, to, count), period, &SweepTiming::default());
+    Ok(axis)
+}
 
+/// The sweeps a loop takes: a setpoint sweep for the closed loop (position, velocity), then
+/// (always last) an injection at the controller output for the plant and the open loop.
+fn sweeps(assembly: &Assembly, lp: Loop, axis: usize) -> Vec<Sweep> {
     let velocity_recipe = || {
         assembly
             .controller
@@ -377,7 +393,7 @@ pub fn bode_on(
         recipe,
         lp,
     };
-    let sweeps: Vec<Sweep> = match options.lp {
+    match lp {
         Loop::Plant => vec![injection(assembly.controller.clone(), Loop::Plant)],
         Loop::Position => vec![
             Sweep {
@@ -395,56 +411,184 @@ pub fn bode_on(
             },
             injection(velocity_recipe(), Loop::Velocity),
         ],
-    };
-    let mut measured = Vec::new();
-    for sweep in &sweeps {
-        measured.push(measure(
-            assembly,
-            &model,
-            axis,
-            sweep,
-            &segs,
-            options.plant,
-            progress,
-        )?);
     }
-    // Zoom: around every peak or dip of the feature response (the plant, or the open loop)
-    // that the coarse sweep or the model shows, a fine sweep (±25 %, steps of 2 %), so that
-    // a sharp resonance is located to a percent and not to the coarse grid's spacing.
-    let feature_lp = if options.lp == Loop::Velocity {
-        Loop::Velocity
-    } else {
-        Loop::Plant
+}
+
+/// Time constants a frequency settles for: the loop's slowest ringing decays to e⁻⁵ (0.7 %)
+/// of its start before the frequency is measured.
+const SETTLE_TIME_CONSTANTS: f64 = 5.0;
+/// Longest settling per frequency (s): a loop ringing longer is measured anyway, with a note.
+const MAX_SETTLE_S: f64 = 20.0;
+/// Points of the model's grid that finds the loop's ringing (a half-power width of 0.1 %
+/// spans several of them over two decades).
+const RINGING_GRID: usize = 8000;
+
+/// The command and the plant output per unit of excitation by the model (injected at the plant
+/// input: u = d/(1 + L), x = P·d/(1 + L); on a setpoint: the closed loop's).
+fn excited(model: &AxisLinearModel, sweep: &Sweep, f: f64) -> (C64, C64) {
+    let r = model
+        .controller
+        .response(sweep.lp, &model.plant, &model.sampled, f);
+    match sweep.injection {
+        Injection::ControllerOutput => {
+            let s = 1.0 / (1.0 + r.open);
+            (s, r.plant.feedback * s)
+        }
+        _ => (r.command, r.displacement),
+    }
+}
+
+/// The slowest decay time (s) of the loop a sweep runs, by the model: a lightly damped peak of
+/// its response to the excitation rings with τ = 1/(π·Δf), Δf its half-power width; 0 where
+/// no peak stands 3 dB out within the sweep.
+fn ringing_time(model: &AxisLinearModel, sweep: &Sweep, from: f64, to: f64) -> f64 {
+    let grid = log_grid(from, to, RINGING_GRID);
+    let mag: Vec<f64> = grid
+        .iter()
+        .map(|&f| crate::frequency::estimate::db(excited(model, sweep, f).1.norm()))
+        .collect();
+    let half = 10.0 * 2f64.log10();
+    let crossing = |i: usize, j: usize, level: f64| {
+        let s = (mag[i] - level) / (mag[i] - mag[j]);
+        (grid[i].ln() + s * (grid[j].ln() - grid[i].ln())).exp()
     };
-    let feature_of = |e: &Estimate| match options.lp {
-        Loop::Plant => e.plant_feedback,
-        _ => e.open,
-    };
+    let mut slowest: f64 = 0.0;
+    for i in 1..grid.len() - 1 {
+        if !(mag[i] > mag[i - 1] && mag[i] >= mag[i + 1]) {
+            continue;
+        }
+        let level = mag[i] - half;
+        let left = (1..=i).rev().find(|&j| mag[j - 1] < level);
+        let right = (i..grid.len() - 1).find(|&j| mag[j + 1] < level);
+        if let (Some(l), Some(r)) = (left, right) {
+            let width = crossing(r, r + 1, level) - crossing(l, l - 1, level);
+            // Between the half-power points nothing may rise above the peak: one mode.
+            if mag[l..=r].iter().all(|&m| m <= mag[i]) && width > 0.0 {
+                slowest = slowest.max(1.0 / (PI * width));
+            }
+        }
+    }
+    slowest
+}
+
+/// What measures: the assembled scenario, the axis's model, the plant and the sweep timing.
+struct Meter<'a> {
+    assembly: &'a Assembly,
+    model: &'a AxisLinearModel,
+    axis: usize,
+    kind: LaneKind,
+    timing: SweepTiming,
+}
+
+impl Meter<'_> {
+    /// One run of the loop through `segs` (excited as `sweep` says), estimated.
+    fn measure(
+        &self,
+        sweep: &Sweep,
+        segs: &[Segment],
+        progress: &mut dyn FnMut(usize, usize) -> bool,
+    ) -> Result<Measured, BodeError> {
+        let assembly = self.assembly;
+        let rotary = assembly.labels[self.axis].rotary;
+        let excitation = Excitation {
+            axis: self.axis,
+            injection: sweep.injection,
+            amplitude: amplitude(self.model, sweep, segs, rotary),
+            segments: segs.to_vec(),
+            start: assembly.start(),
+            period: assembly.scenario.timing.servo_period,
+        };
+        let settings = &assembly.loop_settings;
+        let plant = assembly.plant(self.kind, &excitation.start)?;
+        let inner = sweep.recipe.build();
+        let controller: Box<dyn crate::control::Controller + '_> = match sweep.injection {
+            Injection::ControllerOutput => Box::new(Injected::new(
+                inner,
+                &excitation,
+                crate::frequency::measure::lead_in(settings),
+            )),
+            _ => inner,
+        };
+        let lane = Lane {
+            kind: self.kind,
+            plant,
+            controller,
+        };
+        let (samples, stop) = run_sweep(settings, lane, &excitation, progress);
+        if let Some(stop) = stop {
+            return Err(BodeError::Failed(format!(
+                "{}: the sweep stopped: {stop}",
+                assembly.scenario.path.display()
+            )));
+        }
+        let estimates = estimates(&excitation, &samples);
+        Ok(Measured {
+            ticks: samples.excitation.len(),
+            runs: 1,
+            excitation,
+            estimates,
+        })
+    }
+}
+
+/// The response whose peaks and dips are the figures: the plant (plant loop) or the open loop
+/// (position and velocity loops), over the sweep's range.
+struct Feature {
+    lp: Loop,
+    from: f64,
+    to: f64,
+}
+
+impl Feature {
+    /// The feature as measured in an estimate.
+    fn of(&self, e: &Estimate) -> Option<C64> {
+        match self.lp {
+            Loop::Plant => e.plant_feedback,
+            _ => e.open,
+        }
+    }
+
+    /// The feature by the model.
+    fn model(&self, model: &AxisLinearModel, f: f64) -> C64 {
+        let lp = if self.lp == Loop::Velocity {
+            Loop::Velocity
+        } else {
+            Loop::Plant
+        };
+        let r = model
+            .controller
+            .response(lp, &model.plant, &model.sampled, f);
+        if self.lp == Loop::Plant {
+            r.plant.feedback
+        } else {
+            r.open
+        }
+    }
+}
+
+/// Zoom: around every peak or dip of the feature that the coarse sweep or the model shows, a
+/// fine sweep (±25 %, steps of 2 %), the coarse grid's frequencies left out.
+fn zoom_segments(
+    meter: &Meter<'_>,
+    feature: &Feature,
+    measured: &[Measured],
+    coarse_segs: &[Segment],
+) -> Vec<Segment> {
     let coarse = &measured.last().expect("one sweep at least").estimates;
     let cf: Vec<f64> = coarse.iter().map(|e| e.frequency).collect();
     let cm: Vec<f64> = coarse
         .iter()
-        .map(|e| feature_of(e).map_or(f64::NAN, |h| 20.0 * h.norm().log10()))
+        .map(|e| feature.of(e).map_or(f64::NAN, |h| 20.0 * h.norm().log10()))
         .collect();
     let cc: Vec<f64> = coarse.iter().map(|e| e.coherence).collect();
     let mut centres: Vec<f64> = [true, false]
         .iter()
         .flat_map(|&peaks| crate::frequency::extrema(&cf, &cm, &cc, peaks, 1.0, 0.8))
         .collect();
-    let model_grid = log_grid(from, to, 2000);
+    let model_grid = log_grid(feature.from, feature.to, 2000);
     let model_mag: Vec<f64> = model_grid
         .iter()
-        .map(|&f| {
-            let r = model
-                .controller
-                .response(feature_lp, &model.plant, &model.sampled, f);
-            let h = if options.lp == Loop::Plant {
-                r.plant.feedback
-            } else {
-                r.open
-            };
-            20.0 * h.norm().log10()
-        })
+        .map(|&f| 20.0 * feature.model(meter.model, f).norm().log10())
         .collect();
     let ones = vec![1.0; model_grid.len()];
     for peaks in [true, false] {
@@ -460,236 +604,450 @@ pub fn bode_on(
     let mut fine: Vec<f64> = centres
         .iter()
         .flat_map(|&c| log_grid(c / 1.25, c * 1.25, 23))
-        .filter(|&f| f > from && f < to)
+        .filter(|&f| f > feature.from && f < feature.to)
         .collect();
     fine.sort_by(f64::total_cmp);
-    let fine_segs: Vec<Segment> = segments(&fine, period, &SweepTiming::default())
+    let period = meter.assembly.scenario.timing.servo_period;
+    segments(&fine, period, &meter.timing)
         .into_iter()
         .filter(|s| {
-            !segs
+            !coarse_segs
                 .iter()
                 .any(|c| (c.frequency / s.frequency - 1.0).abs() < 1e-9)
         })
-        .collect();
-    if !fine_segs.is_empty() {
-        for (sweep, m) in sweeps.iter().zip(measured.iter_mut()) {
-            let more = measure(
-                assembly,
-                &model,
-                axis,
-                sweep,
-                &fine_segs,
-                options.plant,
-                progress,
-            )?;
-            m.ticks += more.ticks;
-            m.estimates.extend(more.estimates);
-            m.estimates
-                .sort_by(|a, b| a.frequency.total_cmp(&b.frequency));
+        .collect()
+}
+
+/// Relative frequency resolution the search on the physics stops at: each peak and dip is
+/// then known to ±0.05 % of its frequency.
+const SEARCH_RESOLUTION: f64 = 1e-3;
+/// Most rounds of the search per peak or dip.
+const SEARCH_ROUNDS: usize = 8;
+/// Blocks measured per frequency of the search.
+const SEARCH_BLOCKS: usize = 2;
+
+/// Locates every peak and dip of the measured feature by a search on the physics: the best
+/// point and its neighbours bracket it; each round measures the geometric midpoints of the
+/// two gaps (in one run of the loop, with blocks long enough that each frequency lands within
+/// a quarter of the gap of where it is asked) and keeps the best of the five and its
+/// neighbours, until both gaps are below [`SEARCH_RESOLUTION`]. The points join the
+/// measurement; returns the relative resolution reached (the widest final gap), `None`
+/// where there was nothing to search.
+fn search_extrema(
+    meter: &Meter<'_>,
+    feature: &Feature,
+    sweeps: &[Sweep],
+    measured: &mut [Measured],
+    progress: &mut dyn FnMut(usize, usize) -> bool,
+) -> Result<Option<f64>, BodeError> {
+    let sweep = sweeps.last().expect("one sweep at least");
+    let found = measured.last_mut().expect("one sweep at least");
+    let mut reached: Option<f64> = None;
+    for peaks in [true, false] {
+        let centres = {
+            let (f, m, c) = feature_points(feature, &found.estimates);
+            crate::frequency::extrema(
+                &f,
+                &m,
+                &c,
+                peaks,
+                crate::report::PROMINENCE_DB,
+                crate::report::MIN_COHERENCE,
+            )
+        };
+        for centre in centres {
+            let gap = search_one(meter, feature, sweep, found, centre, peaks, progress)?;
+            if let Some(gap) = gap {
+                reached = Some(reached.map_or(gap, |r: f64| r.max(gap)));
+            }
         }
     }
-    let main = &measured[0];
-    let injected = measured.last().expect("at least one sweep");
+    Ok(reached)
+}
 
-    // The model's loop for the open loop: in velocity mode, the velocity loop alone.
-    let open_lp = if options.lp == Loop::Velocity {
-        Loop::Velocity
-    } else {
-        Loop::Plant
-    };
-    let respond = |lp: Loop, f: f64| {
-        model
+/// The feature's frequencies, magnitudes (dB, NaN where not measured) and coherences.
+fn feature_points(feature: &Feature, estimates: &[Estimate]) -> (Vec<f64>, Vec<f64>, Vec<f64>) {
+    let f = estimates.iter().map(|e| e.frequency).collect();
+    let m = estimates
+        .iter()
+        .map(|e| {
+            feature
+                .of(e)
+                .map_or(f64::NAN, |h| crate::frequency::estimate::db(h.norm()))
+        })
+        .collect();
+    let c = estimates.iter().map(|e| e.coherence).collect();
+    (f, m, c)
+}
+
+/// One peak (or dip) near `centre`, searched as [`search_extrema`] says; the widest final gap.
+fn search_one(
+    meter: &Meter<'_>,
+    feature: &Feature,
+    sweep: &Sweep,
+    found: &mut Measured,
+    centre: f64,
+    peaks: bool,
+    progress: &mut dyn FnMut(usize, usize) -> bool,
+) -> Result<Option<f64>, BodeError> {
+    let sign = if peaks { 1.0 } else { -1.0 };
+    let period = meter.assembly.scenario.timing.servo_period;
+    for _ in 0..SEARCH_ROUNDS {
+        let (f, m, c) = feature_points(feature, &found.estimates);
+        // The best coherent point near the centre and its neighbours.
+        let Some(best) = (0..f.len())
+            .filter(|&i| c[i] >= crate::report::MIN_COHERENCE && (f[i] / centre).ln().abs() < 0.05)
+            .max_by(|&a, &b| (sign * m[a]).total_cmp(&(sign * m[b])))
+        else {
+            return Ok(None);
+        };
+        if best == 0 || best + 1 == f.len() {
+            return Ok(None);
+        }
+        let gaps = [(f[best] / f[best - 1]).ln(), (f[best + 1] / f[best]).ln()];
+        let widest = gaps[0].max(gaps[1]);
+        if widest <= SEARCH_RESOLUTION {
+            return Ok(Some(widest));
+        }
+        // Midpoints of the gaps wider than the resolution, placed within a quarter gap.
+        let asked: Vec<(f64, f64)> = [(best - 1, gaps[0]), (best, gaps[1])]
+            .iter()
+            .filter(|(_, g)| *g > SEARCH_RESOLUTION)
+            .map(|&(i, g)| ((f[i] * f[i + 1]).sqrt(), g))
+            .collect();
+        let mut segs = Vec::new();
+        for (frequency, gap) in asked {
+            let timing = SweepTiming {
+                min_block: (2.0 * period / gap).max(meter.timing.min_block),
+                blocks: SEARCH_BLOCKS,
+                ..meter.timing
+            };
+            segs.extend(segments(&[frequency], period, &timing));
+        }
+        segs.retain(|s| !f.iter().any(|&g| (g / s.frequency - 1.0).abs() < 1e-12));
+        if segs.is_empty() {
+            return Ok(Some(widest));
+        }
+        let more = meter.measure(sweep, &segs, progress)?;
+        found.add(more);
+    }
+    Ok(None)
+}
+
+/// The curves, figures and notes of a measurement, with the model laid over them.
+struct BodeReport<'a> {
+    assembly: &'a Assembly,
+    options: &'a BodeOptions,
+    model: &'a AxisLinearModel,
+    axis: usize,
+    /// Every sweep: the main response's first, the injection (plant, open loop) last.
+    measured: &'a [Measured],
+}
+
+impl<'a> BodeReport<'a> {
+    fn new(
+        assembly: &'a Assembly,
+        options: &'a BodeOptions,
+        model: &'a AxisLinearModel,
+        axis: usize,
+        measured: &'a [Measured],
+    ) -> Self {
+        BodeReport {
+            assembly,
+            options,
+            model,
+            axis,
+            measured,
+        }
+    }
+
+    fn main(&self) -> &Measured {
+        &self.measured[0]
+    }
+
+    fn injected(&self) -> &Measured {
+        self.measured.last().expect("at least one sweep")
+    }
+
+    /// The model's loop for the open loop: in velocity mode, the velocity loop alone.
+    fn open_lp(&self) -> Loop {
+        if self.options.lp == Loop::Velocity {
+            Loop::Velocity
+        } else {
+            Loop::Plant
+        }
+    }
+
+    fn respond(&self, lp: Loop, f: f64) -> crate::frequency::LoopResponse {
+        self.model
             .controller
-            .response(lp, &model.plant, &model.sampled, f)
-    };
-    let label = &assembly.labels[axis];
-    let (unit, scale) = (label.unit(), label.scale());
-    let command_unit = if assembly.actuator == ActuatorKind::IdealTorque {
-        "N·m"
-    } else {
-        "V"
-    };
-    // The main response: measured, and the model's at the same frequencies and densely.
-    let freq: Vec<f64> = main.estimates.iter().map(|e| e.frequency).collect();
-    let (measured_main, model_main): (Vec<C64>, Box<dyn Fn(f64) -> C64 + '_>) = match options.lp {
-        Loop::Plant => (
-            main.estimates
+            .response(lp, &self.model.plant, &self.model.sampled, f)
+    }
+
+    /// The model's main response at `f`.
+    fn model_main(&self, f: f64) -> C64 {
+        match self.options.lp {
+            Loop::Plant => self.respond(Loop::Plant, f).plant.feedback,
+            lp => self.respond(lp, f).closed,
+        }
+    }
+
+    fn command_unit(&self) -> &'static str {
+        if self.assembly.actuator == ActuatorKind::IdealTorque {
+            "N·m"
+        } else {
+            "V"
+        }
+    }
+
+    /// What the main response is, its magnitude unit and its scale (joint units to shown).
+    fn main_response(&self) -> (String, String, f64) {
+        let label = &self.assembly.labels[self.axis];
+        match self.options.lp {
+            Loop::Plant => (
+                "plant: feedback position / command".to_string(),
+                format!("dB re 1 {}/{}", label.unit(), self.command_unit()),
+                label.scale(),
+            ),
+            Loop::Position => (
+                "closed position loop: feedback position / setpoint".to_string(),
+                "dB".to_string(),
+                1.0,
+            ),
+            Loop::Velocity => (
+                "closed velocity loop: motor velocity / velocity command".to_string(),
+                "dB".to_string(),
+                1.0,
+            ),
+        }
+    }
+
+    /// The result: curves measured and modelled, figures of both, notes.
+    fn run(&self, from: f64, to: f64) -> BodeRun {
+        let (main, injected) = (self.main(), self.injected());
+        let lp = self.options.lp;
+        let open_lp = self.open_lp();
+        let (response, magnitude_unit, main_scale) = self.main_response();
+        // The main response: measured, and the model's at the same frequencies and densely.
+        let freq: Vec<f64> = main.estimates.iter().map(|e| e.frequency).collect();
+        let measured_main: Vec<C64> = match lp {
+            Loop::Plant => main
+                .estimates
                 .iter()
                 .map(|e| e.plant_feedback.expect("injection"))
                 .collect(),
-            Box::new(move |f| respond(Loop::Plant, f).plant.feedback),
-        ),
-        lp => (
-            main.estimates.iter().map(|e| e.closed).collect(),
-            Box::new(move |f| respond(lp, f).closed),
-        ),
-    };
-    let (response, magnitude_unit, main_scale) = match options.lp {
-        Loop::Plant => (
-            "plant: feedback position / command".to_string(),
-            format!("dB re 1 {unit}/{command_unit}"),
-            scale,
-        ),
-        Loop::Position => (
-            "closed position loop: feedback position / setpoint".to_string(),
-            "dB".to_string(),
-            1.0,
-        ),
-        Loop::Velocity => (
-            "closed velocity loop: motor velocity / velocity command".to_string(),
-            "dB".to_string(),
-            1.0,
-        ),
-    };
-    let dense = log_grid(from, to, MODEL_POINTS);
-    let model_main_dense: Vec<C64> = dense.iter().map(|&f| model_main(f)).collect();
-    let model_open_dense: Vec<C64> = dense.iter().map(|&f| respond(open_lp, f).open).collect();
-    let model_main_points: Vec<C64> = freq.iter().map(|&f| model_main(f)).collect();
-    // Phases on the model's branch at the lowest frequency.
-    let reference = model_main_dense.first().map_or(0.0, |h| h.arg());
-    let reference = principal_near(reference, -PI / 2.0);
-    let open_reference = principal_near(model_open_dense.first().map_or(-PI, |h| h.arg()), -PI);
-    let model_curve = Curve::new(&dense, &model_main_dense, main_scale, reference);
-    let model_open_curve = Curve::new(&dense, &model_open_dense, 1.0, open_reference);
-    let model_points_curve = Curve::new(&freq, &model_main_points, main_scale, reference);
-    let measured_curve = Curve::near(
-        &freq,
-        &measured_main,
-        main_scale,
-        &model_points_curve.phase_deg,
-    );
-    let open_measured: Vec<C64> = injected
-        .estimates
-        .iter()
-        .map(|e| e.open.expect("injection"))
-        .collect();
-    let open_freq: Vec<f64> = injected.estimates.iter().map(|e| e.frequency).collect();
-    let model_open_points: Vec<C64> = open_freq
-        .iter()
-        .map(|&f| respond(open_lp, f).open)
-        .collect();
-    let model_open_points = Curve::new(&open_freq, &model_open_points, 1.0, open_reference);
-    let open_curve = Curve::near(
-        &open_freq,
-        &open_measured,
-        1.0,
-        &model_open_points.phase_deg,
-    );
-    let coherence: Vec<f64> = main.estimates.iter().map(|e| e.coherence).collect();
-    let injected_coherence: Vec<f64> = injected.estimates.iter().map(|e| e.coherence).collect();
-
-    // Figures: peaks and dips of the plant (plant loop) or the open loop; bandwidth of the
-    // closed loop; margins of the open loop.
-    let closed_measured: Vec<C64> = match options.lp {
-        Loop::Plant => injected.estimates.iter().map(|e| e.closed).collect(),
-        _ => main.estimates.iter().map(|e| e.closed).collect(),
-    };
-    let feature = match options.lp {
-        Loop::Plant => measured_main.clone(),
-        _ => open_measured.clone(),
-    };
-    let figures = Figures::of(
-        &freq,
-        &feature,
-        &closed_measured,
-        &open_measured,
-        &injected_coherence,
-    );
-    let model_closed: Vec<C64> = match options.lp {
-        Loop::Plant => dense
+            _ => main.estimates.iter().map(|e| e.closed).collect(),
+        };
+        let dense = log_grid(from, to, MODEL_POINTS);
+        let model_main_dense: Vec<C64> = dense.iter().map(|&f| self.model_main(f)).collect();
+        let model_open_dense: Vec<C64> = dense
             .iter()
-            .map(|&f| respond(Loop::Plant, f).closed)
-            .collect(),
-        _ => model_main_dense.clone(),
-    };
-    let model_feature = match options.lp {
-        Loop::Plant => model_main_dense.clone(),
-        _ => model_open_dense.clone(),
-    };
-    let model_figures = Figures::of(
-        &dense,
-        &model_feature,
-        &model_closed,
-        &model_open_dense,
-        &vec![1.0; dense.len()],
-    );
-
-    let peak_command = measured
-        .iter()
-        .flat_map(|m| m.estimates.iter().map(|e| e.peak_command))
-        .fold(0.0, f64::max);
-    let mut notes = Vec::new();
-    if peak_command >= 0.999 * model.command_limit {
-        notes.push(format!(
-            "the command reached its limit {:.3} {command_unit}: the points where it did are not linear",
-            model.command_limit
-        ));
-    }
-    let incoherent = coherence
-        .iter()
-        .filter(|&&c| c < crate::report::MIN_COHERENCE)
-        .count();
-    if incoherent > 0 {
-        notes.push(format!(
-            "{incoherent} of {} points have coherence below {}: friction, backlash, encoder steps or saturation make the response depend on more than the excitation there",
-            coherence.len(),
-            crate::report::MIN_COHERENCE
-        ));
-    }
-    let drive = &machine.axes[axis].drive;
-    if drive.backlash > 0.0 {
-        notes.push(format!(
-            "the axis has {:.3} {unit} of backlash, which the linear model leaves out",
-            drive.backlash * scale
-        ));
-    }
-    if drive.guide.is_some() {
-        notes.push(
-            "the axis's guide has Coulomb friction, which the linear model leaves out".into(),
+            .map(|&f| self.respond(open_lp, f).open)
+            .collect();
+        let model_main_points: Vec<C64> = freq.iter().map(|&f| self.model_main(f)).collect();
+        // Phases on the model's branch at the lowest frequency.
+        let reference = model_main_dense.first().map_or(0.0, |h| h.arg());
+        let reference = principal_near(reference, -PI / 2.0);
+        let open_reference = principal_near(model_open_dense.first().map_or(-PI, |h| h.arg()), -PI);
+        let model_curve = Curve::new(&dense, &model_main_dense, main_scale, reference);
+        let model_open_curve = Curve::new(&dense, &model_open_dense, 1.0, open_reference);
+        let model_points_curve = Curve::new(&freq, &model_main_points, main_scale, reference);
+        let measured_curve = Curve::near(
+            &freq,
+            &measured_main,
+            main_scale,
+            &model_points_curve.phase_deg,
         );
+        let open_measured: Vec<C64> = injected
+            .estimates
+            .iter()
+            .map(|e| e.open.expect("injection"))
+            .collect();
+        let open_freq: Vec<f64> = injected.estimates.iter().map(|e| e.frequency).collect();
+        let model_open_points: Vec<C64> = open_freq
+            .iter()
+            .map(|&f| self.respond(open_lp, f).open)
+            .collect();
+        let model_open_points = Curve::new(&open_freq, &model_open_points, 1.0, open_reference);
+        let open_curve = Curve::near(
+            &open_freq,
+            &open_measured,
+            1.0,
+            &model_open_points.phase_deg,
+        );
+        let coherence: Vec<f64> = main.estimates.iter().map(|e| e.coherence).collect();
+        let injected_coherence: Vec<f64> = injected.estimates.iter().map(|e| e.coherence).collect();
+
+        // Figures: peaks and dips of the plant (plant loop) or the open loop; bandwidth of the
+        // closed loop; margins of the open loop.
+        let closed_measured: Vec<C64> = match lp {
+            Loop::Plant => injected.estimates.iter().map(|e| e.closed).collect(),
+            _ => main.estimates.iter().map(|e| e.closed).collect(),
+        };
+        let feature = match lp {
+            Loop::Plant => measured_main.clone(),
+            _ => open_measured.clone(),
+        };
+        let figures = Figures::of(
+            &freq,
+            &feature,
+            &closed_measured,
+            &open_measured,
+            &injected_coherence,
+        );
+        let model_closed: Vec<C64> = match lp {
+            Loop::Plant => dense
+                .iter()
+                .map(|&f| self.respond(Loop::Plant, f).closed)
+                .collect(),
+            _ => model_main_dense.clone(),
+        };
+        let model_feature = match lp {
+            Loop::Plant => model_main_dense.clone(),
+            _ => model_open_dense.clone(),
+        };
+        let mut model_figures = Figures::of(
+            &dense,
+            &model_feature,
+            &model_closed,
+            &model_open_dense,
+            &vec![1.0; dense.len()],
+        );
+        self.refine_model_extrema(&mut model_figures, &dense);
+        let peak_command = self
+            .measured
+            .iter()
+            .flat_map(|m| m.estimates.iter().map(|e| e.peak_command))
+            .fold(0.0, f64::max);
+        let label = &self.assembly.labels[self.axis];
+        let (excitation, amplitude_unit, amplitude_scale) = match main.excitation.injection {
+            Injection::ControllerOutput => (
+                "sine added to the controller output",
+                self.command_unit().to_string(),
+                1.0,
+            ),
+            Injection::PositionSetpoint => (
+                "sine on the position setpoint",
+                label.unit().to_string(),
+                label.scale(),
+            ),
+            Injection::VelocitySetpoint => (
+                "cosine on the velocity command",
+                format!("{}/s", label.unit()),
+                label.scale(),
+            ),
+        };
+        BodeRun {
+            scenario: self.assembly.scenario.name.clone(),
+            axis: self.options.axis.clone(),
+            loop_name: loop_name(lp).to_string(),
+            plant: self.options.plant.name().to_string(),
+            response,
+            magnitude_unit,
+            servo_period_s: self.assembly.scenario.timing.servo_period,
+            excitation: excitation.to_string(),
+            amplitude: main.excitation.amplitude * amplitude_scale,
+            amplitude_unit,
+            frequencies_hz: freq,
+            magnitude_db: measured_curve.magnitude_db,
+            phase_deg: measured_curve.phase_deg,
+            notes: self.notes(&coherence, peak_command),
+            coherence,
+            open_loop: open_curve,
+            figures,
+            model: model_curve,
+            model_open_loop: model_open_curve,
+            model_figures,
+            model_at_points: model_points_curve,
+            peak_command,
+            command_limit: self.model.command_limit,
+            simulated_time_s: 0.0,
+            wall_time_s: 0.0,
+            settle_s: 0.0,
+            search_resolution: None,
+        }
     }
-    let (excitation, amplitude_unit) = match main.excitation.injection {
-        Injection::ControllerOutput => (
-            "sine added to the controller output",
-            command_unit.to_string(),
-        ),
-        Injection::PositionSetpoint => ("sine on the position setpoint", unit.to_string()),
-        Injection::VelocitySetpoint => ("cosine on the velocity command", format!("{unit}/s")),
-    };
-    let amplitude_scale = match main.excitation.injection {
-        Injection::ControllerOutput => 1.0,
-        _ => scale,
-    };
-    let ticks: usize = measured.iter().map(|m| m.ticks).sum();
-    let runs = sweeps.len() * if fine_segs.is_empty() { 1 } else { 2 };
-    let settle = crate::frequency::measure::lead_in(&assembly.loop_settings) * runs;
-    Ok(BodeRun {
-        scenario: s.name.clone(),
-        axis: options.axis.clone(),
-        loop_name: loop_name(options.lp).to_string(),
-        plant: options.plant.name().to_string(),
-        response,
-        magnitude_unit,
-        servo_period_s: period,
-        excitation: excitation.to_string(),
-        amplitude: main.excitation.amplitude * amplitude_scale,
-        amplitude_unit,
-        frequencies_hz: freq,
-        magnitude_db: measured_curve.magnitude_db,
-        phase_deg: measured_curve.phase_deg,
-        coherence,
-        open_loop: open_curve,
-        figures,
-        model: model_curve,
-        model_open_loop: model_open_curve,
-        model_figures,
-        model_at_points: model_points_curve,
-        peak_command,
-        command_limit: model.command_limit,
-        simulated_time_s: (ticks + settle) as f64 * period,
-        wall_time_s: started.elapsed().as_secs_f64(),
-        notes,
-    })
+
+    /// The model's peaks and dips located on the model itself (golden-section search within a
+    /// step of the grid either side), not on the grid's parabola.
+    fn refine_model_extrema(&self, figures: &mut Figures, grid: &[f64]) {
+        let feature = Feature {
+            lp: self.options.lp,
+            from: grid[0],
+            to: grid[grid.len() - 1],
+        };
+        let step = (grid[1] / grid[0]).ln();
+        let magnitude = |f: f64| feature.model(self.model, f).norm().ln();
+        for (list, sign) in [
+            (&mut figures.resonances_hz, 1.0),
+            (&mut figures.antiresonances_hz, -1.0),
+        ] {
+            for f in list.iter_mut() {
+                *f = golden_max(|x| sign * magnitude(x.exp()), f.ln() - step, f.ln() + step).exp();
+            }
+        }
+    }
+
+    /// What the measurement could not do, or leaves out.
+    fn notes(&self, coherence: &[f64], peak_command: f64) -> Vec<String> {
+        let mut notes = Vec::new();
+        if peak_command >= 0.999 * self.model.command_limit {
+            notes.push(format!(
+                "the command reached its limit {:.3} {}: the points where it did are not linear",
+                self.model.command_limit,
+                self.command_unit()
+            ));
+        }
+        let incoherent = coherence
+            .iter()
+            .filter(|&&c| c < crate::report::MIN_COHERENCE)
+            .count();
+        if incoherent > 0 {
+            notes.push(format!(
+                "{incoherent} of {} points have coherence below {}: friction, backlash, encoder steps or saturation make the response depend on more than the excitation there",
+                coherence.len(),
+                crate::report::MIN_COHERENCE
+            ));
+        }
+        let drive = &self.assembly.machine.axes[self.axis].drive;
+        let label = &self.assembly.labels[self.axis];
+        if drive.backlash > 0.0 {
+            notes.push(format!(
+                "the axis has {:.3} {} of backlash, which the linear model leaves out",
+                drive.backlash * label.scale(),
+                label.unit()
+            ));
+        }
+        if drive.guide.is_some() {
+            notes.push(
+                "the axis's guide has Coulomb friction, which the linear model leaves out".into(),
+            );
+        }
+        notes
+    }
+}
+
+/// The maximum of a unimodal `g` on [a, b], by golden-section search to 1e-9 of the interval.
+fn golden_max(g: impl Fn(f64) -> f64, mut a: f64, mut b: f64) -> f64 {
+    let r = (5f64.sqrt() - 1.0) / 2.0;
+    let (mut c, mut d) = (b - r * (b - a), a + r * (b - a));
+    let (mut gc, mut gd) = (g(c), g(d));
+    while (b - a).abs() > 1e-9 * (a.abs() + b.abs()).max(1e-300) {
+        if gc > gd {
+            b = d;
+            d = c;
+            gd = gc;
+            c = b - r * (b - a);
+            gc = g(c);
+        } else {
+            a = c;
+            c = d;
+            gc = gd;
+            d = a + r * (b - a);
+            gd = g(d);
+        }
+    }
+    0.5 * (a + b)
 }
 
 /// `angle` moved by whole turns into (centre − π, centre + π].
