@@ -98,7 +98,7 @@ impl TaskSpace {
     /// The joint accelerations (machine-axis order, into `out`) that impose the task-space
     /// error dynamics with gains `kp`, `kd`; `joint_nu` is the joint-space law's acceleration,
     /// used in the directions the task does not determine.
-    #[allow(clippy::too_many_arguments)]
+    #[allow(clippy::too_many_arguments)] // the loop's state and setpoints, each a slice
     pub fn acceleration(
         &self,
         q: &[f64],

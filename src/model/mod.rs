@@ -484,8 +484,7 @@ impl Plant {
                     &mut world,
                     (parent, child),
                     joint,
-                    &groups.offset[joint.parent],
-                    &frame,
+                    (&groups.offset[joint.parent], &frame),
                     g,
                     &home[joint.parent],
                     InteractionGroups::new(group, group, InteractionTestMode::And),
@@ -1185,13 +1184,11 @@ pub struct CuttingLoad {
 /// joint. At the home pose the runner balls touch the guide's top face, one at the joint
 /// origin or two at ∓spacing/2 along the travel; the guide runs the whole travel so no
 /// contact ever ends.
-#[allow(clippy::too_many_arguments)] // the joint's bodies, frames and guide data, each one value
 fn insert_guide(
     world: &mut PhysicsWorld,
     (parent, child): (RigidBodyHandle, RigidBodyHandle),
     joint: &crate::machine::Joint,
-    parent_offset: &Isometry3<f64>,
-    frame: &Isometry3<f64>,
+    (parent_offset, frame): (&Isometry3<f64>, &Isometry3<f64>),
     guide: Guide,
     parent_home: &Isometry3<f64>,
     groups: InteractionGroups,

@@ -335,7 +335,6 @@ struct MoveSegments<'a> {
 }
 
 impl<'a> MoveSegments<'a> {
-    #[allow(clippy::too_many_arguments)]
     fn new(
         program: &'a Program,
         axes: &'a AxisMap,

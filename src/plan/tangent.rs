@@ -198,7 +198,6 @@ impl TangentJunction {
 
     /// Per-axis bounds on |g'|, |g''|, |g'''| of a blend of length `l` between segments `p` and
     /// `k`.
-    #[allow(clippy::too_many_arguments)]
     pub fn bounds(
         &self,
         shapes: &Shapes,

@@ -1233,6 +1233,133 @@ pub fn write_polar_plot(path: &Path, run: &BallbarRun) -> Result<(), ReportError
     render(path, |pixels| draw_polar(pixels, run))
 }
 
+/// The figures the polar plot lists beside it: (text, font size).
+fn polar_figure_lines(run: &BallbarRun, [a1, a2]: [&String; 2]) -> Vec<(String, i32)> {
+    let div = run.scale_um_per_division;
+    let mut lines = vec![
+        (format!("Ballbar test (ISO 230-4): {}", run.scenario), 24),
+        (
+            format!(
+                "plane {}, R {} mm, F {} mm/min ({:.2} mm/s)",
+                run.plane.to_uppercase(),
+                trim(run.radius_mm),
+                trim(run.feed_mm_min),
+                run.feed_mm_min / 60.0
+            ),
+            19,
+        ),
+        (
+            format!(
+                "magnification ×{:.0}, {} µm/ring, about the programmed centre",
+                run.magnification,
+                trim(div)
+            ),
+            17,
+        ),
+        (String::new(), 10),
+        (
+            format!(
+                "G (least squares)  CCW {} µm   CW {} µm",
+                fmt_um(run.ccw.circular_deviation_um),
+                fmt_um(run.cw.circular_deviation_um)
+            ),
+            19,
+        ),
+        (
+            format!(
+                "G (minimum zone)   CCW {} µm   CW {} µm",
+                fmt_um(run.ccw.circular_deviation_min_zone_um),
+                fmt_um(run.cw.circular_deviation_min_zone_um)
+            ),
+            19,
+        ),
+        (
+            format!(
+                "F max / min   CCW {} / {}   CW {} / {} µm",
+                fmt_um(run.ccw.radial_deviation_max_um),
+                fmt_um(run.ccw.radial_deviation_min_um),
+                fmt_um(run.cw.radial_deviation_max_um),
+                fmt_um(run.cw.radial_deviation_min_um)
+            ),
+            19,
+        ),
+        (
+            format!("H (hysteresis)  {} µm", fmt_um(run.circular_hysteresis_um)),
+            19,
+        ),
+        (String::new(), 10),
+        (
+            format!(
+                "backlash (fit residual)  {}",
+                [a1, a2]
+                    .iter()
+                    .map(|a| {
+                        let v = run.backlash_um.get(*a).copied().unwrap_or(f64::NAN);
+                        let r = run.backlash_fit_residual_um.get(*a).copied().unwrap_or(0.0);
+                        format!("{} {v:.1} ({r:.1}) µm", a.to_uppercase())
+                    })
+                    .collect::<Vec<_>>()
+                    .join(",  ")
+            ),
+            19,
+        ),
+        (
+            format!(
+                "servo mismatch  {:.1} µm, {}",
+                run.servo_mismatch.ellipse_um,
+                run.servo_mismatch.lag_text()
+            ),
+            19,
+        ),
+        (
+            format!(
+                "stick-slip stalls  {}",
+                run.stick_slip_stalls
+                    .iter()
+                    .map(|(a, n)| format!("{} {n}", a.to_uppercase()))
+                    .collect::<Vec<_>>()
+                    .join(",  ")
+            ),
+            19,
+        ),
+        (
+            match &run.vibration {
+                Some(v) => format!(
+                    "main vibration  {:.2} Hz, {:.1} µm",
+                    v.frequency_hz, v.amplitude_um
+                ),
+                None => "main vibration  none resolved".into(),
+            },
+            19,
+        ),
+        (String::new(), 10),
+        ("reversal spikes (µm):".into(), 19),
+    ];
+    for dir in ["ccw", "cw"] {
+        let spikes: Vec<String> = run
+            .reversal_spikes
+            .iter()
+            .filter(|s| s.direction == dir)
+            .map(|s| {
+                format!(
+                    "{} {:.0}° {:+.1}",
+                    s.axis.to_uppercase(),
+                    s.angle_deg,
+                    s.height_um
+                )
+            })
+            .collect();
+        lines.push((
+            format!("  {}: {}", dir.to_uppercase(), spikes.join(",  ")),
+            17,
+        ));
+    }
+    if !run.completed {
+        lines.push(("RUN STOPPED EARLY: figures of what ran".into(), 19));
+    }
+    lines
+}
+
 fn draw_polar(pixels: &mut [u8], run: &BallbarRun) -> DrawResult<()> {
     use plotters::prelude::*;
     let root = BitMapBackend::with_buffer(pixels, PLOT_SIZE).into_drawing_area();
@@ -1314,127 +1441,7 @@ fn draw_polar(pixels: &mut [u8], run: &BallbarRun) -> DrawResult<()> {
         .border_style(BLACK)
         .draw()?;
     // The figures beside the plot.
-    let mut lines = vec![
-        (format!("Ballbar test (ISO 230-4): {}", run.scenario), 24),
-        (
-            format!(
-                "plane {}, R {} mm, F {} mm/min ({:.2} mm/s)",
-                run.plane.to_uppercase(),
-                trim(run.radius_mm),
-                trim(run.feed_mm_min),
-                run.feed_mm_min / 60.0
-            ),
-            19,
-        ),
-        (
-            format!(
-                "magnification ×{:.0}, {} µm/ring, about the programmed centre",
-                run.magnification,
-                trim(div)
-            ),
-            17,
-        ),
-        (String::new(), 10),
-        (
-            format!(
-                "G (least squares)  CCW {} µm   CW {} µm",
-                fmt_um(run.ccw.circular_deviation_um),
-                fmt_um(run.cw.circular_deviation_um)
-            ),
-            19,
-        ),
-        (
-            format!(
-                "G (minimum zone)   CCW {} µm   CW {} µm",
-                fmt_um(run.ccw.circular_deviation_min_zone_um),
-                fmt_um(run.cw.circular_deviation_min_zone_um)
-            ),
-            19,
-        ),
-        (
-            format!(
-                "F max / min   CCW {} / {}   CW {} / {} µm",
-                fmt_um(run.ccw.radial_deviation_max_um),
-                fmt_um(run.ccw.radial_deviation_min_um),
-                fmt_um(run.cw.radial_deviation_max_um),
-                fmt_um(run.cw.radial_deviation_min_um)
-            ),
-            19,
-        ),
-        (
-            format!("H (hysteresis)  {} µm", fmt_um(run.circular_hysteresis_um)),
-            19,
-        ),
-        (String::new(), 10),
-        (
-            format!(
-                "backlash (fit residual)  {}",
-                [&a1, &a2]
-                    .iter()
-                    .map(|a| {
-                        let v = run.backlash_um.get(*a).copied().unwrap_or(f64::NAN);
-                        let r = run.backlash_fit_residual_um.get(*a).copied().unwrap_or(0.0);
-                        format!("{} {v:.1} ({r:.1}) µm", a.to_uppercase())
-                    })
-                    .collect::<Vec<_>>()
-                    .join(",  ")
-            ),
-            19,
-        ),
-        (
-            format!(
-                "servo mismatch  {:.1} µm, {}",
-                run.servo_mismatch.ellipse_um,
-                run.servo_mismatch.lag_text()
-            ),
-            19,
-        ),
-        (
-            format!(
-                "stick-slip stalls  {}",
-                run.stick_slip_stalls
-                    .iter()
-                    .map(|(a, n)| format!("{} {n}", a.to_uppercase()))
-                    .collect::<Vec<_>>()
-                    .join(",  ")
-            ),
-            19,
-        ),
-        (
-            match &run.vibration {
-                Some(v) => format!(
-                    "main vibration  {:.2} Hz, {:.1} µm",
-                    v.frequency_hz, v.amplitude_um
-                ),
-                None => "main vibration  none resolved".into(),
-            },
-            19,
-        ),
-        (String::new(), 10),
-        ("reversal spikes (µm):".into(), 19),
-    ];
-    for dir in ["ccw", "cw"] {
-        let spikes: Vec<String> = run
-            .reversal_spikes
-            .iter()
-            .filter(|s| s.direction == dir)
-            .map(|s| {
-                format!(
-                    "{} {:.0}° {:+.1}",
-                    s.axis.to_uppercase(),
-                    s.angle_deg,
-                    s.height_um
-                )
-            })
-            .collect();
-        lines.push((
-            format!("  {}: {}", dir.to_uppercase(), spikes.join(",  ")),
-            17,
-        ));
-    }
-    if !run.completed {
-        lines.push(("RUN STOPPED EARLY: figures of what ran".into(), 19));
-    }
+    let lines = polar_figure_lines(run, [&a1, &a2]);
     let mut y = 40i32;
     for (text, size) in lines {
         right.draw(&Text::new(

@@ -471,19 +471,8 @@ impl BodeRun {
         let root = BitMapBackend::with_buffer(pixels, PLOT_SIZE).into_drawing_area();
         root.fill(&WHITE)?;
         let (top, bottom) = root.split_vertically(PLOT_SIZE.1 / 2 + 20);
-        let f_all = self
-            .frequencies_hz
-            .iter()
-            .chain(&self.model.frequencies_hz)
-            .copied();
-        let (fmin, fmax) = f_all.fold((f64::INFINITY, 0.0f64), |(a, b), f| (a.min(f), b.max(f)));
+        let ((fmin, fmax), mags, phases) = self.extents();
         let fr = (fmin * 0.9)..(fmax * 1.1);
-        let finite = |v: &[f64]| {
-            v.iter()
-                .copied()
-                .filter(|x| x.is_finite())
-                .collect::<Vec<_>>()
-        };
         let span = |vals: Vec<f64>, pad: f64| {
             let lo = vals.iter().copied().fold(f64::INFINITY, f64::min);
             let hi = vals.iter().copied().fold(f64::NEG_INFINITY, f64::max);
@@ -493,14 +482,6 @@ impl BodeRun {
                 -1.0..1.0
             }
         };
-        let mut mags = finite(&self.magnitude_db);
-        mags.extend(finite(&self.model.magnitude_db));
-        mags.extend(finite(&self.open_loop.magnitude_db));
-        mags.extend(finite(&self.model_open_loop.magnitude_db));
-        let mut phases = finite(&self.phase_deg);
-        phases.extend(finite(&self.model.phase_deg));
-        phases.extend(finite(&self.open_loop.phase_deg));
-        phases.extend(finite(&self.model_open_loop.phase_deg));
         let main = RGBColor(31, 119, 180);
         let open = RGBColor(214, 39, 40);
         let grey = RGBColor(150, 150, 150);
@@ -572,28 +553,6 @@ impl BodeRun {
             ))?;
         }
         // Measured points: filled where coherent.
-        let points = |mag: bool, curve: Option<&Curve>| -> Vec<(f64, f64, bool)> {
-            let (f, v) = match curve {
-                None => (
-                    &self.frequencies_hz,
-                    if mag {
-                        &self.magnitude_db
-                    } else {
-                        &self.phase_deg
-                    },
-                ),
-                Some(c) => (
-                    &c.frequencies_hz,
-                    if mag { &c.magnitude_db } else { &c.phase_deg },
-                ),
-            };
-            f.iter()
-                .zip(v)
-                .zip(&self.coherence)
-                .filter(|((_, v), _)| v.is_finite())
-                .map(|((f, v), c)| (*f, *v, *c >= MIN_COHERENCE))
-                .collect()
-        };
         for (curve, colour, label) in [
             (None, main, format!("{} — measured", self.response)),
             (
@@ -614,14 +573,14 @@ impl BodeRun {
             };
             mag_chart
                 .draw_series(
-                    points(true, curve)
+                    self.points(true, curve)
                         .into_iter()
                         .map(|(f, v, c)| Circle::new((f, v), 4, style(c))),
                 )?
                 .label(label)
                 .legend(move |(x, y)| Circle::new((x + 12, y), 4, colour.filled()));
             phase_chart.draw_series(
-                points(false, curve)
+                self.points(false, curve)
                     .into_iter()
                     .map(|(f, v, c)| Circle::new((f, v), 4, style(c))),
             )?;
@@ -650,8 +609,24 @@ impl BodeRun {
             .border_style(BLACK)
             .draw()?;
         // The figures, top right.
+        let lines = self.figure_lines();
+        let mut y = 42;
+        for text in lines {
+            top.draw(&Text::new(
+                text,
+                (PLOT_SIZE.0 as i32 - 560, y),
+                (FAMILY, 14).into_font().color(&BLACK),
+            ))?;
+            y += 19;
+        }
+        root.present()?;
+        Ok(())
+    }
+
+    /// The figures as the plot lists them, top right.
+    fn figure_lines(&self) -> [String; 6] {
         let m = &self.model_figures;
-        let lines = [
+        [
             format!(
                 "resonance {}   (model {})",
                 list(&self.figures.resonances_hz),
@@ -680,17 +655,56 @@ impl BodeRun {
                 opt(m.phase_margin_deg, 1, "°")
             ),
             "dots: measured (hollow: coherence < 0.8); lines: linear model".to_string(),
-        ];
-        let mut y = 42;
-        for text in lines {
-            top.draw(&Text::new(
-                text,
-                (PLOT_SIZE.0 as i32 - 560, y),
-                (FAMILY, 14).into_font().color(&BLACK),
-            ))?;
-            y += 19;
-        }
-        root.present()?;
-        Ok(())
+        ]
+    }
+
+    /// The measured points of the main response (`curve` None) or of a curve, magnitude or
+    /// phase: (frequency, value, coherent).
+    fn points(&self, mag: bool, curve: Option<&Curve>) -> Vec<(f64, f64, bool)> {
+        let (f, v) = match curve {
+            None => (
+                &self.frequencies_hz,
+                if mag {
+                    &self.magnitude_db
+                } else {
+                    &self.phase_deg
+                },
+            ),
+            Some(c) => (
+                &c.frequencies_hz,
+                if mag { &c.magnitude_db } else { &c.phase_deg },
+            ),
+        };
+        f.iter()
+            .zip(v)
+            .zip(&self.coherence)
+            .filter(|((_, v), _)| v.is_finite())
+            .map(|((f, v), c)| (*f, *v, *c >= MIN_COHERENCE))
+            .collect()
+    }
+
+    /// The plot's frequency range and the finite magnitudes and phases it shows.
+    fn extents(&self) -> ((f64, f64), Vec<f64>, Vec<f64>) {
+        let f_all = self
+            .frequencies_hz
+            .iter()
+            .chain(&self.model.frequencies_hz)
+            .copied();
+        let range = f_all.fold((f64::INFINITY, 0.0f64), |(a, b), f| (a.min(f), b.max(f)));
+        let finite = |v: &[f64]| {
+            v.iter()
+                .copied()
+                .filter(|x| x.is_finite())
+                .collect::<Vec<_>>()
+        };
+        let mut mags = finite(&self.magnitude_db);
+        mags.extend(finite(&self.model.magnitude_db));
+        mags.extend(finite(&self.open_loop.magnitude_db));
+        mags.extend(finite(&self.model_open_loop.magnitude_db));
+        let mut phases = finite(&self.phase_deg);
+        phases.extend(finite(&self.model.phase_deg));
+        phases.extend(finite(&self.open_loop.phase_deg));
+        phases.extend(finite(&self.model_open_loop.phase_deg));
+        (range, mags, phases)
     }
 }

@@ -345,6 +345,42 @@ impl MachineReport {
                 a.joint_friction
             );
         }
+        self.frame_lines(&mut out);
+        if !self.undriven.is_empty() {
+            let _ = writeln!(out, "\njoints no axis drives:");
+            for (name, what) in &self.undriven {
+                let _ = writeln!(out, "  {name}: {what}");
+            }
+        }
+        let total: f64 = self.links.iter().map(|(_, m)| m).sum();
+        let _ = writeln!(
+            out,
+            "\nlinks: {} with {:.3} kg in all",
+            self.links.len(),
+            total
+        );
+        for (name, mass) in &self.links {
+            let computed = if self.masses_from_geometry.contains(name) {
+                " (from geometry)"
+            } else {
+                ""
+            };
+            let _ = writeln!(out, "  {name}: {mass:.4} kg{computed}");
+        }
+        if !self.meshes.is_empty() {
+            let _ = writeln!(out, "\nmeshes drawn: {}", self.meshes.len());
+            for m in &self.meshes {
+                let _ = writeln!(out, "  {m}");
+            }
+        }
+        for w in &self.warnings {
+            let _ = writeln!(out, "\nwarning: {w}");
+        }
+        out
+    }
+
+    /// The letters' ISO 841 reasons, the frame's hand and the tool point.
+    fn frame_lines(&self, out: &mut String) {
         let _ = writeln!(out, "\nletters (ISO 841):");
         for a in &self.axes {
             let _ = writeln!(out, "  {}: {}", a.letter.to_uppercase(), a.letter_reason);
@@ -387,37 +423,6 @@ impl MachineReport {
                 ""
             }
         );
-        if !self.undriven.is_empty() {
-            let _ = writeln!(out, "\njoints no axis drives:");
-            for (name, what) in &self.undriven {
-                let _ = writeln!(out, "  {name}: {what}");
-            }
-        }
-        let total: f64 = self.links.iter().map(|(_, m)| m).sum();
-        let _ = writeln!(
-            out,
-            "\nlinks: {} with {:.3} kg in all",
-            self.links.len(),
-            total
-        );
-        for (name, mass) in &self.links {
-            let computed = if self.masses_from_geometry.contains(name) {
-                " (from geometry)"
-            } else {
-                ""
-            };
-            let _ = writeln!(out, "  {name}: {mass:.4} kg{computed}");
-        }
-        if !self.meshes.is_empty() {
-            let _ = writeln!(out, "\nmeshes drawn: {}", self.meshes.len());
-            for m in &self.meshes {
-                let _ = writeln!(out, "  {m}");
-            }
-        }
-        for w in &self.warnings {
-            let _ = writeln!(out, "\nwarning: {w}");
-        }
-        out
     }
 
     /// The report as JSON (`--json`), lengths in joint units (m or rad).
@@ -533,7 +538,7 @@ struct Guess {
     tool: usize,
     workpiece: usize,
     /// (joint, letter, why that letter) for the joints that move the tool or the part.
-    axes: Vec<(usize, &'static str, String)>,
+    axes: Vec<Lettered>,
     /// Moving joints on neither chain (grippers, doors, tool changers).
     others: Vec<usize>,
 }
@@ -620,68 +625,7 @@ impl Guess {
             })
             .unwrap_or(tree.root);
         let work_chain = chain(workpiece);
-        let poses = kinematics::link_poses(&probe, &[]);
-        let mut axes: Vec<(usize, &'static str, String)> = Vec::new();
-        let mut others = Vec::new();
-        for (j, joint) in tree.joints.iter().enumerate() {
-            if joint.kind == JointKind::Fixed || joint.mimic.is_some() {
-                continue;
-            }
-            let on_tool = tool_chain.contains(&j);
-            let on_part = work_chain.contains(&j);
-            if on_tool == on_part {
-                others.push(j);
-                continue;
-            }
-            let world = (poses[joint.parent] * joint.origin).rotation * joint.axis;
-            let direction = if on_tool { world } else { -world };
-            let rotary = joint.kind == JointKind::Revolute;
-            // ISO 841: the letter of the axis it moves along (turns about) most; a second one
-            // parallel to a letter already taken is a secondary motion (U V W, D E).
-            let (letters, secondary): ([&'static str; 3], &[&'static str]) = if rotary {
-                (["a", "b", "c"], &["d", "e"])
-            } else {
-                (["x", "y", "z"], &["u", "v", "w"])
-            };
-            let nearest = (0..3)
-                .max_by(|&a, &b| direction[a].abs().total_cmp(&direction[b].abs()))
-                .unwrap_or(0);
-            let (verb, along) = if rotary {
-                ("turns about", ["X", "Y", "Z"][nearest])
-            } else {
-                ("moves the tool along", ["X", "Y", "Z"][nearest])
-            };
-            let taken = |l: &str| axes.iter().any(|(_, t, _)| *t == l);
-            let holder = |l: &str| {
-                axes.iter()
-                    .find(|(_, t, _)| *t == l)
-                    .map_or(String::new(), |(j, _, _)| tree.joints[*j].name.clone())
-            };
-            let primary = letters[nearest];
-            let free_secondary = if rotary {
-                secondary.iter().copied().find(|l| !taken(l))
-            } else {
-                Some(secondary[nearest]).filter(|l| !taken(l))
-            };
-            if !taken(primary) {
-                let reason = format!(
-                    "{verb} {along} in the base's frame: {} (ISO 841)",
-                    primary.to_uppercase()
-                );
-                axes.push((j, primary, reason));
-            } else if let Some(letter) = free_secondary {
-                let reason = format!(
-                    "{verb} {along} in the base's frame like {} (joint '{}'): {}, ISO 841's secondary {} motion; programs hold it at home",
-                    primary.to_uppercase(),
-                    holder(primary),
-                    letter.to_uppercase(),
-                    if rotary { "rotary" } else { "linear" }
-                );
-                axes.push((j, letter, reason));
-            } else {
-                others.push(j);
-            }
-        }
+        let (mut axes, others) = letters(tree, &probe, &tool_chain, &work_chain);
         axes.sort_by_key(|(_, l, _)| AXIS_LETTERS.iter().position(|a| a == l));
         Guess {
             tool,
@@ -690,6 +634,82 @@ impl Guess {
             others,
         }
     }
+}
+
+/// A joint with its ISO 841 letter and why that letter.
+type Lettered = (usize, &'static str, String);
+
+/// ISO 841 letters for the moving joints between the tool and the part, and the moving joints
+/// on neither chain or left without a letter.
+fn letters(
+    tree: &KinematicTree,
+    probe: &Machine,
+    tool_chain: &[usize],
+    work_chain: &[usize],
+) -> (Vec<Lettered>, Vec<usize>) {
+    let poses = kinematics::link_poses(probe, &[]);
+    let mut axes: Vec<(usize, &'static str, String)> = Vec::new();
+    let mut others = Vec::new();
+    for (j, joint) in tree.joints.iter().enumerate() {
+        if joint.kind == JointKind::Fixed || joint.mimic.is_some() {
+            continue;
+        }
+        let on_tool = tool_chain.contains(&j);
+        let on_part = work_chain.contains(&j);
+        if on_tool == on_part {
+            others.push(j);
+            continue;
+        }
+        let world = (poses[joint.parent] * joint.origin).rotation * joint.axis;
+        let direction = if on_tool { world } else { -world };
+        let rotary = joint.kind == JointKind::Revolute;
+        // ISO 841: the letter of the axis it moves along (turns about) most; a second one
+        // parallel to a letter already taken is a secondary motion (U V W, D E).
+        let (letters, secondary): ([&'static str; 3], &[&'static str]) = if rotary {
+            (["a", "b", "c"], &["d", "e"])
+        } else {
+            (["x", "y", "z"], &["u", "v", "w"])
+        };
+        let nearest = (0..3)
+            .max_by(|&a, &b| direction[a].abs().total_cmp(&direction[b].abs()))
+            .unwrap_or(0);
+        let (verb, along) = if rotary {
+            ("turns about", ["X", "Y", "Z"][nearest])
+        } else {
+            ("moves the tool along", ["X", "Y", "Z"][nearest])
+        };
+        let taken = |l: &str| axes.iter().any(|(_, t, _)| *t == l);
+        let holder = |l: &str| {
+            axes.iter()
+                .find(|(_, t, _)| *t == l)
+                .map_or(String::new(), |(j, _, _)| tree.joints[*j].name.clone())
+        };
+        let primary = letters[nearest];
+        let free_secondary = if rotary {
+            secondary.iter().copied().find(|l| !taken(l))
+        } else {
+            Some(secondary[nearest]).filter(|l| !taken(l))
+        };
+        if !taken(primary) {
+            let reason = format!(
+                "{verb} {along} in the base's frame: {} (ISO 841)",
+                primary.to_uppercase()
+            );
+            axes.push((j, primary, reason));
+        } else if let Some(letter) = free_secondary {
+            let reason = format!(
+                    "{verb} {along} in the base's frame like {} (joint '{}'): {}, ISO 841's secondary {} motion; programs hold it at home",
+                    primary.to_uppercase(),
+                    holder(primary),
+                    letter.to_uppercase(),
+                    if rotary { "rotary" } else { "linear" }
+                );
+            axes.push((j, letter, reason));
+        } else {
+            others.push(j);
+        }
+    }
+    (axes, others)
 }
 
 /// The tree as a machine without axes, for its kinematics.

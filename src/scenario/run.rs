@@ -252,47 +252,16 @@ impl Assembly {
         // bounds fail as not produced.
         let mut bode_files = Vec::new();
         if !s.frequency_response.is_empty() && outcome.stop().is_none() {
-            let mut figures = serde_json::Map::new();
-            for f in &s.frequency_response {
-                let mut options = super::BodeOptions::new(&f.axis, f.lp);
-                options.from = f.from_hz;
-                options.to = f.to_hz;
-                options.per_decade = f.per_decade;
-                match super::bode::bode_on(self, &options, progress) {
-                    Ok(run) => {
-                        figures.insert(f.axis.clone(), run.figures.metrics_json());
-                        if let Some(dir) = &out_dir {
-                            let out = dir.join(format!(
-                                "frequency_response_{}_{}",
-                                f.axis,
-                                super::loop_name(f.lp)
-                            ));
-                            let written = crate::command::Report::write(&super::BodeOutput {
-                                run,
-                                out: out.clone(),
-                            })
-                            .map_err(|e| FileError::new(&out, None, e.to_string()))?;
-                            bode_files.extend(written);
-                        }
-                    }
-                    Err(super::BodeError::Failed(_)) => {}
-                    Err(super::BodeError::Input(e)) => return Err(e),
-                }
-            }
-            metrics_json["frequency_response"] = serde_json::Value::Object(figures);
+            let figures =
+                self.frequency_responses(out_dir.as_deref(), progress, &mut bode_files)?;
+            metrics_json["frequency_response"] = figures;
         }
         let verdict = check(s, &metrics_json);
 
         // Everything computed so far is written, whether or not the run completed.
         let mut files = Vec::new();
         if let Some(dir) = &out_dir {
-            let metrics_path = dir.join("metrics.json");
-            let text = serde_json::to_string_pretty(&metrics_json).expect("JSON of plain values");
-            std::fs::write(&metrics_path, text + "\n").map_err(|source| ReportError::Io {
-                path: metrics_path.clone(),
-                source,
-            })?;
-            files.push(metrics_path);
+            files.push(write_metrics(dir, &metrics_json)?);
         }
         let contour_envelope = report.contour_envelope().clone();
         let end = outcome.ticks as f64 * s.timing.servo_period;
@@ -308,14 +277,7 @@ impl Assembly {
         }
         if let Some(p) = &part {
             if let Some(dir) = &out_dir {
-                let stl = dir.join("part.stl");
-                crate::cutting::write_binary_stl(&stl, &p.machined.surface_mesh(), true).map_err(
-                    |source| ReportError::Io {
-                        path: stl.clone(),
-                        source,
-                    },
-                )?;
-                files.push(stl);
+                files.push(write_part(dir, p)?);
             }
             if let Some(note) = report.log_part(end, &p.machined, &p.comparison) {
                 summary += &format!("\n{note}\n");
@@ -346,6 +308,70 @@ impl Assembly {
             part,
         })
     }
+}
+
+impl Assembly {
+    /// The frequency responses `[frequency_response]` asks for, each measured from rest on
+    /// its own machine: their figures by axis, their files (under `out_dir`) pushed to `files`.
+    /// A sweep that stops leaves its figures out.
+    fn frequency_responses(
+        &self,
+        out_dir: Option<&std::path::Path>,
+        progress: &mut dyn FnMut(usize, usize) -> bool,
+        files: &mut Vec<PathBuf>,
+    ) -> Result<serde_json::Value, RunError> {
+        let mut figures = serde_json::Map::new();
+        for f in &self.scenario.frequency_response {
+            let mut options = super::BodeOptions::new(&f.axis, f.lp);
+            options.from = f.from_hz;
+            options.to = f.to_hz;
+            options.per_decade = f.per_decade;
+            match super::bode::bode_on(self, &options, progress) {
+                Ok(run) => {
+                    figures.insert(f.axis.clone(), run.figures.metrics_json());
+                    if let Some(dir) = out_dir {
+                        let out = dir.join(format!(
+                            "frequency_response_{}_{}",
+                            f.axis,
+                            super::loop_name(f.lp)
+                        ));
+                        let written = crate::command::Report::write(&super::BodeOutput {
+                            run,
+                            out: out.clone(),
+                        })
+                        .map_err(|e| FileError::new(&out, None, e.to_string()))?;
+                        files.extend(written);
+                    }
+                }
+                Err(super::BodeError::Failed(_)) => {}
+                Err(super::BodeError::Input(e)) => return Err(e),
+            }
+        }
+        Ok(serde_json::Value::Object(figures))
+    }
+}
+
+/// `metrics.json` in `dir`.
+fn write_metrics(dir: &std::path::Path, metrics: &serde_json::Value) -> Result<PathBuf, RunError> {
+    let path = dir.join("metrics.json");
+    let text = serde_json::to_string_pretty(metrics).expect("JSON of plain values");
+    std::fs::write(&path, text + "\n").map_err(|source| ReportError::Io {
+        path: path.clone(),
+        source,
+    })?;
+    Ok(path)
+}
+
+/// `part.stl` (binary) in `dir`: the machined part.
+fn write_part(dir: &std::path::Path, part: &PartAsCut) -> Result<PathBuf, RunError> {
+    let stl = dir.join("part.stl");
+    crate::cutting::write_binary_stl(&stl, &part.machined.surface_mesh(), true).map_err(
+        |source| ReportError::Io {
+            path: stl.clone(),
+            source,
+        },
+    )?;
+    Ok(stl)
 }
 
 /// What a cut did that deserves a word: a program that never touches the stock, a plunge

@@ -228,87 +228,17 @@ pub fn tune_scenario_with(
         )));
     }
 
-    let loop_settings = LoopSettings {
-        settle_time: 0.0,
-        approach: Setpoints::default(),
-        ..assembly.loop_settings.clone()
+    let search = UltimateSearch {
+        assembly: &assembly,
+        plant,
+        axis,
+        options,
+        settings: &settings,
+        output_limit,
     };
-    // A boundary judged on a handful of peaks is a guess: a slow loop (an ultimate period
-    // near the trial time) can look settled or growing by chance. The search is repeated
-    // with twice the trial time until the oscillating bound shows enough swings.
-    // Trials start at rest at the program's first point.
-    let program_start = assembly
-        .plan
-        .first_position()
-        .map_or_else(|| vec![0.0; assembly.labels.len()], <[f64]>::to_vec);
-    let mut trial_time = options.trial_time;
-    let (mut simulations, mut simulated_time) = (0, 0.0);
-    let mut previous = None;
-    let (ultimate, ticks) = loop {
-        let ticks = (trial_time / s.timing.servo_period).round() as usize;
-        let trial_setpoints = step_setpoints(
-            &program_start,
-            s.timing.servo_period,
-            axis,
-            options.step,
-            ticks,
-        );
-        let probe = Probe {
-            assembly: &assembly,
-            plant,
-            axis,
-            setpoints: &trial_setpoints,
-            loop_settings: &loop_settings,
-            output_limit,
-        };
-        let mut simulate = |gain: f64| probe.trial(gain);
-        // The simulation budget is for the whole tune, retries included.
-        let settings = SearchSettings {
-            max_simulations: options.max_simulations.saturating_sub(simulations),
-            ..settings.clone()
-        };
-        let ultimate = match find_ultimate(&settings, &mut simulate, progress) {
-            Ok(u) => u,
-            // A longer retry that cannot finish keeps the result it was to confirm (a loop
-            // that friction stops makes few peaks however long it runs).
-            Err(_) if previous.is_some() => break previous.expect("checked"),
-            Err(source) => {
-                return Err(TuneError::Search {
-                    path: s.path.clone(),
-                    axis: options.axis.clone(),
-                    source,
-                })
-            }
-        };
-        simulations += ultimate.trials.len();
-        simulated_time += (ultimate.trials.len() * ticks) as f64 * s.timing.servo_period;
-        // A limit cycle (backlash in the loop) is judged by its constant swing, not by growth
-        // over many periods: no retry for it.
-        if ultimate.upper.oscillation.extrema >= MIN_BOUNDARY_EXTREMA
-            || ultimate.limit_cycle
-            || 2.0 * trial_time > MAX_TRIAL_TIME
-            || simulations >= options.max_simulations
-        {
-            break (ultimate, ticks);
-        }
-        previous = Some((ultimate, ticks));
-        trial_time *= 2.0;
-    };
-
+    let (ultimate, ticks, simulations, simulated_time) = search.run(progress)?;
     let gains = ZieglerNichols::from_ultimate(ultimate.gain, ultimate.period);
-    let linear = linear_model(machine, axis, actuator).map(|axis_model| {
-        let sampled = axis_model.discrete_ultimate(s.timing.servo_period);
-        (axis_model, sampled)
-    });
-    let linear = match linear {
-        Some((a, Some(sampled))) => Some(LinearPrediction {
-            axis: a,
-            sampled,
-            continuous_gain: a.continuous_ultimate_gain(),
-            continuous_period: a.continuous_ultimate_period(),
-        }),
-        _ => None,
-    };
+    let linear = linear_prediction(machine, axis, actuator, s.timing.servo_period);
     Ok(TuneReport {
         scenario: s.name.clone(),
         axis: options.axis.clone(),
@@ -339,6 +269,120 @@ pub fn tune_scenario_with(
         simulated_time_s: simulated_time,
         wall_time_s: started.elapsed().as_secs_f64(),
     })
+}
+
+/// The search for the ultimate gain of one axis, repeated with longer trials until the
+/// oscillating bound shows enough swings.
+struct UltimateSearch<'a> {
+    assembly: &'a Assembly,
+    plant: LaneKind,
+    axis: usize,
+    options: &'a TuneOptions,
+    settings: &'a SearchSettings,
+    output_limit: f64,
+}
+
+impl UltimateSearch<'_> {
+    /// The ultimate cycle found, the trial length (ticks), the simulations run and the time
+    /// they simulated (s).
+    fn run(
+        &self,
+        progress: &mut dyn FnMut(&Trial),
+    ) -> Result<(Ultimate, usize, usize, f64), TuneError> {
+        let (assembly, plant, axis, options) = (self.assembly, self.plant, self.axis, self.options);
+        let (settings, output_limit) = (self.settings, self.output_limit);
+        let s = &assembly.scenario;
+        let loop_settings = LoopSettings {
+            settle_time: 0.0,
+            approach: Setpoints::default(),
+            ..assembly.loop_settings.clone()
+        };
+        // A boundary judged on a handful of peaks is a guess: a slow loop (an ultimate period
+        // near the trial time) can look settled or growing by chance. The search is repeated
+        // with twice the trial time until the oscillating bound shows enough swings.
+        // Trials start at rest at the program's first point.
+        let program_start = assembly
+            .plan
+            .first_position()
+            .map_or_else(|| vec![0.0; assembly.labels.len()], <[f64]>::to_vec);
+        let mut trial_time = options.trial_time;
+        let (mut simulations, mut simulated_time) = (0, 0.0);
+        let mut previous = None;
+        let (ultimate, ticks) = loop {
+            let ticks = (trial_time / s.timing.servo_period).round() as usize;
+            let trial_setpoints = step_setpoints(
+                &program_start,
+                s.timing.servo_period,
+                axis,
+                options.step,
+                ticks,
+            );
+            let probe = Probe {
+                assembly,
+                plant,
+                axis,
+                setpoints: &trial_setpoints,
+                loop_settings: &loop_settings,
+                output_limit,
+            };
+            let mut simulate = |gain: f64| probe.trial(gain);
+            // The simulation budget is for the whole tune, retries included.
+            let settings = SearchSettings {
+                max_simulations: options.max_simulations.saturating_sub(simulations),
+                ..settings.clone()
+            };
+            let ultimate = match find_ultimate(&settings, &mut simulate, progress) {
+                Ok(u) => u,
+                // A longer retry that cannot finish keeps the result it was to confirm (a loop
+                // that friction stops makes few peaks however long it runs).
+                Err(_) if previous.is_some() => break previous.expect("checked"),
+                Err(source) => {
+                    return Err(TuneError::Search {
+                        path: s.path.clone(),
+                        axis: options.axis.clone(),
+                        source,
+                    })
+                }
+            };
+            simulations += ultimate.trials.len();
+            simulated_time += (ultimate.trials.len() * ticks) as f64 * s.timing.servo_period;
+            // A limit cycle (backlash in the loop) is judged by its constant swing, not by growth
+            // over many periods: no retry for it.
+            if ultimate.upper.oscillation.extrema >= MIN_BOUNDARY_EXTREMA
+                || ultimate.limit_cycle
+                || 2.0 * trial_time > MAX_TRIAL_TIME
+                || simulations >= options.max_simulations
+            {
+                break (ultimate, ticks);
+            }
+            previous = Some((ultimate, ticks));
+            trial_time *= 2.0;
+        };
+
+        Ok((ultimate, ticks, simulations, simulated_time))
+    }
+}
+
+/// The linear model's prediction of the ultimate gain and period, where the axis has one.
+fn linear_prediction(
+    machine: &Machine,
+    axis: usize,
+    actuator: ActuatorKind,
+    period: f64,
+) -> Option<LinearPrediction> {
+    let linear = linear_model(machine, axis, actuator).map(|axis_model| {
+        let sampled = axis_model.discrete_ultimate(period);
+        (axis_model, sampled)
+    });
+    match linear {
+        Some((a, Some(sampled))) => Some(LinearPrediction {
+            axis: a,
+            sampled,
+            continuous_gain: a.continuous_ultimate_gain(),
+            continuous_period: a.continuous_ultimate_period(),
+        }),
+        _ => None,
+    }
 }
 
 /// The trial's setpoints: at rest at the program's first point (one sample there, which both

@@ -313,7 +313,7 @@ impl RaySweep<'_> {
                 }
                 Piece::Puck { ch, rho, r } => {
                     let vo = y - sw.n * ch;
-                    puck_interval(&vo, self.k, &sw.n, &sw.d, rho, r, s_lo, s_hi)
+                    puck_interval(&vo, self.k, &sw.n, &sw.d, rho, r, (s_lo, s_hi))
                 }
             };
             if let Some((a, b)) = got {
@@ -447,7 +447,6 @@ fn quadratic_roots(a2: f64, a1: f64, a0: f64) -> [Option<f64>; 2] {
 
 /// Where the ray `vo + s·e_k` (relative to the puck's disc centre at the move's start) meets
 /// the set within `r` of the disc (radius `rho`, normal `n`) swept along `d`.
-#[allow(clippy::too_many_arguments)]
 fn puck_interval(
     vo: &Vector3<f64>,
     k: usize,
@@ -455,8 +454,7 @@ fn puck_interval(
     d: &Vector3<f64>,
     rho: f64,
     r: f64,
-    s_lo: f64,
-    s_hi: f64,
+    (s_lo, s_hi): (f64, f64),
 ) -> Option<(f64, f64)> {
     // Distance to the swept disc minus r, and its derivative along the ray. Convex in s.
     let phi = |s: f64| -> (f64, f64) {

@@ -119,10 +119,8 @@ impl Spline {
         let mut from = self.at(0.0);
         for &to_t in breaks.iter().skip(1) {
             self.flatten(
-                from_t,
-                from,
-                to_t,
-                self.at(to_t.min(end)),
+                (from_t, from),
+                (to_t, self.at(to_t.min(end))),
                 tolerance,
                 0,
                 &mut out,
@@ -138,13 +136,10 @@ impl Spline {
         Ok(out)
     }
 
-    #[allow(clippy::too_many_arguments)]
     fn flatten(
         &self,
-        t0: f64,
-        p0: Vector3<f64>,
-        t1: f64,
-        p1: Vector3<f64>,
+        (t0, p0): (f64, Vector3<f64>),
+        (t1, p1): (f64, Vector3<f64>),
         tolerance: f64,
         depth: u32,
         out: &mut Vec<Vector3<f64>>,
@@ -161,8 +156,8 @@ impl Spline {
         if (deviation > tolerance || depth == 0) && depth < 40 {
             let tm = 0.5 * (t0 + t1);
             let pm = self.at(tm);
-            self.flatten(t0, p0, tm, pm, tolerance, depth + 1, out, max_points)?;
-            return self.flatten(tm, pm, t1, p1, tolerance, depth + 1, out, max_points);
+            self.flatten((t0, p0), (tm, pm), tolerance, depth + 1, out, max_points)?;
+            return self.flatten((tm, pm), (t1, p1), tolerance, depth + 1, out, max_points);
         }
         if out.len() >= max_points {
             return Err(format!(

@@ -201,14 +201,11 @@ impl Canon {
 
     /// `ARC_FEED`: `centre` in program coordinates (its normal coordinate ignored), `turns`
     /// extra full turns.
-    #[allow(clippy::too_many_arguments)]
     pub fn arc_feed(
         &mut self,
         end: &Axes,
         centre: &Axes,
-        plane: Plane,
-        clockwise: bool,
-        turns: u32,
+        (plane, clockwise, turns): (Plane, bool, u32),
         inverse_time: Option<f64>,
         span: Span,
     ) -> Result<(), TooManyMoves> {

@@ -347,9 +347,7 @@ impl Interpreter<'_> {
                         canon.arc_feed(
                             &end,
                             &centre_axes,
-                            plane,
-                            turn < 0,
-                            turns,
+                            (plane, turn < 0, turns),
                             inverse_time,
                             span,
                         )
@@ -584,7 +582,6 @@ impl Interpreter<'_> {
 
     /// A compensated G2/G3 to the programmed point `target`, with the arc's centre and turn
     /// computed from the programmed start.
-    #[allow(clippy::too_many_arguments)]
     pub fn arc_comp(
         &mut self,
         clockwise: bool,

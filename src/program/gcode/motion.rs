@@ -272,9 +272,7 @@ impl Interpreter<'_> {
             .arc_feed(
                 &end,
                 &centre_axes,
-                self.s.plane,
-                clockwise,
-                turns,
+                (self.s.plane, clockwise, turns),
                 inverse_time,
                 span,
             )

@@ -99,6 +99,12 @@ pub(super) fn check_against_machine(
             ));
         }
     }
+    check_metric_names(s, labels)
+}
+
+/// Every bound must name a metric a run of this scenario on this machine produces; every
+/// frequency response must name an axis and a loop it has.
+fn check_metric_names(s: &Scenario, labels: &[AxisLabel]) -> Result<(), FileError> {
     // The metric names a run of this machine produces.
     let accumulator = report::MetricsAccumulator::new(
         labels,

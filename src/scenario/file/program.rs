@@ -183,99 +183,77 @@ impl TryFrom<InFile<'_, &RawProgram>> for ProgramSettings {
                 ),
             ));
         }
-        let feed = || -> Result<f64, FileError> {
-            match &p.feed_mm_s {
-                Some(v) => Ok(file.ranged(v, "feed_mm_s", "mm/s", limits::SPEED_MM_S)? * 1e-3),
-                None => {
-                    Err(file.error_at(at, "[program] feed_mm_s is required for a built-in path"))
+        let source = p.source(file, at)?;
+        let (approach_from, approach_speed) = match &p.approach_from_mm {
+            None => {
+                if let Some(f) = &p.approach_feed_mm_s {
+                    return Err(
+                        file.error(f.span(), "approach_feed_mm_s applies with approach_from_mm")
+                    );
                 }
+                (None, None)
+            }
+            Some(from) => {
+                let from = point_mm(file, from, "approach_from_mm")?;
+                let speed = file.ranged_opt(
+                    p.approach_feed_mm_s.as_ref(),
+                    "approach_feed_mm_s",
+                    "mm/s",
+                    limits::SPEED_MM_S,
+                )?;
+                (Some(from), speed.map(|v| v * 1e-3))
             }
         };
+        let work_offset = match &p.work_offset_mm {
+            None => [0.0; 3],
+            Some(offset) => point_mm(file, offset, "work_offset_mm")?,
+        };
+        if let Some(v) = &p.feed_mm_s {
+            warn_if_fast(file, "feed_mm_s", v);
+        }
+        let (kinematics, kinematics_at) = p.kinematics(file)?;
+        Ok(ProgramSettings {
+            source,
+            approach_from,
+            approach_speed,
+            work_offset,
+            kinematics,
+            kinematics_at,
+            at,
+        })
+    }
+}
+
+/// A point of the program in mm, within the coordinate limit, to metres.
+fn point_mm(
+    file: &super::source::Source<'_>,
+    v: &Spanned<[f64; 3]>,
+    key: &str,
+) -> Result<[f64; 3], FileError> {
+    let c_mm = limits::COORDINATE_MM;
+    let p = v.get_ref();
+    if p.iter().all(|x| x.is_finite() && x.abs() <= c_mm) {
+        Ok(p.map(|x| x * 1e-3))
+    } else {
+        Err(file.error(
+            v.span(),
+            format!("{key} = {p:?}: expected coordinates within ±{c_mm:?} mm"),
+        ))
+    }
+}
+
+impl RawProgram {
+    /// Where the program comes from: a file and how to read it, or a built-in path.
+    fn source(
+        &self,
+        file: &super::source::Source<'_>,
+        at: Option<LineColumn>,
+    ) -> Result<ProgramSource, FileError> {
+        let p = self;
+        let feed = || self.feed(file, at);
         let c_mm = limits::COORDINATE_MM;
         let source = if let Some(f) = &p.file {
-            let path = file.resolve(f.get_ref());
-            if !path.is_file() {
-                return Err(file.error(
-                    f.span(),
-                    format!(
-                        "program file '{}' not found (looked for {})",
-                        f.get_ref(),
-                        path.display()
-                    ),
-                ));
-            }
-            let mut options = ReadOptions {
-                feed_rule: match p.feed_rule {
-                    RawFeedRule::Linuxcnc => FeedRule::LinuxCnc,
-                    RawFeedRule::EuclideanAllAxes => FeedRule::EuclideanAllAxes,
-                },
-                ..ReadOptions::default()
-            };
-            for (value, target) in [
-                (p.pen_up_z_mm, &mut options.hpgl.pen_up_z),
-                (p.pen_down_z_mm, &mut options.hpgl.pen_down_z),
-            ] {
-                if let Some(v) = value {
-                    check_range("pen height", v, "mm", -c_mm, c_mm)
-                        .map_err(|m| file.error_at(at, m))?;
-                    *target = v * 1e-3;
-                }
-            }
-            options.hpgl.lenient = p.lenient;
-            options.hpgl.optimise_pen_up = p.optimise_pen_up;
-            // With a file, feed_mm_s is the feed of CL data that programs no FEDRAT (the
-            // reader refuses it for G-code and HPGL, which program their own).
-            if p.feed_mm_s.is_some() {
-                options.apt.default_feed = Some(feed()?);
-            }
-            if let Some(name) = &p.cl_writer {
-                options.apt.writer =
-                    Some(ClWriter::from_name(name.get_ref()).ok_or_else(|| {
-                        file.error(
-                            name.span(),
-                            format!(
-                                "cl_writer: expected one of {}, found '{}'",
-                                ClWriter::names(),
-                                name.get_ref()
-                            ),
-                        )
-                    })?);
-            }
-            if let Some(page) = &p.page {
-                let n = *page.get_ref();
-                options.hpgl.page = Some(u32::try_from(n).ok().filter(|&n| n >= 1).ok_or_else(|| {
-                    file.error(
-                        page.span(),
-                        format!("page: expected a page number from 1 (pages are counted at each PG, FR, AF, AH), found {n}"),
-                    )
-                })?);
-            }
-            if let Some(table) = &p.tool_table {
-                let table_path = file.resolve(table.get_ref());
-                let text = std::fs::read_to_string(&table_path).map_err(|error| {
-                    file.error(
-                        table.span(),
-                        format!("tool table '{}': {error}", table_path.display()),
-                    )
-                })?;
-                options.gcode.tools = parse_tool_table(&text, &table_path, LengthUnit::Millimetre)
-                    .map_err(|errors| file.error(table.span(), errors.to_string()))?;
-            }
-            for (value, target, key) in [
-                (p.g28_home_mm, &mut options.gcode.g28_home, "g28_home_mm"),
-                (p.g30_home_mm, &mut options.gcode.g30_home, "g30_home_mm"),
-            ] {
-                if let Some(home) = value {
-                    if !home.iter().all(|v| v.is_finite()) {
-                        return Err(file.error_at(at, format!("{key}: expected finite numbers")));
-                    }
-                    target.linear = home.map(|v| v * 1e-3);
-                }
-            }
-            ProgramSource::File {
-                path,
-                options: Box::new(options),
-            }
+            self.file_source(f, file, at)?
         } else if let Some(c) = &p.circle {
             let v = c.get_ref();
             let nums = [
@@ -354,46 +332,121 @@ impl TryFrom<InFile<'_, &RawProgram>> for ProgramSettings {
                 speed: feed()?,
             })
         };
+        Ok(source)
+    }
 
-        // A point of the program in mm, within the coordinate limit, to metres.
-        let point_mm = |v: &Spanned<[f64; 3]>, key: &str| {
-            let p = v.get_ref();
-            if p.iter().all(|x| x.is_finite() && x.abs() <= c_mm) {
-                Ok(p.map(|x| x * 1e-3))
-            } else {
-                Err(file.error(
-                    v.span(),
-                    format!("{key} = {p:?}: expected coordinates within ±{c_mm:?} mm"),
-                ))
-            }
-        };
-        let (approach_from, approach_speed) = match &p.approach_from_mm {
-            None => {
-                if let Some(f) = &p.approach_feed_mm_s {
-                    return Err(
-                        file.error(f.span(), "approach_feed_mm_s applies with approach_from_mm")
-                    );
-                }
-                (None, None)
-            }
-            Some(from) => {
-                let from = point_mm(from, "approach_from_mm")?;
-                let speed = file.ranged_opt(
-                    p.approach_feed_mm_s.as_ref(),
-                    "approach_feed_mm_s",
-                    "mm/s",
-                    limits::SPEED_MM_S,
-                )?;
-                (Some(from), speed.map(|v| v * 1e-3))
-            }
-        };
-        let work_offset = match &p.work_offset_mm {
-            None => [0.0; 3],
-            Some(offset) => point_mm(offset, "work_offset_mm")?,
-        };
-        if let Some(v) = &p.feed_mm_s {
-            warn_if_fast(file, "feed_mm_s", v);
+    /// The path speed of the built-in paths (m/s).
+    fn feed(
+        &self,
+        file: &super::source::Source<'_>,
+        at: Option<LineColumn>,
+    ) -> Result<f64, FileError> {
+        match &self.feed_mm_s {
+            Some(v) => Ok(file.ranged(v, "feed_mm_s", "mm/s", limits::SPEED_MM_S)? * 1e-3),
+            None => Err(file.error_at(at, "[program] feed_mm_s is required for a built-in path")),
         }
+    }
+
+    /// A program file and how to read it: G-code, HPGL and CL reader settings, tool table.
+    fn file_source(
+        &self,
+        f: &Spanned<String>,
+        file: &super::source::Source<'_>,
+        at: Option<LineColumn>,
+    ) -> Result<ProgramSource, FileError> {
+        let p = self;
+        let feed = || self.feed(file, at);
+        let c_mm = limits::COORDINATE_MM;
+        let path = file.resolve(f.get_ref());
+        if !path.is_file() {
+            return Err(file.error(
+                f.span(),
+                format!(
+                    "program file '{}' not found (looked for {})",
+                    f.get_ref(),
+                    path.display()
+                ),
+            ));
+        }
+        let mut options = ReadOptions {
+            feed_rule: match p.feed_rule {
+                RawFeedRule::Linuxcnc => FeedRule::LinuxCnc,
+                RawFeedRule::EuclideanAllAxes => FeedRule::EuclideanAllAxes,
+            },
+            ..ReadOptions::default()
+        };
+        for (value, target) in [
+            (p.pen_up_z_mm, &mut options.hpgl.pen_up_z),
+            (p.pen_down_z_mm, &mut options.hpgl.pen_down_z),
+        ] {
+            if let Some(v) = value {
+                check_range("pen height", v, "mm", -c_mm, c_mm)
+                    .map_err(|m| file.error_at(at, m))?;
+                *target = v * 1e-3;
+            }
+        }
+        options.hpgl.lenient = p.lenient;
+        options.hpgl.optimise_pen_up = p.optimise_pen_up;
+        // With a file, feed_mm_s is the feed of CL data that programs no FEDRAT (the
+        // reader refuses it for G-code and HPGL, which program their own).
+        if p.feed_mm_s.is_some() {
+            options.apt.default_feed = Some(feed()?);
+        }
+        if let Some(name) = &p.cl_writer {
+            options.apt.writer = Some(ClWriter::from_name(name.get_ref()).ok_or_else(|| {
+                file.error(
+                    name.span(),
+                    format!(
+                        "cl_writer: expected one of {}, found '{}'",
+                        ClWriter::names(),
+                        name.get_ref()
+                    ),
+                )
+            })?);
+        }
+        if let Some(page) = &p.page {
+            let n = *page.get_ref();
+            options.hpgl.page = Some(u32::try_from(n).ok().filter(|&n| n >= 1).ok_or_else(|| {
+                file.error(
+                    page.span(),
+                    format!("page: expected a page number from 1 (pages are counted at each PG, FR, AF, AH), found {n}"),
+                )
+            })?);
+        }
+        if let Some(table) = &p.tool_table {
+            let table_path = file.resolve(table.get_ref());
+            let text = std::fs::read_to_string(&table_path).map_err(|error| {
+                file.error(
+                    table.span(),
+                    format!("tool table '{}': {error}", table_path.display()),
+                )
+            })?;
+            options.gcode.tools = parse_tool_table(&text, &table_path, LengthUnit::Millimetre)
+                .map_err(|errors| file.error(table.span(), errors.to_string()))?;
+        }
+        for (value, target, key) in [
+            (p.g28_home_mm, &mut options.gcode.g28_home, "g28_home_mm"),
+            (p.g30_home_mm, &mut options.gcode.g30_home, "g30_home_mm"),
+        ] {
+            if let Some(home) = value {
+                if !home.iter().all(|v| v.is_finite()) {
+                    return Err(file.error_at(at, format!("{key}: expected finite numbers")));
+                }
+                target.linear = home.map(|v| v * 1e-3);
+            }
+        }
+        Ok(ProgramSource::File {
+            path,
+            options: Box::new(options),
+        })
+    }
+
+    /// What the program's words mean, and where that is said.
+    fn kinematics(
+        &self,
+        file: &super::source::Source<'_>,
+    ) -> Result<(ProgramKinematics, Option<LineColumn>), FileError> {
+        let p = self;
         let kinematics_at = p.kinematics.as_ref().and_then(|k| file.place(k.span()));
         let kinematics = match p.kinematics.as_ref().map(|k| (k.get_ref().as_str(), k.span())) {
             None | Some(("joint", _)) => {
@@ -415,15 +468,7 @@ impl TryFrom<InFile<'_, &RawProgram>> for ProgramSettings {
                 ))
             }
         };
-        Ok(ProgramSettings {
-            source,
-            approach_from,
-            approach_speed,
-            work_offset,
-            kinematics,
-            kinematics_at,
-            at,
-        })
+        Ok((kinematics, kinematics_at))
     }
 }
 
