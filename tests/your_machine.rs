@@ -1336,7 +1336,7 @@ fn a_z_axis_pointing_into_the_part_is_warned_of_and_check_says_so() {
     );
     std::fs::write(
         dir.path().join("z_down.drives.toml"),
-        GANTRY_LIKE_DRIVES.replace("MACHINE", "z_down"),
+        three_slide_drives("z_down"),
     )
     .unwrap();
     let machine = Machine::load(&urdf).unwrap();
@@ -1359,38 +1359,17 @@ fn a_z_axis_pointing_into_the_part_is_warned_of_and_check_says_so() {
     );
 }
 
-/// A drive file for a three-slide machine written by `machine_of` (MACHINE: its name).
-const GANTRY_LIKE_DRIVES: &str = r#"machine = "MACHINE"
-[tool]
-link = "tool"
-[axes.x]
-joint = "x"
-transmission = { kind = "screw", lead_m = 0.01 }
-rotor_inertia_kg_m2 = 1e-4
-viscous_damping_nm_s_per_rad = 1e-4
-motor = { torque_constant_nm_per_a = 0.6, back_emf_v_s_per_rad = 0.6, resistance_ohm = 1.5, inductance_h = 4e-3 }
-amplifier_gain = 10.0
-supply_voltage_v = 300.0
-peak_torque_nm = 7.0
-[axes.y]
-joint = "y"
-transmission = { kind = "screw", lead_m = 0.01 }
-rotor_inertia_kg_m2 = 1e-4
-viscous_damping_nm_s_per_rad = 1e-4
-motor = { torque_constant_nm_per_a = 0.6, back_emf_v_s_per_rad = 0.6, resistance_ohm = 1.5, inductance_h = 4e-3 }
-amplifier_gain = 10.0
-supply_voltage_v = 300.0
-peak_torque_nm = 7.0
-[axes.z]
-joint = "z"
-transmission = { kind = "screw", lead_m = 0.01 }
-rotor_inertia_kg_m2 = 1e-4
-viscous_damping_nm_s_per_rad = 1e-4
-motor = { torque_constant_nm_per_a = 0.6, back_emf_v_s_per_rad = 0.6, resistance_ohm = 1.5, inductance_h = 4e-3 }
-amplifier_gain = 10.0
-supply_voltage_v = 300.0
-peak_torque_nm = 7.0
-"#;
+/// A drive file for a three-slide machine written by `machine_of`: the same small servo on
+/// each of its joints x, y, z.
+fn three_slide_drives(machine: &str) -> String {
+    let mut text = format!("machine = \"{machine}\"\n[tool]\nlink = \"tool\"\n");
+    for axis in ["x", "y", "z"] {
+        text += &format!(
+            "[axes.{axis}]\njoint = \"{axis}\"\ntransmission = {{ kind = \"screw\", lead_m = 0.01 }}\nrotor_inertia_kg_m2 = 1e-4\nviscous_damping_nm_s_per_rad = 1e-4\nmotor = {{ torque_constant_nm_per_a = 0.6, back_emf_v_s_per_rad = 0.6, resistance_ohm = 1.5, inductance_h = 4e-3 }}\namplifier_gain = 10.0\nsupply_voltage_v = 300.0\npeak_torque_nm = 7.0\n"
+        );
+    }
+    text
+}
 
 #[test]
 fn the_tool_link_init_guesses_is_said_to_be_a_guess_until_checked() {

@@ -92,7 +92,7 @@
 //! travel is dropped; if both are, the error lists every violation of both.
 
 use crate::machine::{JointKind, Machine};
-use crate::program::{Motion, Position, Program, ProgramError, ProgramErrors, Warning};
+use crate::program::{Position, Program, ProgramError, ProgramErrors, Warning};
 use nalgebra::{Isometry3, Matrix3, Point3, Translation3, Unit, UnitQuaternion, Vector3};
 use std::f64::consts::{PI, TAU};
 use std::fmt;
@@ -879,30 +879,16 @@ impl AcTableKinematics {
             };
             let mut converted = m.clone();
             converted.tool_axis = None;
-            match (m.motion, m.tool_axis) {
-                (Motion::Dwell { .. }, _) => {}
-                (Motion::Arc { .. }, _) => {
-                    errors.push(error(
-                        "an arc in workpiece coordinates cannot be mapped to the A-C \
-                         machine's axes end point by end point"
-                            .to_string(),
-                        "linearise arcs into GOTO points (with tool axes) first",
-                    ));
+            match super::tool_tip::cl_target(program, m) {
+                Err(e) => {
+                    errors.push(e);
                     continue;
                 }
-                (Motion::Linear, None) => {
-                    errors.push(error(
-                        "expected a tool-axis vector for the 5-axis A-C machine, the move \
-                         has none"
-                            .to_string(),
-                        "program GOTO/x,y,z,i,j,k (the vector is modal after that)",
-                    ));
-                    continue;
-                }
-                (Motion::Linear, Some(axis)) => {
+                Ok(None) => {}
+                Ok(Some(target)) => {
                     let cl = CutterLocation {
-                        point: Point3::from(m.end.linear),
-                        axis: Vector3::from(axis),
+                        point: target.point,
+                        axis: target.axis,
                     };
                     match self.inverse(&cl, &previous) {
                         Ok(solution) => {

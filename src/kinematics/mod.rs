@@ -45,8 +45,9 @@ pub struct AxisMap {
 #[error("machine axis '{0}' has no program coordinate (expected one of x, y, z, a, b, c, or a secondary axis u, v, w, d, e)")]
 pub struct UnknownAxis(pub String);
 
-/// The program letters and where each takes its coordinate from; secondary letters after.
-const PROGRAM_LETTERS: [(&str, bool, usize); 6] = [
+/// The program letters and where each takes its coordinate from in a [`Position`]: (letter,
+/// linear?, index).
+pub const PROGRAM_LETTERS: [(&str, bool, usize); 6] = [
     ("x", true, 0),
     ("y", true, 1),
     ("z", true, 2),
@@ -54,6 +55,7 @@ const PROGRAM_LETTERS: [(&str, bool, usize); 6] = [
     ("b", false, 1),
     ("c", false, 2),
 ];
+/// ISO 841's secondary letters, which programs hold at home.
 const SECONDARY_LETTERS: [&str; 5] = ["u", "v", "w", "d", "e"];
 
 impl AxisMap {

@@ -50,37 +50,17 @@ pub fn cl_to_machine(k: &FiveAxisKinematics, program: &Program) -> Result<Progra
     for m in &program.moves {
         let mut converted = m.clone();
         converted.tool_axis = None;
-        match (m.motion, m.tool_axis) {
-            (Motion::Dwell { .. }, _) => {}
-            (Motion::Arc { .. }, _) => {
-                errors.push(error(
-                    program,
-                    m,
-                    "an arc in workpiece coordinates cannot be mapped to the machine's axes end point by end point".into(),
-                    "linearise arcs into GOTO points (with tool axes) first",
-                ));
+        match cl_target(program, m) {
+            Err(e) => {
+                errors.push(e);
                 continue;
             }
-            (Motion::Linear, None) => {
-                errors.push(error(
-                    program,
-                    m,
-                    "expected a tool-axis vector for the five-axis machine, the move has none"
-                        .into(),
-                    "program GOTO/x,y,z,i,j,k (the vector is modal after that)",
-                ));
-                continue;
-            }
-            (Motion::Linear, Some(axis)) => {
-                let target = ToolPose {
-                    point: Point3::from(m.end.linear),
-                    axis: Vector3::from(axis),
-                };
-                match k.inverse(&target, &previous) {
-                    Ok(solved) => {
-                        if solved.forced_by_travel {
-                            let [first, second] = k.rotary_indices();
-                            warnings.push(Warning {
+            Ok(None) => {}
+            Ok(Some(target)) => match k.inverse(&target, &previous) {
+                Ok(solved) => {
+                    if solved.forced_by_travel {
+                        let [first, second] = k.rotary_indices();
+                        warnings.push(Warning {
                                 span: m.span,
                                 message: format!(
                                     "line {}: the solution nearest the previous position is outside the travel; took {} ({} = {:.3}°, {} = {:.3}°), a large rotary move",
@@ -92,20 +72,19 @@ pub fn cl_to_machine(k: &FiveAxisKinematics, program: &Program) -> Result<Progra
                                     solved.position.rotary[second].to_degrees()
                                 ),
                             });
-                        }
-                        if solved.solution == Solution::Pole {
-                            let count = poles.as_ref().map_or(0, |p| p.1) + 1;
-                            let first = poles.map_or_else(|| m.clone(), |p| p.0);
-                            poles = Some((first, count));
-                        }
-                        previous = solved.position;
                     }
-                    Err(e) => {
-                        errors.push(error(program, m, e.to_string(), hint(&e)));
-                        continue;
+                    if solved.solution == Solution::Pole {
+                        let count = poles.as_ref().map_or(0, |p| p.1) + 1;
+                        let first = poles.map_or_else(|| m.clone(), |p| p.0);
+                        poles = Some((first, count));
                     }
+                    previous = solved.position;
                 }
-            }
+                Err(e) => {
+                    errors.push(error(program, m, e.to_string(), hint(&e)));
+                    continue;
+                }
+            },
         }
         converted.end = previous;
         moves.push(converted);
@@ -125,6 +104,30 @@ pub fn cl_to_machine(k: &FiveAxisKinematics, program: &Program) -> Result<Progra
         warnings,
         ..program.clone()
     })
+}
+
+/// The tool point and axis a cutter-location move asks for; `None` for a dwell (the machine
+/// stays). An arc, or a line without a tool axis, is an error at its line.
+pub(crate) fn cl_target(program: &Program, m: &Move) -> Result<Option<ToolPose>, ProgramError> {
+    match (m.motion, m.tool_axis) {
+        (Motion::Dwell { .. }, _) => Ok(None),
+        (Motion::Arc { .. }, _) => Err(error(
+            program,
+            m,
+            "an arc in workpiece coordinates cannot be mapped to the machine's axes end point by end point".into(),
+            "linearise arcs into GOTO points (with tool axes) first",
+        )),
+        (Motion::Linear, None) => Err(error(
+            program,
+            m,
+            "expected a tool-axis vector for the five-axis machine, the move has none".into(),
+            "program GOTO/x,y,z,i,j,k (the vector is modal after that)",
+        )),
+        (Motion::Linear, Some(axis)) => Ok(Some(ToolPose {
+            point: Point3::from(m.end.linear),
+            axis: Vector3::from(axis),
+        })),
+    }
 }
 
 fn pole_warning(k: &FiveAxisKinematics, first: &Move, count: usize) -> Warning {

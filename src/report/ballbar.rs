@@ -410,8 +410,13 @@ pub fn least_squares_circle(points: &[[f64; 2]], start: [f64; 2]) -> ([f64; 2], 
     (c, rho)
 }
 
-/// Golden-section minimum of `f` on [a, b].
-fn golden(mut a: f64, mut b: f64, iterations: usize, f: &mut dyn FnMut(f64) -> f64) -> (f64, f64) {
+/// Golden-section minimum of `f` on [a, b]: where and what.
+pub(crate) fn golden(
+    mut a: f64,
+    mut b: f64,
+    iterations: usize,
+    f: &mut dyn FnMut(f64) -> f64,
+) -> (f64, f64) {
     let g = (5f64.sqrt() - 1.0) / 2.0;
     let mut x1 = b - g * (b - a);
     let mut x2 = a + g * (b - a);

@@ -14,6 +14,7 @@ mod run_report;
 mod table;
 mod thin;
 
+pub(crate) use ballbar::golden;
 pub use ballbar::{
     analyse as analyse_ballbar, ballbar_pairs, least_squares_circle, minimum_zone_circle,
     write_polar_plot, BallbarInput, BallbarPass, BallbarReport, BallbarRun, DirectionFigures,

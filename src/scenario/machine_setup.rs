@@ -406,16 +406,18 @@ impl MachineReport {
             _ => writeln!(out, "X, Y, Z are {hand}"),
         };
         let p = &self.tool_point;
+        // Round-off reads as 0, not -0.000.
+        let mm = |v: f64| if (v * 1e3).abs() < 5e-4 { 0.0 } else { v * 1e3 };
         let _ = writeln!(
             out,
             "tool point: link '{}' + [{:.3}, {:.3}, {:.3}] mm, at [{:.3}, {:.3}, {:.3}] mm in '{}' with every axis at home{}",
             p.link,
-            p.offset[0] * 1e3,
-            p.offset[1] * 1e3,
-            p.offset[2] * 1e3,
-            p.at_home[0] * 1e3,
-            p.at_home[1] * 1e3,
-            p.at_home[2] * 1e3,
+            mm(p.offset[0]),
+            mm(p.offset[1]),
+            mm(p.offset[2]),
+            mm(p.at_home[0]),
+            mm(p.at_home[1]),
+            mm(p.at_home[2]),
             self.carrier,
             if p.guessed {
                 " — machine init's GUESS (guessed = true in [tool]): check the link and offset, then delete that line"

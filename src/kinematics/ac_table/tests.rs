@@ -4,7 +4,7 @@
 use super::*;
 use crate::kinematics::{link_poses, tool_in_workpiece};
 use crate::machine::{Joint, Link};
-use crate::program::{read_program, Blend, Feed, Move, ReadOptions, Span};
+use crate::program::{read_program, Blend, Feed, Motion, Move, ReadOptions, Span};
 use proptest::prelude::*;
 use std::path::{Path, PathBuf};
 
@@ -70,7 +70,7 @@ fn cl_error(a: &CutterLocation, b: &CutterLocation) -> f64 {
     (a.point - b.point).norm().max((a.axis - b.axis).norm())
 }
 
-fn in_travel_q() -> impl Strategy<Value = AcAxes> {
+pub(crate) fn in_travel_q() -> impl Strategy<Value = AcAxes> {
     (
         -0.3..0.3f64,
         -0.3..0.3f64,

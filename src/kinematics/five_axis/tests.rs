@@ -3,7 +3,7 @@
 //! FK(IK(p)) = p on a head-head, a table-table and a head-table machine.
 
 use super::*;
-use crate::kinematics::ac_table::tests::{ac_mill, general_variant};
+use crate::kinematics::ac_table::tests::{ac_mill, general_variant, in_travel_q};
 use crate::kinematics::ac_table::{AcAxes, AcTableKinematics, CutterLocation};
 use crate::kinematics::tool_in_workpiece;
 use crate::kinematics::tool_tip::tcp_to_machine;
@@ -112,17 +112,6 @@ fn a_swivel_head_tilts_the_tip_about_its_pivot() {
     );
 }
 
-fn ac_in_travel() -> impl Strategy<Value = AcAxes> {
-    (
-        -0.3..0.3f64,
-        -0.3..0.3f64,
-        -0.35..0.1f64,
-        -2.09..2.09f64,
-        -10.0..10.0f64,
-    )
-        .prop_map(|(x, y, z, a, c)| AcAxes { x, y, z, a, c })
-}
-
 fn head_in_travel() -> impl Strategy<Value = Position> {
     (
         -0.2..0.2f64,
@@ -141,7 +130,7 @@ proptest! {
     /// solution chosen from any previous position, or the same refusal.
     #[test]
     fn reproduces_the_ac_tables_closed_form(
-        q in ac_in_travel(), previous in (-2.0..2.0f64, -20.0..20.0f64)
+        q in in_travel_q(), previous in (-2.0..2.0f64, -20.0..20.0f64)
     ) {
         let previous = AcAxes { a: previous.0, c: previous.1, ..AcAxes::default() };
         for machine in [ac_mill(), general_variant()] {
@@ -175,7 +164,7 @@ proptest! {
 
     /// The generic forward kinematics is the URDF tree's.
     #[test]
-    fn forward_is_the_trees(q in ac_in_travel()) {
+    fn forward_is_the_trees(q in in_travel_q()) {
         let machine = general_variant();
         let k = solver(&machine, PartFrame::WorkpieceLink).unwrap();
         let closed = AcTableKinematics::new(&machine).unwrap();
@@ -186,7 +175,7 @@ proptest! {
     /// FK(IK(p)) = p to 1e-9 on a head-head, a table-table and a head-table machine, and the
     /// solution nearest the pose's own axes is those axes.
     #[test]
-    fn forward_of_inverse_is_the_pose(q in head_in_travel(), ac in ac_in_travel(), nudge in -0.01..0.01f64) {
+    fn forward_of_inverse_is_the_pose(q in head_in_travel(), ac in in_travel_q(), nudge in -0.01..0.01f64) {
         let cases = [
             (head_bc(), q),
             (head_table_bc(), q),

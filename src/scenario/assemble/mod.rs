@@ -750,17 +750,9 @@ fn five_axis(
 
 /// A program may only move axes the machine has.
 fn check_program_axes(program: &Program, machine: &Machine) -> Result<(), FileError> {
-    const NAMES: [(&str, bool, usize); 6] = [
-        ("x", true, 0),
-        ("y", true, 1),
-        ("z", true, 2),
-        ("a", false, 0),
-        ("b", false, 1),
-        ("c", false, 2),
-    ];
     let mut at = program.start;
     for m in &program.moves {
-        for (name, linear, i) in NAMES {
+        for (name, linear, i) in crate::kinematics::PROGRAM_LETTERS {
             let (from, to) = if linear {
                 (at.linear[i], m.end.linear[i])
             } else {
