@@ -355,7 +355,6 @@ impl RawProgram {
         at: Option<LineColumn>,
     ) -> Result<ProgramSource, FileError> {
         let p = self;
-        let feed = || self.feed(file, at);
         let c_mm = limits::COORDINATE_MM;
         let path = file.resolve(f.get_ref());
         if !path.is_file() {
@@ -390,7 +389,7 @@ impl RawProgram {
         // With a file, feed_mm_s is the feed of CL data that programs no FEDRAT (the
         // reader refuses it for G-code and HPGL, which program their own).
         if p.feed_mm_s.is_some() {
-            options.apt.default_feed = Some(feed()?);
+            options.apt.default_feed = Some(self.feed(file, at)?);
         }
         if let Some(name) = &p.cl_writer {
             options.apt.writer = Some(ClWriter::from_name(name.get_ref()).ok_or_else(|| {
