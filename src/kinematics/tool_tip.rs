@@ -202,6 +202,8 @@ pub fn tcp_to_machine(
             place(&tip, &p)
         };
         let mut motion = Motion::Linear;
+        // Whether the move stays as programmed (its slides' path a copy of the tip's).
+        let mut kept = false;
         let result = (|| -> Result<Vec<(f64, Position)>, InverseError> {
             let turns = (0..3).any(|i| from.rotary[i] != to.rotary[i]);
             let end = machine_at(1.0)?;
@@ -210,7 +212,10 @@ pub fn tcp_to_machine(
                 // map moves its points without turning them.
                 let offset = |p: &Position, s: f64| Vector3::from(p.linear) - tip_at(s).0.coords;
                 match m.motion {
-                    Motion::Linear => return Ok(vec![(1.0, end)]),
+                    Motion::Linear => {
+                        kept = true;
+                        return Ok(vec![(1.0, end)]);
+                    }
                     Motion::Arc { center, .. } => {
                         let shift = offset(&end, 1.0);
                         let middle = machine_at(0.5)?;
@@ -219,6 +224,7 @@ pub fn tcp_to_machine(
                             .all(|o| (o - shift).norm() <= 1e-12);
                         if rigid {
                             motion = shifted_arc(m.motion, center, &shift);
+                            kept = true;
                             return Ok(vec![(1.0, end)]);
                         }
                     }
@@ -283,7 +289,8 @@ pub fn tcp_to_machine(
         for (i, &(s, end)) in pieces.iter().enumerate() {
             let feed = match (m.feed, duration) {
                 (Feed::Rapid, _) | (_, None) => m.feed,
-                (_, Some(t)) if pieces.len() > 1 => Feed::InverseTime(t * (s - s0)),
+                // The tip's time on the part, shared by the pieces as their share of it.
+                (_, Some(t)) if !kept => Feed::InverseTime(t * (s - s0)),
                 _ => m.feed,
             };
             let blend = if i == last {
