@@ -243,6 +243,27 @@ fn list(v: &[f64]) -> String {
     }
 }
 
+/// The range a plot axis shows for `vals`, `pad` beyond both ends.
+fn span(vals: Vec<f64>, pad: f64) -> std::ops::Range<f64> {
+    let lo = vals.iter().copied().fold(f64::INFINITY, f64::min);
+    let hi = vals.iter().copied().fold(f64::NEG_INFINITY, f64::max);
+    if lo.is_finite() && hi > lo {
+        (lo - pad)..(hi + pad)
+    } else {
+        -1.0..1.0
+    }
+}
+
+/// A curve's finite magnitudes (`mag`) or phases against frequency.
+fn line(c: &Curve, mag: bool) -> Vec<(f64, f64)> {
+    c.frequencies_hz
+        .iter()
+        .zip(if mag { &c.magnitude_db } else { &c.phase_deg })
+        .filter(|(_, v)| v.is_finite())
+        .map(|(f, v)| (*f, *v))
+        .collect()
+}
+
 impl BodeRun {
     /// The terminal report: the figures measured beside the model's, then the response at
     /// about three frequencies per decade.
@@ -473,15 +494,6 @@ impl BodeRun {
         let (top, bottom) = root.split_vertically(PLOT_SIZE.1 / 2 + 20);
         let ((fmin, fmax), mags, phases) = self.extents();
         let fr = (fmin * 0.9)..(fmax * 1.1);
-        let span = |vals: Vec<f64>, pad: f64| {
-            let lo = vals.iter().copied().fold(f64::INFINITY, f64::min);
-            let hi = vals.iter().copied().fold(f64::NEG_INFINITY, f64::max);
-            if lo.is_finite() && hi > lo {
-                (lo - pad)..(hi + pad)
-            } else {
-                -1.0..1.0
-            }
-        };
         let main = RGBColor(31, 119, 180);
         let open = RGBColor(214, 39, 40);
         let grey = RGBColor(150, 150, 150);
@@ -518,14 +530,6 @@ impl BodeRun {
             .axis_desc_style((FAMILY, 16))
             .draw()?;
         // Model lines.
-        let line = |c: &Curve, mag: bool| -> Vec<(f64, f64)> {
-            c.frequencies_hz
-                .iter()
-                .zip(if mag { &c.magnitude_db } else { &c.phase_deg })
-                .filter(|(_, v)| v.is_finite())
-                .map(|(f, v)| (*f, *v))
-                .collect()
-        };
         mag_chart
             .draw_series(LineSeries::new(
                 line(&self.model, true),

@@ -542,7 +542,8 @@ impl RrdWriter {
             // The tool point the physics simulated (what the contour error measures), not the
             // axes' kinematics: a tool that a free joint or a compliance moves is drawn there.
             let workpiece = poses[self.machine.workpiece_link];
-            let on_workpiece = workpiece.inverse_transform_point(&Point3::from(r.sensors.tool_point));
+            let on_workpiece =
+                workpiece.inverse_transform_point(&Point3::from(r.sensors.tool_point));
             c.tool.push([
                 on_workpiece.x as f32,
                 on_workpiece.y as f32,
