@@ -35,9 +35,12 @@ use std::path::{Path, PathBuf};
 
 /// Recorded rows buffered before they are sent: bounds the writer's memory.
 const CHUNK_ROWS: usize = 8192;
-/// Recorded ticks per piece of the actual tool path: the path grows with the time cursor in
-/// steps this long.
+/// Recorded ticks per piece of the actual tool path at most: the path grows with the time
+/// cursor in steps this long, or shorter ones on a short run (see [`PATH_PIECES`]).
 const PATH_PIECE_ROWS: usize = 1024;
+/// Pieces of the actual tool path over the program's duration at least, so that a short run's
+/// path grows with the time cursor too.
+const PATH_PIECES: f64 = 100.0;
 /// Points kept for the magnified path (evenly thinned over the run).
 const MAGNIFIED_POINTS: usize = 20_000;
 /// Colours: commanded grey-blue, physics orange, analytic green, drive side purple.
@@ -208,6 +211,9 @@ pub struct RrdWriter {
     stock_frame: Option<Isometry3<f64>>,
     stock_drawn: Option<f64>,
     stock_every: f64,
+    /// Program time between pieces of the actual tool path, and when the last was drawn.
+    path_every: f64,
+    path_drawn_at: f64,
     /// The first error; the loop does not stop for it, `finish` reports it.
     error: Option<String>,
 }
@@ -261,6 +267,8 @@ impl RrdWriter {
             stock_frame: setup.stock_frame,
             stock_drawn: None,
             stock_every: setup.duration / STOCK_SNAPSHOTS,
+            path_every: setup.duration / PATH_PIECES,
+            path_drawn_at: 0.0,
             error: None,
         };
         w.columns = (0..w.lanes.len())
@@ -550,7 +558,9 @@ impl RrdWriter {
                 on_workpiece.z as f32,
             ]);
             c.poses.push(poses);
-            if c.tool.len() - c.drawn >= PATH_PIECE_ROWS {
+            let due = r.time - self.path_drawn_at >= self.path_every;
+            if c.tool.len() - c.drawn >= PATH_PIECE_ROWS || due {
+                self.path_drawn_at = r.time;
                 let drawn = self.draw_path_piece();
                 self.keep(drawn);
             }
