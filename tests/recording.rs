@@ -287,3 +287,37 @@ fn a_run_with_a_chain_longer_than_the_look_ahead_says_so_in_its_summary() {
         "{summary}"
     );
 }
+
+#[test]
+fn a_tool_tip_program_reads_as_its_moves_and_its_path_grows_on_a_short_run() {
+    // The head-head machine's tool-tip circle: each programmed move is held on its path by
+    // hundreds of joint-space pieces, which the event log counts as the one move they are; the
+    // 8 s run's actual path is drawn in pieces as the time cursor moves, not at its end.
+    let path = root().join("tests/fixtures/machines/head_bc/head_bc_tcp.toml");
+    let mut scenario = Scenario::load(&path).unwrap();
+    scenario.recording.rrd = true;
+    let out = tempfile::tempdir().unwrap();
+    let run = Assembly::new(&scenario)
+        .unwrap()
+        .run(RunOptions::write_to(out.path()))
+        .unwrap();
+    assert!(run.stop().is_none());
+    let rrd = out.path().join("run.rrd");
+    let all = rrd_strings(&rrd);
+    let moves: Vec<String> = strings(&all, "TextLog:text")
+        .into_iter()
+        .map(|(_, t)| t)
+        .filter(|t| t.contains("move ") && t.contains("(line "))
+        .collect();
+    // Lines 5 to 10 of tcp_circle.ngc: G0, G1 Z0, G1 B-15, G3 … C360, G1 B0, G0 Z5.
+    let lines: Vec<&str> = moves
+        .iter()
+        .map(|t| t.rsplit("(line ").next().unwrap().trim_end_matches(')'))
+        .collect();
+    assert_eq!(lines, ["5", "6", "7", "8", "9", "10"], "{moves:?}");
+    let pieces = rrd_rows(&rrd)
+        .keys()
+        .filter(|e| e.contains("/paths/actual/"))
+        .count();
+    assert!(pieces >= 50, "{pieces} pieces of the actual path");
+}

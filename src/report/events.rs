@@ -36,8 +36,8 @@ pub struct EventDetector {
     axis_names: Vec<String>,
     /// Backlash per axis (joint units; 0 = none).
     backlash: Vec<f64>,
-    /// Source line of each program move.
-    move_lines: Vec<u32>,
+    /// Source line and byte offset of each program move.
+    move_sources: Vec<(u32, u32)>,
     /// Which end of the gap each axis's drive was last at (+1, −1; 0 not yet).
     side: Vec<f64>,
     segment: Option<u32>,
@@ -47,12 +47,16 @@ pub struct EventDetector {
 
 impl EventDetector {
     /// A detector for axes `axis_names` with their backlash (joint units; 0: none, no
-    /// crossings looked for) and the source line of each program move.
-    pub fn new(axis_names: &[String], backlash: &[f64], move_lines: Vec<u32>) -> EventDetector {
+    /// crossings looked for) and the source line and byte offset of each program move.
+    pub fn new(
+        axis_names: &[String],
+        backlash: &[f64],
+        move_sources: Vec<(u32, u32)>,
+    ) -> EventDetector {
         EventDetector {
             axis_names: axis_names.to_vec(),
             backlash: backlash.to_vec(),
-            move_lines,
+            move_sources,
             side: vec![0.0; axis_names.len()],
             segment: None,
             moving: false,
@@ -88,17 +92,21 @@ impl EventDetector {
     pub fn observe(&mut self, r: &TickRecord<'_>, stalled: u64, out: &mut Vec<Event>) {
         let sp = r.setpoint;
         if self.segment != Some(sp.segment) {
-            let line = self
-                .move_lines
-                .get(sp.segment as usize)
-                .copied()
-                .unwrap_or(0);
+            let source = |segment: u32| self.move_sources.get(segment as usize).copied();
+            let (line, _) = source(sp.segment).unwrap_or((0, 0));
+            // The pieces of one programmed move (a tool-tip move held on its path) are one
+            // move to the reader.
+            let same_move = self
+                .segment
+                .is_some_and(|s| source(s).is_some() && source(s) == source(sp.segment));
             let text = if self.segment.is_none() {
                 format!("program start: move {} (line {line})", sp.segment)
             } else {
                 format!("move {} (line {line})", sp.segment)
             };
-            self.push(out, Kind::Move, r.time, "DEBUG", text);
+            if !same_move {
+                self.push(out, Kind::Move, r.time, "DEBUG", text);
+            }
             self.segment = Some(sp.segment);
         }
         let moving = sp.velocity.iter().any(|v| *v != 0.0);

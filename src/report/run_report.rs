@@ -35,8 +35,9 @@ pub struct ReportSetup {
     pub lanes: Vec<LaneKind>,
     /// Backlash per axis (joint units) and the source line of each move, for the event log.
     pub backlash: Vec<f64>,
-    /// Source line of each program move.
-    pub move_lines: Vec<u32>,
+    /// Where each program move was programmed: its source line and byte offset (the pieces a
+    /// tool-tip program makes of one move share both).
+    pub move_sources: Vec<(u32, u32)>,
     /// Whether the run cuts a stock (its forces and power are then reported).
     pub cutting: bool,
 }
@@ -113,7 +114,7 @@ impl RunReport {
             metrics
         };
         let names: Vec<String> = setup.labels.iter().map(|l| l.name.clone()).collect();
-        let events = EventDetector::new(&names, &setup.backlash, setup.move_lines.clone());
+        let events = EventDetector::new(&names, &setup.backlash, setup.move_sources.clone());
         let csv = csv
             .map(|p| CsvWriter::create(p, &setup.labels, setup.cutting))
             .transpose()?;

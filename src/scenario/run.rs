@@ -498,11 +498,11 @@ pub fn report_setup(assembly: &Assembly) -> ReportSetup {
         ticks: assembly.plan.len(),
         lanes: assembly.lane_kinds(),
         backlash: machine.axes.iter().map(|a| a.drive.backlash).collect(),
-        move_lines: assembly
+        move_sources: assembly
             .program()
             .moves
             .iter()
-            .map(|m| m.span.line)
+            .map(|m| (m.span.line, m.span.byte_offset))
             .collect(),
         cutting: assembly.cut.is_some(),
     }
