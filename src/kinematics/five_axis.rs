@@ -53,7 +53,7 @@
 //! is dropped, and if both are, every violation of both is the error.
 
 use super::ac_table::nearest_turn;
-use super::{chain_joints, link_poses, AxisMap, ProgramFrame};
+use super::{chain_joints, link_poses, AxisMap, ProgramFrame, PROGRAM_LETTERS};
 use crate::machine::{JointKind, Machine};
 use crate::program::Position;
 use nalgebra::{Isometry3, Matrix3, Point3, Rotation3, Unit, Vector3};
@@ -186,8 +186,6 @@ pub struct FiveAxisKinematics {
     map: AxisMap,
     /// [primary, secondary].
     rotary: [Rotary; 2],
-    /// Indices into `Position::linear` of the three linear axes that move the tool on the part.
-    linear: [usize; 3],
     /// The tool axis in the world frame at home (`p`).
     tool_axis_home: Vector3<f64>,
     /// The tool axis in the tool link's frame.
@@ -199,8 +197,6 @@ pub struct FiveAxisKinematics {
     work_to_part: Matrix3<f64>,
     part_origin: Vector3<f64>,
 }
-
-const LETTERS: [&str; 6] = ["x", "y", "z", "a", "b", "c"];
 
 impl FiveAxisKinematics {
     /// The kinematics of `machine` with cutter locations in `part` coordinates. Refuses a
@@ -251,7 +247,7 @@ impl FiveAxisKinematics {
                 )));
             };
             let name = &machine.axes[axis].name;
-            let Some(letter) = LETTERS.iter().position(|l| l == name) else {
+            let Some(&(_, _, letter)) = PROGRAM_LETTERS.iter().find(|(l, _, _)| l == name) else {
                 return Err(fail(format!(
                     "axis '{name}' has no program letter (x, y, z, a, b, c)"
                 )));
@@ -264,7 +260,7 @@ impl FiveAxisKinematics {
             let world = (poses[joint.parent] * joint.origin).rotation * joint.axis;
             rotary.push(Rotary {
                 axis,
-                letter: letter - 3,
+                letter,
                 direction: Unit::new_normalize(world),
                 scale: side * f64::from(drive.sign),
                 sign: f64::from(drive.sign),
@@ -344,7 +340,6 @@ impl FiveAxisKinematics {
             machine: machine.clone(),
             map: map.clone(),
             rotary: [primary, secondary],
-            linear: [0, 1, 2],
             tool_axis_home: z_world,
             tool_axis_in_tool,
             workpiece_home: work_home.rotation.to_rotation_matrix(),
@@ -484,9 +479,9 @@ impl FiveAxisKinematics {
         p.linear = [0.0; 3];
         let origin = self.forward(&p).point;
         let mut m = Matrix3::zeros();
-        for (k, &letter) in self.linear.iter().enumerate() {
+        for k in 0..3 {
             let mut unit = p;
-            unit.linear[letter] = 1.0;
+            unit.linear[k] = 1.0;
             m.set_column(k, &(self.forward(&unit).point - origin));
         }
         let lu = m.lu();
@@ -570,9 +565,7 @@ impl FiveAxisKinematics {
             }
             match self.linear_axes(&target.point, &p) {
                 Ok(s) => {
-                    for (k, &letter) in self.linear.iter().enumerate() {
-                        p.linear[letter] = s[k];
-                    }
+                    p.linear = s;
                     violations.extend(self.travel_violations(&p, Some(solution)));
                 }
                 Err(e) => violations.push(format!("{e} ({solution})")),

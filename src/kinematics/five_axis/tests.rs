@@ -36,11 +36,11 @@ fn solver(machine: &Machine, part: PartFrame) -> Result<FiveAxisKinematics, Chai
 fn at(values: &[(&str, f64)]) -> Position {
     let mut p = Position::default();
     for &(name, v) in values {
-        let i = LETTERS.iter().position(|l| *l == name).unwrap();
-        if i < 3 {
+        let &(_, linear, i) = PROGRAM_LETTERS.iter().find(|(l, _, _)| *l == name).unwrap();
+        if linear {
             p.linear[i] = v;
         } else {
-            p.rotary[i - 3] = v;
+            p.rotary[i] = v;
         }
     }
     p
