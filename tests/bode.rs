@@ -131,7 +131,13 @@ fn oracle(python: &str, scenario: &Path, axis: &str, lp: &str, f: &[f64]) -> ser
         .args([axis, lp, &serde_json::to_string(f).unwrap()])
         .output()
         .unwrap();
-    assert!(o.status.success(), "oracle failed: {}", stderr(&o));
+    assert!(
+        o.status.success(),
+        "oracle failed on {} {axis} {lp}: {}\n{}",
+        scenario.display(),
+        stderr(&o),
+        std::fs::read_to_string(scenario).unwrap_or_default()
+    );
     serde_json::from_slice(&o.stdout).unwrap()
 }
 
@@ -649,5 +655,226 @@ fn the_command_filters_are_in_the_linear_model() {
             mm[i]
         );
         assert!(angle_diff(phase[i], mp[i]).abs() < 0.3, "{} Hz", f[i]);
+    }
+}
+
+/// A copy of bundled scenario `src` with the `[controller]` type set to `kind`, the line of
+/// `cascade.<axis>` replaced by `cascade_line` (when given) and the machine path made absolute.
+fn scenario_copy(
+    dir: &Path,
+    src: &str,
+    kind: &str,
+    cascade_line: Option<(&str, &str)>,
+    extra: &[(&str, &str)],
+) -> PathBuf {
+    let mut text = std::fs::read_to_string(root().join(src)).unwrap();
+    for (from, to) in extra {
+        assert!(text.contains(from), "{src}: no '{from}'");
+        text = text.replace(from, to);
+    }
+    let own_type = text
+        .lines()
+        .find(|l| l.starts_with("type = \""))
+        .expect("a [controller] type")
+        .to_string();
+    text = text.replacen(
+        &format!("\n{own_type}\n"),
+        &format!("\ntype = \"{kind}\"\n"),
+        1,
+    );
+    if let Some((axis, line)) = cascade_line {
+        let prefix = format!("cascade.{axis} = {{");
+        let old = text
+            .lines()
+            .find(|l| l.starts_with(&prefix))
+            .unwrap_or_else(|| panic!("{src}: no {prefix}"))
+            .to_string();
+        text = text.replacen(&format!("\n{old}\n"), &format!("\n{line}\n"), 1);
+    }
+    let machine = text
+        .lines()
+        .find(|l| l.starts_with("machine = \"../"))
+        .expect("a bundled machine")
+        .to_string();
+    let path = machine
+        .trim_start_matches("machine = \"../")
+        .trim_end_matches('"');
+    text = text.replace(
+        &machine,
+        &format!("machine = \"{}\"", root().join(path).display()),
+    );
+    let out = dir.join(format!(
+        "{}_{kind}.toml",
+        Path::new(src).file_stem().unwrap().to_string_lossy()
+    ));
+    std::fs::write(&out, text).unwrap();
+    out
+}
+
+#[test]
+fn the_one_linear_model_is_python_controls() {
+    // The linear model `bode` lays over its measurements (and `tune` designs on), against the
+    // same loops built by python-control from the scenario, drive file and URDF alone: the
+    // responses at every frequency of the sweep and the open loop's margins. PID on the paper's
+    // table (current mode, carriage feedback, 5 ms); a cascade on the compliant table (DC
+    // motors in voltage mode, two-mass drive trains); a cascade with a notch and a low-pass on
+    // ideal torque drives.
+    let Some(python) = python_with_control() else {
+        return;
+    };
+    let dir = tempfile::tempdir().unwrap();
+    let paper = scenario_copy(
+        dir.path(),
+        "scenarios/paper_circle_05mms.toml",
+        "pid",
+        None,
+        &[],
+    );
+    let compliant = scenario_copy(
+        dir.path(),
+        "scenarios/xyz_circle_compliant.toml",
+        "cascade",
+        None,
+        &[],
+    );
+    let filtered = scenario_copy(
+        dir.path(),
+        "scenarios/ballbar_xyz_servo_mismatch.toml",
+        "cascade",
+        None,
+        &[(
+            "cascade.x = { ",
+            "cascade.x = { notch_hz = 40.0, notch_width_hz = 20.0, notch_depth = 0.1, torque_lowpass_hz = 150.0, ",
+        )],
+    );
+    for (scenario, axis, lp, to) in [
+        (&paper, "x", "position", "90"),
+        (&paper, "y", "plant", "90"),
+        (&compliant, "x", "velocity", "300"),
+        (&compliant, "y", "position", "300"),
+        (&filtered, "x", "velocity", "300"),
+        (&filtered, "x", "position", "300"),
+    ] {
+        let s = scenario.display().to_string();
+        let r = bode_json(
+            &[
+                &s,
+                "--axis",
+                axis,
+                "--loop",
+                lp,
+                "--analytic",
+                "--from",
+                "1",
+                "--to",
+                to,
+                "--per-decade",
+                "6",
+            ],
+            &dir.path().join(format!("{axis}_{lp}_{to}")),
+        );
+        let f = numbers(&r, "frequencies_hz");
+        let model = &r["model_at_points"];
+        let (mm, mp) = (numbers(model, "magnitude_db"), numbers(model, "phase_deg"));
+        // The oracle also evaluates the open loop at the model's crossovers: cncsim's margins
+        // are read where python-control's open loop has its gain at 0 dB and its phase at
+        // −180° (control.margin reports the one crossing it deems critical, which on a
+        // conditionally stable loop is not the one cncsim reports).
+        let figures = &r["model_figures"];
+        let gc = number(figures, "gain_crossover_hz");
+        let pc = number(figures, "phase_crossover_hz");
+        let mut asked = f.clone();
+        asked.extend(gc.iter().chain(pc.iter()));
+        let o = oracle(&python, scenario, axis, lp, &asked);
+        let (om, op) = (numbers(&o, "magnitude_db"), numbers(&o, "phase_deg"));
+        let (lm, lpz) = (
+            numbers(&o, "open_loop_magnitude_db"),
+            numbers(&o, "open_loop_phase_deg"),
+        );
+        for i in 0..f.len() {
+            assert!(
+                (mm[i] - om[i]).abs() < 0.01,
+                "{s} {axis} {lp} {} Hz: {} dB cncsim, {} dB python-control",
+                f[i],
+                mm[i],
+                om[i]
+            );
+            assert!(
+                angle_diff(mp[i], op[i]).abs() < 0.1,
+                "{s} {axis} {lp} {} Hz: {}° cncsim, {}° python-control",
+                f[i],
+                mp[i],
+                op[i]
+            );
+        }
+        let mut at = f.len();
+        if gc.is_some() {
+            let pm = number(figures, "phase_margin_deg").unwrap();
+            assert!(
+                lm[at].abs() < 0.01,
+                "{s} {axis} {lp}: |L| = {} dB at cncsim's gain crossover",
+                lm[at]
+            );
+            assert!(
+                angle_diff(180.0 + lpz[at], pm).abs() < 0.1,
+                "{s} {axis} {lp}: phase margin {pm}° in cncsim, {}° in python-control's L",
+                180.0 + lpz[at]
+            );
+            at += 1;
+        }
+        if pc.is_some() {
+            let gm = number(figures, "gain_margin_db").unwrap();
+            assert!(
+                angle_diff(lpz[at], 180.0).abs() < 0.1,
+                "{s} {axis} {lp}: ∠L = {}° at cncsim's phase crossover",
+                lpz[at]
+            );
+            assert!(
+                (gm + lm[at]).abs() < 0.05,
+                "{s} {axis} {lp}: gain margin {gm} dB in cncsim, {} dB in python-control's L",
+                -lm[at]
+            );
+        }
+    }
+}
+
+#[test]
+fn the_cascade_design_has_its_margins_in_python_control() {
+    // `tune --cascade` designs on the one linear model; python-control, given the gains it
+    // prints, finds the velocity loop's crossover and margins where the design says they are:
+    // a rigid DC-motor axis at 5 ms, a two-mass one held below its antiresonance, and an
+    // ideal torque axis.
+    let Some(python) = python_with_control() else {
+        return;
+    };
+    let dir = tempfile::tempdir().unwrap();
+    for (src, axis) in [
+        ("scenarios/paper_circle_05mms.toml", "y"),
+        ("scenarios/xyz_circle_compliant.toml", "x"),
+        ("scenarios/ballbar_xyz_servo_mismatch.toml", "z"),
+    ] {
+        let path = root().join(src).display().to_string();
+        let o = cncsim(&["tune", &path, "--axis", axis, "--cascade", "--json"]);
+        assert!(o.status.success(), "{src}: {}", stderr(&o));
+        let report: serde_json::Value = serde_json::from_slice(&o.stdout).unwrap();
+        let design = &report["design"];
+        let line = report["toml"].as_str().unwrap();
+        let scenario = scenario_copy(dir.path(), src, "cascade", Some((axis, line)), &[]);
+        let crossover = number(design, "velocity_bandwidth_hz").unwrap();
+        let o = oracle(&python, &scenario, axis, "velocity", &[1.0, crossover]);
+        let pc = number(&o, "gain_crossover_hz").unwrap();
+        assert!(
+            (pc / crossover - 1.0).abs() < 0.005,
+            "{src} {axis}: crossover {crossover} Hz designed, {pc} Hz in python-control"
+        );
+        for (key, tol) in [("phase_margin_deg", 0.3), ("gain_margin_db", 0.1)] {
+            let (a, b) = (number(design, key).unwrap(), number(&o, key).unwrap());
+            assert!(
+                (a - b).abs() < tol,
+                "{src} {axis} {key}: designed {a}, python-control {b}"
+            );
+        }
+        assert!(number(&o, "phase_margin_deg").unwrap() >= 49.5, "{o}");
+        assert!(number(&o, "gain_margin_db").unwrap() >= 5.9, "{o}");
     }
 }

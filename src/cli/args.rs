@@ -271,13 +271,14 @@ pub enum Command {
         /// Print the report as JSON (progress still goes to stderr).
         #[arg(long)]
         json: bool,
-        /// Design the cascade (position loop over velocity loop) of the axis instead: the
-        /// velocity loop by the bandwidth its phase budget allows, the position loop at a
-        /// quarter of it, checked by a velocity step on the simulated axis.
+        /// Design the cascade (position loop over velocity loop) of the axis instead, on the
+        /// axis's linear model (the one `bode` draws): the velocity loop at the largest
+        /// crossover with 50° of phase and 6 dB of gain margin, the position loop at a quarter
+        /// of it, checked by a velocity step on the simulated axis.
         #[arg(long)]
         cascade: bool,
-        /// With --cascade: impose the velocity-loop crossover (Hz) instead of the largest with
-        /// 50° of phase margin.
+        /// With --cascade: impose the velocity-loop crossover (Hz) instead of the largest that
+        /// keeps the margins.
         #[arg(long, requires = "cascade")]
         velocity_bandwidth_hz: Option<f64>,
     },

@@ -86,6 +86,16 @@ pub struct Cascade {
     period: f64,
 }
 
+/// The coefficient α of the velocity estimate's first-order low-pass at `filter_hz` (0: none,
+/// α = 1), sampled every `period`: v̂ ← v̂ + α·(v_raw − v̂), the pole of e^{−2π·f·T}.
+pub fn velocity_smoothing(filter_hz: f64, period: f64) -> f64 {
+    if filter_hz > 0.0 {
+        1.0 - (-std::f64::consts::TAU * filter_hz * period).exp()
+    } else {
+        1.0
+    }
+}
+
 impl Cascade {
     /// One loop pair per axis (the machine's axis order); `model` gives the inertia for the
     /// acceleration feed-forward (armature included).
@@ -98,11 +108,7 @@ impl Cascade {
         period: f64,
     ) -> Cascade {
         let n = axes.len();
-        let smoothing = if velocity_filter_hz > 0.0 {
-            1.0 - (-std::f64::consts::TAU * velocity_filter_hz * period).exp()
-        } else {
-            1.0
-        };
+        let smoothing = velocity_smoothing(velocity_filter_hz, period);
         Cascade {
             state: vec![AxisState::default(); n],
             filters: axes

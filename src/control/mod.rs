@@ -11,7 +11,7 @@ mod pid;
 mod task_space;
 
 pub use actuator::{command_for_torque, Actuator, ActuatorKind, ActuatorOutput};
-pub use cascade::{Cascade, CascadeAxis};
+pub use cascade::{velocity_smoothing, Cascade, CascadeAxis};
 pub use compensation::{AxisCompensation, Compensated};
 pub use computed_torque::ComputedTorque;
 pub use filters::{Notch, TorqueFilters};

@@ -1,6 +1,9 @@
-//! The linearised servo axis in the frequency domain, from the drive data alone (not from any
-//! measurement): the plant sampled with the loop's zero-order hold, the controller as the
-//! discrete law it runs, and the loops they make.
+//! The one linear model of a servo axis, from the drive data alone (not from any measurement):
+//! the plant sampled with the loop's zero-order hold, the controller as the discrete law it
+//! runs, and the loops they make. `bode` lays it over the measured response, `tune` takes the
+//! ultimate cycle of its P loop ([`crate::tune::linear`]) and `tune --cascade` designs the
+//! cascade on its velocity loop ([`crate::tune::cascade`]); python-control builds the same
+//! loops in the tests (`tests/oracles/bode_oracle.py`).
 //!
 //! # The plant (joint units: m, N, kg, or rad, N·m, kg·m²)
 //!
@@ -44,11 +47,49 @@
 //! L = B_fb·P_fb + B_m·P_m, and the closed loop from the setpoint is x_fb/r = P_fb·R/(1 + L).
 
 use crate::control::ActuatorKind;
-use crate::machine::{Drive, Feedback};
-use crate::tune::LinearActuator;
-use nalgebra::{Complex, DMatrix, DVector};
+use crate::dynamics::AxisDynamics;
+use crate::machine::{Drive, Feedback, Machine};
+use nalgebra::{Complex, DMatrix, DVector, Vector3};
 use serde::Serialize;
 use std::f64::consts::TAU;
+
+/// How the controller output drives the axis.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize)]
+#[serde(tag = "kind", rename_all = "kebab-case")]
+pub enum LinearActuator {
+    /// Output in volts at the amplifier input.
+    DcMotor {
+        /// Amplifier gain K_a (V per volt of controller output).
+        amplifier_gain: f64,
+        /// Torque constant K_m (N·m/A).
+        torque_constant: f64,
+        /// Back-EMF constant K_b the loop sees (V·s/rad; 0 for a current-mode amplifier).
+        back_emf_constant: f64,
+        /// Armature resistance R (Ω).
+        resistance: f64,
+        /// Armature inductance L (H).
+        inductance: f64,
+    },
+    /// Output is the motor torque (N·m).
+    IdealTorque,
+}
+
+impl LinearActuator {
+    /// The actuator `kind` of `drive`: for the DC motor its amplifier and motor constants, with
+    /// the back-EMF the amplifier mode lets the loop see.
+    pub fn of_drive(drive: &Drive, kind: ActuatorKind) -> LinearActuator {
+        match kind {
+            ActuatorKind::IdealTorque => LinearActuator::IdealTorque,
+            ActuatorKind::DcMotor => LinearActuator::DcMotor {
+                amplifier_gain: drive.amplifier_gain,
+                torque_constant: drive.motor.torque_constant_nm_per_a,
+                back_emf_constant: drive.effective_back_emf(),
+                resistance: drive.motor.resistance_ohm,
+                inductance: drive.motor.inductance_h,
+            },
+        }
+    }
+}
 
 /// Complex numbers of the frequency responses.
 pub type C64 = Complex<f64>;
@@ -76,7 +117,7 @@ impl Transmission {
 }
 
 /// One axis's linear plant at the joint (see the module documentation).
-#[derive(Debug, Clone, Copy, PartialEq)]
+#[derive(Debug, Clone, Copy, PartialEq, Serialize)]
 pub struct AxisPlant {
     /// m_d = J·k² (kg or kg·m²).
     pub drive_mass: f64,
@@ -116,6 +157,86 @@ impl AxisPlant {
             actuator: LinearActuator::of_drive(drive, actuator),
             feedback: drive.feedback,
         }
+    }
+
+    /// The plant of axis `axis` of `machine` at joint position `q` (one value per axis): the
+    /// rigid-body model's inertia of the axis there (armature, followers and every link it
+    /// carries), of which the drive side is the drive's reflected inertia and the rest the
+    /// carriage; the drive's reflected damping and the joint's own; the drive's transmission
+    /// (compliant where the drive file gives a stiffness). Friction and backlash are not
+    /// linear and not in it.
+    pub fn of_axis(
+        machine: &Machine,
+        axis: usize,
+        q: &[f64],
+        actuator: ActuatorKind,
+    ) -> Result<AxisPlant, String> {
+        let mut model = AxisDynamics::of_machine(machine, Vector3::zeros())
+            .map_err(|e| format!("the machine's rigid-body model: {e}"))?;
+        let n = model.dof();
+        let mut ws = model.workspace();
+        let mut mass = DMatrix::zeros(n, n);
+        model.mass_matrix(&mut ws, q, &mut mass);
+        let a = &machine.axes[axis];
+        let drive = &a.drive;
+        let transmission = drive
+            .compliance()
+            .map_or(Transmission::RIGID, |c| Transmission {
+                stiffness: c.stiffness,
+                damping: c.damping,
+            });
+        let plant = AxisPlant::from_drive(
+            drive,
+            mass[(axis, axis)] - drive.reflected_inertia(),
+            machine.joints[a.joint].damping,
+            transmission,
+            actuator,
+        );
+        if !(plant.carriage_mass > 0.0 && plant.drive_mass >= 0.0) {
+            return Err(format!(
+                "axis {}: the rigid-body model gives it {} kg (or kg·m²) beyond its drive's reflected {}: a linear model needs inertia the drive moves",
+                a.name, plant.carriage_mass, plant.drive_mass
+            ));
+        }
+        if !plant.transmission.is_rigid() && plant.drive_mass <= 0.0 {
+            return Err(format!(
+                "axis {}: a compliant transmission needs inertia on the drive side of its spring (the drive's rotor inertia is 0)",
+                a.name
+            ));
+        }
+        Ok(plant)
+    }
+
+    /// Joint force per unit of command at standstill, k·K_m·K_a/R or k.
+    pub fn force_per_command(&self) -> f64 {
+        1.0 / self.command_per_force()
+    }
+
+    /// The viscous damping the axis shows at low frequency (N·s/m or N·m·s/rad): the drive's
+    /// and the joint's, plus in voltage mode the back-EMF's k²·K_m·K_b/R.
+    pub fn low_frequency_damping(&self) -> f64 {
+        let viscous = self.drive_damping + self.carriage_damping;
+        match self.actuator {
+            LinearActuator::DcMotor {
+                torque_constant,
+                back_emf_constant,
+                resistance,
+                ..
+            } => viscous + self.ratio.powi(2) * torque_constant * back_emf_constant / resistance,
+            LinearActuator::IdealTorque => viscous,
+        }
+    }
+
+    /// The compliant transmission's undamped resonance √(k_t·(1/m_d + 1/m_c)) and the motor
+    /// side's antiresonance √(k_t/m_c) (Hz); `None` for a rigid one.
+    pub fn modes_hz(&self) -> Option<(f64, f64)> {
+        let k = self.transmission.stiffness;
+        (!self.transmission.is_rigid()).then(|| {
+            (
+                (k * (1.0 / self.drive_mass + 1.0 / self.carriage_mass)).sqrt() / TAU,
+                (k / self.carriage_mass).sqrt() / TAU,
+            )
+        })
     }
 
     /// Command per unit of drive force at standstill (V per N, or N·m per N): what a
@@ -236,6 +357,25 @@ pub struct SampledPlant {
 }
 
 impl SampledPlant {
+    /// Φ = e^{AT} and Γ of the ZOH discretisation, x⁺ = Φ·x + Γ·u.
+    pub fn discrete(&self) -> (&DMatrix<f64>, &DVector<f64>) {
+        (&self.phi, &self.gamma)
+    }
+
+    /// The continuous A and B, ẋ = A·x + B·u.
+    pub fn continuous(&self) -> (&DMatrix<f64>, &DVector<f64>) {
+        (&self.a, &self.b)
+    }
+
+    /// The output row of the position loop's feedback device, y = c·x.
+    pub fn feedback_row(&self) -> Vec<f64> {
+        let row = match self.feedback {
+            Feedback::Motor => 0,
+            Feedback::Carriage => 1,
+        };
+        self.c.row(row).iter().copied().collect()
+    }
+
     fn solve(&self, m: &DMatrix<f64>, v: &DVector<f64>, s: C64) -> PlantResponse {
         let n = m.nrows();
         let mut lhs = DMatrix::<C64>::zeros(n, n);

@@ -128,7 +128,7 @@ pub struct DcMotor {
 }
 
 /// Which position the servo loop is closed on. The two differ only with backlash.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Deserialize)]
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Deserialize, serde::Serialize)]
 #[serde(rename_all = "kebab-case")]
 pub enum Feedback {
     /// Motor encoder (semi-closed loop): the drive-side position. Backlash is then outside

@@ -112,51 +112,64 @@ impl Figures {
     }
 
     /// The figures from a feature response (whose peaks and dips are the resonances), a closed
-    /// loop and an open loop, all at `frequency` (Hz), with the coherence of each point; points
-    /// below [`MIN_COHERENCE`] are left out of every figure.
-    pub fn of(
-        frequency: &[f64],
-        feature: &[C64],
-        closed: &[C64],
-        open: &[C64],
-        coherence: &[f64],
-    ) -> Figures {
+    /// loop and an open loop, each at its own frequencies (Hz) with the coherence of each
+    /// point (a search refines each sweep where its own curve needs it); points below
+    /// [`MIN_COHERENCE`] are left out of every figure.
+    pub fn of(feature: Points<'_>, closed: Points<'_>, open: Points<'_>) -> Figures {
         let mag: Vec<f64> = feature
+            .values
             .iter()
             .map(|h| crate::frequency::estimate::db(h.norm()))
             .collect();
         // Margins and bandwidth from the coherent points only: an incoherent point is not a
         // transfer function value.
-        let keep: Vec<usize> = (0..frequency.len())
-            .filter(|&i| coherence[i] >= MIN_COHERENCE)
-            .collect();
-        let pick = |v: &[C64]| keep.iter().map(|&i| v[i]).collect::<Vec<_>>();
-        let f: Vec<f64> = keep.iter().map(|&i| frequency[i]).collect();
-        let (open, closed) = (pick(open), pick(closed));
-        let (gm, pm) = margins(&f, &open);
+        let (f_open, open) = open.coherent();
+        let (f_closed, closed) = closed.coherent();
+        let (gm, pm) = margins(&f_open, &open);
         Figures {
             resonances_hz: extrema(
-                frequency,
+                feature.frequency,
                 &mag,
-                coherence,
+                feature.coherence,
                 true,
                 PROMINENCE_DB,
                 MIN_COHERENCE,
             ),
             antiresonances_hz: extrema(
-                frequency,
+                feature.frequency,
                 &mag,
-                coherence,
+                feature.coherence,
                 false,
                 PROMINENCE_DB,
                 MIN_COHERENCE,
             ),
-            bandwidth_hz: bandwidth(&f, &closed),
+            bandwidth_hz: bandwidth(&f_closed, &closed),
             gain_margin_db: gm.map(|c: Crossover| c.margin),
             phase_crossover_hz: gm.map(|c| c.frequency_hz),
             phase_margin_deg: pm.map(|c| c.margin),
             gain_crossover_hz: pm.map(|c| c.frequency_hz),
         }
+    }
+}
+
+/// One response at its frequencies (Hz), with the coherence of each point.
+#[derive(Debug, Clone, Copy)]
+pub struct Points<'a> {
+    /// Frequencies (Hz), increasing.
+    pub frequency: &'a [f64],
+    /// The response at each.
+    pub values: &'a [C64],
+    /// Coherence of each point (1 for a model).
+    pub coherence: &'a [f64],
+}
+
+impl Points<'_> {
+    /// The points whose coherence is at least [`MIN_COHERENCE`].
+    fn coherent(&self) -> (Vec<f64>, Vec<C64>) {
+        (0..self.frequency.len())
+            .filter(|&i| self.coherence[i] >= MIN_COHERENCE)
+            .map(|i| (self.frequency[i], self.values[i]))
+            .unzip()
     }
 }
 

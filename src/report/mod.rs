@@ -21,7 +21,7 @@ pub use ballbar::{
     ReversalSpike, ServoMismatch, Vibration,
 };
 pub use blueprint::{ab_blueprint, run_blueprint};
-pub use bode::{BodeRun, Curve, Figures, MIN_COHERENCE, PROMINENCE_DB};
+pub use bode::{BodeRun, Curve, Figures, Points, MIN_COHERENCE, PROMINENCE_DB};
 pub use csv::CsvWriter;
 pub use events::{Event, EventDetector, MAX_EVENTS_PER_KIND};
 pub use metrics::{

@@ -9,17 +9,16 @@
 //! A multisine would be faster; a commissioning tool's few seconds are not what matters here,
 //! accuracy against the model is.
 
-use super::assemble::{Assembly, ControllerRecipe, RunError, GRAVITY};
+use super::assemble::{Assembly, ControllerRecipe, RunError};
 use super::file::ControllerType;
 use super::Scenario;
 use crate::control::ActuatorKind;
 use crate::diagnostics::FileError;
 use crate::frequency::{
     estimates, log_grid, run_sweep, segments, AxisPlant, Estimate, Excitation, Injected, Injection,
-    LinearController, Loop, SampledPlant, Segment, SweepTiming, Transmission, C64,
+    LinearController, Loop, SampledPlant, Segment, SweepTiming, C64,
 };
-use crate::report::{BodeRun, Curve, Figures};
-use crate::sim::analytic::AxisModel;
+use crate::report::{BodeRun, Curve, Figures, Points};
 use crate::sim::{Lane, LaneKind};
 use std::f64::consts::PI;
 use std::time::Instant;
@@ -117,22 +116,12 @@ pub fn axis_linear_model(assembly: &Assembly, axis: usize) -> Result<AxisLinearM
     let machine = &assembly.machine;
     let bad = |m: String| FileError::new(&s.path, None, m);
     let ideal = assembly.actuator == ActuatorKind::IdealTorque;
-    let models = AxisModel::for_machine(machine, GRAVITY, ideal).map_err(|e| {
+    let drive = &machine.axes[axis].drive;
+    let plant = AxisPlant::of_axis(machine, axis, &assembly.start(), assembly.actuator).map_err(|e| {
         bad(format!(
-            "bode lays the linear model of the axis over the measurement and sizes the excitation by it, and the axis model cannot be built: {e}"
+            "bode lays the linear model of the axis over the measurement and sizes the excitation by it, and the model cannot be built: {e}"
         ))
     })?;
-    let drive = &machine.axes[axis].drive;
-    let model = &models[axis];
-    let moved = model.effective_mass() - drive.reflected_inertia();
-    let joint_damping = model.effective_damping() - drive.reflected_damping();
-    let transmission = drive
-        .compliance()
-        .map_or(Transmission::RIGID, |c| Transmission {
-            stiffness: c.stiffness,
-            damping: c.damping,
-        });
-    let plant = AxisPlant::from_drive(drive, moved, joint_damping, transmission, assembly.actuator);
     let name = &machine.axes[axis].name;
     let c = s.controller.as_ref().expect("assembled with a controller");
     let period = s.timing.servo_period;
@@ -153,12 +142,8 @@ pub fn axis_linear_model(assembly: &Assembly, axis: usize) -> Result<AxisLinearM
         }
         ControllerType::Cascade => {
             let a = c.cascade.axes[name].settings;
-            let fc = c.cascade.velocity_filter_hz;
-            let smoothing = if fc > 0.0 {
-                1.0 - (-std::f64::consts::TAU * fc * period).exp()
-            } else {
-                1.0
-            };
+            let smoothing =
+                crate::control::velocity_smoothing(c.cascade.velocity_filter_hz, period);
             (
                 LinearController::Cascade {
                     position_kp: a.position_kp,
@@ -879,22 +864,40 @@ impl<'a> BodeReport<'a> {
         let injected_coherence: Vec<f64> = injected.estimates.iter().map(|e| e.coherence).collect();
 
         // Figures: peaks and dips of the plant (plant loop) or the open loop; bandwidth of the
-        // closed loop; margins of the open loop.
+        // closed loop; margins of the open loop. The plant loop measures all three in one
+        // sweep; the others measure the closed loop in the main sweep and the open loop (the
+        // feature) in the injected one.
         let closed_measured: Vec<C64> = match lp {
             Loop::Plant => injected.estimates.iter().map(|e| e.closed).collect(),
             _ => main.estimates.iter().map(|e| e.closed).collect(),
         };
-        let feature = match lp {
-            Loop::Plant => measured_main.clone(),
-            _ => open_measured.clone(),
+        let open_points = Points {
+            frequency: &open_freq,
+            values: &open_measured,
+            coherence: &injected_coherence,
         };
-        let figures = Figures::of(
-            &freq,
-            &feature,
-            &closed_measured,
-            &open_measured,
-            &injected_coherence,
-        );
+        let (closed_points, feature_points) = match lp {
+            Loop::Plant => (
+                Points {
+                    values: &closed_measured,
+                    ..open_points
+                },
+                Points {
+                    frequency: &freq,
+                    values: &measured_main,
+                    coherence: &coherence,
+                },
+            ),
+            _ => (
+                Points {
+                    frequency: &freq,
+                    values: &closed_measured,
+                    coherence: &coherence,
+                },
+                open_points,
+            ),
+        };
+        let figures = Figures::of(feature_points, closed_points, open_points);
         let model_closed: Vec<C64> = match lp {
             Loop::Plant => dense
                 .iter()
@@ -906,12 +909,16 @@ impl<'a> BodeReport<'a> {
             Loop::Plant => model_main_dense.clone(),
             _ => model_open_dense.clone(),
         };
+        let ones = vec![1.0; dense.len()];
+        let model_points = |values| Points {
+            frequency: &dense,
+            values,
+            coherence: &ones,
+        };
         let mut model_figures = Figures::of(
-            &dense,
-            &model_feature,
-            &model_closed,
-            &model_open_dense,
-            &vec![1.0; dense.len()],
+            model_points(&model_feature),
+            model_points(&model_closed),
+            model_points(&model_open_dense),
         );
         self.refine_model_extrema(&mut model_figures, &dense);
         let peak_command = self

@@ -7,19 +7,21 @@
 //! scenario's own controller, so they are held as in a real run and couple as they would. The
 //! axis starts at rest at the program's first point and its setpoint steps by `step` at t = 0.
 
-use super::assemble::{keep_mechanics, machine_for, Assembly, RunError, GRAVITY};
+use super::assemble::{machine_for, Assembly, RunError, GRAVITY};
 use super::file::ControllerType;
 use super::Scenario;
 use crate::control::{ActuatorKind, Controller, ControllerInput, Pid, PidForm, PidSettings};
 use crate::diagnostics::FileError;
+use crate::frequency::AxisPlant;
 use crate::machine::Machine;
 use crate::plan::Setpoints;
-use crate::sim::analytic::AxisModel;
+
 use crate::sim::LaneKind;
 use crate::sim::{self, Lane, LoopSettings, Trace, TraceRecorder};
 use crate::tune::{
-    design_cascade, find_ultimate, CascadeDesign, LinearActuator, LinearAxis, LoopShape, Response,
-    SearchError, SearchSettings, Trial, TwoMass, Ultimate, UltimateCycle, ZieglerNichols,
+    continuous_ultimate, design_cascade, discrete_ultimate, find_ultimate, CascadeDesign,
+    LoopShape, Response, SearchError, SearchSettings, Trial, Ultimate, UltimateCycle,
+    ZieglerNichols,
 };
 use serde::Serialize;
 use std::path::PathBuf;
@@ -91,13 +93,14 @@ impl From<FileError> for TuneError {
 /// The ultimate cycle of the linear model of the axis (no friction, no backlash, no limits).
 #[derive(Debug, Clone, PartialEq, Serialize)]
 pub struct LinearPrediction {
-    /// The linear model: effective mass, damping, transmission ratio and actuator.
-    pub axis: LinearAxis,
+    /// The linear model: drive side and carriage, transmission, actuator, feedback device.
+    pub axis: AxisPlant,
     /// Of the sampled loop (ZOH at the servo period): what the search should find.
     pub sampled: UltimateCycle,
-    /// Continuous-time (T → 0), DC-motor actuator only.
+    /// Continuous-time (T → 0) ultimate gain, where the continuous loop has one (not a rigid
+    /// axis under the ideal torque actuator).
     pub continuous_gain: Option<f64>,
-    /// Continuous-time ultimate period (s), DC-motor actuator only.
+    /// Continuous-time ultimate period (s), likewise.
     pub continuous_period: Option<f64>,
 }
 
@@ -238,7 +241,13 @@ pub fn tune_scenario_with(
     };
     let (ultimate, ticks, simulations, simulated_time) = search.run(progress)?;
     let gains = ZieglerNichols::from_ultimate(ultimate.gain, ultimate.period);
-    let linear = linear_prediction(machine, axis, actuator, s.timing.servo_period);
+    let linear = linear_prediction(
+        machine,
+        axis,
+        &assembly.start(),
+        actuator,
+        s.timing.servo_period,
+    );
     Ok(TuneReport {
         scenario: s.name.clone(),
         axis: options.axis.clone(),
@@ -363,26 +372,23 @@ impl UltimateSearch<'_> {
     }
 }
 
-/// The linear model's prediction of the ultimate gain and period, where the axis has one.
+/// The linear model's prediction of the ultimate gain and period (the axis at joint position
+/// `q`), where the axis has one.
 fn linear_prediction(
     machine: &Machine,
     axis: usize,
+    q: &[f64],
     actuator: ActuatorKind,
     period: f64,
 ) -> Option<LinearPrediction> {
-    let linear = linear_model(machine, axis, actuator).map(|axis_model| {
-        let sampled = axis_model.discrete_ultimate(period);
-        (axis_model, sampled)
-    });
-    match linear {
-        Some((a, Some(sampled))) => Some(LinearPrediction {
-            axis: a,
-            sampled,
-            continuous_gain: a.continuous_ultimate_gain(),
-            continuous_period: a.continuous_ultimate_period(),
-        }),
-        _ => None,
-    }
+    let plant = AxisPlant::of_axis(machine, axis, q, actuator).ok()?;
+    let continuous = continuous_ultimate(&plant);
+    Some(LinearPrediction {
+        axis: plant,
+        sampled: discrete_ultimate(&plant, period)?,
+        continuous_gain: continuous.map(|c| c.gain),
+        continuous_period: continuous.map(|c| c.period),
+    })
 }
 
 /// The trial's setpoints: at rest at the program's first point (one sample there, which both
@@ -446,23 +452,6 @@ fn check_options(s: &Scenario, o: &TuneOptions, rotary: bool) -> Result<(), Stri
         return Err("max simulations: expected at least 1".into());
     }
     Ok(())
-}
-
-/// The linear model of the axis for the discrete-time check, where the analytic model has one
-/// (prismatic axes on Cartesian chains).
-fn linear_model(machine: &Machine, axis: usize, actuator: ActuatorKind) -> Option<LinearAxis> {
-    // The linear part only: friction and backlash have no place in a linear model.
-    let mut linear = machine.clone();
-    keep_mechanics(&mut linear, false, false);
-    let models = AxisModel::for_machine(&linear, GRAVITY, false).ok()?;
-    let m = &models[axis];
-    let drive = &machine.axes[axis].drive;
-    Some(LinearAxis {
-        mass: m.effective_mass(),
-        damping: m.effective_damping(),
-        ratio: m.ratio(),
-        actuator: LinearActuator::of_drive(drive, actuator),
-    })
 }
 
 /// Everything a trial needs, shared by all trials.
@@ -777,7 +766,7 @@ pub fn tune_cascade(
         )));
     };
     let start = assembly.start();
-    let linear = linear_axis_at(machine, axis, &start, assembly.actuator).map_err(bad)?;
+    let linear = AxisPlant::of_axis(machine, axis, &start, assembly.actuator).map_err(bad)?;
     let velocity_filter_hz = s
         .controller
         .as_ref()
@@ -788,15 +777,9 @@ pub fn tune_cascade(
         .as_ref()
         .and_then(|c| c.cascade.axes.get(axis_name))
         .map_or_else(Default::default, |a| a.settings.filters);
-    let drive = &machine.axes[axis].drive;
     let shape = LoopShape {
         velocity_filter_hz,
         torque_filters,
-        drive_train: drive.compliance().map(|c| TwoMass {
-            drive_mass: drive.reflected_inertia(),
-            stiffness: c.stiffness,
-            damping: c.damping,
-        }),
     };
     let design = design_cascade(&linear, s.timing.servo_period, &shape, bandwidth_hz)
         .map_err(|m| bad(format!("--axis {axis_name}: {m}")))?;
@@ -911,31 +894,6 @@ fn step_figures(v: &[f64], target: f64, t: f64) -> (Option<f64>, Option<f64>) {
     (rise, overshoot)
 }
 
-/// The linear model of `axis` at joint position `q`: the rigid-body inertia (armature
-/// included) on its diagonal, the drive's reflected and the joint's own damping.
-fn linear_axis_at(
-    machine: &Machine,
-    axis: usize,
-    q: &[f64],
-    actuator: ActuatorKind,
-) -> Result<LinearAxis, String> {
-    let mut model =
-        crate::dynamics::AxisDynamics::of_machine(machine, nalgebra::Vector3::from(GRAVITY))
-            .map_err(|e| format!("the machine's rigid-body model: {e}"))?;
-    let n = model.dof();
-    let mut ws = model.workspace();
-    let mut mass = nalgebra::DMatrix::zeros(n, n);
-    model.mass_matrix(&mut ws, q, &mut mass);
-    let a = &machine.axes[axis];
-    let drive = &a.drive;
-    Ok(LinearAxis {
-        mass: mass[(axis, axis)],
-        damping: drive.reflected_damping() + machine.joints[a.joint].damping,
-        ratio: drive.ratio(),
-        actuator: LinearActuator::of_drive(drive, actuator),
-    })
-}
-
 /// The scenario's controller on every axis but one, which another controller drives.
 struct OneAxis {
     hold: Box<dyn Controller>,
@@ -978,11 +936,11 @@ impl CascadeTuneReport {
             }
         );
         t += &format!(
-            "  plant        velocity loop: m·v̇ = b·u − c·v with m = {:.5e} kg, b = {:.5e} N per command unit, c = {:.5e} N·s/{unit}\n",
+            "  plant        the axis's linear model sampled at the servo period: {:.5e} kg moved (drive side included), {:.5e} N per command unit, {:.5e} N·s/{unit} at low frequency\n",
             d.mass, d.force_per_command, d.damping
         );
         t += &format!(
-            "  velocity     PI, crossover {:.2} Hz with {:.1}° phase margin (servo period, current lag, filter and PI zero counted): Kpv = {:.5e} per {speed}, Kiv = {:.5e} per {unit}\n",
+            "  velocity     PI, crossover {:.2} Hz with {:.1}° phase margin (hold, current, drive train, velocity estimate, filters and PI zero in the loop): Kpv = {:.5e} per {speed}, Kiv = {:.5e} per {unit}\n",
             d.velocity_bandwidth_hz, d.phase_margin_deg, d.axis.velocity_kp, d.axis.velocity_ki
         );
         if let (Some(r), Some(a)) = (d.resonance_hz, d.antiresonance_hz) {

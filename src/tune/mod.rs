@@ -5,20 +5,20 @@
 //!
 //! - [`oscillation`]: does a trace grow, decay, settle or sit in a limit cycle (pure).
 //! - [`search`]: bracket and bisect the P gain to the boundary of sustained oscillation.
-//! - [`linear`]: the same boundary derived from the linear axis's equations (ZOH
-//!   discretisation and spectral radius), the independent check.
-//! - [`cascade`]: the cascade's velocity loop by the bandwidth its phase budget allows, the
-//!   position loop at a quarter of it.
+//! - [`linear`]: the same boundary derived from the axis's linear model (ZOH discretisation
+//!   and spectral radius), the independent check.
+//! - [`cascade`]: the cascade's velocity loop by the bandwidth its margins allow on the same
+//!   linear model, the position loop at a quarter of it.
+//!
+//! The linear model is the one `bode` lays over its measurements: [`crate::frequency::AxisPlant`].
 
 pub mod cascade;
 pub mod linear;
 pub mod oscillation;
 pub mod search;
 
-pub use cascade::{
-    design_cascade, CascadeDesign, LoopShape, TwoMass, GAIN_MARGIN_DB, PHASE_MARGIN_DEG,
-};
-pub use linear::{LinearActuator, LinearAxis, UltimateCycle};
+pub use cascade::{design_cascade, CascadeDesign, LoopShape, GAIN_MARGIN_DB, PHASE_MARGIN_DEG};
+pub use linear::{continuous_ultimate, discrete_ultimate, UltimateCycle};
 pub use oscillation::{analyse, Oscillation, Verdict};
 pub use search::{find_ultimate, Outcome, Response, SearchError, SearchSettings, Trial, Ultimate};
 

@@ -315,10 +315,11 @@ fn ratio_text(t: &Trial) -> String {
 
 #[cfg(test)]
 mod tests {
-    use super::super::linear::{LinearActuator, LinearAxis};
+    use super::super::linear::discrete_ultimate;
     use super::*;
+    use crate::frequency::{AxisPlant, LinearActuator, Transmission};
 
-    fn x_axis() -> LinearAxis {
+    fn x_axis() -> AxisPlant {
         super::super::linear::xyz_table_x_axis()
     }
 
@@ -337,11 +338,13 @@ mod tests {
 
     /// The exact sampled loop x⁺ = Φx + Γu, u = clamp(K·(r − q)), as a simulator.
     fn sampled_loop(
-        axis: LinearAxis,
+        axis: AxisPlant,
         s: &SearchSettings,
         seconds: f64,
     ) -> impl FnMut(f64) -> Result<Response, String> {
-        let (phi, gamma) = axis.discretise(s.servo_period);
+        let sampled = axis.sampled(s.servo_period);
+        let (phi, gamma) = sampled.discrete();
+        let (phi, gamma) = (phi.clone(), gamma.clone());
         let (step, limit, n) = (s.step, s.saturation, (seconds / s.servo_period) as usize);
         move |gain: f64| {
             let mut x = nalgebra::DVector::<f64>::zeros(phi.nrows());
@@ -360,7 +363,7 @@ mod tests {
     #[test]
     fn the_search_finds_the_sampled_loops_ultimate_cycle() {
         let s = settings();
-        let exact = x_axis().discrete_ultimate(1e-3).unwrap();
+        let exact = discrete_ultimate(&x_axis(), 1e-3).unwrap();
         let mut sim = sampled_loop(x_axis(), &s, 1.0);
         let u = find_ultimate(&s, &mut sim, &mut |_| {}).unwrap();
         assert!(
@@ -384,7 +387,7 @@ mod tests {
             start_gain: 50_000.0,
             ..settings()
         };
-        let exact = x_axis().discrete_ultimate(1e-3).unwrap();
+        let exact = discrete_ultimate(&x_axis(), 1e-3).unwrap();
         let mut sim = sampled_loop(x_axis(), &s, 1.0);
         let u = find_ultimate(&s, &mut sim, &mut |_| {}).unwrap();
         assert!(u.trials[0].outcome.oscillates());
@@ -395,11 +398,15 @@ mod tests {
     fn a_loop_that_never_oscillates_ends_with_an_error() {
         // Ideal torque with heavy damping: the sampled loop's crossing lies far above the gains
         // the step allows.
-        let axis = LinearAxis {
-            mass: 1.0,
-            damping: 1e4,
+        let axis = AxisPlant {
+            drive_mass: 0.0,
+            drive_damping: 1e4,
+            carriage_mass: 1.0,
+            carriage_damping: 0.0,
             ratio: 1.0,
+            transmission: Transmission::RIGID,
             actuator: LinearActuator::IdealTorque,
+            feedback: crate::machine::Feedback::Motor,
         };
         let s = settings();
         let mut sim = sampled_loop(axis, &s, 0.3);
@@ -424,7 +431,7 @@ mod tests {
         let mut sim = sampled_loop(x_axis(), &s, 1.0);
         let u = find_ultimate(&s, &mut sim, &mut |_| {}).unwrap();
         assert!(!u.limit_cycle);
-        let exact = x_axis().discrete_ultimate(1e-3).unwrap();
+        let exact = discrete_ultimate(&x_axis(), 1e-3).unwrap();
         assert!(
             (u.gain / exact.gain - 1.0).abs() < 5e-3,
             "{} vs {exact:?}",

@@ -17,10 +17,19 @@ The model (SI, joint side; k = motor rad per joint unit, J and C on the motor si
   two-mass   m_d a_d = F - c_d v_d - k_t (x_d - x_c) - c_t (v_d - v_c)
              m_c a_c = k_t (x_d - x_c) + c_t (v_d - v_c) - c_c v_c
 The loop samples at the servo period T and holds the command (zero-order hold): the plant is
-discretised with control.c2d(..., 'zoh'). PID: C(z) = Kp + Ki T z/(z-1) + Kd (z-1)/(T z).
-Loops: plant  P = x_fb/u (magnitude in dB re 1 mm per command unit);
-       position  x_fb/r = P (C + FF)/(1 + C P), FF = ff0 + ff1 jw - ff2 w^2;
-       the open loop L = C P (margins by control.margin).
+discretised with control.c2d(..., 'zoh'); P = x_fb/u, P_m = x_d/u.
+PID ([controller] type = "pid"): C(z) = Kp + Ki T z/(z-1) + Kd (z-1)/(T z).
+  position  x_fb/r = P (C + FF)/(1 + C P), FF = ff0 + ff1 jw - ff2 w^2; open loop L = C P.
+Cascade (type = "cascade", the velocity loop on the motor encoder):
+  C_v = F (Kpv + Kiv T z/(z-1)), F the command filters (second-order Butterworth low-pass,
+  notch (s^2 + 2 d z w s + w^2)/(s^2 + 2 z w s + w^2), z = width/(2 f)), each the Tustin image
+  prewarped at its frequency; V = a/(1 - (1-a) z^-1) (1 - z^-1)/T the velocity estimate,
+  a = 1 - exp(-2 pi f_v T); C_p = Kpp + Kip T z/(z-1).
+  velocity  v_m/v_cmd = jw P_m C_v/(1 + C_v V P_m); open loop L = C_v V P_m.
+  position  x_fb/r = P R/(1 + L), R = C_v (C_p + kvff jw) + F kaff (m_d + m_c) g (jw)^2,
+            g = R/(K_m K_a k) (ideal torque: 1/k); open loop L = C_v C_p P + C_v V P_m.
+plant loop: P (magnitude in dB re 1 mm per command unit), open loop as for position.
+Margins of the open loop by control.margin.
 """
 
 import json
@@ -96,7 +105,6 @@ def load(scenario_path, axis):
         "ideal": s.get("actuator", {}).get("model") == "ideal-torque",
         "feedback": s.get("feedback", {}).get("position", d.get("feedback", "motor")),
         "period": s["timing"]["servo_period_ms"] * 1e-3,
-        "gains": s["controller"]["axes"][axis],
         "two_mass": None if stiffness is None else {"stiffness": stiffness, "damping": damping},
     }
 
@@ -140,8 +148,53 @@ def plant(m, two_mass):
     return control.ss(a, b, c, np.zeros((2, 1)))
 
 
+def filters(g, t):
+    """The cascade's command filters F(z) (1 without)."""
+    f = control.tf([1], [1], t)
+    if g.get("torque_lowpass_hz") is not None:
+        w = 2 * math.pi * g["torque_lowpass_hz"]
+        lp = control.tf([w * w], [1, math.sqrt(2) * w, w * w])
+        f = f * control.c2d(lp, t, "bilinear", prewarp_frequency=w)
+    if g.get("notch_hz") is not None:
+        w = 2 * math.pi * g["notch_hz"]
+        zeta = g["notch_width_hz"] / (2 * g["notch_hz"])
+        d = g.get("notch_depth", 0.0)
+        notch = control.tf([1, 2 * d * zeta * w, w * w], [1, 2 * zeta * w, w * w])
+        f = f * control.c2d(notch, t, "bilinear", prewarp_frequency=w)
+    return f
+
+
+def laws(m, s, axis, t, w):
+    """The controller as u = R(w) r - B_fb x_fb - B_m x_m: (R at w, B_fb tf, B_m tf, the
+    velocity loop's C_v and V), from the scenario's [controller]."""
+    c = s["controller"]
+    z = control.tf([1, 0], [1], t)
+    jw = 1j * w
+    if c["type"] == "pid":
+        g = c["axes"][axis]
+        pid = g["kp"] + g.get("ki", 0.0) * t * z / (z - 1) + g.get("kd", 0.0) * (z - 1) / (t * z)
+        ff = g.get("ff0", 0.0) + g.get("ff1", 0.0) * jw - g.get("ff2", 0.0) * w * w
+        zs = np.exp(1j * w * t)
+        return np.asarray(pid(zs), complex) + ff, pid, 0 * z, None, None
+    g = c["cascade"][axis]
+    fc = c.get("velocity_filter_hz", 0.0)
+    a = 1 - math.exp(-2 * math.pi * fc * t) if fc > 0 else 1.0
+    f = filters(g, t)
+    cv = f * (g["velocity_kp"] + g.get("velocity_ki", 0.0) * t * z / (z - 1))
+    estimate = a / (1 - (1 - a) / z) * (1 - 1 / z) / t
+    cp = g["position_kp"] + g.get("position_ki", 0.0) * t * z / (z - 1)
+    per_force = 1 / m["k"] if m["ideal"] else m["r"] / (m["km"] * m["ka"] * m["k"])
+    zs = np.exp(1j * w * t)
+    cv_f, cp_f, f_f = (np.asarray(x(zs), complex) for x in (cv, cp, f))
+    r = cv_f * (cp_f + g.get("velocity_ff", 0.0) * jw) + f_f * g.get(
+        "acceleration_ff", 0.0
+    ) * (m["md"] + m["mc"]) * per_force * jw * jw
+    return r, cv * cp, cv * estimate, cv, estimate
+
+
 def main():
     scenario, axis, loop, freqs = sys.argv[1:5]
+    s = tomllib.loads(Path(scenario).read_text())
     m = load(scenario, axis)
     two_mass = json.loads(sys.argv[5]) if len(sys.argv) > 5 else m["two_mass"]
     t = m["period"]
@@ -149,28 +202,31 @@ def main():
     w = 2 * math.pi * freqs
     sysd = control.c2d(plant(m, two_mass), t, "zoh")
     out_row = 1 if m["feedback"] == "carriage" else 0
-    p = control.ss2tf(sysd)[out_row, 0]
-    g = m["gains"]
-    z = control.tf([1, 0], [1], t)
-    pid = g["kp"] + g.get("ki", 0.0) * t * z / (z - 1) + g.get("kd", 0.0) * (z - 1) / (t * z)
-    open_loop = control.minreal(pid * p, verbose=False)
+    tfs = control.ss2tf(sysd)
+    p, pm_tf = tfs[out_row, 0], tfs[0, 0]
+    r, b_fb, b_m, cv, estimate = laws(m, s, axis, t, w)
+    if loop == "velocity":
+        if cv is None:
+            raise SystemExit("loop velocity: the scenario's controller is not a cascade")
+        open_loop = control.minreal(b_m * pm_tf, verbose=False)
+    else:
+        open_loop = control.minreal(b_fb * p + b_m * pm_tf, verbose=False)
     zs = np.exp(1j * w * t)
     p_f = np.asarray(p(zs), complex)
-    c_f = np.asarray(pid(zs), complex)
-    l_f = c_f * p_f
-    ff = g.get("ff0", 0.0) + g.get("ff1", 0.0) * 1j * w - g.get("ff2", 0.0) * w * w
+    pm_f = np.asarray(pm_tf(zs), complex)
+    # The open loop pointwise from its parts (the minimal realisation is for the margins).
+    b_fb_f = np.asarray(b_fb(zs), complex) if loop != "velocity" else 0
+    l_f = b_fb_f * p_f + np.asarray(b_m(zs), complex) * pm_f
     if loop == "plant":
         h = p_f * 1e3  # mm per command unit
     elif loop == "position":
-        h = p_f * (c_f + ff) / (1 + l_f)
+        h = p_f * r / (1 + l_f)
     else:
-        raise SystemExit(f"loop {loop}: the oracle models plant and position loops")
+        h = 1j * w * pm_f * np.asarray(cv(zs), complex) / (1 + l_f)
     # Resonances and antiresonances: peaks and dips of |P| (plant) or |L| on a dense grid.
     dense = np.geomspace(freqs.min(), freqs.max(), 200000)
     zd = np.exp(1j * 2 * math.pi * dense * t)
-    feature = np.asarray(p(zd), complex)
-    if loop != "plant":
-        feature = feature * np.asarray(pid(zd), complex)
+    feature = np.asarray(p(zd), complex) if loop == "plant" else np.asarray(open_loop(zd), complex)
     mag = 20 * np.log10(np.abs(feature))
     peaks = [float(dense[i]) for i in range(1, len(mag) - 1) if mag[i] > mag[i - 1] and mag[i] >= mag[i + 1]]
     dips = [float(dense[i]) for i in range(1, len(mag) - 1) if mag[i] < mag[i - 1] and mag[i] <= mag[i + 1]]
