@@ -28,7 +28,9 @@ pub use force::{EdgeForces, ForceModel, Material};
 pub use material::{material, Coefficients, MaterialEntry, MATERIALS};
 pub use process::{CutProcess, StepForces};
 pub use stock::{Stock, StockError};
-pub use surface::{mesh_volume, write_binary_stl, IndexedMesh};
+pub use surface::{
+    mesh_volume, write_binary_stl, write_binary_stl_triangles, IndexedMesh, SurfaceTriangles,
+};
 pub use tool::{Pose, Tool, ToolShape};
 
 use nalgebra::Point3;

@@ -181,97 +181,163 @@ fn crossing(ivs: &[[f32; 2]], lo: f64, hi: f64, lo_inside: bool) -> f64 {
     best.unwrap_or(mid).clamp(lo, hi)
 }
 
+/// The four Z rays of one column of cells and the scratch its walk needs.
+#[derive(Default)]
+struct ColumnScratch {
+    breaks: Vec<usize>,
+    cells: Vec<usize>,
+}
+
 impl Stock {
+    /// Visits the cells of column `(ix, iy)` the surface crosses, bottom up: `visit(k, mask)`
+    /// with the cube's inside-corner mask (corner `c` at `(c & 1, (c >> 1) & 1, (c >> 2) & 1)`).
+    /// Only the layers where any of the column's four Z rays changes state are looked at.
+    fn surface_cells_of_column(
+        &self,
+        ix: usize,
+        iy: usize,
+        scratch: &mut ColumnScratch,
+        visit: &mut impl FnMut(usize, u8),
+    ) {
+        let nz = self.cells()[2];
+        let res = self.resolution();
+        let fz = self.family(2);
+        let rays = [
+            fz.intervals(fz.index(ix, iy)),
+            fz.intervals(fz.index(ix + 1, iy)),
+            fz.intervals(fz.index(ix, iy + 1)),
+            fz.intervals(fz.index(ix + 1, iy + 1)),
+        ];
+        if rays.iter().all(|r| r.is_empty()) {
+            return;
+        }
+        // Layers where any of the four rays changes state.
+        let ColumnScratch { breaks, cells } = scratch;
+        breaks.clear();
+        for r in &rays {
+            for iv in r.iter() {
+                let (k0, k1) = vertex_run(iv[0], iv[1], res, nz);
+                breaks.push(k0);
+                breaks.push(k1);
+            }
+        }
+        breaks.push(0);
+        breaks.push(nz + 1);
+        breaks.sort_unstable();
+        breaks.dedup();
+        cells.clear();
+        for w in breaks.windows(2) {
+            let (p, q) = (w[0], w[1]);
+            // Within [p, q) every ray keeps its state: the cells there are crossed only if
+            // the rays disagree. Cell q − 1 reaches the next run.
+            let s = p as f64 * res;
+            let st0 = ray_inside(rays[0], s);
+            let disagree = rays[1..].iter().any(|r| ray_inside(r, s) != st0);
+            let last = q.min(nz);
+            if disagree {
+                cells.extend(p..last);
+            } else if q > p && q - 1 < nz {
+                cells.push(q - 1);
+            }
+        }
+        for &k in cells.iter() {
+            let mut mask = 0u8;
+            for c in 0..8u8 {
+                let r = rays[(c & 3) as usize];
+                let kk = k + (c >> 2) as usize;
+                if ray_inside(r, kk as f64 * res) {
+                    mask |= 1 << c;
+                }
+            }
+            if mask != 0 && mask != u8::MAX {
+                visit(k, mask);
+            }
+        }
+    }
+
+    /// The lattice vertex at the low end of cube edge `e` of cell `(ix, iy, k)`, and the
+    /// edge's axis.
+    fn edge_origin(ix: usize, iy: usize, k: usize, e: u8) -> ([usize; 3], usize) {
+        let low = EDGE_LOW[e as usize];
+        (
+            [
+                ix + (low & 1) as usize,
+                iy + ((low >> 1) & 1) as usize,
+                k + ((low >> 2) & 1) as usize,
+            ],
+            (e / 4) as usize,
+        )
+    }
+
+    /// The mesh vertex on cube edge `e` of cell `(ix, iy, k)` whose inside mask is `mask`.
+    fn cell_edge_point(&self, ix: usize, iy: usize, k: usize, mask: u8, e: u8) -> Point3<f64> {
+        let (vi, axis) = Self::edge_origin(ix, iy, k, e);
+        let lo_inside = mask & (1 << EDGE_LOW[e as usize]) != 0;
+        let fam = [self.family(0), self.family(1), self.family(2)];
+        edge_point(self.origin(), self.resolution(), vi, axis, lo_inside, fam)
+    }
+
     /// The material's surface as a closed, consistently oriented triangle mesh with shared
     /// vertices (normals pointing out of the material). Features thinner than one lattice
     /// cell may be lost, as in any marching cubes.
     pub fn surface_mesh(&self) -> IndexedMesh {
-        let [nx, ny, nz] = self.cells();
-        let res = self.resolution();
-        let o = self.origin();
-        let fz = self.family(2);
-        let fx = self.family(0);
-        let fy = self.family(1);
+        let [nx, ny, _] = self.cells();
         let table = case_table();
         let mut mesh = IndexedMesh::default();
         let mut ids: HashMap<u64, u32, BuildHasherDefault<EdgeHasher>> = HashMap::default();
-        let mut breaks: Vec<usize> = Vec::new();
-        let mut cells: Vec<usize> = Vec::new();
+        let mut scratch = ColumnScratch::default();
         for iy in 0..ny {
             for ix in 0..nx {
-                let rays = [
-                    fz.intervals(fz.index(ix, iy)),
-                    fz.intervals(fz.index(ix + 1, iy)),
-                    fz.intervals(fz.index(ix, iy + 1)),
-                    fz.intervals(fz.index(ix + 1, iy + 1)),
-                ];
-                if rays.iter().all(|r| r.is_empty()) {
-                    continue;
-                }
-                // Layers where any of the four rays changes state.
-                breaks.clear();
-                for r in &rays {
-                    for iv in r.iter() {
-                        let (k0, k1) = vertex_run(iv[0], iv[1], res, nz);
-                        breaks.push(k0);
-                        breaks.push(k1);
-                    }
-                }
-                breaks.push(0);
-                breaks.push(nz + 1);
-                breaks.sort_unstable();
-                breaks.dedup();
-                cells.clear();
-                for w in breaks.windows(2) {
-                    let (p, q) = (w[0], w[1]);
-                    // Within [p, q) every ray keeps its state: the cells there are crossed
-                    // only if the rays disagree. Cell q − 1 reaches the next run.
-                    let s = p as f64 * res;
-                    let st0 = ray_inside(rays[0], s);
-                    let disagree = rays[1..].iter().any(|r| ray_inside(r, s) != st0);
-                    let last = q.min(nz);
-                    if disagree {
-                        cells.extend(p..last);
-                    } else if q > p && q - 1 < nz {
-                        cells.push(q - 1);
-                    }
-                }
-                for &k in &cells {
-                    let mut mask = 0u8;
-                    for c in 0..8u8 {
-                        let r = rays[(c & 3) as usize];
-                        let kk = k + (c >> 2) as usize;
-                        if ray_inside(r, kk as f64 * res) {
-                            mask |= 1 << c;
-                        }
-                    }
+                self.surface_cells_of_column(ix, iy, &mut scratch, &mut |k, mask| {
                     for tri in &table[mask as usize] {
-                        let mut t = [0u32; 3];
-                        for (slot, &e) in t.iter_mut().zip(tri) {
-                            let low = EDGE_LOW[e as usize];
-                            let axis = (e / 4) as usize;
-                            let vi = [
-                                ix + (low & 1) as usize,
-                                iy + ((low >> 1) & 1) as usize,
-                                k + ((low >> 2) & 1) as usize,
-                            ];
+                        let t = tri.map(|e| {
+                            let (vi, axis) = Self::edge_origin(ix, iy, k, e);
                             let key = ((((vi[2] * (ny + 1) + vi[1]) * (nx + 1) + vi[0]) * 3) + axis)
                                 as u64;
                             let next_id = mesh.vertices.len() as u32;
                             let id = *ids.entry(key).or_insert(next_id);
                             if id == next_id {
-                                let lo_inside = mask & (1 << low) != 0;
-                                let p = edge_point(o, res, vi, axis, lo_inside, [fx, fy, fz]);
-                                mesh.vertices.push(p);
+                                mesh.vertices.push(self.cell_edge_point(ix, iy, k, mask, e));
                             }
-                            *slot = id;
-                        }
+                            id
+                        });
                         mesh.triangles.push(t);
                     }
-                }
+                });
             }
         }
         mesh
+    }
+
+    /// How many triangles [`Stock::surface_mesh`] has, without making them.
+    pub fn surface_triangle_count(&self) -> usize {
+        let [nx, ny, _] = self.cells();
+        let table = case_table();
+        let mut scratch = ColumnScratch::default();
+        let mut count = 0;
+        for iy in 0..ny {
+            for ix in 0..nx {
+                self.surface_cells_of_column(ix, iy, &mut scratch, &mut |_, mask| {
+                    count += table[mask as usize].len();
+                });
+            }
+        }
+        count
+    }
+
+    /// The triangles of [`Stock::surface_mesh`] one column of cells at a time, in the same
+    /// order and with the same vertex positions (each edge's vertex is the exact dexel
+    /// endpoint, found the same way from either cell): the surface streamed, without the
+    /// whole mesh in memory.
+    pub fn surface_triangles(&self) -> SurfaceTriangles<'_> {
+        SurfaceTriangles {
+            stock: self,
+            column: 0,
+            count: self.surface_triangle_count(),
+            buffer: Vec::new(),
+            next: 0,
+            scratch: ColumnScratch::default(),
+        }
     }
 
     /// The material's surface as triangles (m), normals pointing out of the material; see
@@ -292,6 +358,51 @@ impl Stock {
         self.subsampled(k).surface()
     }
 }
+
+/// The stock's surface triangles (m), streamed column by column: see
+/// [`Stock::surface_triangles`].
+pub struct SurfaceTriangles<'a> {
+    stock: &'a Stock,
+    /// Next column to walk, `iy·nx + ix`.
+    column: usize,
+    /// Triangles not yet returned.
+    count: usize,
+    buffer: Vec<[Point3<f64>; 3]>,
+    next: usize,
+    scratch: ColumnScratch,
+}
+
+impl Iterator for SurfaceTriangles<'_> {
+    type Item = [Point3<f64>; 3];
+
+    fn next(&mut self) -> Option<Self::Item> {
+        let [nx, ny, _] = self.stock.cells();
+        while self.next == self.buffer.len() {
+            if self.column >= nx * ny {
+                return None;
+            }
+            let (ix, iy) = (self.column % nx, self.column / nx);
+            self.column += 1;
+            self.buffer.clear();
+            self.next = 0;
+            let (stock, buffer, table) = (self.stock, &mut self.buffer, case_table());
+            stock.surface_cells_of_column(ix, iy, &mut self.scratch, &mut |k, mask| {
+                for tri in &table[mask as usize] {
+                    buffer.push(tri.map(|e| stock.cell_edge_point(ix, iy, k, mask, e)));
+                }
+            });
+        }
+        self.next += 1;
+        self.count -= 1;
+        Some(self.buffer[self.next - 1])
+    }
+
+    fn size_hint(&self) -> (usize, Option<usize>) {
+        (self.count, Some(self.count))
+    }
+}
+
+impl ExactSizeIterator for SurfaceTriangles<'_> {}
 
 /// The mesh vertex on the lattice edge from vertex `vi` along `axis`.
 fn edge_point(
@@ -334,13 +445,27 @@ pub fn mesh_volume(triangles: &[[Point3<f64>; 3]]) -> f64 {
 }
 
 /// Writes a mesh (m) as a binary STL, in millimetres when `scale_to_mm` (the usual unit of STL
-/// files), else in metres. Each facet's normal is its vertices' right-hand normal. Facets are
-/// made as they are written: a part of millions of triangles takes no second copy in memory.
+/// files), else in metres. See [`write_binary_stl_triangles`].
 pub fn write_binary_stl(path: &Path, mesh: &IndexedMesh, scale_to_mm: bool) -> std::io::Result<()> {
-    let scale = if scale_to_mm { 1000.0 } else { 1.0 };
     let vertex = |i: u32| mesh.vertices[i as usize];
-    let facets = mesh.triangles.iter().map(|t| {
-        let [a, b, c] = t.map(vertex);
+    write_binary_stl_triangles(
+        path,
+        mesh.triangles.iter().map(|t| t.map(vertex)),
+        scale_to_mm,
+    )
+}
+
+/// Writes triangles (m) as a binary STL, in millimetres when `scale_to_mm`, else in metres.
+/// Each facet's normal is its vertices' right-hand normal. Facets are made as they are
+/// written: a part of millions of triangles streamed from [`Stock::surface_triangles`] takes
+/// no copy in memory.
+pub fn write_binary_stl_triangles(
+    path: &Path,
+    triangles: impl ExactSizeIterator<Item = [Point3<f64>; 3]>,
+    scale_to_mm: bool,
+) -> std::io::Result<()> {
+    let scale = if scale_to_mm { 1000.0 } else { 1.0 };
+    let facets = triangles.map(|[a, b, c]| {
         let n: Vector3<f64> = (b - a).cross(&(c - a));
         let n = n.try_normalize(0.0).unwrap_or_else(Vector3::zeros);
         stl_io::Triangle {

@@ -365,12 +365,12 @@ fn write_metrics(dir: &std::path::Path, metrics: &serde_json::Value) -> Result<P
 /// `part.stl` (binary) in `dir`: the machined part.
 fn write_part(dir: &std::path::Path, part: &PartAsCut) -> Result<PathBuf, RunError> {
     let stl = dir.join("part.stl");
-    crate::cutting::write_binary_stl(&stl, &part.machined.surface_mesh(), true).map_err(
-        |source| ReportError::Io {
+    // Streamed: the part's mesh is never whole in memory (at 0.1 mm it outweighs the stock).
+    crate::cutting::write_binary_stl_triangles(&stl, part.machined.surface_triangles(), true)
+        .map_err(|source| ReportError::Io {
             path: stl.clone(),
             source,
-        },
-    )?;
+        })?;
     Ok(stl)
 }
 

@@ -421,6 +421,29 @@ fn same_cuts_same_surface() {
 }
 
 #[test]
+fn the_streamed_surface_is_the_mesh_and_writes_the_same_stl() {
+    let stock = cut_sample();
+    let mesh = stock.surface_mesh();
+    let streamed = stock.surface_triangles();
+    assert_eq!(streamed.len(), mesh.triangles.len());
+    assert_eq!(stock.surface_triangle_count(), mesh.triangles.len());
+    let soup = mesh.triangle_soup();
+    let mut n = 0;
+    for (a, b) in streamed.zip(&soup) {
+        assert_eq!(a, *b, "triangle {n}");
+        n += 1;
+    }
+    assert_eq!(n, soup.len());
+    let dir = tempfile::tempdir().unwrap();
+    let (from_mesh, streamed) = (dir.path().join("mesh.stl"), dir.path().join("streamed.stl"));
+    crate::cutting::write_binary_stl(&from_mesh, &mesh, true).unwrap();
+    crate::cutting::write_binary_stl_triangles(&streamed, stock.surface_triangles(), true).unwrap();
+    let bytes = std::fs::read(&streamed).unwrap();
+    assert_eq!(std::fs::read(&from_mesh).unwrap(), bytes);
+    assert_eq!(bytes.len(), 84 + 50 * soup.len());
+}
+
+#[test]
 fn surface_is_watertight_and_encloses_the_volume() {
     let stock = cut_sample();
     let mesh = stock.surface_mesh();
