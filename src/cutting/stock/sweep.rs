@@ -16,6 +16,16 @@
 //! extremes. The puck's sweep is the set within `r` of a disc swept along `d`: its distance is
 //! convex along the ray, and Newton's method from either end converges to the interval's ends
 //! monotonically.
+//!
+//! Most rays need none of that. A piece `P` swept along `d` meets the ray where some
+//! `P + t·d` does; where the ray meets `P + t·d` its entry `s₀(t)` is convex and its exit
+//! `s₁(t)` concave in `t` (the set `{(s, t)}` is convex), with slopes `ν·d/ν·e` at the surface
+//! points (outward normal `ν`). So an end whose surface point on the piece at the start
+//! faces away from the motion (`ν·d ≤ 0`) is the start placement's own end, and one whose point
+//! at the end of the move faces along it (`ν·d ≥ 0`) is the end placement's: only rays whose
+//! end crosses the piece's silhouette against the motion during the move (and rays that miss
+//! either placement) need the exact geometry. For cylinders and balls those placements are
+//! closed forms; see [`RaySweep::interval`].
 
 use nalgebra::{Point3, Vector3};
 
@@ -284,7 +294,36 @@ impl RaySweep<'_> {
         let hy = y.dot(&sw.n);
         let mut out: Option<(f64, f64)> = None;
         for pp in self.pieces.iter().flatten() {
-            let got = match pp.piece {
+            let got = match self.by_placements(pp, &y) {
+                Some(Shortcut::Interval(a, b)) => {
+                    let (a, b) = (a.max(s_lo), b.min(s_hi));
+                    (a <= b).then_some((a, b))
+                }
+                Some(Shortcut::Exact) | None => self.exact(pp, &y, hy, s_lo, s_hi),
+            };
+            if let Some((a, b)) = got {
+                out = Some(match out {
+                    Some((x, y)) => (x.min(a), y.max(b)),
+                    None => (a, b),
+                });
+            }
+        }
+        out
+    }
+
+    /// The piece's sweep on the ray by the exact geometry (see the module documentation).
+    fn exact(
+        &self,
+        pp: &Prepared,
+        y: &Vector3<f64>,
+        hy: f64,
+        s_lo: f64,
+        s_hi: f64,
+    ) -> Option<(f64, f64)> {
+        let sw = self.sweep;
+        let y = *y;
+        {
+            match pp.piece {
                 Piece::Cylinder { r2, h0, h1 } => {
                     let wo = y - sw.n * hy;
                     let q = Quadratic {
@@ -315,16 +354,163 @@ impl RaySweep<'_> {
                     let vo = y - sw.n * ch;
                     puck_interval(&vo, self.k, &sw.n, &sw.d, rho, r, (s_lo, s_hi))
                 }
-            };
-            if let Some((a, b)) = got {
-                out = Some(match out {
-                    Some((x, y)) => (x.min(a), y.max(b)),
-                    None => (a, b),
-                });
             }
         }
-        out
     }
+
+    /// The piece's sweep on the ray from its placements at the start and the end of the move
+    /// (see the module documentation); `None` for a puck, [`Shortcut::Exact`] where an end
+    /// crosses the silhouette or a placement misses the ray. `y`: the ray's origin relative
+    /// to the tip at the start.
+    fn by_placements(&self, pp: &Prepared, y: &Vector3<f64>) -> Option<Shortcut> {
+        let Some(start) = self.placement(pp, y)? else {
+            return Some(Shortcut::Exact);
+        };
+        // Ends facing away from the move are the start placement's; the end placement is
+        // only wanted for the others (the leading side).
+        if start.iter().all(|e| e.facing <= 0.0) {
+            return Some(Shortcut::Interval(start[0].s, start[1].s));
+        }
+        let Some(end) = self.placement(pp, &(y - self.sweep.d))? else {
+            return Some(Shortcut::Exact);
+        };
+        let pick = |a: End, b: End| {
+            if a.facing <= 0.0 {
+                Some(a.s)
+            } else if b.facing >= 0.0 {
+                Some(b.s)
+            } else {
+                None
+            }
+        };
+        Some(match (pick(start[0], end[0]), pick(start[1], end[1])) {
+            (Some(a), Some(b)) => Shortcut::Interval(a, b),
+            _ => Shortcut::Exact,
+        })
+    }
+
+    /// Where the ray `y + s·e_k` (relative to the piece's tip) meets the still piece: its entry
+    /// and exit with how their surface points face the move (`ν·d`, sign only). `None` for a
+    /// puck; `Some(None)` where the ray misses the piece or an end lies on an edge of it.
+    fn placement(&self, pp: &Prepared, y: &Vector3<f64>) -> Option<Option<[End; 2]>> {
+        let sw = self.sweep;
+        let (n, k) = (&sw.n, self.k);
+        match pp.piece {
+            Piece::Cylinder { r2, h0, h1 } => {
+                let hy = y.dot(n);
+                let wo = y - n * hy;
+                // Heights hy + s·n_k within [h0, h1].
+                let (mut lo, mut hi) = (f64::NEG_INFINITY, f64::INFINITY);
+                let mut cap = [0.0; 2];
+                if pp.hs.abs() > 1e-12 {
+                    let (a, b) = ((h0 - hy) / pp.hs, (h1 - hy) / pp.hs);
+                    (lo, hi) = (a.min(b), a.max(b));
+                    // The lower end is the bottom cap (ν = −n) when heights rise along the
+                    // ray, else the top one.
+                    let up = if pp.hs > 0.0 { 1.0 } else { -1.0 };
+                    cap = [-up * sw.d.dot(n), up * sw.d.dot(n)];
+                } else if !(h0..=h1).contains(&hy) {
+                    return Some(None);
+                }
+                // Radial: |wo + s·we|² ≤ r2.
+                let (a, b, c) = (pp.a, wo.dot(&pp.we), wo.norm_squared() - r2);
+                let (r0, r1) = if a > 1e-12 {
+                    let disc = b * b - a * c;
+                    if disc < 0.0 {
+                        return Some(None);
+                    }
+                    let q = -(b + b.signum() * disc.sqrt());
+                    if q == 0.0 {
+                        (0.0, 0.0)
+                    } else {
+                        let (x, z) = (q / a, c / q);
+                        (x.min(z), x.max(z))
+                    }
+                } else if c > 0.0 {
+                    return Some(None);
+                } else {
+                    (f64::NEG_INFINITY, f64::INFINITY)
+                };
+                let side = |s: f64| (wo + pp.we * s).dot(&pp.wd);
+                // An end on the rim (both constraints binding) has no single normal.
+                let rim =
+                    |r: f64, h: f64| h.is_finite() && (r - h).abs() <= 1e-12 * (1.0 + h.abs());
+                let entry = if rim(r0, lo) {
+                    return Some(None);
+                } else if r0 > lo {
+                    End {
+                        s: r0,
+                        facing: side(r0),
+                    }
+                } else {
+                    End {
+                        s: lo,
+                        facing: cap[0],
+                    }
+                };
+                let exit = if rim(r1, hi) {
+                    return Some(None);
+                } else if r1 < hi {
+                    End {
+                        s: r1,
+                        facing: side(r1),
+                    }
+                } else {
+                    End {
+                        s: hi,
+                        facing: cap[1],
+                    }
+                };
+                Some(
+                    (entry.s <= exit.s && entry.s.is_finite() && exit.s.is_finite())
+                        .then_some([entry, exit]),
+                )
+            }
+            Piece::Ball { ch, r2 } => {
+                let vo = y - n * ch;
+                let (b, c) = (vo[k], vo.norm_squared() - r2);
+                let disc = b * b - c;
+                if disc < 0.0 {
+                    return Some(None);
+                }
+                let q = -(b + b.signum() * disc.sqrt());
+                let (x, z) = if q == 0.0 { (0.0, 0.0) } else { (q, c / q) };
+                let facing = |s: f64| {
+                    let mut v = vo;
+                    v[k] += s;
+                    v.dot(&sw.d)
+                };
+                let (s0, s1) = (x.min(z), x.max(z));
+                Some(Some([
+                    End {
+                        s: s0,
+                        facing: facing(s0),
+                    },
+                    End {
+                        s: s1,
+                        facing: facing(s1),
+                    },
+                ]))
+            }
+            Piece::Puck { .. } => None,
+        }
+    }
+}
+
+/// One end of a still piece's interval on a ray.
+#[derive(Debug, Clone, Copy)]
+struct End {
+    s: f64,
+    /// `ν·d`: > 0 where the surface point faces along the move (only the sign is used).
+    facing: f64,
+}
+
+/// What the placements say about a piece's sweep on a ray.
+enum Shortcut {
+    /// The sweep's interval (before clipping to the span asked for).
+    Interval(f64, f64),
+    /// An end crosses the silhouette, or a placement misses the ray: the exact geometry.
+    Exact,
 }
 
 /// Range of `s` over `{Q ≤ c} ∩ {t ∈ [0, 1]} ∩ {s ∈ [s_lo, s_hi]} ∩ strips`, where each
@@ -593,4 +779,189 @@ fn swept_disc_residual(
         }
     }
     residual(t)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use proptest::prelude::*;
+
+    fn tool(shape: u8, radius: f64) -> Tool {
+        Tool {
+            diameter: 2.0 * radius,
+            flutes: 2,
+            helix: 0.0,
+            flute_length: 0.02,
+            shape: match shape {
+                0 => ToolShape::Flat,
+                1 => ToolShape::Ball,
+                _ => ToolShape::Bull {
+                    corner_radius: 0.3 * radius,
+                },
+            },
+        }
+    }
+
+    /// Unit vector from two angles.
+    fn unit(theta: f64, phi: f64) -> Vector3<f64> {
+        Vector3::new(
+            theta.sin() * phi.cos(),
+            theta.sin() * phi.sin(),
+            theta.cos(),
+        )
+    }
+
+    proptest! {
+        #![proptest_config(ProptestConfig::with_cases(2000))]
+
+        /// The placements' shortcut gives the exact geometry's interval on every ray it
+        /// answers: short moves (the co-simulation's steps, down to nanometres), long ones,
+        /// any axis and direction, rays through and beside the tool, each band.
+        #[test]
+        fn the_placements_give_the_exact_interval(
+            shape in 0u8..3,
+            radius in 0.5e-3..8e-3,
+            (theta, phi) in (0.0..std::f64::consts::PI, 0.0..std::f64::consts::TAU),
+            (mt, mp) in (0.0..std::f64::consts::PI, 0.0..std::f64::consts::TAU),
+            length_exp in -9.0f64..-2.0,
+            band in 0u8..3,
+            k in 0usize..3,
+            (u, v, w) in (-1.5f64..1.5, -1.5f64..1.5, -0.5f64..2.5),
+        ) {
+            let t = tool(shape, radius);
+            let n = unit(theta, phi);
+            let d = unit(mt, mp) * 10f64.powf(length_exp);
+            let (lo, hi) = match band {
+                0 => (0.0, 0.02),
+                1 => (0.0, 2.0 * radius),
+                _ => (0.6 * radius, 3.0 * radius),
+            };
+            let hi = if lo == 0.0 { hi.max(2.0 * t.corner_radius()).max(radius) } else { hi };
+            let p0 = Point3::new(0.001, -0.002, 0.003);
+            let sweep = Sweep::new(&t, lo, hi, p0, p0 + d, n);
+            let ray = sweep.for_axis(k);
+            // A ray through a point near the tool, along axis k.
+            let scale = radius + d.norm();
+            let q = p0 + n * (w * radius) + unit(mt + 1.0, mp + 2.0) * (u * scale)
+                + unit(mt + 2.0, mp + 0.5) * (v * scale);
+            let mut origin = q;
+            origin[k] -= 0.05;
+            let (s_lo, s_hi) = (0.0, 0.1);
+            let y = origin - sweep.tip;
+            let hy = y.dot(&sweep.n);
+            for pp in ray.pieces.iter().flatten() {
+                if let Some(Shortcut::Interval(a, b)) = ray.by_placements(pp, &y) {
+                    let exact = ray.exact(pp, &y, hy, s_lo, s_hi);
+                    let (a, b) = (a.max(s_lo), b.min(s_hi));
+                    let got = (a <= b).then_some((a, b));
+                    match (got, exact) {
+                        (Some((a, b)), Some((x, z))) => {
+                            prop_assert!((a - x).abs() < 1e-10 && (b - z).abs() < 1e-10,
+                                "{:?}: placements {:?}, exact {:?}", pp.piece, (a, b), (x, z));
+                        }
+                        (None, None) => {}
+                        (g, e) => {
+                            // A touching ray: an interval of (nearly) no length on one side.
+                            let len = |i: Option<(f64, f64)>| i.map_or(0.0, |(a, b)| b - a);
+                            prop_assert!(len(g) < 1e-10 && len(e) < 1e-10,
+                                "{:?}: placements {g:?}, exact {e:?}", pp.piece);
+                        }
+                    }
+                }
+            }
+        }
+    }
+
+    #[test]
+    fn the_shortcut_answers_most_rays_that_meet_both_placements() {
+        // The property test's cases, drawn by a fixed generator, counting what was compared:
+        // the shortcut must have been checked on many rays, not skipped.
+        let mut state = 0x2545_f491_4f6c_dd1du64;
+        let mut next = || {
+            state ^= state << 13;
+            state ^= state >> 7;
+            state ^= state << 17;
+            (state >> 11) as f64 / (1u64 << 53) as f64
+        };
+        let (mut compared, mut asked) = (0, 0);
+        for _ in 0..20_000 {
+            let t = tool((next() * 3.0) as u8, 0.5e-3 + next() * 7.5e-3);
+            let n = unit(
+                next() * std::f64::consts::PI,
+                next() * std::f64::consts::TAU,
+            );
+            let d = unit(
+                next() * std::f64::consts::PI,
+                next() * std::f64::consts::TAU,
+            ) * 10f64.powf(-9.0 + 7.0 * next());
+            let p0 = Point3::new(0.001, -0.002, 0.003);
+            let sweep = Sweep::new(&t, 0.0, 0.02, p0, p0 + d, n);
+            let k = (next() * 3.0) as usize;
+            let ray = sweep.for_axis(k);
+            let r = t.radius();
+            let mut origin = p0
+                + n * ((next() * 2.5 - 0.5) * r)
+                + unit(
+                    next() * std::f64::consts::PI,
+                    next() * std::f64::consts::TAU,
+                ) * (next() * 1.2 * r);
+            origin[k] -= 0.05;
+            let y = origin - sweep.tip;
+            let hy = y.dot(&sweep.n);
+            for pp in ray.pieces.iter().flatten() {
+                asked += 1;
+                if let Some(Shortcut::Interval(a, b)) = ray.by_placements(pp, &y) {
+                    compared += 1;
+                    let (x, z) = ray
+                        .exact(pp, &y, hy, 0.0, 0.1)
+                        .expect("the placements meet the ray");
+                    let (a, b) = (a.max(0.0), b.min(0.1));
+                    assert!(
+                        (a - x).abs() < 1e-10 && (b - z).abs() < 1e-10,
+                        "{:?}: placements {:?}, exact {:?}",
+                        pp.piece,
+                        (a, b),
+                        (x, z)
+                    );
+                }
+            }
+        }
+        assert!(compared * 3 > asked, "{compared} of {asked} compared");
+    }
+
+    #[test]
+    fn most_rays_of_a_short_move_need_no_exact_geometry() {
+        // A 10 mm flat tool moving 10 µm sideways: rays on a grid across it.
+        let t = tool(0, 5e-3);
+        let p0 = Point3::new(0.0, 0.0, 0.0);
+        let sweep = Sweep::new(
+            &t,
+            0.0,
+            0.02,
+            p0,
+            p0 + Vector3::new(1e-5, 0.0, 0.0),
+            Vector3::z(),
+        );
+        let ray = sweep.for_axis(0);
+        let (mut shortcut, mut exact) = (0, 0);
+        for i in 0..50 {
+            for j in 0..50 {
+                let origin =
+                    Point3::new(-0.05, -4.9e-3 + i as f64 * 0.2e-3, 1e-4 + j as f64 * 0.4e-3);
+                let y = origin - sweep.tip;
+                for pp in ray.pieces.iter().flatten() {
+                    match ray.by_placements(pp, &y) {
+                        Some(Shortcut::Interval(..)) => shortcut += 1,
+                        _ => exact += 1,
+                    }
+                }
+            }
+        }
+        // Only the rays whose ends cross the tool's silhouette against the move (its flanks,
+        // within the move's length of ±R in y) need the exact geometry.
+        assert!(
+            shortcut > 20 * exact,
+            "{shortcut} by placements, {exact} exact"
+        );
+    }
 }
