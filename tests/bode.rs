@@ -162,6 +162,33 @@ fn scenario_with_step(dir: &Path, step_ms: f64) -> PathBuf {
     path
 }
 
+/// Asserts that responses `a` (cncsim) and `b` (python-control), magnitudes (dB) and phases
+/// (degrees) at frequencies `f`, agree within `db` and `deg` at every frequency.
+fn assert_agree(
+    label: &str,
+    f: &[f64],
+    (am, ap): (&[f64], &[f64]),
+    (bm, bp): (&[f64], &[f64]),
+    (db, deg): (f64, f64),
+) {
+    for i in 0..f.len() {
+        assert!(
+            (am[i] - bm[i]).abs() < db,
+            "{label} {} Hz: {} dB cncsim, {} dB python-control",
+            f[i],
+            am[i],
+            bm[i]
+        );
+        assert!(
+            angle_diff(ap[i], bp[i]).abs() < deg,
+            "{label} {} Hz: {}° cncsim, {}° python-control",
+            f[i],
+            ap[i],
+            bp[i]
+        );
+    }
+}
+
 #[test]
 fn on_the_physics_the_response_agrees_with_python_control() {
     let Some(python) = python_with_control() else {
@@ -183,22 +210,8 @@ fn on_the_physics_the_response_agrees_with_python_control() {
         let o = oracle(&python, &scenario, axis, lp, &f);
         let (mag, phase) = (numbers(&r, "magnitude_db"), numbers(&r, "phase_deg"));
         let (om, op) = (numbers(&o, "magnitude_db"), numbers(&o, "phase_deg"));
-        for i in 0..f.len() {
-            assert!(
-                (mag[i] - om[i]).abs() < 1.0,
-                "{axis} {lp} {} Hz: {} dB physics, {} dB python-control",
-                f[i],
-                mag[i],
-                om[i]
-            );
-            assert!(
-                angle_diff(phase[i], op[i]).abs() < 5.0,
-                "{axis} {lp} {} Hz: {}° physics, {}° python-control",
-                f[i],
-                phase[i],
-                op[i]
-            );
-        }
+        let label = format!("{axis} {lp} (physics)");
+        assert_agree(&label, &f, (&mag, &phase), (&om, &op), (1.0, 5.0));
         // The open loop measured at the plant input against python-control's C·P, and the
         // margins against control.margin.
         let ol = &r["open_loop"];
@@ -207,14 +220,8 @@ fn on_the_physics_the_response_agrees_with_python_control() {
             numbers(&o, "open_loop_magnitude_db"),
             numbers(&o, "open_loop_phase_deg"),
         );
-        for i in 0..f.len() {
-            assert!((lm[i] - olm[i]).abs() < 1.0, "{axis} L at {} Hz", f[i]);
-            assert!(
-                angle_diff(lp_[i], olp[i]).abs() < 5.0,
-                "{axis} ∠L at {} Hz",
-                f[i]
-            );
-        }
+        let label = format!("{axis} open loop (physics)");
+        assert_agree(&label, &f, (&lm, &lp_), (&olm, &olp), (1.0, 5.0));
         let close = |key: &str, tol: f64| {
             let (a, b) = (number(&r, key), number(&o, key));
             match (a, b) {
@@ -791,22 +798,8 @@ fn the_one_linear_model_is_python_controls() {
             numbers(&o, "open_loop_magnitude_db"),
             numbers(&o, "open_loop_phase_deg"),
         );
-        for i in 0..f.len() {
-            assert!(
-                (mm[i] - om[i]).abs() < 0.01,
-                "{s} {axis} {lp} {} Hz: {} dB cncsim, {} dB python-control",
-                f[i],
-                mm[i],
-                om[i]
-            );
-            assert!(
-                angle_diff(mp[i], op[i]).abs() < 0.1,
-                "{s} {axis} {lp} {} Hz: {}° cncsim, {}° python-control",
-                f[i],
-                mp[i],
-                op[i]
-            );
-        }
+        let label = format!("{s} {axis} {lp}");
+        assert_agree(&label, &f, (&mm, &mp), (&om, &op), (0.01, 0.1));
         let mut at = f.len();
         if gc.is_some() {
             let pm = number(figures, "phase_margin_deg").unwrap();

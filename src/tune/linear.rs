@@ -64,15 +64,21 @@ fn bisect_ultimate(first: f64, unstable: impl Fn(f64) -> bool) -> Option<f64> {
     if !unstable(hi) {
         return None;
     }
-    while hi / lo - 1.0 > 1e-9 {
+    Some(geometric_bisection(lo, hi, 1e-9, |g| !unstable(g)))
+}
+
+/// The point where `low` turns false between `lo` (true) and `hi` (false), bisected at
+/// geometric midpoints to a relative width `tolerance`.
+fn geometric_bisection(mut lo: f64, mut hi: f64, tolerance: f64, low: impl Fn(f64) -> bool) -> f64 {
+    while hi / lo - 1.0 > tolerance {
         let mid = (lo * hi).sqrt();
-        if unstable(mid) {
-            hi = mid;
-        } else {
+        if low(mid) {
             lo = mid;
+        } else {
+            hi = mid;
         }
     }
-    Some((lo * hi).sqrt())
+    (lo * hi).sqrt()
 }
 
 /// The eigenvalue of `m` that decides stability by `key` (largest modulus, or largest real part).
@@ -132,16 +138,7 @@ pub fn continuous_ultimate(plant: &AxisPlant) -> Option<UltimateCycle> {
                 p -= TAU * ((p - edge) / TAU).round();
                 (p < edge) == (previous < edge)
             };
-            let (mut lo, mut hi) = (pair[0], pair[1]);
-            while hi / lo - 1.0 > 1e-12 {
-                let mid = (lo * hi).sqrt();
-                if below(mid) {
-                    lo = mid;
-                } else {
-                    hi = mid;
-                }
-            }
-            let f = (lo * hi).sqrt();
+            let f = geometric_bisection(pair[0], pair[1], 1e-12, below);
             let cycle = UltimateCycle {
                 gain: 1.0 / response(f).norm(),
                 period: 1.0 / f,
