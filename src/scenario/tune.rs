@@ -15,7 +15,6 @@ use crate::diagnostics::FileError;
 use crate::frequency::AxisPlant;
 use crate::machine::Machine;
 use crate::plan::Setpoints;
-
 use crate::sim::LaneKind;
 use crate::sim::{self, Lane, LoopSettings, Trace, TraceRecorder};
 use crate::tune::{
@@ -144,7 +143,8 @@ pub struct TuneReport {
     pub gains: ZieglerNichols,
     /// `axes.<axis> = { kp = …, ki = …, kd = …, output_limit = … }`
     pub toml: String,
-    /// The linear model's prediction, where the analytic model has one for the axis.
+    /// The linear model's prediction, where the machine's rigid-body model can be built
+    /// (no passive joint) and the sampled P loop has an ultimate gain.
     pub linear: Option<LinearPrediction>,
     /// Simulations run, retries with a longer trial time included.
     pub simulations: usize,
