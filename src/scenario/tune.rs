@@ -945,7 +945,7 @@ impl CascadeTuneReport {
         );
         if let (Some(r), Some(a)) = (d.resonance_hz, d.antiresonance_hz) {
             t += &format!(
-                "  drive train  compliant: resonance {r:.2} Hz, antiresonance {a:.2} Hz (seen from the motor); crossover chosen for {:.0}° phase and {:.0} dB gain margin\n",
+                "  drive train  compliant: resonance {r:.2} Hz, antiresonance {a:.2} Hz (seen from the motor); the crossover is the largest below the antiresonance (unless a notch takes the resonance out) that crosses once with at least {:.0}° of phase and {:.0} dB of gain margin\n",
                 crate::tune::PHASE_MARGIN_DEG,
                 crate::tune::GAIN_MARGIN_DB
             );
