@@ -362,11 +362,6 @@ impl SampledPlant {
         (&self.phi, &self.gamma)
     }
 
-    /// The continuous A and B, ẋ = A·x + B·u.
-    pub fn continuous(&self) -> (&DMatrix<f64>, &DVector<f64>) {
-        (&self.a, &self.b)
-    }
-
     /// The output row of the position loop's feedback device, y = c·x.
     pub fn feedback_row(&self) -> Vec<f64> {
         let row = match self.feedback {

@@ -6,8 +6,8 @@
 //! and holds u = K·(r − y) over it (zero-order hold), so the loop is exactly the discrete
 //! system x⁺ = (Φ − K·Γ·c)·x with Φ = e^(AT), Γ = ∫₀ᵀ e^(Aτ)dτ·B and c the feedback row. The
 //! ultimate gain is where its spectral radius crosses 1 (found by bisection); the angle θ of
-//! the critical eigenvalue gives the period 2πT/θ. The continuous loop (T → 0) is the same
-//! search on ẋ = (A − K·B·c)·x, where the largest real part of the eigenvalues crosses 0.
+//! the dominant eigenvalue gives the period 2πT/θ. The continuous loop (T → 0) is read off the
+//! plant's frequency response: where its phase crosses −180°, K_cr = 1/|P(jω)|.
 
 use crate::frequency::AxisPlant;
 use nalgebra::{DMatrix, DVector};
@@ -81,16 +81,13 @@ fn geometric_bisection(mut lo: f64, mut hi: f64, tolerance: f64, low: impl Fn(f6
     (lo * hi).sqrt()
 }
 
-/// The eigenvalue of `m` that decides stability by `key` (largest modulus, or largest real part).
-fn critical(
-    m: &DMatrix<f64>,
-    key: impl Fn(nalgebra::Complex<f64>) -> f64,
-) -> nalgebra::Complex<f64> {
+/// The eigenvalue of `m` of largest modulus: the one that decides a sampled loop's stability.
+fn dominant(m: &DMatrix<f64>) -> nalgebra::Complex<f64> {
     m.complex_eigenvalues()
         .iter()
         .copied()
         .fold(None, |best: Option<nalgebra::Complex<f64>>, l| match best {
-            Some(b) if key(b) >= key(l) => Some(b),
+            Some(b) if b.norm() >= l.norm() => Some(b),
             _ => Some(l),
         })
         .expect("a plant has states")
@@ -102,7 +99,7 @@ pub fn discrete_ultimate(plant: &AxisPlant, t: f64) -> Option<UltimateCycle> {
     let sampled = plant.sampled(t);
     let (phi, gamma) = sampled.discrete();
     let feedback = sampled.feedback_row();
-    let radius = |g: f64| critical(&closed_loop(phi, gamma, &feedback, g), |l| l.norm());
+    let radius = |g: f64| dominant(&closed_loop(phi, gamma, &feedback, g));
     let gain = bisect_ultimate(first_gain(plant), |g| radius(g).norm() > 1.0)?;
     Some(UltimateCycle {
         gain,
@@ -252,7 +249,7 @@ mod tests {
         let u = discrete_ultimate(&damped, 1e-3).unwrap();
         let sampled = damped.sampled(1e-3);
         let (phi, gamma) = sampled.discrete();
-        let r = |g: f64| critical(&closed_loop(phi, gamma, &[1.0, 0.0], g), |l| l.norm()).norm();
+        let r = |g: f64| dominant(&closed_loop(phi, gamma, &[1.0, 0.0], g)).norm();
         assert!(r(u.gain * 0.999) < 1.0 && r(u.gain * 1.001) > 1.0);
         // Continuous m·s² + c·s + K·k is stable at any gain; only the hold's lag makes a
         // crossing, at a period of some servo periods.
