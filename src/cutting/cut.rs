@@ -21,14 +21,20 @@ const MAX_CHORD_RESOLUTIONS: f64 = 4.0;
 /// Poses kept between removals, to test the chord against.
 const MAX_PENDING: usize = 256;
 
+/// Most chords removed in one pass over the rays.
+const MAX_PATH: usize = 64;
+
 /// One lane's cut.
 pub struct Cut {
     stock: Stock,
     process: CutProcess,
     tool: Tool,
-    /// The pose up to which the stock has been cut.
-    removed_to: Option<Pose>,
-    /// The poses since, in order (the tool's path the next chord must follow).
+    /// The chords decided and not yet removed, as the poses joining them: the first is where
+    /// the stock has been cut to, the last where the next chord starts. Removed together in
+    /// one pass over the rays once they reach a chord's length from the first (so the removal
+    /// lags the tool by no more than one chord, as if each were removed at once).
+    path: Vec<Pose>,
+    /// The poses since the path's last, in order (the tool's path the next chord must follow).
     pending: Vec<Pose>,
     /// Peak values over the cut so far.
     totals: CutTotals,
@@ -67,7 +73,7 @@ impl Cut {
             stock,
             process: CutProcess::new(model),
             tool,
-            removed_to: None,
+            path: Vec::new(),
             pending: Vec::new(),
             totals: CutTotals::default(),
             fault: None,
@@ -137,17 +143,19 @@ impl Cut {
     }
 
     /// Moves the tool on to `pose`: the stock loses what the tool sweeps, in straight chords
-    /// that follow the path within [`CHORD_TOLERANCE`] (or, with `always`, up to `pose` now).
+    /// that follow the path within [`CHORD_TOLERANCE`], removed a chord's length of path at a
+    /// time (or, with `always`, up to `pose` now).
     fn remove_to(&mut self, pose: &Pose, always: bool) {
-        let Some(from) = self.removed_to else {
+        let (Some(&start), Some(&from)) = (self.path.first(), self.path.last()) else {
             // The first pose: the tool stands where it stands (a tool started inside the
             // stock removes its own volume).
-            self.sweep(pose, pose);
-            self.removed_to = Some(*pose);
+            self.sweep(&[*pose]);
+            self.path.push(*pose);
             return;
         };
         let longest = MAX_CHORD_RESOLUTIONS * self.stock.resolution();
-        let follows = (pose.tip - from.tip).norm() <= longest
+        let within = (pose.tip - start.tip).norm() <= longest;
+        let follows = within
             && self.pending.len() < MAX_PENDING
             && self
                 .pending
@@ -159,14 +167,27 @@ impl Cut {
         }
         // The chord to the last pose that still followed, then on from there.
         if let Some(&last) = self.pending.last().filter(|_| !follows) {
-            self.sweep(&from, &last);
             self.pending.clear();
-            self.removed_to = Some(last);
+            self.path.push(last);
+            if !within || self.path.len() > MAX_PATH {
+                self.remove_path();
+            }
             return self.remove_to(pose, always);
         }
-        self.sweep(&from, pose);
         self.pending.clear();
-        self.removed_to = Some(*pose);
+        self.path.push(*pose);
+        if always || !within || self.path.len() > MAX_PATH {
+            self.remove_path();
+        }
+    }
+
+    /// Removes the chords of the path decided so far.
+    fn remove_path(&mut self) {
+        if self.path.len() > 1 {
+            let path = std::mem::take(&mut self.path);
+            self.sweep(&path);
+            self.path.push(path[path.len() - 1]);
+        }
     }
 
     /// How far pose `p` lies from the chord `a`–`b` (m): its tip's distance from the segment,
@@ -185,9 +206,10 @@ impl Cut {
         (p.tip - on_chord).norm() + turn
     }
 
-    /// Removes what the tool sweeps from `a` to `b`.
-    fn sweep(&mut self, a: &Pose, b: &Pose) {
-        match self.stock.remove_swept(&self.tool, a, b) {
+    /// Removes what the tool sweeps along `path`.
+    fn sweep(&mut self, path: &[Pose]) {
+        let reach = super::stock::default_reach(&self.tool);
+        match self.stock.remove_swept_path(&self.tool, path, reach) {
             Ok(volume) => self.totals.removed_volume += volume,
             Err(e) => {
                 if self.fault.is_none() {
@@ -217,8 +239,9 @@ impl Cut {
     /// Removes what the last steps swept and not yet removed (at the end of a run).
     pub fn finish(&mut self) {
         // The last pose the tool reached: the newest one not yet swept to, if any.
-        if let Some(&last) = self.pending.last() {
-            self.remove_to(&last, true);
+        match self.pending.last() {
+            Some(&last) => self.remove_to(&last, true),
+            None => self.remove_path(),
         }
     }
 

@@ -20,7 +20,7 @@ use nalgebra::{Point3, Vector3};
 
 use super::tool::{Pose, Tool, ToolShape};
 use rayon::prelude::*;
-use sweep::Sweep;
+use sweep::{GroupTree, Sweep};
 
 /// `more` value of a dexel whose intervals are inline (zero or one interval).
 const INLINE: u32 = u32::MAX;
@@ -566,11 +566,28 @@ impl Stock {
     /// solid up to [`default_reach`] above its tip. Returns the removed volume (m³) as the
     /// dexels measure it (the mean of the three families' measures).
     pub fn remove_swept(&mut self, tool: &Tool, from: &Pose, to: &Pose) -> Result<f64, StockError> {
-        self.remove_swept_reach(tool, from, to, default_reach(tool))
+        self.remove_swept_path(tool, &[*from, *to], default_reach(tool))
     }
 
     /// [`Stock::remove_swept`] with the tool solid up to `reach` (m) above its tip (raised to
     /// at least twice the corner radius).
+    pub fn remove_swept_reach(
+        &mut self,
+        tool: &Tool,
+        from: &Pose,
+        to: &Pose,
+        reach: f64,
+    ) -> Result<f64, StockError> {
+        self.remove_swept_path(tool, &[*from, *to], reach)
+    }
+
+    /// Removes what the tool sweeps along a path of poses, each consecutive two a move as in
+    /// [`Stock::remove_swept`] (one pose: the tool standing there), the tool solid up to
+    /// `reach` (m) above its tip. The same solid as the moves removed one by one, found in one
+    /// pass over the rays: each ray is read once, and a move whose reach on the ray lies
+    /// within what the path's other moves already take from it costs no exact geometry (the
+    /// path's first and last moves are taken first: along a path that does not turn back they
+    /// hold most rays' ends). Refused as a whole, nothing removed, when any pose is invalid.
     ///
     /// A straight move with a fixed axis sweeps a convex solid, cut from each ray exactly
     /// (closed form for flat and ball ends, converged Newton iterations for the bull nose's
@@ -585,11 +602,10 @@ impl Stock {
     /// Callers that step in small time steps, as the co-simulation does, turn by little in
     /// each call and need few sub-moves. Heights of the tool that cannot be in the stock
     /// (its axis farther than the radius from the stock's box) are not swept.
-    pub fn remove_swept_reach(
+    pub fn remove_swept_path(
         &mut self,
         tool: &Tool,
-        from: &Pose,
-        to: &Pose,
+        path: &[Pose],
         reach: f64,
     ) -> Result<f64, StockError> {
         let radius = tool.radius();
@@ -603,6 +619,42 @@ impl Stock {
             return Err(StockError::BadTool);
         }
         let reach = reach.max(2.0 * corner).max(radius);
+        // Each move's sweeps, the path's last move first: along a path that does not turn
+        // back it holds most rays' ends (the earlier moves' leading sides lie within it, their
+        // trailing sides in material the path's start already left), so the other moves are
+        // mostly within what it takes.
+        let mut sweeps = Vec::new();
+        let mut moves = vec![0];
+        match path {
+            [] => {}
+            [only] => self.sweeps_of_move(tool, only, only, reach, &mut sweeps)?,
+            _ => {
+                for pair in path.windows(2) {
+                    self.sweeps_of_move(tool, &pair[0], &pair[1], reach, &mut sweeps)?;
+                    moves.push(sweeps.len());
+                }
+            }
+        }
+        let last = moves[moves.len().saturating_sub(2)];
+        let (others, last) = sweeps.split_at(last);
+        Ok(self.remove_sweeps(
+            &last.iter().collect::<Vec<_>>(),
+            &others.iter().collect::<Vec<_>>(),
+        ))
+    }
+
+    /// The fixed-axis straight sweeps that make up one move (see
+    /// [`Stock::remove_swept_path`]), appended to `out`.
+    fn sweeps_of_move(
+        &self,
+        tool: &Tool,
+        from: &Pose,
+        to: &Pose,
+        reach: f64,
+        out: &mut Vec<Sweep>,
+    ) -> Result<(), StockError> {
+        let radius = tool.radius();
+        let corner = tool.corner_radius();
         let mut axes = [Vector3::zeros(); 2];
         for (axis, pose) in axes.iter_mut().zip([from, to]) {
             let a = pose.axis.into_inner();
@@ -629,7 +681,6 @@ impl Stock {
         } else {
             (1, f64::INFINITY)
         };
-        let mut removed = 0.0;
         for i in 0..steps {
             let t0 = i as f64 / steps as f64;
             let t1 = (i + 1) as f64 / steps as f64;
@@ -654,10 +705,10 @@ impl Stock {
                     p1 + shift(&a1),
                     axis,
                 );
-                removed += self.remove_sweep(&sweep);
+                out.push(sweep);
             }
         }
-        Ok(removed)
+        Ok(())
     }
 
     /// The highest a point of the axis `a` above any of the tips can be while within
@@ -684,95 +735,214 @@ impl Stock {
         top
     }
 
-    /// Cuts one fixed-axis straight sweep from every ray in its bounding box.
-    fn remove_sweep(&mut self, sweep: &Sweep) -> f64 {
-        let (bmin, bmax) = sweep.bounds();
-        let res = self.res;
-        let o = self.origin;
+    /// Cuts fixed-axis straight sweeps from every ray in their bounding boxes, in one pass over
+    /// the rays: on each ray the `ends` first (a path's first and last moves), then the
+    /// `middle` ones, skipped all at once where their [`GroupBound`] reaches no material the
+    /// ends leave.
+    fn remove_sweeps(&mut self, ends: &[&Sweep], middle: &[&Sweep]) -> f64 {
         let (lo, hi) = self.bounds();
-        if (0..3).any(|a| bmax[a] < lo[a] || bmin[a] > hi[a]) {
+        let meets_stock = |sweep: &&&Sweep| {
+            let (bmin, bmax) = sweep.bounds();
+            (0..3).all(|a| bmax[a] >= lo[a] && bmin[a] <= hi[a])
+        };
+        let ends: Vec<&Sweep> = ends.iter().filter(meets_stock).copied().collect();
+        let middle: Vec<&Sweep> = middle.iter().filter(meets_stock).copied().collect();
+        let Some((bmin, bmax)) = ends
+            .iter()
+            .chain(&middle)
+            .map(|s| s.bounds())
+            .reduce(|(a, b), (c, d)| (a.inf(&c), b.sup(&d)))
+        else {
             return 0.0;
-        }
+        };
         self.changed = Some(match self.changed {
             Some((a, b)) => (a.inf(&bmin), b.sup(&bmax)),
             None => (bmin, bmax),
         });
+        let tree = GroupTree::new(&middle);
         let mut total = 0.0;
         for k in 0..3 {
-            let (u, v) = ((k + 1) % 3, (k + 2) % 3);
-            let range = |a: usize| {
-                let i0 = ((bmin[a] - o[a]) / res).ceil().max(0.0);
-                let i1 = ((bmax[a] - o[a]) / res).floor().min(self.n[a] as f64);
-                (i0 as usize, i1 as isize)
+            let end_lanes: Vec<Lane> = ends.iter().filter_map(|s| self.lane(s, k)).collect();
+            let middle_lanes: Vec<Option<Lane>> = middle.iter().map(|s| self.lane(s, k)).collect();
+            let all = || end_lanes.iter().chain(middle_lanes.iter().flatten());
+            let Some(iu0) = all().map(|l| l.iu.0).min() else {
+                continue;
             };
-            let (iu0, iu1) = range(u);
-            let (iv0, iv1) = range(v);
-            if iu1 < iu0 as isize || iv1 < iv0 as isize {
-                continue;
-            }
-            let len = self.n[k] as f64 * res;
-            let s_lo = (bmin[k] - o[k]).max(0.0);
-            let s_hi = (bmax[k] - o[k]).min(len);
-            if s_lo > s_hi {
-                continue;
-            }
-            let ray_sweep = sweep.for_axis(k);
+            let iu1 = all().map(|l| l.iu.1).max().unwrap_or(iu0);
+            let iv0 = all().map(|l| l.iv.0).min().unwrap_or(0);
+            let iv1 = all().map(|l| l.iv.1).max().unwrap_or(iv0);
+            let lanes = end_lanes.len() + middle_lanes.iter().flatten().count();
+            let (u, v) = ((k + 1) % 3, (k + 2) % 3);
+            let (res, o) = (self.res, self.origin);
             let family = &self.fam[k];
             // One row of rays: the intervals to remove, found from the stock as it is (rows
-            // are independent, so they may be found in parallel and applied in order).
-            let row = |jv: usize| -> Vec<(usize, f32, f32)> {
+            // are independent, so they may be found in parallel and applied in order), and
+            // how many (ray, sweep) pairs took the sweep's geometry.
+            let row = |jv: usize| -> RowCuts {
                 let mut cuts = Vec::new();
-                for ju in iu0..=iu1 as usize {
+                let mut looked = 0;
+                let pv = o[v] + jv as f64 * res;
+                // Each lane's rays of the row its bound can meet.
+                let span = |lane: &Lane| -> Option<(usize, usize)> {
+                    if !(lane.iv.0..=lane.iv.1).contains(&jv) {
+                        return None;
+                    }
+                    let (u0, u1) = lane.ray.row_span(pv)?;
+                    let first = ((u0 - o[u]) / res).ceil().max(lane.iu.0 as f64);
+                    let last = ((u1 - o[u]) / res).floor().min(lane.iu.1 as f64);
+                    (first <= last).then_some((first as usize, last as usize))
+                };
+                let end_here: Vec<(usize, usize, usize)> = end_lanes
+                    .iter()
+                    .enumerate()
+                    .filter_map(|(i, lane)| span(lane).map(|(a, b)| (i, a, b)))
+                    .collect();
+                let middle_here: Vec<Option<(usize, usize)>> = middle_lanes
+                    .iter()
+                    .map(|lane| lane.as_ref().and_then(span))
+                    .collect();
+                let spans = || {
+                    end_here
+                        .iter()
+                        .map(|h| (h.1, h.2))
+                        .chain(middle_here.iter().flatten().copied())
+                };
+                let Some(ju0) = spans().map(|h| h.0).min() else {
+                    return (cuts, looked);
+                };
+                let ju1 = spans().map(|h| h.1).max().unwrap_or(ju0);
+                let middle_span = (
+                    middle_here
+                        .iter()
+                        .flatten()
+                        .map(|h| h.0)
+                        .min()
+                        .unwrap_or(usize::MAX),
+                    middle_here.iter().flatten().map(|h| h.1).max().unwrap_or(0),
+                );
+                for ju in ju0..=ju1 {
                     let idx = family.index(ju, jv);
                     let ivs = family.intervals(idx);
-                    let (Some(first), Some(last)) = (ivs.first(), ivs.last()) else {
+                    let (Some(lowest), Some(highest)) = (ivs.first(), ivs.last()) else {
                         continue;
                     };
-                    // Rays without material where the sweep can be need no exact geometry.
-                    let (mut a, mut b) =
-                        (s_lo.max(f64::from(first[0])), s_hi.min(f64::from(last[1])));
-                    if a >= b {
-                        continue;
-                    }
+                    let material = (f64::from(lowest[0]), f64::from(highest[1]));
                     let mut p = o;
                     p[u] += ju as f64 * res;
-                    p[v] += jv as f64 * res;
-                    let Some((c0, c1)) = ray_sweep.bound(&p) else {
-                        continue;
+                    p[v] = pv;
+                    let mut taken = Taken::default();
+                    // Whether the ray has material within `[a, b]` the sweeps so far leave
+                    // (by more than a nanometre: a wall the same tool left, touched again,
+                    // is not worth the exact geometry).
+                    let more = |taken: &Taken, a: f64, b: f64| {
+                        ivs.iter().any(|iv| {
+                            let (x, y) = (f64::from(iv[0]).max(a), f64::from(iv[1]).min(b));
+                            y - x > CONTACT_ONLY && !taken.holds(x, y)
+                        })
                     };
-                    (a, b) = (a.max(c0), b.min(c1));
-                    // Material the sweep can reach by less than a nanometre (a wall the same
-                    // tool left, touched again) is not worth the exact geometry.
-                    let overlaps = |iv: &[f32; 2]| {
-                        f64::from(iv[1]).min(b) - f64::from(iv[0]).max(a) > CONTACT_ONLY
+                    let mut cut = |lane: &Lane, taken: &mut Taken| {
+                        let (a, b) = (lane.s.0.max(material.0), lane.s.1.min(material.1));
+                        if a >= b {
+                            return;
+                        }
+                        let Some((c0, c1)) = lane.ray.bound(&p) else {
+                            return;
+                        };
+                        let (a, b) = (a.max(c0), b.min(c1));
+                        if !more(taken, a, b) {
+                            return;
+                        }
+                        looked += 1;
+                        if let Some((s0, s1)) = lane.ray.interval(&p, a, b) {
+                            taken.add(s0, s1);
+                            cuts.push((idx, s0 as f32, s1 as f32));
+                        }
                     };
-                    if !ivs.iter().any(overlaps) {
+                    for &(i, first, last) in &end_here {
+                        if (first..=last).contains(&ju) {
+                            cut(&end_lanes[i], &mut taken);
+                        }
+                    }
+                    if !(middle_span.0..=middle_span.1).contains(&ju) {
                         continue;
                     }
-                    if let Some((s0, s1)) = ray_sweep.interval(&p, a, b) {
-                        cuts.push((idx, s0 as f32, s1 as f32));
-                    } else {
-                        // Looked at, nothing to cut: counted as a ray cut all the same.
-                        cuts.push((idx, 0.0, 0.0));
+                    // The other moves, where they can reach material the ends leave: the
+                    // tree's groups, later halves first (nearer the ends, they are likelier
+                    // to take what the earlier ones would).
+                    let mut stack = [0usize; 64];
+                    let mut depth = 1;
+                    while depth > 0 {
+                        depth -= 1;
+                        let node = &tree.nodes[stack[depth]];
+                        let reach = node
+                            .bound
+                            .as_ref()
+                            .map_or(Some(material), |g| g.bound(&p, k));
+                        match reach {
+                            Some((g0, g1))
+                                if more(&taken, g0.max(material.0), g1.min(material.1)) => {}
+                            _ => continue,
+                        }
+                        match node.halves {
+                            Some((earlier, later)) if depth + 2 <= stack.len() => {
+                                stack[depth] = earlier;
+                                stack[depth + 1] = later;
+                                depth += 2;
+                            }
+                            _ => {
+                                for i in node.sweeps.clone() {
+                                    let (Some(lane), Some((first, last))) =
+                                        (&middle_lanes[i], middle_here[i])
+                                    else {
+                                        continue;
+                                    };
+                                    if (first..=last).contains(&ju) {
+                                        cut(lane, &mut taken);
+                                    }
+                                }
+                            }
+                        }
                     }
                 }
-                cuts
+                (cuts, looked)
             };
-            let rows = iv0..=iv1 as usize;
-            let rays = (iu1 as usize + 1 - iu0) * rows.clone().count();
-            let cuts: Vec<Vec<(usize, f32, f32)>> = if rays >= PARALLEL_RAYS {
+            let rays = (iu1 + 1 - iu0) * (iv1 + 1 - iv0) * lanes.min(4);
+            let rows = iv0..=iv1;
+            let cuts: Vec<RowCuts> = if rays >= PARALLEL_RAYS {
                 rows.into_par_iter().map(row).collect()
             } else {
                 rows.map(row).collect()
             };
             let mut removed = 0.0;
-            for (idx, s0, s1) in cuts.into_iter().flatten() {
-                self.rays_cut += 1;
-                removed += self.fam[k].subtract(idx, s0, s1);
+            for (row_cuts, looked) in cuts {
+                self.rays_cut += looked;
+                for (idx, s0, s1) in row_cuts {
+                    removed += self.fam[k].subtract(idx, s0, s1);
+                }
             }
             total += removed;
         }
-        total * res * res / 3.0
+        total * self.res * self.res / 3.0
+    }
+
+    /// The rays of family `k` a sweep can meet: their index ranges and the span along them.
+    fn lane<'a>(&self, sweep: &'a Sweep, k: usize) -> Option<Lane<'a>> {
+        let (bmin, bmax) = sweep.bounds();
+        let (res, o) = (self.res, self.origin);
+        let (u, v) = ((k + 1) % 3, (k + 2) % 3);
+        let range = |a: usize| {
+            let i0 = ((bmin[a] - o[a]) / res).ceil().max(0.0);
+            let i1 = ((bmax[a] - o[a]) / res).floor().min(self.n[a] as f64);
+            (i0 <= i1).then_some((i0 as usize, i1 as usize))
+        };
+        let len = self.n[k] as f64 * res;
+        let s = ((bmin[k] - o[k]).max(0.0), (bmax[k] - o[k]).min(len));
+        (s.0 <= s.1).then_some(Lane {
+            ray: sweep.for_axis(k),
+            iu: range(u)?,
+            iv: range(v)?,
+            s,
+        })
     }
 
     /// Whether material is at `point` (m), read from the family of rays most aligned with
@@ -841,6 +1011,51 @@ pub(crate) fn most_aligned(n: &Vector3<f64>) -> usize {
         2
     } else {
         0
+    }
+}
+
+/// What one row's rays lose: (ray index, interval) pairs, and how many (ray, sweep) pairs
+/// took the sweep's geometry.
+type RowCuts = (Vec<(usize, f32, f32)>, u64);
+
+/// A sweep prepared for one family's rays: the lattice indices `(iu, iv)` of the rays its box
+/// holds (inclusive) and its span `s` along them (m from the lattice origin).
+struct Lane<'a> {
+    ray: sweep::RaySweep<'a>,
+    iu: (usize, usize),
+    iv: (usize, usize),
+    s: (f64, f64),
+}
+
+/// The parts of one ray that sweeps of a path take (a few intervals, merged where they meet).
+#[derive(Default, Clone, Copy)]
+struct Taken {
+    intervals: [(f64, f64); 4],
+    count: usize,
+}
+
+impl Taken {
+    /// Whether `[x, y]` lies within one interval taken (up to [`CONTACT_ONLY`]).
+    fn holds(&self, x: f64, y: f64) -> bool {
+        self.intervals[..self.count]
+            .iter()
+            .any(|&(a, b)| a <= x + CONTACT_ONLY && y - CONTACT_ONLY <= b)
+    }
+
+    /// Notes `[a, b]` as taken: merged into an interval it meets (or nearly: the bands of a
+    /// turning tool meet to rounding), else kept beside while
+    /// there is room (beyond that it is forgotten, which only costs later sweeps a look).
+    fn add(&mut self, a: f64, b: f64) {
+        for iv in &mut self.intervals[..self.count] {
+            if a <= iv.1 + CONTACT_ONLY && b >= iv.0 - CONTACT_ONLY {
+                *iv = (iv.0.min(a), iv.1.max(b));
+                return;
+            }
+        }
+        if self.count < self.intervals.len() {
+            self.intervals[self.count] = (a, b);
+            self.count += 1;
+        }
     }
 }
 

@@ -54,13 +54,17 @@ pub(crate) struct Sweep {
     min: Point3<f64>,
     max: Point3<f64>,
     enclosing: Enclosing,
+    /// A still ball holding the end piece's whole sweep (ball or puck): its centre and
+    /// squared radius.
+    end_ball: Option<(Point3<f64>, f64)>,
     /// The unit normal of the plane of the axis and the move, if they span one.
     across: Option<Vector3<f64>>,
 }
 
-/// A still cylinder holding the whole sweep: the tool's at the move's middle, its radius and
-/// height range grown by half the move across and along the axis. A ray that misses it, or
-/// whose material lies outside it, needs no exact geometry.
+/// A still cylinder holding the cylinder piece's whole sweep: the piece's at the move's middle,
+/// its radius and height range grown by half the move across and along the axis. With
+/// [`Sweep::end_ball`] it bounds the sweep: a ray that misses both, or whose material lies
+/// outside them, needs no exact geometry.
 #[derive(Debug, Clone, Copy)]
 struct Enclosing {
     centre: Point3<f64>,
@@ -132,6 +136,19 @@ impl Sweep {
         let d = p1 - p0;
         let along = d.dot(&n);
         let across = (d - n * along).norm();
+        let mid = p0 + d * 0.5;
+        let (h0, h1) = match pieces[0] {
+            Some(Piece::Cylinder { h0, h1, .. }) => (h0, h1),
+            _ => (lo, hi),
+        };
+        // The end piece lies within its centre's ball of radius R (ball) or ρ + r (puck);
+        // swept, within that ball at the move's middle grown by half the move.
+        let end_ball = match pieces[1] {
+            Some(Piece::Ball { ch, .. }) => Some((ch, big)),
+            Some(Piece::Puck { ch, rho, r }) => Some((ch, rho + r)),
+            _ => None,
+        }
+        .map(|(ch, radius)| (mid + n * ch, (radius + 0.5 * d.norm() + 1e-9).powi(2)));
         Sweep {
             tip: p0,
             d,
@@ -140,13 +157,24 @@ impl Sweep {
             min,
             max,
             enclosing: Enclosing {
-                centre: p0 + d * 0.5,
+                centre: mid,
                 radius2: (big + 0.5 * across + 1e-9).powi(2),
-                lo: lo - 0.5 * along.abs() - 1e-9,
-                hi: top + 0.5 * along.abs() + 1e-9,
+                lo: h0 - 0.5 * along.abs() - 1e-9,
+                hi: h1 + 0.5 * along.abs() + 1e-9,
                 slab: big,
             },
+            end_ball,
             across: n.cross(&d).try_normalize(1e-12 * (1.0 + d.norm())),
+        }
+    }
+
+    /// The end piece's centre height and the radius of a ball holding it, if the sweep has
+    /// an end piece.
+    fn end_piece(&self) -> Option<(f64, f64)> {
+        match self.pieces[1] {
+            Some(Piece::Ball { ch, r2 }) => Some((ch, r2.sqrt())),
+            Some(Piece::Puck { ch, rho, r }) => Some((ch, rho + r)),
+            _ => None,
         }
     }
 
@@ -196,6 +224,238 @@ impl Sweep {
     }
 }
 
+/// A bound on the union of many sweeps (the moves of a path between its first and last): a
+/// ray that meets none of it, or whose material within it the path's ends already take,
+/// needs none of those sweeps' geometry. It is the cylinder pieces' axis positions, taken
+/// across a common axis `n̄`, within `ε` of the segment joining the first sweep's start and
+/// the last sweep's end (so the pieces lie within `R + ε` of it, across `n̄`, between two
+/// heights), and the end pieces' centres within `ε` of their own segment (so the end pieces
+/// lie within a capsule). A path that stays near its chord has a tight bound; one that
+/// wanders or turns much gets a loose one, and its sweeps are then looked at one by one.
+#[derive(Debug, Clone)]
+pub(crate) struct GroupBound {
+    /// The common axis.
+    n: Vector3<f64>,
+    /// The axis segment's ends projected across `n̄`, and its radius.
+    side: (Vector3<f64>, Vector3<f64>, f64),
+    /// Heights along `n̄` (m, from the origin) the cylinder pieces lie between.
+    heights: (f64, f64),
+    /// The end pieces' capsule: segment ends and radius.
+    end: Option<(Vector3<f64>, Vector3<f64>, f64)>,
+}
+
+impl GroupBound {
+    /// The bound of `sweeps` (none if empty).
+    pub(crate) fn of(sweeps: &[&Sweep]) -> Option<GroupBound> {
+        let (first, last) = (sweeps.first()?, sweeps.last()?);
+        let n = sweeps
+            .iter()
+            .map(|s| s.n)
+            .sum::<Vector3<f64>>()
+            .try_normalize(1e-12)?;
+        let across = |v: Vector3<f64>| v - n * v.dot(&n);
+        let (a, b) = (across(first.tip.coords), across((last.tip + last.d).coords));
+        let (mut spread, mut lo, mut hi, mut radius) =
+            (0.0f64, f64::INFINITY, f64::NEG_INFINITY, 0.0f64);
+        let mut ends = Vec::new();
+        for sw in sweeps {
+            let (h0, h1) = match sw.pieces[0] {
+                Some(Piece::Cylinder { h0, h1, .. }) => (h0, h1),
+                _ => (0.0, 0.0),
+            };
+            let tilt = across(sw.n).norm();
+            let (cos, big) = (sw.n.dot(&n), sw.enclosing.slab);
+            radius = radius.max(big);
+            for tip in [sw.tip, sw.tip + sw.d] {
+                let off = segment_distance(&across(tip.coords), &a, &b);
+                spread = spread.max(off + h0.abs().max(h1.abs()) * tilt);
+                let base = tip.coords.dot(&n);
+                for h in [h0, h1] {
+                    lo = lo.min(base + h * cos - big * tilt);
+                    hi = hi.max(base + h * cos + big * tilt);
+                }
+                if let Some((centre, r)) = sw.end_piece() {
+                    ends.push((tip.coords + sw.n * centre, r));
+                }
+            }
+        }
+        let end = match (ends.first(), ends.last()) {
+            (Some(&(ea, _)), Some(&(eb, _))) => {
+                let r = ends
+                    .iter()
+                    .map(|(c, r)| segment_distance(c, &ea, &eb) + r)
+                    .fold(0.0, f64::max);
+                Some((ea, eb, r + 1e-9))
+            }
+            _ => None,
+        };
+        Some(GroupBound {
+            n,
+            side: (a, b, radius + spread + 1e-9),
+            heights: (lo - 1e-9, hi + 1e-9),
+            end,
+        })
+    }
+
+    /// Where the ray `p + s·e_k` can meet any of the sweeps: a superset of the hull of their
+    /// intervals.
+    pub(crate) fn bound(&self, p: &Point3<f64>, k: usize) -> Option<(f64, f64)> {
+        let e = Vector3::ith(k, 1.0);
+        let n = &self.n;
+        let side = {
+            let (a, b, rho) = &self.side;
+            let (q0, w) = (p.coords - n * p.coords.dot(n), e - n * n[k]);
+            let h = p.coords.dot(n);
+            ray_capsule(&q0, &w, a, b, *rho).and_then(|(mut lo, mut hi)| {
+                // Heights h + s·n_k within the pieces' heights.
+                if n[k].abs() > 1e-12 {
+                    let (x, y) = ((self.heights.0 - h) / n[k], (self.heights.1 - h) / n[k]);
+                    lo = lo.max(x.min(y));
+                    hi = hi.min(x.max(y));
+                } else if !(self.heights.0..=self.heights.1).contains(&h) {
+                    return None;
+                }
+                (lo <= hi).then_some((lo, hi))
+            })
+        };
+        let end = self
+            .end
+            .as_ref()
+            .and_then(|(a, b, rho)| ray_capsule(&p.coords, &e, a, b, *rho));
+        match (side, end) {
+            (Some((a, b)), Some((c, d))) => Some((a.min(c), b.max(d))),
+            (Some(i), None) | (None, Some(i)) => Some(i),
+            (None, None) => None,
+        }
+    }
+}
+
+/// Group bounds over a path's moves, halved down to a few moves each: a ray the whole group
+/// cannot add to costs one test; one it can is asked of each half, so that the sweeps looked
+/// at one by one are the few near the ray.
+#[derive(Debug, Clone)]
+pub(crate) struct GroupTree {
+    /// The nodes, the root first.
+    pub(crate) nodes: Vec<GroupNode>,
+}
+
+/// A node of a [`GroupTree`].
+#[derive(Debug, Clone)]
+pub(crate) struct GroupNode {
+    /// The sweeps it holds (indices into the sweeps the tree was built on).
+    pub(crate) sweeps: std::ops::Range<usize>,
+    /// Their bound (none: no common axis; every ray is asked of the sweeps).
+    pub(crate) bound: Option<GroupBound>,
+    /// Its halves (earlier, later), unless it is a leaf.
+    pub(crate) halves: Option<(usize, usize)>,
+}
+
+/// Most sweeps of a leaf of a [`GroupTree`].
+const LEAF_SWEEPS: usize = 4;
+
+impl GroupTree {
+    /// The tree over `sweeps` (no nodes if there are none).
+    pub(crate) fn new(sweeps: &[&Sweep]) -> GroupTree {
+        let mut tree = GroupTree { nodes: Vec::new() };
+        if !sweeps.is_empty() {
+            tree.build(sweeps, 0..sweeps.len());
+        }
+        tree
+    }
+
+    fn build(&mut self, sweeps: &[&Sweep], range: std::ops::Range<usize>) -> usize {
+        let at = self.nodes.len();
+        self.nodes.push(GroupNode {
+            sweeps: range.clone(),
+            bound: GroupBound::of(&sweeps[range.clone()]),
+            halves: None,
+        });
+        if range.len() > LEAF_SWEEPS {
+            let mid = range.start + range.len() / 2;
+            let earlier = self.build(sweeps, range.start..mid);
+            let later = self.build(sweeps, mid..range.end);
+            self.nodes[at].halves = Some((earlier, later));
+        }
+        at
+    }
+}
+
+/// Distance (m) from `p` to the segment `a`–`b`.
+fn segment_distance(p: &Vector3<f64>, a: &Vector3<f64>, b: &Vector3<f64>) -> f64 {
+    let d = b - a;
+    let l2 = d.norm_squared();
+    let t = if l2 > 0.0 {
+        ((p - a).dot(&d) / l2).clamp(0.0, 1.0)
+    } else {
+        0.0
+    };
+    (p - (a + d * t)).norm()
+}
+
+/// Where the line `q0 + s·w` lies within `rho` of the segment `a`–`b` (a capsule; all
+/// vectors in one space): a range of `s`, unbounded when `w` is zero and `q0` inside.
+fn ray_capsule(
+    q0: &Vector3<f64>,
+    w: &Vector3<f64>,
+    a: &Vector3<f64>,
+    b: &Vector3<f64>,
+    rho: f64,
+) -> Option<(f64, f64)> {
+    let ww = w.norm_squared();
+    if ww < 1e-24 {
+        return (segment_distance(q0, a, b) <= rho).then_some((f64::NEG_INFINITY, f64::INFINITY));
+    }
+    // |r0 + s·r1|² ≤ rho² for s within [lo, hi].
+    let quadratic = |r0: Vector3<f64>, r1: Vector3<f64>, lo: f64, hi: f64| {
+        let (qa, qb, qc) = (
+            r1.norm_squared(),
+            r0.dot(&r1),
+            r0.norm_squared() - rho * rho,
+        );
+        let (x, y) = if qa > 1e-24 {
+            let disc = qb * qb - qa * qc;
+            if disc < 0.0 {
+                return None;
+            }
+            let root = disc.sqrt();
+            ((-qb - root) / qa, (-qb + root) / qa)
+        } else if qc <= 0.0 {
+            (f64::NEG_INFINITY, f64::INFINITY)
+        } else {
+            return None;
+        };
+        let (x, y) = (x.max(lo), y.min(hi));
+        (x <= y).then_some((x, y))
+    };
+    let ball = |c: &Vector3<f64>| quadratic(q0 - c, *w, f64::NEG_INFINITY, f64::INFINITY);
+    let d = b - a;
+    let length = d.norm();
+    let middle = if length > 0.0 {
+        let dh = d / length;
+        // Along the segment: (q0 − a + s·w)·d̂ within [0, length].
+        let (t0, t1) = ((q0 - a).dot(&dh), w.dot(&dh));
+        let span = if t1.abs() > 1e-300 {
+            let (x, y) = (-t0 / t1, (length - t0) / t1);
+            Some((x.min(y), x.max(y)))
+        } else {
+            (0.0..=length)
+                .contains(&t0)
+                .then_some((f64::NEG_INFINITY, f64::INFINITY))
+        };
+        span.and_then(|(lo, hi)| {
+            let r0 = (q0 - a) - dh * t0;
+            let r1 = w - dh * t1;
+            quadratic(r0, r1, lo, hi)
+        })
+    } else {
+        None
+    };
+    [ball(a), ball(b), middle]
+        .into_iter()
+        .flatten()
+        .reduce(|(p, q), (r, s)| (p.min(r), q.max(s)))
+}
+
 /// A piece with its ray-direction-dependent constants.
 #[derive(Debug, Clone, Copy)]
 struct Prepared {
@@ -239,10 +499,76 @@ impl Quadratic {
 }
 
 impl RaySweep<'_> {
-    /// Where the ray `p + s·e_k` can meet the swept solid at all: its interval in the
-    /// enclosing cylinder, a cheap superset of [`RaySweep::interval`]'s.
+    /// Where the ray `p + s·e_k` can meet the swept solid at all: the hull of its intervals in
+    /// the enclosing cylinder and the end piece's enclosing ball, within the slab across the
+    /// move; a cheap superset of [`RaySweep::interval`]'s.
     pub(crate) fn bound(&self, p: &Point3<f64>) -> Option<(f64, f64)> {
+        let k = self.k;
+        let cylinder = self.enclosing_cylinder(p);
+        let ball = self.sweep.end_ball.and_then(|(centre, radius2)| {
+            // |y + s·e_k|² ≤ ρ²: s² + 2 y_k s + |y|² − ρ² ≤ 0.
+            let y = p - centre;
+            let (b, c) = (y[k], y.norm_squared() - radius2);
+            let disc = b * b - c;
+            (disc >= 0.0).then(|| {
+                let root = disc.sqrt();
+                (-b - root, -b + root)
+            })
+        });
+        let (mut lo, mut hi) = match (cylinder, ball) {
+            (Some((a, b)), Some((c, d))) => (a.min(c), b.max(d)),
+            (Some(i), None) | (None, Some(i)) => i,
+            (None, None) => return None,
+        };
+        // The slab across the move: no point of the sweep is farther than R from the plane of
+        // the axis and the move.
+        if let Some(m) = self.sweep.across {
+            let (y0, mk) = ((p - self.sweep.tip).dot(&m), m[k]);
+            let big = self.sweep.enclosing.slab;
+            if mk.abs() > 1e-12 {
+                let (a, b) = ((-big - y0) / mk, (big - y0) / mk);
+                lo = lo.max(a.min(b));
+                hi = hi.min(a.max(b));
+            } else if y0.abs() > big {
+                return None;
+            }
+        }
+        (lo <= hi).then_some((lo, hi))
+    }
+
+    /// The rays of this family in the row at transverse coordinate `v` (m, along axis
+    /// `(k + 2) % 3`) that can meet the bound: a range of their coordinate along `(k + 1) % 3`
+    /// (m), from the shadows of the enclosing cylinder's capsule (its axis segment grown by
+    /// its radius) and of the end piece's ball. A ray meets a capsule or a ball exactly where
+    /// its transverse point lies within the radius of their shadows.
+    pub(crate) fn row_span(&self, v: f64) -> Option<(f64, f64)> {
+        let (iu, iv) = ((self.k + 1) % 3, (self.k + 2) % 3);
+        let sw = self.sweep;
+        let en = &sw.enclosing;
+        let flat = |p: Point3<f64>| [p[iu], p[iv]];
+        let cylinder = (en.lo <= en.hi).then(|| {
+            capsule_row(
+                flat(en.centre + sw.n * en.lo),
+                flat(en.centre + sw.n * en.hi),
+                en.radius2.sqrt(),
+                v,
+            )
+        });
+        let ball = sw
+            .end_ball
+            .map(|(centre, radius2)| capsule_row(flat(centre), flat(centre), radius2.sqrt(), v));
+        [cylinder.flatten(), ball.flatten()]
+            .into_iter()
+            .flatten()
+            .reduce(|(a, b), (c, d)| (a.min(c), b.max(d)))
+    }
+
+    /// The ray's interval in the enclosing cylinder, if it meets it.
+    fn enclosing_cylinder(&self, p: &Point3<f64>) -> Option<(f64, f64)> {
         let en = &self.sweep.enclosing;
+        if en.lo > en.hi {
+            return None;
+        }
         let n = &self.sweep.n;
         let nk = n[self.k];
         let y = p - en.centre;
@@ -270,19 +596,6 @@ impl RaySweep<'_> {
             hi = hi.min((-b + root) / a);
         } else if c > 0.0 {
             return None;
-        }
-        // The slab across the move: no point of the sweep is farther than R from the plane of
-        // the axis and the move.
-        if let Some(m) = self.sweep.across {
-            let (y0, mk) = ((p - self.sweep.tip).dot(&m), m[self.k]);
-            let big = self.sweep.enclosing.slab;
-            if mk.abs() > 1e-12 {
-                let (a, b) = ((-big - y0) / mk, (big - y0) / mk);
-                lo = lo.max(a.min(b));
-                hi = hi.min(a.max(b));
-            } else if y0.abs() > big {
-                return None;
-            }
         }
         (lo <= hi).then_some((lo, hi))
     }
@@ -781,6 +1094,45 @@ fn swept_disc_residual(
     residual(t)
 }
 
+/// Where the line `{(u, v)}` at the given `v` meets the 2-D capsule of radius `rho` around
+/// the segment `a`–`b`: a range of `u`.
+fn capsule_row(a: [f64; 2], b: [f64; 2], rho: f64, v: f64) -> Option<(f64, f64)> {
+    let disc = |c: [f64; 2]| {
+        let h = rho * rho - (v - c[1]) * (v - c[1]);
+        (h >= 0.0).then(|| (c[0] - h.sqrt(), c[0] + h.sqrt()))
+    };
+    // The band between the ends: the foot of the point on the segment's line within the
+    // segment, and the point within `rho` of that line (both linear in `u`).
+    let d = [b[0] - a[0], b[1] - a[1]];
+    let length = d[0].hypot(d[1]);
+    let band = if length > 0.0 {
+        // t·length = d_u (u − a_u)/length + …, perp = (d_u (v − a_v) − d_v (u − a_u))/length.
+        let linear = |slope: f64, at_a: f64, lo: f64, hi: f64| -> Option<(f64, f64)> {
+            // lo ≤ at_a + slope·(u − a_u) ≤ hi.
+            if slope.abs() < 1e-300 {
+                return (lo <= at_a && at_a <= hi).then_some((f64::NEG_INFINITY, f64::INFINITY));
+            }
+            let (x, y) = ((lo - at_a) / slope, (hi - at_a) / slope);
+            Some((a[0] + x.min(y), a[0] + x.max(y)))
+        };
+        let along = linear(d[0] / length, d[1] * (v - a[1]) / length, 0.0, length);
+        let across = linear(-d[1] / length, d[0] * (v - a[1]) / length, -rho, rho);
+        match (along, across) {
+            (Some((p, q)), Some((r, s))) => {
+                let (lo, hi) = (p.max(r), q.min(s));
+                (lo <= hi).then_some((lo, hi))
+            }
+            _ => None,
+        }
+    } else {
+        None
+    };
+    [disc(a), disc(b), band]
+        .into_iter()
+        .flatten()
+        .reduce(|(p, q), (r, s)| (p.min(r), q.max(s)))
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -865,6 +1217,85 @@ mod tests {
                             let len = |i: Option<(f64, f64)>| i.map_or(0.0, |(a, b)| b - a);
                             prop_assert!(len(g) < 1e-10 && len(e) < 1e-10,
                                 "{:?}: placements {g:?}, exact {e:?}", pp.piece);
+                        }
+                    }
+                }
+            }
+        }
+    }
+
+    proptest! {
+        #![proptest_config(ProptestConfig::with_cases(400))]
+
+        /// Every bound holds the exact intervals it stands for: a sweep's own bound and its
+        /// row span hold its interval on any ray; each node of a group tree over a wobbling,
+        /// turning path of moves holds the interval of every move it holds.
+        #[test]
+        fn the_bounds_hold_the_sweeps(
+            shape in 0u8..3,
+            radius in 0.5e-3..8e-3,
+            (theta, phi) in (0.0..std::f64::consts::PI, 0.0..std::f64::consts::TAU),
+            (mt, mp) in (0.0..std::f64::consts::PI, 0.0..std::f64::consts::TAU),
+            step_exp in -7.0f64..-4.0,
+            wobble in 0.0f64..3.0,
+            turn in 0.0f64..0.01,
+            moves in 1usize..40,
+            top in 1.0f64..4.0,
+            seed in 0u64..1000,
+        ) {
+            let t = tool(shape, radius);
+            let step = 10f64.powf(step_exp);
+            let direction = unit(mt, mp);
+            let p0 = Point3::new(0.001, -0.002, 0.003);
+            // A path of `moves` steps along `direction`, each pose off the line by up to
+            // `wobble` µm, the axis turning by `turn` rad per step.
+            let pose = |i: usize| {
+                let j = i as f64 + seed as f64;
+                let off = Vector3::new((j * 1.7).sin(), (j * 2.3).cos(), (j * 0.9).sin());
+                let tip = p0 + direction * (step * i as f64) + off * (wobble * 1e-6);
+                (tip, unit(theta + turn * i as f64, phi))
+            };
+            let hi = (top * radius).max(2.0 * t.corner_radius()).max(radius);
+            let sweeps: Vec<Sweep> = (0..moves)
+                .map(|i| {
+                    let ((a, na), (b, nb)) = (pose(i), pose(i + 1));
+                    let n = (na + nb).normalize();
+                    Sweep::new(&t, 0.0, hi, a, b, n)
+                })
+                .collect();
+            let refs: Vec<&Sweep> = sweeps.iter().collect();
+            let tree = GroupTree::new(&refs);
+            let mut state = seed.wrapping_mul(0x9e37_79b9_7f4a_7c15) | 1;
+            let mut next = || {
+                state ^= state << 13;
+                state ^= state >> 7;
+                state ^= state << 17;
+                (state >> 11) as f64 / (1u64 << 53) as f64 * 2.0 - 1.0
+            };
+            let reach = hi + radius + step * moves as f64;
+            for _ in 0..200 {
+                let k = ((next() + 1.0) * 1.5) as usize % 3;
+                let mut origin = p0 + Vector3::new(next(), next(), next()) * reach;
+                origin[k] -= 0.05;
+                let (u, v) = ((k + 1) % 3, (k + 2) % 3);
+                for (i, sweep) in sweeps.iter().enumerate() {
+                    let ray = sweep.for_axis(k);
+                    let Some((a, b)) = ray.interval(&origin, 0.0, 0.1) else {
+                        continue;
+                    };
+                    let within = |(lo, hi): (f64, f64), x: f64| lo - 1e-12 <= x && x <= hi + 1e-12;
+                    let own = ray.bound(&origin);
+                    prop_assert!(own.is_some_and(|o| within(o, a) && within(o, b)),
+                        "sweep {i}: interval {:?}, bound {own:?}", (a, b));
+                    let span = ray.row_span(origin[v]);
+                    prop_assert!(span.is_some_and(|sp| within(sp, origin[u])),
+                        "sweep {i}: row span {span:?} misses the ray at {}", origin[u]);
+                    for node in tree.nodes.iter().filter(|n| n.sweeps.contains(&i)) {
+                        if let Some(group) = &node.bound {
+                            let g = group.bound(&origin, k);
+                            prop_assert!(g.is_some_and(|g| within(g, a) && within(g, b)),
+                                "node {:?} of sweep {i}: interval {:?}, bound {g:?}",
+                                node.sweeps, (a, b));
                         }
                     }
                 }

@@ -584,6 +584,102 @@ fn a_turning_tool_in_one_call_cuts_as_in_two_thousand() {
     }
 }
 
+/// The material of every ray of `stock`, slivers under 10 nm dropped and gaps under 10 nm
+/// closed (what a nanometre-level contact decision may change).
+fn rays(stock: &Stock) -> Vec<Vec<[f64; 2]>> {
+    let mut out = Vec::new();
+    for k in 0..3 {
+        let f = stock.family(k);
+        for idx in 0..f.nu * f.nv {
+            let mut ivs: Vec<[f64; 2]> = Vec::new();
+            for iv in f.intervals(idx) {
+                let (a, b) = (f64::from(iv[0]), f64::from(iv[1]));
+                match ivs.last_mut() {
+                    Some(last) if a - last[1] < 1e-8 => last[1] = b,
+                    _ => ivs.push([a, b]),
+                }
+            }
+            ivs.retain(|iv| iv[1] - iv[0] >= 1e-8);
+            out.push(ivs);
+        }
+    }
+    out
+}
+
+#[test]
+fn a_path_removed_at_once_is_its_moves_removed_one_by_one() {
+    // Paths of 1 to 60 moves of 5 to 40 µm, each pose off its line by up to 1.5 µm (a tool
+    // vibrating under load), the axis turning, one path turning back on itself: removed in
+    // one pass and move by move, every ray keeps the same material to the nanometre.
+    let original = Stock::from_box(p(0.0, 0.0, 0.0), p(14.0, 12.0, 8.0), RES, LIMIT).unwrap();
+    let mut looked = (0, 0);
+    for (case, shape) in [
+        ToolShape::Flat,
+        ToolShape::Ball,
+        ToolShape::Bull {
+            corner_radius: 1.0 * MM,
+        },
+    ]
+    .into_iter()
+    .enumerate()
+    {
+        let t = tool(6.0, shape);
+        for (moves, step_um, turn, back) in [
+            (1, 40.0, 0.0, false),
+            (12, 30.0, 0.002, false),
+            (60, 5.0, 0.0003, false),
+            (40, 20.0, 0.0, true),
+        ] {
+            let pose_at = |i: usize| {
+                let j = (i + 7 * case) as f64;
+                let along = if back && i > moves / 2 { moves - i } else { i } as f64;
+                let wobble = Vector3::new((j * 1.7).sin(), (j * 2.3).cos(), (j * 0.9).sin());
+                let a = turn * i as f64;
+                pose(
+                    p(5.0, 4.0, 6.5)
+                        + Vector3::new(1.0, 0.4, -0.2).normalize() * (along * step_um * 1e-6)
+                        + wobble * 1.5e-6,
+                    Vector3::new(a.sin(), 0.3 * a.sin(), a.cos()),
+                )
+            };
+            let path: Vec<Pose> = (0..=moves).map(pose_at).collect();
+            // The same start: the tool standing at the first pose.
+            let mut start = original.clone();
+            start.remove_swept(&t, &path[0], &path[0]).unwrap();
+            let mut once = start.clone();
+            once.remove_swept_path(&t, &path, default_reach(&t))
+                .unwrap();
+            let mut each = start.clone();
+            for pair in path.windows(2) {
+                each.remove_swept(&t, &pair[0], &pair[1]).unwrap();
+            }
+            looked.0 += once.rays_cut() - start.rays_cut();
+            looked.1 += each.rays_cut() - start.rays_cut();
+            let (a, b) = (rays(&once), rays(&each));
+            let mut differ = 0;
+            for (x, y) in a.iter().zip(&b) {
+                let same = x.len() == y.len()
+                    && x.iter()
+                        .zip(y)
+                        .all(|(i, j)| (i[0] - j[0]).abs() < 1e-8 && (i[1] - j[1]).abs() < 1e-8);
+                differ += usize::from(!same);
+            }
+            assert_eq!(
+                differ, 0,
+                "{shape:?}, {moves} moves of {step_um} µm: {differ} rays differ"
+            );
+            assert!(once.volume() < start.volume() || moves == 1);
+        }
+    }
+    // One pass looks at far fewer rays than the moves one by one.
+    assert!(
+        looked.0 * 2 < looked.1,
+        "rays looked at: {} at once, {} one by one",
+        looked.0,
+        looked.1
+    );
+}
+
 /// Timings for the report: `cargo test --release -- --ignored --nocapture timings`.
 #[test]
 #[ignore]
