@@ -12,11 +12,20 @@ use nalgebra::{Point3, Unit, Vector3};
 /// [`MAX_CHORD_RESOLUTIONS`].
 const CHORD_TOLERANCE: f64 = 0.2e-6;
 
-/// Longest chord (in stock resolutions). Removal lagging behind the tool does not change what
-/// the force model reads (it asks in front of the moving tool, where nothing was removed
-/// yet; behind it the chip thickness is negative), but a tool turning back into its own track
-/// would meet material up to a chord's length too late.
-const MAX_CHORD_RESOLUTIONS: f64 = 4.0;
+/// Longest stretch of path removed in one pass over the rays (in stock resolutions), which is
+/// also the most the removal lags the tool by. Lagging removal does not change what the force
+/// model reads (it asks in front of the moving tool, where nothing was removed yet; behind it
+/// the chip thickness is negative; beside it, on a path curving less sharply than the tool's
+/// radius, nothing earlier swept either), as long as the tool does not turn back or aside into
+/// its own track: a stretch ends where the path leaves its course by [`COURSE_RESOLUTIONS`].
+const MAX_CHORD_RESOLUTIONS: f64 = 8.0;
+
+/// How far (in stock resolutions) the tool may fall behind or aside from the course of the
+/// stretch of path not yet removed (from its start through its last chord's end) before that
+/// stretch is removed: the force model's probe reads half a cell outside the tool, so a tool
+/// turning into its own track meets no material it already cut. Vibration of a micrometre and
+/// paths curving gently stay on course.
+const COURSE_RESOLUTIONS: f64 = 0.5;
 
 /// Poses kept between removals, to test the chord against.
 const MAX_PENDING: usize = 256;
@@ -154,7 +163,8 @@ impl Cut {
             return;
         };
         let longest = MAX_CHORD_RESOLUTIONS * self.stock.resolution();
-        let within = (pose.tip - start.tip).norm() <= longest;
+        let within =
+            (pose.tip - start.tip).norm() <= longest && self.on_course(&start, &from, pose);
         let follows = within
             && self.pending.len() < MAX_PENDING
             && self
@@ -179,6 +189,21 @@ impl Cut {
         if always || !within || self.path.len() > MAX_PATH {
             self.remove_path();
         }
+    }
+
+    /// Whether `pose` keeps to the course of the stretch from `start` to `from`: not behind
+    /// `from` along it, nor aside from it, by more than [`COURSE_RESOLUTIONS`]. A stretch
+    /// shorter than that has no course yet.
+    fn on_course(&self, start: &Pose, from: &Pose, pose: &Pose) -> bool {
+        let slack = COURSE_RESOLUTIONS * self.stock.resolution();
+        let course = from.tip - start.tip;
+        let length = course.norm();
+        if length <= slack {
+            return true;
+        }
+        let r = pose.tip - start.tip;
+        let along = r.dot(&course) / length;
+        along >= length - slack && (r - course * (along / length)).norm() <= slack
     }
 
     /// Removes the chords of the path decided so far.
@@ -298,5 +323,68 @@ pub fn pose(tip: Point3<f64>, axis: Vector3<f64>) -> Pose {
     Pose {
         tip,
         axis: Unit::try_new(axis, 1e-12).unwrap_or(Vector3::z_axis()),
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::cutting::{material, ToolShape};
+
+    const MM: f64 = 1e-3;
+
+    fn slot_cut() -> Cut {
+        let stock = Stock::from_box(
+            Point3::new(0.0, -10.0 * MM, -5.0 * MM),
+            Point3::new(20.0 * MM, 10.0 * MM, 0.0),
+            0.1 * MM,
+            1 << 30,
+        )
+        .unwrap();
+        let tool = Tool {
+            diameter: 6.0 * MM,
+            flutes: 3,
+            helix: 0.5,
+            flute_length: 10.0 * MM,
+            shape: ToolShape::Flat,
+        };
+        let model = ForceModel::new(tool, material("al7075").unwrap().coefficients).unwrap();
+        Cut::new(stock, model, tool)
+    }
+
+    /// Whether the stock holds material at `(x, y)` mm, 1 mm below its top.
+    fn solid(cut: &Cut, x: f64, y: f64) -> bool {
+        cut.stock()
+            .contains(&Point3::new(x * MM, y * MM, -1.0 * MM), &Vector3::x())
+    }
+
+    #[test]
+    fn removal_lags_the_tool_by_a_stretch_and_catches_up_where_it_turns_back() {
+        // A 6 mm tool, 2 mm deep, feeding along X in 5 µm steps from x = 5 mm.
+        let mut cut = slot_cut();
+        let at = |x: f64| pose(Point3::new(x * MM, 0.0, -2.0 * MM), Vector3::z());
+        let dt = 1e-4;
+        let v = Vector3::new(0.05, 0.0, 0.0);
+        let mut x = 5.0;
+        for _ in 0..=200 {
+            cut.step(&at(x), &v, 1000.0, dt);
+            x += 0.005;
+        }
+        // At x = 6 mm the removal lags by at most a stretch (0.8 mm here): the tool's trailing
+        // edge is cut, its leading edge at 9 mm not yet by more than 0.8 mm.
+        assert!(!solid(&cut, 5.0 - 3.0 + 0.05, 0.0), "behind the start");
+        assert!(!solid(&cut, 9.0 - 0.85, 0.0), "lagging more than a stretch");
+        // Turning back: once the tool is half a cell behind its course, what it swept going
+        // forward is gone before it cuts again.
+        for _ in 0..20 {
+            x -= 0.005;
+            cut.step(&at(x), &(-v), 1000.0, dt);
+        }
+        assert!(
+            !solid(&cut, 8.99, 0.0),
+            "the forward stretch left behind at the turn"
+        );
+        // Away from the cut the block is whole.
+        assert!(solid(&cut, 9.2, 0.0) && solid(&cut, 6.0, 3.2));
     }
 }

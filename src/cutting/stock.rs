@@ -956,14 +956,16 @@ impl Stock {
         if !rel.iter().all(|c| c.is_finite()) {
             return false;
         }
-        let iu = (rel[u] / self.res).round();
-        let iv = (rel[v] / self.res).round();
-        if iu < 0.0 || iv < 0.0 || iu > self.n[u] as f64 || iv > self.n[v] as f64 {
+        // The nearest lattice line, rounded by a cast once within the lattice: `f64::round` is
+        // a library call, and the force model asks this many times per step.
+        let (fu, fv) = (rel[u] / self.res + 0.5, rel[v] / self.res + 0.5);
+        if !(fu >= 0.0 && fv >= 0.0 && fu < self.n[u] as f64 + 1.0 && fv < self.n[v] as f64 + 1.0) {
             return false;
         }
+        let (iu, iv) = (fu as usize, fv as usize);
         let f = &self.fam[k];
         let s = rel[k];
-        f.intervals(f.index(iu as usize, iv as usize))
+        f.intervals(f.index(iu, iv))
             .iter()
             .any(|iv| f64::from(iv[0]) <= s && s < f64::from(iv[1]))
     }

@@ -304,19 +304,26 @@ impl GroupBound {
         let n = &self.n;
         let side = {
             let (a, b, rho) = &self.side;
-            let (q0, w) = (p.coords - n * p.coords.dot(n), e - n * n[k]);
             let h = p.coords.dot(n);
-            ray_capsule(&q0, &w, a, b, *rho).and_then(|(mut lo, mut hi)| {
-                // Heights h + s·n_k within the pieces' heights.
-                if n[k].abs() > 1e-12 {
-                    let (x, y) = ((self.heights.0 - h) / n[k], (self.heights.1 - h) / n[k]);
-                    lo = lo.max(x.min(y));
-                    hi = hi.min(x.max(y));
-                } else if !(self.heights.0..=self.heights.1).contains(&h) {
-                    return None;
-                }
-                (lo <= hi).then_some((lo, hi))
-            })
+            // Heights h + s·n_k within the pieces' heights.
+            let (lo, hi) = if n[k].abs() > 1e-12 {
+                let (x, y) = ((self.heights.0 - h) / n[k], (self.heights.1 - h) / n[k]);
+                (x.min(y), x.max(y))
+            } else if (self.heights.0..=self.heights.1).contains(&h) {
+                (f64::NEG_INFINITY, f64::INFINITY)
+            } else {
+                (f64::INFINITY, f64::NEG_INFINITY)
+            };
+            (lo <= hi)
+                .then(|| {
+                    let (q0, w) = (p.coords - n * h, e - n * n[k]);
+                    ray_capsule(&q0, &w, a, b, *rho)
+                })
+                .flatten()
+                .and_then(|(x, y)| {
+                    let (x, y) = (x.max(lo), y.min(hi));
+                    (x <= y).then_some((x, y))
+                })
         };
         let end = self
             .end
