@@ -355,7 +355,7 @@ mod tests {
     /// Whether the stock holds material at `(x, y)` mm, 1 mm below its top.
     fn solid(cut: &Cut, x: f64, y: f64) -> bool {
         cut.stock()
-            .contains(&Point3::new(x * MM, y * MM, -1.0 * MM), &Vector3::x())
+            .contains(&Point3::new(x * MM, y * MM, -MM), &Vector3::x())
     }
 
     #[test]
