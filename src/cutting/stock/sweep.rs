@@ -437,27 +437,39 @@ fn ray_capsule(
     let ball = |c: &Vector3<f64>| quadratic(q0 - c, *w, f64::NEG_INFINITY, f64::INFINITY);
     let d = b - a;
     let length = d.norm();
-    let middle = if length > 0.0 {
-        let dh = d / length;
-        // Along the segment: (q0 − a + s·w)·d̂ within [0, length].
-        let (t0, t1) = ((q0 - a).dot(&dh), w.dot(&dh));
-        let span = if t1.abs() > 1e-300 {
-            let (x, y) = (-t0 / t1, (length - t0) / t1);
-            Some((x.min(y), x.max(y)))
+    if length == 0.0 {
+        return ball(a);
+    }
+    let dh = d / length;
+    // The infinite cylinder around the segment's line holds both end balls: where the line
+    // meets it within the segment's slab, that is the capsule; beyond the slab on either side
+    // only that side's ball can add to it.
+    let (t0, t1) = ((q0 - a).dot(&dh), w.dot(&dh));
+    let (x, y) = quadratic(
+        (q0 - a) - dh * t0,
+        w - dh * t1,
+        f64::NEG_INFINITY,
+        f64::INFINITY,
+    )?;
+    // The slab, (q0 − a + s·w)·d̂ within [0, length], and its ends' balls in order of s.
+    let (lo, hi, ends) = if t1.abs() > 1e-300 {
+        let (p, q) = (-t0 / t1, (length - t0) / t1);
+        if t1 > 0.0 {
+            (p, q, [a, b])
         } else {
-            (0.0..=length)
-                .contains(&t0)
-                .then_some((f64::NEG_INFINITY, f64::INFINITY))
-        };
-        span.and_then(|(lo, hi)| {
-            let r0 = (q0 - a) - dh * t0;
-            let r1 = w - dh * t1;
-            quadratic(r0, r1, lo, hi)
-        })
+            (q, p, [b, a])
+        }
+    } else if t0 < 0.0 {
+        (f64::INFINITY, f64::INFINITY, [a, a])
+    } else if t0 > length {
+        (f64::NEG_INFINITY, f64::NEG_INFINITY, [b, b])
     } else {
-        None
+        (f64::NEG_INFINITY, f64::INFINITY, [a, b])
     };
-    [ball(a), ball(b), middle]
+    let middle = (x.max(lo) <= y.min(hi)).then_some((x.max(lo), y.min(hi)));
+    let before = if x < lo { ball(ends[0]) } else { None };
+    let after = if y > hi { ball(ends[1]) } else { None };
+    [before, middle, after]
         .into_iter()
         .flatten()
         .reduce(|(p, q), (r, s)| (p.min(r), q.max(s)))
