@@ -31,7 +31,7 @@ const COURSE_RESOLUTIONS: f64 = 0.5;
 const MAX_PENDING: usize = 256;
 
 /// Most chords removed in one pass over the rays.
-const MAX_PATH: usize = 64;
+const MAX_PATH: usize = 160;
 
 /// One lane's cut.
 pub struct Cut {
