@@ -8,8 +8,8 @@ use nalgebra::{Point3, Unit, Vector3};
 /// How far the tool's path may stray from the straight chord removal sweeps it along (m): the
 /// stock is cut by the tool swept in straight chords, each as long as the path stays within
 /// this of it (at the tip, and at the far end of the fluted part for a turning axis). On a
-/// 25 mm radius that is a chord of 0.2 mm; on a straight line the chord grows to
-/// [`MAX_CHORD_RESOLUTIONS`].
+/// 25 mm radius that is a chord of 0.2 mm; on a straight line the chord grows to the stretch
+/// removed at once, [`MAX_STRETCH_RESOLUTIONS`].
 const CHORD_TOLERANCE: f64 = 0.2e-6;
 
 /// Longest stretch of path removed in one pass over the rays (in stock resolutions), which is
@@ -18,7 +18,7 @@ const CHORD_TOLERANCE: f64 = 0.2e-6;
 /// the chip thickness is negative; beside it, on a path curving less sharply than the tool's
 /// radius, nothing earlier swept either), as long as the tool does not turn back or aside into
 /// its own track: a stretch ends where the path leaves its course by [`COURSE_RESOLUTIONS`].
-const MAX_CHORD_RESOLUTIONS: f64 = 8.0;
+const MAX_STRETCH_RESOLUTIONS: f64 = 8.0;
 
 /// How far (in stock resolutions) the tool may fall behind or aside from the course of the
 /// stretch of path not yet removed (from its start through its last chord's end) before that
@@ -40,8 +40,8 @@ pub struct Cut {
     tool: Tool,
     /// The chords decided and not yet removed, as the poses joining them: the first is where
     /// the stock has been cut to, the last where the next chord starts. Removed together in
-    /// one pass over the rays once they reach a chord's length from the first (so the removal
-    /// lags the tool by no more than one chord, as if each were removed at once).
+    /// one pass over the rays once the tool is a stretch ([`MAX_STRETCH_RESOLUTIONS`]) from the
+    /// first, or leaves the stretch's course.
     path: Vec<Pose>,
     /// The poses since the path's last, in order (the tool's path the next chord must follow).
     pending: Vec<Pose>,
@@ -152,8 +152,8 @@ impl Cut {
     }
 
     /// Moves the tool on to `pose`: the stock loses what the tool sweeps, in straight chords
-    /// that follow the path within [`CHORD_TOLERANCE`], removed a chord's length of path at a
-    /// time (or, with `always`, up to `pose` now).
+    /// that follow the path within [`CHORD_TOLERANCE`], removed a stretch of path at a time
+    /// (or, with `always`, up to `pose` now).
     fn remove_to(&mut self, pose: &Pose, always: bool) {
         let (Some(&start), Some(&from)) = (self.path.first(), self.path.last()) else {
             // The first pose: the tool stands where it stands (a tool started inside the
@@ -162,7 +162,7 @@ impl Cut {
             self.path.push(*pose);
             return;
         };
-        let longest = MAX_CHORD_RESOLUTIONS * self.stock.resolution();
+        let longest = MAX_STRETCH_RESOLUTIONS * self.stock.resolution();
         let within =
             (pose.tip - start.tip).norm() <= longest && self.on_course(&start, &from, pose);
         let follows = within
