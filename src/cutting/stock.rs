@@ -736,17 +736,17 @@ impl Stock {
     }
 
     /// Cuts fixed-axis straight sweeps from every ray in their bounding boxes, in one pass over
-    /// the rays: on each ray the `ends` first (a path's first and last moves), then the
-    /// `middle` ones, skipped all at once where their [`GroupBound`] reaches no material the
-    /// ends leave.
-    fn remove_sweeps(&mut self, ends: &[&Sweep], middle: &[&Sweep]) -> f64 {
+    /// the rays: on each ray the `ends` first (a path's last move), then the `others`, asked
+    /// as the groups of a [`GroupTree`] and skipped a group at a time where its bound reaches
+    /// no material the sweeps so far leave.
+    fn remove_sweeps(&mut self, ends: &[&Sweep], others: &[&Sweep]) -> f64 {
         let (lo, hi) = self.bounds();
         let meets_stock = |sweep: &&&Sweep| {
             let (bmin, bmax) = sweep.bounds();
             (0..3).all(|a| bmax[a] >= lo[a] && bmin[a] <= hi[a])
         };
         let ends: Vec<&Sweep> = ends.iter().filter(meets_stock).copied().collect();
-        let middle: Vec<&Sweep> = middle.iter().filter(meets_stock).copied().collect();
+        let middle: Vec<&Sweep> = others.iter().filter(meets_stock).copied().collect();
         let Some((bmin, bmax)) = ends
             .iter()
             .chain(&middle)
@@ -906,6 +906,8 @@ impl Stock {
                 }
                 (cuts, looked)
             };
+            // The work: the rays in the box, each asked of a few sweeps (the others are mostly
+            // skipped by their groups).
             let rays = (iu1 + 1 - iu0) * (iv1 + 1 - iv0) * lanes.min(4);
             let rows = iv0..=iv1;
             let cuts: Vec<RowCuts> = if rays >= PARALLEL_RAYS {
@@ -984,8 +986,9 @@ impl Stock {
         std::mem::size_of::<Stock>() as u64 + self.fam.iter().map(Family::bytes).sum::<u64>()
     }
 
-    /// How many rays removals have intersected with a tool's sweep so far (rays without
-    /// material in a sweep's span are skipped and not counted): the measure of removal cost.
+    /// How many times removals have intersected a ray with a tool's sweep so far (a ray
+    /// without material the sweep can reach, beyond what the path's other moves take, is
+    /// skipped and not counted): the measure of removal cost.
     pub fn rays_cut(&self) -> u64 {
         self.rays_cut
     }

@@ -224,9 +224,9 @@ impl Sweep {
     }
 }
 
-/// A bound on the union of many sweeps (the moves of a path between its first and last): a
-/// ray that meets none of it, or whose material within it the path's ends already take,
-/// needs none of those sweeps' geometry. It is the cylinder pieces' axis positions, taken
+/// A bound on the union of many sweeps (moves of a path before its last): a ray that meets
+/// none of it, or whose material within it the sweeps already looked at take, needs none of
+/// those sweeps' geometry. It is the cylinder pieces' axis positions, taken
 /// across a common axis `n̄`, within `ε` of the segment joining the first sweep's start and
 /// the last sweep's end (so the pieces lie within `R + ε` of it, across `n̄`, between two
 /// heights), and the end pieces' centres within `ε` of their own segment (so the end pieces
