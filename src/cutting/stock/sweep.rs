@@ -143,12 +143,8 @@ impl Sweep {
         };
         // The end piece lies within its centre's ball of radius R (ball) or ρ + r (puck);
         // swept, within that ball at the move's middle grown by half the move.
-        let end_ball = match pieces[1] {
-            Some(Piece::Ball { ch, .. }) => Some((ch, big)),
-            Some(Piece::Puck { ch, rho, r }) => Some((ch, rho + r)),
-            _ => None,
-        }
-        .map(|(ch, radius)| (mid + n * ch, (radius + 0.5 * d.norm() + 1e-9).powi(2)));
+        let end_ball = end_piece(pieces[1])
+            .map(|(ch, radius)| (mid + n * ch, (radius + 0.5 * d.norm() + 1e-9).powi(2)));
         Sweep {
             tip: p0,
             d,
@@ -165,16 +161,6 @@ impl Sweep {
             },
             end_ball,
             across: n.cross(&d).try_normalize(1e-12 * (1.0 + d.norm())),
-        }
-    }
-
-    /// The end piece's centre height and the radius of a ball holding it, if the sweep has
-    /// an end piece.
-    fn end_piece(&self) -> Option<(f64, f64)> {
-        match self.pieces[1] {
-            Some(Piece::Ball { ch, r2 }) => Some((ch, r2.sqrt())),
-            Some(Piece::Puck { ch, rho, r }) => Some((ch, rho + r)),
-            _ => None,
         }
     }
 
@@ -274,7 +260,7 @@ impl GroupBound {
                     lo = lo.min(base + h * cos - big * tilt);
                     hi = hi.max(base + h * cos + big * tilt);
                 }
-                if let Some((centre, r)) = sw.end_piece() {
+                if let Some((centre, r)) = end_piece(sw.pieces[1]) {
                     ends.push((tip.coords + sw.n * centre, r));
                 }
             }
@@ -384,6 +370,16 @@ impl GroupTree {
             self.nodes[at].halves = Some((earlier, later));
         }
         at
+    }
+}
+
+/// An end piece's centre height and the radius of a ball holding it (a ball's own, a puck's
+/// disc radius plus its corner radius).
+fn end_piece(piece: Option<Piece>) -> Option<(f64, f64)> {
+    match piece {
+        Some(Piece::Ball { ch, r2 }) => Some((ch, r2.sqrt())),
+        Some(Piece::Puck { ch, rho, r }) => Some((ch, rho + r)),
+        _ => None,
     }
 }
 
